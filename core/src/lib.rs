@@ -1,1 +1,7 @@
 #![no_std]
+pub mod de;
+pub mod fit;
+pub mod fitness;
+pub mod geometry;
+pub mod moments;
+pub mod rng;

@@ -1,0 +1,326 @@
+//! Points and entities in the G(6,3) parametrisation of the paper (eqs. 4, 5, 10, 11).
+//!
+//! An entity is stored as its centre and its weights `w_j = 1 / r_j^2` rather than its semi-axes:
+//! a semi-axis that passed the degeneration threshold is infinite, and `w_j = 0` carries that
+//! limit (Table 1) as an ordinary finite number, so no inf or NaN is ever stored.
+
+/// A point in R^3, in the map's local frame (metres or the cloud's own unit).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct Point3 {
+    pub x: f32,
+    pub y: f32,
+    pub z: f32,
+}
+
+impl Point3 {
+    pub const fn new(x: f32, y: f32, z: f32) -> Self {
+        Self { x, y, z }
+    }
+
+    pub const fn to_array(self) -> [f32; 3] {
+        [self.x, self.y, self.z]
+    }
+
+    pub fn to_f64(self) -> [f64; 3] {
+        [self.x as f64, self.y as f64, self.z as f64]
+    }
+
+    pub fn is_finite(self) -> bool {
+        self.x.is_finite() && self.y.is_finite() && self.z.is_finite()
+    }
+
+    pub fn distance_squared(self, other: Point3) -> f32 {
+        let dx = self.x - other.x;
+        let dy = self.y - other.y;
+        let dz = self.z - other.z;
+        dx * dx + dy * dy + dz * dz
+    }
+}
+
+impl From<[f32; 3]> for Point3 {
+    fn from(p: [f32; 3]) -> Self {
+        Self::new(p[0], p[1], p[2])
+    }
+}
+
+/// The entities of Table 1. A degenerated axis is one whose fitted semi-axis reached the
+/// degeneration threshold; its weight is stored as zero.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum EntityKind {
+    Ellipsoid = 0,
+    /// An ellipsoid whose three semi-axes agree within the sphere tolerance.
+    Sphere = 1,
+    /// One infinite semi-axis: an elliptic cylinder along that axis.
+    Pseudocylinder = 2,
+    /// Two infinite semi-axes: two parallel planes normal to the remaining axis.
+    PlanePair = 3,
+}
+
+impl EntityKind {
+    pub const ALL: [EntityKind; 4] = [
+        EntityKind::Ellipsoid,
+        EntityKind::Sphere,
+        EntityKind::Pseudocylinder,
+        EntityKind::PlanePair,
+    ];
+
+    pub const fn from_u8(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Self::Ellipsoid),
+            1 => Some(Self::Sphere),
+            2 => Some(Self::Pseudocylinder),
+            3 => Some(Self::PlanePair),
+            _ => None,
+        }
+    }
+
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::Ellipsoid => "ellipsoid",
+            Self::Sphere => "sphere",
+            Self::Pseudocylinder => "pseudocylinder",
+            Self::PlanePair => "plane_pair",
+        }
+    }
+
+    /// Inverse of [`EntityKind::name`].
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|kind| kind.name() == name)
+    }
+}
+
+/// Parameters that turn fitted semi-axes into a stored entity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Degeneration {
+    /// A semi-axis at or above this length becomes infinite (`w_j = 0`); the paper uses 4 m.
+    pub threshold: f64,
+    /// Semi-axes whose largest/smallest ratio is within `1 + sphere_tolerance` form a sphere.
+    pub sphere_tolerance: f64,
+}
+
+impl Default for Degeneration {
+    fn default() -> Self {
+        Self {
+            threshold: 4.0,
+            sphere_tolerance: 0.01,
+        }
+    }
+}
+
+/// One map entity: 24 bytes, the six floats of the paper's memory count (Table 2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct Entity {
+    pub center: Point3,
+    /// `w_j = 1 / r_j^2`; zero for a degenerated (infinite) semi-axis, never negative, inf or NaN.
+    pub weights: [f32; 3],
+}
+
+impl Entity {
+    /// Builds an entity from fitted semi-axes. Axes at or over the threshold degenerate, except
+    /// that at least one axis always stays finite: with all three infinite eq. 5 has no surface.
+    pub fn from_semi_axes(center: Point3, semi_axes: [f64; 3], degeneration: &Degeneration) -> Self {
+        let mut weights = [0.0f32; 3];
+        let mut thinnest = 0;
+        for (j, &r) in semi_axes.iter().enumerate() {
+            if r < semi_axes[thinnest] {
+                thinnest = j;
+            }
+        }
+        for (j, (w, &r)) in weights.iter_mut().zip(semi_axes.iter()).enumerate() {
+            let degenerated = !(r < degeneration.threshold) && j != thinnest;
+            *w = if degenerated || !(r > 0.0) {
+                0.0
+            } else {
+                weight_of(r)
+            };
+        }
+        if weights.iter().all(|&w| w == 0.0) {
+            // Every axis was non-positive or the thinnest is itself over the threshold: keep
+            // the thinnest one as a finite surface rather than store an entity with none.
+            let r = semi_axes[thinnest];
+            let r = if r > 0.0 && r.is_finite() {
+                r
+            } else {
+                degeneration.threshold
+            };
+            weights[thinnest] = weight_of(r);
+        }
+        Self { center, weights }
+    }
+
+    /// A sphere of radius `radius` (kept finite whatever the threshold).
+    pub fn sphere(center: Point3, radius: f64) -> Self {
+        let w = if radius > 0.0 && radius.is_finite() {
+            weight_of(radius)
+        } else {
+            0.0
+        };
+        Self {
+            center,
+            weights: [w; 3],
+        }
+    }
+
+    /// Semi-axes `r_j = 1 / sqrt(w_j)`, with `f32::INFINITY` for a degenerated axis.
+    /// Display only: the stored form is [`Entity::weights`].
+    pub fn semi_axes(&self) -> [f32; 3] {
+        self.weights.map(|w| {
+            if w > 0.0 {
+                1.0 / libm::sqrtf(w)
+            } else {
+                f32::INFINITY
+            }
+        })
+    }
+
+    /// Number of degenerated (infinite) semi-axes.
+    pub fn degenerated_axes(&self) -> usize {
+        self.weights.iter().filter(|&&w| w == 0.0).count()
+    }
+
+    pub fn kind(&self, sphere_tolerance: f64) -> EntityKind {
+        match self.degenerated_axes() {
+            0 => {
+                let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
+                for &w in &self.weights {
+                    lo = lo.min(w);
+                    hi = hi.max(w);
+                }
+                // Weights go as 1/r^2, so the axis ratio is sqrt(hi/lo).
+                let ratio = libm::sqrt(hi as f64 / lo as f64);
+                if ratio <= 1.0 + sphere_tolerance {
+                    EntityKind::Sphere
+                } else {
+                    EntityKind::Ellipsoid
+                }
+            }
+            1 => EntityKind::Pseudocylinder,
+            _ => EntityKind::PlanePair,
+        }
+    }
+
+    /// `psi2(E)` of eq. 11.
+    pub fn psi2(&self) -> [f64; 7] {
+        let c = self.center.to_f64();
+        let w = self.weights.map(|w| w as f64);
+        let shift = c[0] * c[0] * w[0] + c[1] * c[1] * w[1] + c[2] * c[2] * w[2];
+        [
+            c[0] * w[0],
+            c[1] * w[1],
+            c[2] * w[2],
+            -0.5 * (shift - 1.0),
+            w[0],
+            w[1],
+            w[2],
+        ]
+    }
+
+    /// `psi1(X)^T psi2(E)` in its closed form `(1 - sum_j w_j (x_j - c_j)^2) / 2`: zero on the
+    /// surface, positive inside, negative outside.
+    pub fn inner_product(&self, point: Point3) -> f64 {
+        let p = point.to_f64();
+        let c = self.center.to_f64();
+        let mut sum = 0.0;
+        for j in 0..3 {
+            let d = p[j] - c[j];
+            sum += self.weights[j] as f64 * d * d;
+        }
+        0.5 * (1.0 - sum)
+    }
+}
+
+fn weight_of(semi_axis: f64) -> f32 {
+    let w = (1.0 / (semi_axis * semi_axis)) as f32;
+    // A semi-axis so small that 1/r^2 overflows f32 is kept as the largest finite weight.
+    if w.is_finite() { w } else { f32::MAX }
+}
+
+/// `psi1(X)` of eq. 10.
+pub fn psi1(point: Point3) -> [f64; 7] {
+    let p = point.to_f64();
+    [
+        p[0],
+        p[1],
+        p[2],
+        1.0,
+        -0.5 * p[0] * p[0],
+        -0.5 * p[1] * p[1],
+        -0.5 * p[2] * p[2],
+    ]
+}
+
+/// `psi1(X)^T psi2(E)`, the G(6,3) inner product of a point and an entity, as the dot product
+/// of eqs. 10 and 11. Prefer [`Entity::inner_product`] numerically; this is the paper's form.
+pub fn psi_inner_product(psi1: &[f64; 7], psi2: &[f64; 7]) -> f64 {
+    psi1.iter().zip(psi2.iter()).map(|(a, b)| a * b).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn psi_product_equals_closed_form() {
+        let entity = Entity::from_semi_axes(
+            Point3::new(0.3, -1.2, 2.0),
+            [0.5, 1.5, 0.25],
+            &Degeneration::default(),
+        );
+        for p in [
+            Point3::new(0.0, 0.0, 0.0),
+            Point3::new(0.8, -1.2, 2.0),
+            Point3::new(-3.0, 4.0, 1.0),
+        ] {
+            let paper = psi_inner_product(&psi1(p), &entity.psi2());
+            let closed = entity.inner_product(p);
+            assert!((paper - closed).abs() < 1e-9 * (1.0 + closed.abs()), "{paper} vs {closed}");
+        }
+        // (0.8, -1.2, 2.0) is r_x away from the centre along x: on the surface.
+        assert!(entity.inner_product(Point3::new(0.8, -1.2, 2.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn degeneration_stores_zero_weights_and_names_the_kind() {
+        let d = Degeneration::default();
+        let c = Point3::default();
+        let cases = [
+            ([0.5, 0.6, 0.7], EntityKind::Ellipsoid, 0),
+            ([0.5, 0.502, 0.501], EntityKind::Sphere, 0),
+            ([0.5, 9.0, 0.7], EntityKind::Pseudocylinder, 1),
+            ([5.0, 9.0, 0.7], EntityKind::PlanePair, 2),
+            ([5.0, 9.0, 7.0], EntityKind::PlanePair, 2),
+        ];
+        for (axes, kind, degenerated) in cases {
+            let e = Entity::from_semi_axes(c, axes, &d);
+            assert_eq!(e.kind(d.sphere_tolerance), kind, "{axes:?}");
+            assert_eq!(e.degenerated_axes(), degenerated, "{axes:?}");
+            assert!(e.weights.iter().all(|w| w.is_finite() && *w >= 0.0));
+        }
+    }
+
+    #[test]
+    fn hostile_semi_axes_never_store_inf_or_nan() {
+        let d = Degeneration::default();
+        for axes in [
+            [f64::NAN, 1.0, 1.0],
+            [0.0, 0.0, 0.0],
+            [-1.0, f64::INFINITY, 1e-30],
+            [f64::INFINITY; 3],
+        ] {
+            let e = Entity::from_semi_axes(Point3::default(), axes, &d);
+            assert!(e.weights.iter().all(|w| w.is_finite() && *w >= 0.0), "{axes:?}");
+            assert!(e.degenerated_axes() < 3, "{axes:?}");
+        }
+    }
+
+    #[test]
+    fn kind_names_round_trip() {
+        for kind in EntityKind::ALL {
+            assert_eq!(EntityKind::from_name(kind.name()), Some(kind));
+            assert_eq!(EntityKind::from_u8(kind as u8), Some(kind));
+        }
+    }
+}

@@ -1,0 +1,347 @@
+//! Cluster moments: count, mean and the central moments of order 2 and 4 that eq. 12 needs.
+//!
+//! Scheme: shifted power sums in f64. Each cluster keeps the sums of `u^a v^b` over its points,
+//! `u = x - shift`, for the monomials `u, u^2, u^3, u^4` of each axis and `uv, u^2 v, u v^2,
+//! u^2 v^2` of each axis pair. That set is closed under a change of shift, so two clusters merge
+//! exactly (re-shift one, add) and a point is one O(1) update.
+//!
+//! Why f64 sums and not Pébay's f32 updates: eq. 12's residual is a difference of fourth-order
+//! sums, and a well-fitted cluster makes that difference small, so f32's 24-bit mantissa (about
+//! 6e-8) is used up before the 1e-4 agreement with a direct f64 sum is reached. IEEE-754 addition and multiplication are
+//! exactly rounded on every target, soft-float on a Cortex-M4F included, so f64 keeps the bits
+//! identical across builds. The shift is the cluster's first point (or a caller's guess at the
+//! mean), which keeps the raw-to-central conversion free of large cancellations.
+
+use crate::geometry::Point3;
+
+/// Number of pairs (x,y), (x,z), (y,z).
+const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// Central moments a fitness evaluation needs, all about the cluster mean.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CentralMoments {
+    pub count: u64,
+    pub mean: [f64; 3],
+    /// `E[d_j^2]`, `d = x - mean`.
+    pub second: [f64; 3],
+    /// `E[d_j^2 d_k^2]` as a symmetric 3x3 matrix (diagonal: `E[d_j^4]`).
+    pub fourth: [[f64; 3]; 3],
+}
+
+/// Mergeable, incrementally updated power sums of a cluster.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Moments {
+    shift: [f64; 3],
+    /// False until a shift is chosen, by the caller or by the first point.
+    shift_fixed: bool,
+    count: u64,
+    /// `sum u_j^p` for p = 1..=4, per axis j.
+    axis: [[f64; 4]; 3],
+    /// Per pair (j,k): `sum u v, sum u^2 v, sum u v^2, sum u^2 v^2`.
+    pair: [[f64; 4]; 3],
+}
+
+impl Default for Moments {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Moments {
+    /// Empty moments; the first point added becomes the shift.
+    pub const fn new() -> Self {
+        Self {
+            shift: [0.0; 3],
+            shift_fixed: false,
+            count: 0,
+            axis: [[0.0; 4]; 3],
+            pair: [[0.0; 4]; 3],
+        }
+    }
+
+    /// Empty moments with a chosen shift (e.g. a centroid known in advance).
+    pub const fn with_shift(shift: [f64; 3]) -> Self {
+        Self {
+            shift,
+            shift_fixed: true,
+            count: 0,
+            axis: [[0.0; 4]; 3],
+            pair: [[0.0; 4]; 3],
+        }
+    }
+
+    pub const fn count(&self) -> u64 {
+        self.count
+    }
+
+    pub const fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Adds one point. Non-finite points are the caller's to reject; see `kmeans` and the stream.
+    pub fn add(&mut self, point: Point3) {
+        self.add_f64(point.to_f64());
+    }
+
+    pub fn add_f64(&mut self, p: [f64; 3]) {
+        if !self.shift_fixed {
+            self.shift = p;
+            self.shift_fixed = true;
+        }
+        let u = [p[0] - self.shift[0], p[1] - self.shift[1], p[2] - self.shift[2]];
+        for (sums, &uj) in self.axis.iter_mut().zip(u.iter()) {
+            let u2 = uj * uj;
+            sums[0] += uj;
+            sums[1] += u2;
+            sums[2] += u2 * uj;
+            sums[3] += u2 * u2;
+        }
+        for (sums, &(j, k)) in self.pair.iter_mut().zip(PAIRS.iter()) {
+            let (a, b) = (u[j], u[k]);
+            let ab = a * b;
+            sums[0] += ab;
+            sums[1] += ab * a;
+            sums[2] += ab * b;
+            sums[3] += ab * ab;
+        }
+        self.count += 1;
+    }
+
+    /// The same sums expressed about `new_shift` (exact algebra, binomial expansion).
+    pub fn reshifted(&self, new_shift: [f64; 3]) -> Self {
+        // u' = u - t with t = new_shift - shift.
+        let n = self.count as f64;
+        let t = [
+            new_shift[0] - self.shift[0],
+            new_shift[1] - self.shift[1],
+            new_shift[2] - self.shift[2],
+        ];
+        let mut out = Self::with_shift(new_shift);
+        out.count = self.count;
+        for j in 0..3 {
+            let [s1, s2, s3, s4] = self.axis[j];
+            let a = t[j];
+            let (a2, a3, a4) = (a * a, a * a * a, a * a * a * a);
+            out.axis[j] = [
+                s1 - n * a,
+                s2 - 2.0 * a * s1 + n * a2,
+                s3 - 3.0 * a * s2 + 3.0 * a2 * s1 - n * a3,
+                s4 - 4.0 * a * s3 + 6.0 * a2 * s2 - 4.0 * a3 * s1 + n * a4,
+            ];
+        }
+        for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            let [uv, u2v, uv2, u2v2] = self.pair[p];
+            let (u1, u2) = (self.axis[j][0], self.axis[j][1]);
+            let (v1, v2) = (self.axis[k][0], self.axis[k][1]);
+            let (a, b) = (t[j], t[k]);
+            // (u-a)(v-b), (u-a)^2 (v-b), (u-a)(v-b)^2, (u-a)^2 (v-b)^2 expanded.
+            let new_uv = uv - b * u1 - a * v1 + n * a * b;
+            let new_u2v = u2v - b * u2 - 2.0 * a * uv + 2.0 * a * b * u1 + a * a * v1
+                - n * a * a * b;
+            let new_uv2 = uv2 - a * v2 - 2.0 * b * uv + 2.0 * a * b * v1 + b * b * u1
+                - n * a * b * b;
+            let new_u2v2 = u2v2 - 2.0 * b * u2v - 2.0 * a * uv2
+                + b * b * u2
+                + a * a * v2
+                + 4.0 * a * b * uv
+                - 2.0 * a * b * b * u1
+                - 2.0 * a * a * b * v1
+                + n * a * a * b * b;
+            out.pair[p] = [new_uv, new_u2v, new_uv2, new_u2v2];
+        }
+        out
+    }
+
+    /// Merges another cluster's moments into this one; exact up to rounding.
+    pub fn merge(&mut self, other: &Moments) {
+        if other.count == 0 {
+            return;
+        }
+        if self.count == 0 {
+            *self = *other;
+            return;
+        }
+        let other = other.reshifted(self.shift);
+        self.count += other.count;
+        for (mine, theirs) in self.axis.iter_mut().zip(other.axis.iter()) {
+            for (a, b) in mine.iter_mut().zip(theirs.iter()) {
+                *a += b;
+            }
+        }
+        for (mine, theirs) in self.pair.iter_mut().zip(other.pair.iter()) {
+            for (a, b) in mine.iter_mut().zip(theirs.iter()) {
+                *a += b;
+            }
+        }
+    }
+
+    /// Mean of the points, or `None` for an empty cluster.
+    pub fn mean(&self) -> Option<[f64; 3]> {
+        if self.count == 0 {
+            return None;
+        }
+        let n = self.count as f64;
+        Some([
+            self.shift[0] + self.axis[0][0] / n,
+            self.shift[1] + self.axis[1][0] / n,
+            self.shift[2] + self.axis[2][0] / n,
+        ])
+    }
+
+    /// Central moments about the mean, or `None` for an empty cluster.
+    pub fn central(&self) -> Option<CentralMoments> {
+        if self.count == 0 {
+            return None;
+        }
+        let n = self.count as f64;
+        // Raw moments about the shift, then central ones by expanding (u - a)^p with a = E[u].
+        let e = |s: f64| s / n;
+        let mut a = [0.0; 3];
+        let mut second = [0.0; 3];
+        let mut fourth = [[0.0; 3]; 3];
+        for j in 0..3 {
+            let [s1, s2, s3, s4] = self.axis[j];
+            let m = e(s1);
+            a[j] = m;
+            second[j] = (e(s2) - m * m).max(0.0);
+            fourth[j][j] =
+                (e(s4) - 4.0 * m * e(s3) + 6.0 * m * m * e(s2) - 3.0 * m * m * m * m).max(0.0);
+        }
+        for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            let [uv, u2v, uv2, u2v2] = self.pair[p].map(e);
+            let (ma, mb) = (a[j], a[k]);
+            let (u2, v2) = (e(self.axis[j][1]), e(self.axis[k][1]));
+            let value = u2v2 - 2.0 * mb * u2v - 2.0 * ma * uv2
+                + mb * mb * u2
+                + ma * ma * v2
+                + 4.0 * ma * mb * uv
+                - 3.0 * ma * ma * mb * mb;
+            fourth[j][k] = value.max(0.0);
+            fourth[k][j] = value.max(0.0);
+        }
+        let mean = [
+            self.shift[0] + a[0],
+            self.shift[1] + a[1],
+            self.shift[2] + a[2],
+        ];
+        Some(CentralMoments {
+            count: self.count,
+            mean,
+            second,
+            fourth,
+        })
+    }
+}
+
+impl CentralMoments {
+    /// Root-mean-square distance of the points from their mean: the cluster's spread `s`.
+    pub fn rms_radius(&self) -> f64 {
+        libm::sqrt(self.second[0] + self.second[1] + self.second[2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg_points(n: usize, seed: u64, offset: [f64; 3]) -> ([[f64; 3]; 64], usize) {
+        let mut out = [[0.0; 3]; 64];
+        let mut s = seed;
+        let mut next = || {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        for p in out.iter_mut().take(n) {
+            *p = [
+                offset[0] + next() * 0.3,
+                offset[1] + next() * 0.1,
+                offset[2] + next() * 0.02,
+            ];
+        }
+        (out, n)
+    }
+
+    /// Direct two-pass central moments, the independent check.
+    fn direct(points: &[[f64; 3]]) -> CentralMoments {
+        let n = points.len() as f64;
+        let mut mean = [0.0; 3];
+        for p in points {
+            for j in 0..3 {
+                mean[j] += p[j] / n;
+            }
+        }
+        let mut second = [0.0; 3];
+        let mut fourth = [[0.0; 3]; 3];
+        for p in points {
+            let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+            for j in 0..3 {
+                second[j] += d[j] * d[j] / n;
+                for k in 0..3 {
+                    fourth[j][k] += d[j] * d[j] * d[k] * d[k] / n;
+                }
+            }
+        }
+        CentralMoments {
+            count: points.len() as u64,
+            mean,
+            second,
+            fourth,
+        }
+    }
+
+    fn assert_close(a: &CentralMoments, b: &CentralMoments, tol: f64) {
+        assert_eq!(a.count, b.count);
+        for j in 0..3 {
+            assert!((a.mean[j] - b.mean[j]).abs() <= tol * (1.0 + b.mean[j].abs()));
+            assert!((a.second[j] - b.second[j]).abs() <= tol * b.second[j]);
+            for k in 0..3 {
+                let (x, y) = (a.fourth[j][k], b.fourth[j][k]);
+                assert!((x - y).abs() <= tol * y, "fourth[{j}][{k}] {x} vs {y}");
+            }
+        }
+    }
+
+    #[test]
+    fn incremental_matches_two_pass_far_from_origin() {
+        // A cluster 1 km from the origin: raw sums about zero would lose everything here.
+        let (pts, n) = lcg_points(64, 7, [1000.0, -250.0, 30.0]);
+        let mut m = Moments::new();
+        for p in &pts[..n] {
+            m.add_f64(*p);
+        }
+        let got = m.central().expect("non-empty");
+        assert_close(&got, &direct(&pts[..n]), 1e-9);
+    }
+
+    #[test]
+    fn merge_equals_one_pass_and_reshift_is_exact() {
+        let (a, na) = lcg_points(40, 1, [1.0, 2.0, 3.0]);
+        let (b, nb) = lcg_points(24, 2, [1.5, 1.8, 3.1]);
+        let mut ma = Moments::new();
+        let mut mb = Moments::new();
+        let mut all = [[0.0; 3]; 64];
+        for (i, p) in a[..na].iter().enumerate() {
+            ma.add_f64(*p);
+            all[i] = *p;
+        }
+        for (i, p) in b[..nb].iter().enumerate() {
+            mb.add_f64(*p);
+            all[na + i] = *p;
+        }
+        ma.merge(&mb);
+        let expected = direct(&all[..na + nb]);
+        assert_close(&ma.central().expect("non-empty"), &expected, 1e-9);
+        // A shift 50 spreads away costs (50)^4 in cancellation: 6e6 * 1e-16, hence 1e-8.
+        let moved = ma.reshifted([-3.0, 7.0, 0.5]);
+        assert_close(&moved.central().expect("non-empty"), &expected, 1e-8);
+    }
+
+    #[test]
+    fn empty_moments_have_no_mean() {
+        let m = Moments::new();
+        assert!(m.mean().is_none() && m.central().is_none());
+        let mut merged = Moments::new();
+        merged.merge(&m);
+        assert!(merged.is_empty());
+    }
+}
