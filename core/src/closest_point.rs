@@ -33,7 +33,11 @@ fn robust_length3(a: f64, b: f64, c: f64) -> f64 {
 fn ellipse_root(r0: f64, z0: f64, z1: f64, g: f64) -> f64 {
     let n0 = r0 * z0;
     let mut s0 = z1 - 1.0;
-    let mut s1 = if g < 0.0 { 0.0 } else { robust_length2(n0, z1) - 1.0 };
+    let mut s1 = if g < 0.0 {
+        0.0
+    } else {
+        robust_length2(n0, z1) - 1.0
+    };
     let mut s = 0.0;
     for _ in 0..MAX_BISECTIONS {
         s = 0.5 * (s0 + s1);
@@ -90,7 +94,11 @@ fn ellipsoid_root(r0: f64, r1: f64, z: [f64; 3], g: f64) -> f64 {
     let n0 = r0 * z[0];
     let n1 = r1 * z[1];
     let mut s0 = z[2] - 1.0;
-    let mut s1 = if g < 0.0 { 0.0 } else { robust_length3(n0, n1, z[2]) - 1.0 };
+    let mut s1 = if g < 0.0 {
+        0.0
+    } else {
+        robust_length3(n0, n1, z[2]) - 1.0
+    };
     let mut s = 0.0;
     for _ in 0..MAX_BISECTIONS {
         s = 0.5 * (s0 + s1);
@@ -164,11 +172,12 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
     let mut axes = [(0.0f64, 0.0f64); 3];
     let mut count = 0;
     for (&r, &y) in semi_axes.iter().zip(offset.iter()) {
-        if r > 0.0 && r.is_finite() {
-            if let Some(slot) = axes.get_mut(count) {
-                *slot = (r, y.abs());
-                count += 1;
-            }
+        if r > 0.0
+            && r.is_finite()
+            && let Some(slot) = axes.get_mut(count)
+        {
+            *slot = (r, y.abs());
+            count += 1;
         }
     }
     let axes = &mut axes[..count];
@@ -184,10 +193,17 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
 /// Distance from `point` (f64, same frame as the map) to `entity`'s surface: eq. 13's `|d(x) - x|`.
 pub fn surface_distance(entity: &Entity, point: [f64; 3]) -> f64 {
     let c = entity.center.to_f64();
-    let semi_axes = entity
-        .weights
-        .map(|w| if w > 0.0 { 1.0 / libm::sqrt(w as f64) } else { f64::INFINITY });
-    distance_to_surface(semi_axes, [point[0] - c[0], point[1] - c[1], point[2] - c[2]])
+    let semi_axes = entity.weights.map(|w| {
+        if w > 0.0 {
+            1.0 / libm::sqrt(w as f64)
+        } else {
+            f64::INFINITY
+        }
+    });
+    distance_to_surface(
+        semi_axes,
+        [point[0] - c[0], point[1] - c[1], point[2] - c[2]],
+    )
 }
 
 /// Running eq. 13: the RMS surface distance of the points of one cluster.
@@ -226,7 +242,11 @@ mod tests {
     /// Brute force: the minimum over a dense parametric grid, then refined locally.
     fn brute_force(e: [f64; 3], y: [f64; 3]) -> f64 {
         let dist = |t: f64, p: f64| {
-            let x = [e[0] * p.sin() * t.cos(), e[1] * p.sin() * t.sin(), e[2] * p.cos()];
+            let x = [
+                e[0] * p.sin() * t.cos(),
+                e[1] * p.sin() * t.sin(),
+                e[2] * p.cos(),
+            ];
             ((x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2) + (x[2] - y[2]).powi(2)).sqrt()
         };
         let (mut best, mut bt, mut bp) = (f64::INFINITY, 0.0, 0.0);
@@ -274,7 +294,10 @@ mod tests {
         for y in points {
             let want = brute_force(e, y.map(f64::abs));
             let got = distance_to_surface(e, y);
-            assert!((got - want).abs() <= 1e-4 * want.max(1e-9), "{y:?}: {got} vs {want}");
+            assert!(
+                (got - want).abs() <= 1e-4 * want.max(1e-9),
+                "{y:?}: {got} vs {want}"
+            );
         }
     }
 

@@ -61,7 +61,11 @@ fn repair<R: Rng + ?Sized>(value: f64, lo: f64, hi: f64, rule: OutOfBounds, rng:
         OutOfBounds::Clamp => value.clamp(lo, hi),
         OutOfBounds::Reflect => {
             let width = hi - lo;
-            let mirrored = if value < lo { 2.0 * lo - value } else { 2.0 * hi - value };
+            let mirrored = if value < lo {
+                2.0 * lo - value
+            } else {
+                2.0 * hi - value
+            };
             // A step larger than the box still lands inside after one mirror and a clamp.
             if width > 0.0 {
                 mirrored.clamp(lo, hi)
@@ -90,7 +94,12 @@ where
     R: Rng + ?Sized,
     F: FnMut(&[f64; D]) -> f64,
 {
-    const { assert!(POP >= 4, "DE/rand/1 needs the target and three distinct others") };
+    const {
+        assert!(
+            POP >= 4,
+            "DE/rand/1 needs the target and three distinct others"
+        )
+    };
     const { assert!(D >= 1) };
     let mut population = [[0.0f64; D]; POP];
     let mut scores = [f64::INFINITY; POP];
@@ -124,8 +133,8 @@ where
             let mut trial = population[i];
             for j in 0..D {
                 if j == forced || uniform(rng) <= params.crossover {
-                    let donor =
-                        population[r1][j] + params.mutation * (population[r2][j] - population[r3][j]);
+                    let donor = population[r1][j]
+                        + params.mutation * (population[r2][j] - population[r3][j]);
                     trial[j] = repair(donor, lower[j], upper[j], out_of_bounds, rng);
                 }
             }
@@ -158,7 +167,10 @@ where
 }
 
 /// Three indices, distinct from each other and from `target`; POP >= 4 guarantees they exist.
-fn distinct_three<const POP: usize, R: Rng + ?Sized>(target: usize, rng: &mut R) -> (usize, usize, usize) {
+fn distinct_three<const POP: usize, R: Rng + ?Sized>(
+    target: usize,
+    rng: &mut R,
+) -> (usize, usize, usize) {
     // Draw from the POP-1 others, then from the remaining ones, skipping taken slots: three
     // draws, never a rejection loop, so the cost is bounded.
     let pick = |rng: &mut R, taken: &[usize]| {
@@ -191,10 +203,18 @@ mod tests {
         let mut rng = stream_rng(3, 0);
         let target = [0.3, -1.2, 2.5];
         let result = minimize::<3, 20, _, _>(
-            |x| x.iter().zip(target.iter()).map(|(a, b)| (a - b) * (a - b)).sum(),
+            |x| {
+                x.iter()
+                    .zip(target.iter())
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum()
+            },
             [-5.0; 3],
             [5.0; 3],
-            &DeParams { generations: 200, ..DeParams::default() },
+            &DeParams {
+                generations: 200,
+                ..DeParams::default()
+            },
             OutOfBounds::Clamp,
             None,
             &mut rng,
@@ -207,7 +227,11 @@ mod tests {
 
     #[test]
     fn seed_candidate_is_never_lost_and_bounds_hold() {
-        for rule in [OutOfBounds::Clamp, OutOfBounds::Reflect, OutOfBounds::Resample] {
+        for rule in [
+            OutOfBounds::Clamp,
+            OutOfBounds::Reflect,
+            OutOfBounds::Resample,
+        ] {
             let mut rng = stream_rng(9, 1);
             let mut outside = 0;
             let result = minimize::<2, 10, _, _>(
@@ -219,7 +243,10 @@ mod tests {
                 },
                 [0.5; 2],
                 [2.0; 2],
-                &DeParams { generations: 5, ..DeParams::default() },
+                &DeParams {
+                    generations: 5,
+                    ..DeParams::default()
+                },
                 rule,
                 Some([1.7, 0.6]),
                 &mut rng,

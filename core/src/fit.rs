@@ -164,7 +164,13 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
 /// Semi-axes minimising eq. 12's residual, `w = E[q q^T]^-1 E[q]`, each clamped into the box.
 fn least_squares_semi_axes(moments: &CentralMoments, lo: f64, hi: f64) -> Option<[f64; 3]> {
     let w = solve3(moments.fourth, moments.second)?;
-    Some(w.map(|w| if w > 0.0 { (1.0 / libm::sqrt(w)).clamp(lo, hi) } else { hi }))
+    Some(w.map(|w| {
+        if w > 0.0 {
+            (1.0 / libm::sqrt(w)).clamp(lo, hi)
+        } else {
+            hi
+        }
+    }))
 }
 
 /// Fits the ellipsoid semi-axes of one cluster (eq. 12 by DE) with a `POP`-member population.
@@ -196,7 +202,15 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
         seed.map(|r| r.map(to_search)),
         rng,
     );
-    finish(moments, &terms, result.best.map(from_search), hi, result.evaluations, params, false)
+    finish(
+        moments,
+        &terms,
+        result.best.map(from_search),
+        hi,
+        result.evaluations,
+        params,
+        false,
+    )
 }
 
 /// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.
@@ -223,7 +237,15 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
         rng,
     );
     let radius = from_search(result.best[0]);
-    finish(moments, &terms, [radius; 3], hi, result.evaluations, params, true)
+    finish(
+        moments,
+        &terms,
+        [radius; 3],
+        hi,
+        result.evaluations,
+        params,
+        true,
+    )
 }
 
 fn finish(
@@ -249,7 +271,10 @@ fn finish(
     let on_upper_bound = if sphere {
         u8::from(semi_axes[0] >= hi * (1.0 - 1e-9))
     } else {
-        semi_axes.iter().filter(|&&r| r >= hi * (1.0 - 1e-9)).count() as u8
+        semi_axes
+            .iter()
+            .filter(|&&r| r >= hi * (1.0 - 1e-9))
+            .count() as u8
     };
     Fit {
         entity,
@@ -263,12 +288,20 @@ fn finish(
 }
 
 /// [`fit_ellipsoid`] with the paper's population of 10.
-pub fn fit_ellipsoid_paper<R: Rng + ?Sized>(moments: &CentralMoments, params: &FitParams, rng: &mut R) -> Fit {
+pub fn fit_ellipsoid_paper<R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> Fit {
     fit_ellipsoid::<PAPER_POPULATION, R>(moments, params, rng)
 }
 
 /// [`fit_sphere`] with the paper's population of 10.
-pub fn fit_sphere_paper<R: Rng + ?Sized>(moments: &CentralMoments, params: &FitParams, rng: &mut R) -> Fit {
+pub fn fit_sphere_paper<R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> Fit {
     fit_sphere::<PAPER_POPULATION, R>(moments, params, rng)
 }
 
@@ -300,11 +333,21 @@ mod tests {
         let axes = [0.3, 0.2, 0.1];
         let moments = shell(axes, 2000);
         // 50 generations of 10 from random starts get close, not exact; the seeded start is exact.
-        for (init, tolerance) in [(Initialisation::Random, 0.1), (Initialisation::MomentSeeded, 0.01)] {
-            let params = FitParams { initialisation: init, ..FitParams::default() };
+        for (init, tolerance) in [
+            (Initialisation::Random, 0.1),
+            (Initialisation::MomentSeeded, 0.01),
+        ] {
+            let params = FitParams {
+                initialisation: init,
+                ..FitParams::default()
+            };
             let fit = fit_ellipsoid_paper(&moments, &params, &mut stream_rng(0, 0));
             for (got, want) in fit.semi_axes.iter().zip(axes.iter()) {
-                assert!((got - want).abs() < tolerance * want, "{init:?}: {:?}", fit.semi_axes);
+                assert!(
+                    (got - want).abs() < tolerance * want,
+                    "{init:?}: {:?}",
+                    fit.semi_axes
+                );
             }
         }
         // The least-squares candidate alone is exact here.
@@ -319,7 +362,11 @@ mod tests {
         let moments = shell([0.25, 0.25, 0.25], 1000);
         let params = FitParams::default();
         let sphere = fit_sphere_paper(&moments, &params, &mut stream_rng(0, 1));
-        assert!((sphere.semi_axes[0] - 0.25).abs() < 1e-3, "{:?}", sphere.semi_axes);
+        assert!(
+            (sphere.semi_axes[0] - 0.25).abs() < 1e-3,
+            "{:?}",
+            sphere.semi_axes
+        );
         let ellipsoid = fit_ellipsoid_paper(&moments, &params, &mut stream_rng(0, 1));
         assert!(ellipsoid.fitness <= sphere.fitness * (1.0 + 1e-9));
     }
@@ -339,7 +386,12 @@ mod tests {
             ..FitParams::default()
         };
         let fit = fit_ellipsoid_paper(&moments, &params, &mut stream_rng(1, 0));
-        assert_eq!(fit.entity.kind(0.01), crate::geometry::EntityKind::Pseudocylinder, "{:?}", fit.semi_axes);
+        assert_eq!(
+            fit.entity.kind(0.01),
+            crate::geometry::EntityKind::Pseudocylinder,
+            "{:?}",
+            fit.semi_axes
+        );
         assert_eq!(fit.entity.weights[2], 0.0);
         let spread = fit_ellipsoid_paper(&moments, &FitParams::default(), &mut stream_rng(1, 0));
         assert_eq!(spread.on_upper_bound, 1, "{:?}", spread.semi_axes);

@@ -121,7 +121,11 @@ pub struct Entity {
 impl Entity {
     /// Builds an entity from fitted semi-axes. Axes at or over the threshold degenerate, except
     /// that at least one axis always stays finite: with all three infinite eq. 5 has no surface.
-    pub fn from_semi_axes(center: Point3, semi_axes: [f64; 3], degeneration: &Degeneration) -> Self {
+    pub fn from_semi_axes(
+        center: Point3,
+        semi_axes: [f64; 3],
+        degeneration: &Degeneration,
+    ) -> Self {
         let mut weights = [0.0f32; 3];
         let mut thinnest = 0;
         for (j, &r) in semi_axes.iter().enumerate() {
@@ -276,7 +280,10 @@ mod tests {
         ] {
             let paper = psi_inner_product(&psi1(p), &entity.psi2());
             let closed = entity.inner_product(p);
-            assert!((paper - closed).abs() < 1e-9 * (1.0 + closed.abs()), "{paper} vs {closed}");
+            assert!(
+                (paper - closed).abs() < 1e-9 * (1.0 + closed.abs()),
+                "{paper} vs {closed}"
+            );
         }
         // (0.8, -1.2, 2.0) is r_x away from the centre along x: on the surface.
         assert!(entity.inner_product(Point3::new(0.8, -1.2, 2.0)).abs() < 1e-6);
@@ -311,7 +318,10 @@ mod tests {
             [f64::INFINITY; 3],
         ] {
             let e = Entity::from_semi_axes(Point3::default(), axes, &d);
-            assert!(e.weights.iter().all(|w| w.is_finite() && *w >= 0.0), "{axes:?}");
+            assert!(
+                e.weights.iter().all(|w| w.is_finite() && *w >= 0.0),
+                "{axes:?}"
+            );
             assert!(e.degenerated_axes() < 3, "{axes:?}");
         }
     }

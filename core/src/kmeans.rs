@@ -13,10 +13,19 @@ pub enum KMeansError {
     EmptyInput,
     ZeroClusters,
     /// k-means needs k distinct points to place k distinct centres.
-    TooFewDistinctPoints { k: usize, distinct: usize },
-    NonFiniteCoordinate { index: usize },
+    TooFewDistinctPoints {
+        k: usize,
+        distinct: usize,
+    },
+    NonFiniteCoordinate {
+        index: usize,
+    },
     /// A caller-provided slice has the wrong length.
-    SliceLength { what: &'static str, expected: usize, got: usize },
+    SliceLength {
+        what: &'static str,
+        expected: usize,
+        got: usize,
+    },
 }
 
 impl core::fmt::Display for KMeansError {
@@ -25,12 +34,19 @@ impl core::fmt::Display for KMeansError {
             Self::EmptyInput => write!(f, "no points to cluster"),
             Self::ZeroClusters => write!(f, "k must be at least 1"),
             Self::TooFewDistinctPoints { k, distinct } => {
-                write!(f, "k = {k} is larger than the number of distinct points ({distinct})")
+                write!(
+                    f,
+                    "k = {k} is larger than the number of distinct points ({distinct})"
+                )
             }
             Self::NonFiniteCoordinate { index } => {
                 write!(f, "point {index} has a non-finite coordinate")
             }
-            Self::SliceLength { what, expected, got } => {
+            Self::SliceLength {
+                what,
+                expected,
+                got,
+            } => {
                 write!(f, "{what} holds {got} entries, expected {expected}")
             }
         }
@@ -92,7 +108,11 @@ fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), KMea
     if expected == got {
         Ok(())
     } else {
-        Err(KMeansError::SliceLength { what, expected, got })
+        Err(KMeansError::SliceLength {
+            what,
+            expected,
+            got,
+        })
     }
 }
 
@@ -124,7 +144,10 @@ pub fn seed_plus_plus(
         if placed > 0 {
             let total: f64 = distances.iter().map(|&d| d as f64).sum();
             if !(total > 0.0) {
-                return Err(KMeansError::TooFewDistinctPoints { k, distinct: placed });
+                return Err(KMeansError::TooFewDistinctPoints {
+                    k,
+                    distinct: placed,
+                });
             }
             let target = uniform(&mut rng) * total;
             let mut cumulative = 0.0;
@@ -141,7 +164,10 @@ pub fn seed_plus_plus(
             // Rounding may leave the cumulative sum just short of the target: the last point with
             // a positive distance is then the pick, never a point already chosen.
             let Some(index) = pick else {
-                return Err(KMeansError::TooFewDistinctPoints { k, distinct: placed });
+                return Err(KMeansError::TooFewDistinctPoints {
+                    k,
+                    distinct: placed,
+                });
             };
             chosen = points[index];
             for (d, p) in distances.iter_mut().zip(points.iter()) {
@@ -154,9 +180,18 @@ pub fn seed_plus_plus(
 }
 
 /// Lloyd's assignment step: labels each point with its nearest centre, returns how many changed.
-pub fn assign(points: &[Point3], centres: &[Point3], labels: &mut [u32], distances: &mut [f32]) -> usize {
+pub fn assign(
+    points: &[Point3],
+    centres: &[Point3],
+    labels: &mut [u32],
+    distances: &mut [f32],
+) -> usize {
     let mut changed = 0;
-    for ((p, label), distance) in points.iter().zip(labels.iter_mut()).zip(distances.iter_mut()) {
+    for ((p, label), distance) in points
+        .iter()
+        .zip(labels.iter_mut())
+        .zip(distances.iter_mut())
+    {
         let (index, d) = nearest(*p, centres);
         if *label != index as u32 {
             changed += 1;
@@ -192,7 +227,11 @@ pub fn update_centres(
     for (i, (centre, s)) in centres.iter_mut().zip(sums.iter()).enumerate() {
         let moved = if s.count > 0 {
             let n = s.count as f64;
-            Point3::new((s.sum[0] / n) as f32, (s.sum[1] / n) as f32, (s.sum[2] / n) as f32)
+            Point3::new(
+                (s.sum[0] / n) as f32,
+                (s.sum[1] / n) as f32,
+                (s.sum[2] / n) as f32,
+            )
         } else {
             let mut far = None;
             let mut far_distance = 0.0f32;
@@ -256,7 +295,11 @@ pub fn kmeans(
         assign(points, centres, labels, distances);
     }
     let inertia = distances.iter().map(|&d| d as f64).sum();
-    Ok(KMeansOutcome { iterations, converged, inertia })
+    Ok(KMeansOutcome {
+        iterations,
+        converged,
+        inertia,
+    })
 }
 
 fn mean_axis_variance(points: &[Point3]) -> f64 {
@@ -290,7 +333,9 @@ mod tests {
         for (i, p) in pts.iter_mut().enumerate() {
             let c = centres[i % 3];
             let mut next = || {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                s = s
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
                 ((s >> 40) as f32 / (1u64 << 24) as f32) - 0.5
             };
             *p = Point3::new(c[0] + next(), c[1] + next(), c[2] + next());
@@ -309,9 +354,20 @@ mod tests {
             let mut labels = [0u32; 300];
             let mut distances = [0f32; 300];
             let mut sums = [CentroidSum::default(); 3];
-            let params = KMeansParams { tolerance: 0.0, seed, ..KMeansParams::default() };
-            let out = kmeans(&pts, &mut centres, &mut labels, &mut distances, &mut sums, &params)
-                .expect("clusters");
+            let params = KMeansParams {
+                tolerance: 0.0,
+                seed,
+                ..KMeansParams::default()
+            };
+            let out = kmeans(
+                &pts,
+                &mut centres,
+                &mut labels,
+                &mut distances,
+                &mut sums,
+                &params,
+            )
+            .expect("clusters");
             assert!(out.converged);
             for (p, &label) in pts.iter().zip(labels.iter()) {
                 assert_eq!(label as usize, nearest(*p, &centres).0);
@@ -333,17 +389,48 @@ mod tests {
         let params = KMeansParams::default();
         let same = [Point3::new(1.0, 2.0, 3.0); 10];
         let (mut labels, mut distances) = ([0u32; 10], [0f32; 10]);
-        let err = kmeans(&same, &mut centres, &mut labels, &mut distances, &mut sums, &params);
-        assert_eq!(err, Err(KMeansError::TooFewDistinctPoints { k: 4, distinct: 1 }));
+        let err = kmeans(
+            &same,
+            &mut centres,
+            &mut labels,
+            &mut distances,
+            &mut sums,
+            &params,
+        );
+        assert_eq!(
+            err,
+            Err(KMeansError::TooFewDistinctPoints { k: 4, distinct: 1 })
+        );
         let mut bad = same;
         bad[3].y = f32::NAN;
-        let err = kmeans(&bad, &mut centres, &mut labels, &mut distances, &mut sums, &params);
+        let err = kmeans(
+            &bad,
+            &mut centres,
+            &mut labels,
+            &mut distances,
+            &mut sums,
+            &params,
+        );
         assert_eq!(err, Err(KMeansError::NonFiniteCoordinate { index: 3 }));
         let err = kmeans(&[], &mut centres, &mut [], &mut [], &mut sums, &params);
         assert_eq!(err, Err(KMeansError::EmptyInput));
-        let err = kmeans(&same, &mut [], &mut labels, &mut distances, &mut [], &params);
+        let err = kmeans(
+            &same,
+            &mut [],
+            &mut labels,
+            &mut distances,
+            &mut [],
+            &params,
+        );
         assert_eq!(err, Err(KMeansError::ZeroClusters));
-        let err = kmeans(&same, &mut centres, &mut labels[..5], &mut distances, &mut sums, &params);
+        let err = kmeans(
+            &same,
+            &mut centres,
+            &mut labels[..5],
+            &mut distances,
+            &mut sums,
+            &params,
+        );
         assert!(matches!(err, Err(KMeansError::SliceLength { .. })));
     }
 
@@ -358,8 +445,15 @@ mod tests {
         let mut centres = [Point3::default(); 3];
         let (mut labels, mut distances) = ([0u32; 4], [0f32; 4]);
         let mut sums = [CentroidSum::default(); 3];
-        let out = kmeans(&pts, &mut centres, &mut labels, &mut distances, &mut sums, &KMeansParams::default())
-            .expect("3 distinct points suffice for k = 3");
+        let out = kmeans(
+            &pts,
+            &mut centres,
+            &mut labels,
+            &mut distances,
+            &mut sums,
+            &KMeansParams::default(),
+        )
+        .expect("3 distinct points suffice for k = 3");
         assert_eq!(out.inertia, 0.0);
         let mut seen = [false; 3];
         for l in labels {

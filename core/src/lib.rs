@@ -1,9 +1,31 @@
+//! `mema-core`: the Multiellipsoidal Mapping Algorithm without `std`, an allocator, or panics.
+//!
+//! Pipeline (paper, Section 3): [`kmeans`] clusters the points (k-means++ seeding, Lloyd
+//! iterations); each cluster's [`moments`] give eq. 12's [`fitness`] in O(1); [`de`] fits the
+//! semi-axes ([`fit`]); [`geometry`] stores each entity as centre + `w_j = 1/r_j^2` with
+//! degenerated axes as `w_j = 0`; [`closest_point`] gives eq. 13's surface error; [`map`] holds
+//! the entities in fixed capacity and encodes the `.mema` file.
+//!
+//! Contract: every function takes caller-provided slices or fixed-size types; capacity and bad
+//! input come back as typed errors; the same input and seed give the same bits on every target
+//! (IEEE-754 f32/f64 arithmetic plus `libm`, no fused or platform math).
 #![no_std]
+#![deny(missing_debug_implementations, unsafe_code)]
+// `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must take the safe branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+// Index loops mirror the subscripts of the equations they implement (j, k over axes).
+#![allow(clippy::needless_range_loop)]
+
 pub mod closest_point;
+pub mod crc32;
 pub mod de;
 pub mod fit;
 pub mod fitness;
 pub mod geometry;
 pub mod kmeans;
+pub mod map;
 pub mod moments;
 pub mod rng;
+
+pub use geometry::{Degeneration, Entity, EntityKind, Point3};
+pub use map::{Map, MapEntity};

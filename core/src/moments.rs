@@ -88,7 +88,11 @@ impl Moments {
             self.shift = p;
             self.shift_fixed = true;
         }
-        let u = [p[0] - self.shift[0], p[1] - self.shift[1], p[2] - self.shift[2]];
+        let u = [
+            p[0] - self.shift[0],
+            p[1] - self.shift[1],
+            p[2] - self.shift[2],
+        ];
         for (sums, &uj) in self.axis.iter_mut().zip(u.iter()) {
             let u2 = uj * uj;
             sums[0] += uj;
@@ -136,17 +140,15 @@ impl Moments {
             let (a, b) = (t[j], t[k]);
             // (u-a)(v-b), (u-a)^2 (v-b), (u-a)(v-b)^2, (u-a)^2 (v-b)^2 expanded.
             let new_uv = uv - b * u1 - a * v1 + n * a * b;
-            let new_u2v = u2v - b * u2 - 2.0 * a * uv + 2.0 * a * b * u1 + a * a * v1
-                - n * a * a * b;
-            let new_uv2 = uv2 - a * v2 - 2.0 * b * uv + 2.0 * a * b * v1 + b * b * u1
-                - n * a * b * b;
-            let new_u2v2 = u2v2 - 2.0 * b * u2v - 2.0 * a * uv2
-                + b * b * u2
-                + a * a * v2
-                + 4.0 * a * b * uv
-                - 2.0 * a * b * b * u1
-                - 2.0 * a * a * b * v1
-                + n * a * a * b * b;
+            let new_u2v =
+                u2v - b * u2 - 2.0 * a * uv + 2.0 * a * b * u1 + a * a * v1 - n * a * a * b;
+            let new_uv2 =
+                uv2 - a * v2 - 2.0 * b * uv + 2.0 * a * b * v1 + b * b * u1 - n * a * b * b;
+            let new_u2v2 =
+                u2v2 - 2.0 * b * u2v - 2.0 * a * uv2 + b * b * u2 + a * a * v2 + 4.0 * a * b * uv
+                    - 2.0 * a * b * b * u1
+                    - 2.0 * a * a * b * v1
+                    + n * a * a * b * b;
             out.pair[p] = [new_uv, new_u2v, new_uv2, new_u2v2];
         }
         out
@@ -248,7 +250,9 @@ mod tests {
         let mut out = [[0.0; 3]; 64];
         let mut s = seed;
         let mut next = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
         };
         for p in out.iter_mut().take(n) {

@@ -16,7 +16,10 @@ const fn mix(mut z: u64) -> u64 {
 
 /// The generator for one independent task (e.g. one cluster's DE) of a seeded run.
 pub fn stream_rng(seed: u64, stream: u64) -> Pcg32 {
-    Pcg32::new(mix(seed ^ mix(stream.wrapping_add(0x9e37_79b9_7f4a_7c15))), stream)
+    Pcg32::new(
+        mix(seed ^ mix(stream.wrapping_add(0x9e37_79b9_7f4a_7c15))),
+        stream,
+    )
 }
 
 /// Uniform in [0, 1) with 53 random bits.
@@ -40,7 +43,10 @@ mod tests {
         let mut a = stream_rng(0, 0);
         let first: [u32; 3] = [a.next_u32(), a.next_u32(), a.next_u32()];
         let mut again = stream_rng(0, 0);
-        assert_eq!(first, [again.next_u32(), again.next_u32(), again.next_u32()]);
+        assert_eq!(
+            first,
+            [again.next_u32(), again.next_u32(), again.next_u32()]
+        );
         let mut b = stream_rng(0, 1);
         assert_ne!(first[0], b.next_u32());
         let mut r = stream_rng(42, 7);
