@@ -1,2 +1,10 @@
-//! The `mema` host library: readers for real point clouds, map files, evaluation and the CLI.
+//! The `mema` host library: readers for real point clouds, the batch pipeline, map files,
+//! evaluation and the command line.
+pub mod ablation;
+pub mod cli;
+pub mod commands;
+pub mod mapfile;
+pub mod pipeline;
 pub mod read;
+pub mod scene;
+pub mod stats;

@@ -1,1 +1,28 @@
-fn main() {}
+//! `mema`: errors are printed once as `mema: <context>: <cause>` (no backtrace, whatever
+//! RUST_BACKTRACE says). Exit status: 0 success, 1 bad input or I/O failure, 2 bad usage.
+
+use clap::Parser;
+use mema::cli::{Cli, Command, UsageError};
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Map(a) => mema::commands::map(a),
+        Command::Eval(a) => mema::commands::eval(a),
+        Command::Info(a) => mema::commands::info(a),
+        Command::Demo(a) => mema::commands::demo(a),
+        Command::Ablation(a) => mema::commands::ablation(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("mema: {e:#}");
+            if e.downcast_ref::<UsageError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}

@@ -1,0 +1,202 @@
+//! Command-line arguments (what the user typed) and their validation into a pipeline config.
+
+use crate::pipeline::{EntityChoice, PipelineConfig};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use mema_core::de::{DeParams, OutOfBounds};
+use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
+use mema_core::fitness::VolumeTerm;
+use mema_core::kmeans::KMeansParams;
+use mema_core::Degeneration;
+use std::path::PathBuf;
+
+#[derive(Parser, Debug)]
+#[command(name = "mema", version, about = "Multiellipsoidal maps of 3D point clouds", long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Map a point cloud (PLY, PCD, XYZ/CSV) with k ellipsoids and print Tables 2 and 4.
+    Map(MapArgs),
+    /// Evaluate any map against any cloud: eq. 13 statistics and memory.
+    Eval(EvalArgs),
+    /// Describe a map: entities per kind, bounds, bytes.
+    Info(InfoArgs),
+    /// Map the built-in scene (a simulated rangefinder scan); needs no files.
+    Demo(DemoArgs),
+    /// Measure the fit options the paper leaves open on one cloud (same clusters for all).
+    Ablation(AblationArgs),
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BoundsArg {
+    /// r in [0.05 s, 3 s], s the cluster's RMS radius, searched linearly.
+    Spread,
+    /// r in [0.05 s, threshold], searched in ln r: axes can degenerate.
+    Threshold,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OutOfBoundsArg {
+    Clamp,
+    Reflect,
+    Resample,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum VolumeArg {
+    /// Eq. 12 as printed: (4/3) pi r_x r_y r_z / |S_i|, in the cloud's units.
+    Exact,
+    /// Unit-free: r_x r_y r_z / s^3 with s the cluster's RMS radius.
+    Spread,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum InitArg {
+    /// One moment-derived candidate (least-squares ellipsoid or optimal sphere) among the random ones.
+    Seeded,
+    /// All candidates random, as in the paper.
+    Random,
+}
+
+/// Options shared by every command that fits.
+#[derive(Args, Debug, Clone)]
+pub struct FitArgs {
+    /// Weight of the residual term of eq. 12 (the paper: 0.8).
+    #[arg(long, default_value_t = 0.8)]
+    pub alpha: f64,
+    /// Seed of k-means++ and DE; the same seed gives the same map bytes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Semi-axis length at which an axis degenerates (infinite); the paper: 4 m.
+    #[arg(long, default_value_t = 4.0)]
+    pub threshold: f64,
+    /// Relative tolerance within which three semi-axes make a sphere.
+    #[arg(long, default_value_t = 0.01)]
+    pub sphere_tolerance: f64,
+    #[arg(long, value_enum, default_value_t = BoundsArg::Spread)]
+    pub bounds: BoundsArg,
+    #[arg(long, value_enum, default_value_t = OutOfBoundsArg::Clamp)]
+    pub out_of_bounds: OutOfBoundsArg,
+    #[arg(long, value_enum, default_value_t = VolumeArg::Exact)]
+    pub volume: VolumeArg,
+    #[arg(long, value_enum, default_value_t = InitArg::Seeded)]
+    pub init: InitArg,
+    /// DE generations (the paper: 50).
+    #[arg(long, default_value_t = 50)]
+    pub generations: u32,
+    /// Lloyd iteration cap.
+    #[arg(long, default_value_t = 100)]
+    pub max_iterations: u32,
+}
+
+#[derive(Args, Debug)]
+pub struct MapArgs {
+    pub input: PathBuf,
+    /// Number of clusters (entities).
+    #[arg(short)]
+    pub k: usize,
+    /// Output map: .mema (binary), .csv or .json.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Which entity the written map holds; both are fitted and reported.
+    #[arg(long, value_enum, default_value_t = EntityChoice::Ellipsoid)]
+    pub entity: EntityChoice,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    pub input: PathBuf,
+    pub map: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct InfoArgs {
+    pub map: PathBuf,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct DemoArgs {
+    #[arg(short, default_value_t = 250)]
+    pub k: usize,
+    #[arg(short, long, default_value = "mema-demo.mema")]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct AblationArgs {
+    pub input: PathBuf,
+    #[arg(short)]
+    pub k: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// A value the user gave that cannot work; reported with exit status 2, like clap's own errors.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
+impl FitArgs {
+    /// Checks the values and builds the pipeline configuration.
+    pub fn config(&self, k: usize) -> Result<PipelineConfig, UsageError> {
+        if k == 0 {
+            return Err(UsageError("k must be at least 1; consider -k 150 (about one entity per 100 points)".into()));
+        }
+        if !(self.alpha >= 0.0 && self.alpha <= 1.0) {
+            return Err(UsageError(format!("--alpha {} is outside [0, 1]; the paper uses 0.8", self.alpha)));
+        }
+        if !(self.threshold > 0.0 && self.threshold.is_finite()) {
+            return Err(UsageError(format!("--threshold {} must be a positive length", self.threshold)));
+        }
+        if !(self.sphere_tolerance >= 0.0 && self.sphere_tolerance.is_finite()) {
+            return Err(UsageError(format!("--sphere-tolerance {} must be >= 0", self.sphere_tolerance)));
+        }
+        let degeneration = Degeneration { threshold: self.threshold, sphere_tolerance: self.sphere_tolerance };
+        let fit = FitParams {
+            alpha: self.alpha,
+            volume: match self.volume {
+                VolumeArg::Exact => VolumeTerm::Exact,
+                VolumeArg::Spread => VolumeTerm::SpreadRelative,
+            },
+            de: DeParams { generations: self.generations, ..DeParams::default() },
+            bounds: match self.bounds {
+                BoundsArg::Spread => SemiAxisBounds::default(),
+                BoundsArg::Threshold => SemiAxisBounds::Threshold { lower: 0.05 },
+            },
+            out_of_bounds: match self.out_of_bounds {
+                OutOfBoundsArg::Clamp => OutOfBounds::Clamp,
+                OutOfBoundsArg::Reflect => OutOfBounds::Reflect,
+                OutOfBoundsArg::Resample => OutOfBounds::Resample,
+            },
+            initialisation: match self.init {
+                InitArg::Seeded => Initialisation::MomentSeeded,
+                InitArg::Random => Initialisation::Random,
+            },
+            degeneration,
+        };
+        Ok(PipelineConfig {
+            k,
+            seed: self.seed,
+            kmeans: KMeansParams { max_iterations: self.max_iterations, seed: self.seed, ..KMeansParams::default() },
+            fit,
+        })
+    }
+}

@@ -1,0 +1,301 @@
+//! The subcommands: each reads, runs the pipeline, prints, and writes atomically.
+
+use anyhow::{Context, Result};
+use mema_core::{EntityKind, Point3};
+use serde::Serialize;
+use std::path::Path;
+
+use crate::cli::{AblationArgs, DemoArgs, EvalArgs, InfoArgs, MapArgs};
+use crate::mapfile::HostMap;
+use crate::pipeline::{self, EntityChoice, PipelineConfig};
+use crate::read::read_cloud;
+use crate::stats::{self, ErrorStats, MemoryRow};
+
+/// A cloud in its local frame, ready for the core.
+pub struct LocalCloud {
+    pub origin: [f64; 3],
+    pub points: Vec<Point3>,
+    pub dropped_non_finite: usize,
+}
+
+impl LocalCloud {
+    /// From world coordinates: the bounding-box centre becomes the origin.
+    pub fn from_world(points: &[[f64; 3]]) -> Self {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in points {
+            for j in 0..3 {
+                lo[j] = lo[j].min(p[j]);
+                hi[j] = hi[j].max(p[j]);
+            }
+        }
+        let origin = [0, 1, 2].map(|j| if points.is_empty() { 0.0 } else { 0.5 * (lo[j] + hi[j]) });
+        let points = points
+            .iter()
+            .map(|p| Point3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32))
+            .collect();
+        Self { origin, points, dropped_non_finite: 0 }
+    }
+}
+
+pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
+    let cloud = read_cloud(path)?;
+    Ok(LocalCloud {
+        origin: cloud.origin,
+        points: cloud.points.into_iter().map(Point3::from).collect(),
+        dropped_non_finite: cloud.dropped_non_finite,
+    })
+}
+
+#[derive(Serialize)]
+pub struct KindCounts {
+    pub ellipsoid: usize,
+    pub sphere: usize,
+    pub pseudocylinder: usize,
+    pub plane_pair: usize,
+}
+
+impl KindCounts {
+    pub fn of(map: &HostMap) -> Self {
+        let count = |k: EntityKind| map.entities.iter().filter(|e| e.kind == k).count();
+        Self {
+            ellipsoid: count(EntityKind::Ellipsoid),
+            sphere: count(EntityKind::Sphere),
+            pseudocylinder: count(EntityKind::Pseudocylinder),
+            plane_pair: count(EntityKind::PlanePair),
+        }
+    }
+}
+
+/// What `mema map` and `mema demo` report.
+#[derive(Serialize)]
+pub struct MapReport {
+    pub memory: MemoryRow,
+    pub ellipsoidal: ErrorStats,
+    pub spherical: ErrorStats,
+    pub kinds: KindCounts,
+    pub kmeans_iterations: u32,
+    pub kmeans_converged: bool,
+    pub entity: EntityChoice,
+    pub dropped_non_finite: usize,
+    pub output: String,
+}
+
+/// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map.
+pub fn map_cloud(cloud: &LocalCloud, config: &PipelineConfig, entity: EntityChoice, output: &Path) -> Result<MapReport> {
+    let clusters = pipeline::cluster(&cloud.points, config.k, &config.kmeans)?;
+    let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
+    let tolerance = config.fit.degeneration.sphere_tolerance;
+    let ellipsoids = pipeline::to_map(cloud.origin, &fitted.ellipsoids, tolerance);
+    let spheres = pipeline::to_map(cloud.origin, &fitted.spheres, tolerance);
+    let errors = |map: &HostMap| {
+        let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+        ErrorStats::from_errors(&pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities))
+    };
+    let chosen = match entity {
+        EntityChoice::Ellipsoid => &ellipsoids,
+        EntityChoice::Sphere => &spheres,
+    };
+    chosen.write(output)?;
+    Ok(MapReport {
+        memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
+        ellipsoidal: errors(&ellipsoids),
+        spherical: errors(&spheres),
+        kinds: KindCounts::of(chosen),
+        kmeans_iterations: clusters.outcome.iterations,
+        kmeans_converged: clusters.outcome.converged,
+        entity,
+        dropped_non_finite: cloud.dropped_non_finite,
+        output: output.display().to_string(),
+    })
+}
+
+fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(r)?);
+        return Ok(());
+    }
+    println!("Table 2: memory (12 bytes per point, 24 per entity)");
+    println!("{}", stats::MEMORY_HEADER);
+    println!("{}", stats::format_memory_row(&r.memory));
+    println!();
+    println!("Table 4: eq. 13 error per cluster (cloud units), over {} clusters", r.ellipsoidal.clusters);
+    println!("{}", stats::ERROR_HEADER);
+    println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
+    println!("{}", stats::format_error_row("spherical", &r.spherical));
+    println!();
+    println!(
+        "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+        r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
+    );
+    eprintln!(
+        "k-means: {} iterations{}; wrote {}",
+        r.kmeans_iterations,
+        if r.kmeans_converged { ", converged" } else { ", iteration cap reached" },
+        r.output
+    );
+    Ok(())
+}
+
+pub fn map(args: &MapArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    let cloud = load_cloud(&args.input)?;
+    let report = map_cloud(&cloud, &config, args.entity, &args.output)
+        .with_context(|| args.input.display().to_string())?;
+    print_map_report(&report, args.json)
+}
+
+pub fn demo(args: &DemoArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    let scan = crate::scene::scan(&crate::scene::Scene::demo(), &crate::scene::ScanConfig::default());
+    eprintln!(
+        "demo: simulated rangefinder scan of the built-in scene (floor, trash can, box, person): {} points from {} rays",
+        scan.points.len(),
+        scan.rays
+    );
+    let cloud = LocalCloud::from_world(&scan.points);
+    let report = map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output).context("demo scene")?;
+    print_map_report(&report, args.json)
+}
+
+/// `mema eval`'s JSON shape (documented in the README; keys are stable).
+#[derive(Serialize)]
+pub struct EvalReport {
+    pub points: usize,
+    pub clusters: usize,
+    pub mean: f64,
+    pub std: f64,
+    pub max: f64,
+    pub min: f64,
+    pub total: f64,
+    pub cloud_bytes: usize,
+    pub map_bytes: usize,
+    pub percent: f64,
+}
+
+/// Eq. 13 statistics of any map against any cloud; each point joins its nearest centre.
+pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
+    // Express the cloud in the map's frame (in f64, then f32 like the map's own centres).
+    let shift = [0, 1, 2].map(|j| cloud.origin[j] - map.origin[j]);
+    let points: Vec<Point3> = cloud
+        .points
+        .iter()
+        .map(|p| {
+            let q = p.to_f64();
+            Point3::new((q[0] + shift[0]) as f32, (q[1] + shift[1]) as f32, (q[2] + shift[2]) as f32)
+        })
+        .collect();
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let centres: Vec<Point3> = entities.iter().map(|e| e.center).collect();
+    let labels = pipeline::nearest_centre_labels(&points, &centres);
+    let mut members = vec![0usize; entities.len()];
+    for &l in &labels {
+        members[l as usize] += 1;
+    }
+    let errors: Vec<f64> = pipeline::cluster_errors(&points, &labels, &entities)
+        .into_iter()
+        .zip(members.iter())
+        .filter(|(_, n)| **n > 0)
+        .map(|(e, _)| e)
+        .collect();
+    let s = ErrorStats::from_errors(&errors);
+    let memory = MemoryRow::new(points.len(), entities.len());
+    EvalReport {
+        points: points.len(),
+        clusters: s.clusters,
+        mean: s.mean,
+        std: s.std,
+        max: s.max,
+        min: s.min,
+        total: s.total,
+        cloud_bytes: memory.cloud_bytes,
+        map_bytes: memory.map_bytes,
+        percent: memory.percent,
+    }
+}
+
+pub fn eval(args: &EvalArgs) -> Result<()> {
+    let cloud = load_cloud(&args.input)?;
+    let map = HostMap::read(&args.map)?;
+    if map.entities.is_empty() {
+        anyhow::bail!("{}: the map has no entities", args.map.display());
+    }
+    let r = evaluate(&cloud, &map);
+    if args.json {
+        println!("{}", serde_json::to_string(&r)?);
+    } else {
+        println!("{}", stats::MEMORY_HEADER);
+        println!("{}", stats::format_memory_row(&MemoryRow::new(r.points, map.entities.len())));
+        println!();
+        println!("eq. 13 error over {} non-empty clusters", r.clusters);
+        println!("{}", stats::ERROR_HEADER);
+        let s = ErrorStats { clusters: r.clusters, mean: r.mean, std: r.std, max: r.max, min: r.min, total: r.total };
+        println!("{}", stats::format_error_row("map", &s));
+    }
+    Ok(())
+}
+
+#[derive(Serialize)]
+struct InfoReport {
+    entities: usize,
+    kinds: KindCounts,
+    origin: [f64; 3],
+    /// World bounding box of the entity centres.
+    center_min: [f64; 3],
+    center_max: [f64; 3],
+    /// Smallest and largest finite semi-axis.
+    semi_axis_min: f64,
+    semi_axis_max: f64,
+    /// The paper's count: 24 bytes per entity.
+    map_bytes: usize,
+    file_bytes: u64,
+}
+
+pub fn info(args: &InfoArgs) -> Result<()> {
+    let map = HostMap::read(&args.map)?;
+    let file_bytes = std::fs::metadata(&args.map).map(|m| m.len()).unwrap_or(0);
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let (mut rmin, mut rmax) = (f64::INFINITY, 0.0f64);
+    for e in &map.entities {
+        let c = map.world_center(&e.entity);
+        for j in 0..3 {
+            lo[j] = lo[j].min(c[j]);
+            hi[j] = hi[j].max(c[j]);
+        }
+        for r in e.entity.semi_axes().into_iter().filter(|r| r.is_finite()) {
+            rmin = rmin.min(r as f64);
+            rmax = rmax.max(r as f64);
+        }
+    }
+    let r = InfoReport {
+        entities: map.entities.len(),
+        kinds: KindCounts::of(&map),
+        origin: map.origin,
+        center_min: lo,
+        center_max: hi,
+        semi_axis_min: rmin,
+        semi_axis_max: rmax,
+        map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
+        file_bytes,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        println!("{}: {} entities", args.map.display(), r.entities);
+        println!(
+            "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+            r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
+        );
+        println!("origin: {:?}", r.origin);
+        println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
+        println!("finite semi-axes: {} .. {}", r.semi_axis_min, r.semi_axis_max);
+        println!("bytes: {} (paper's 24 per entity), {} on disk", r.map_bytes, r.file_bytes);
+    }
+    Ok(())
+}
+
+pub fn ablation(args: &AblationArgs) -> Result<()> {
+    let cloud = load_cloud(&args.input)?;
+    crate::ablation::run(&cloud, args.k, args.seed, args.json).with_context(|| args.input.display().to_string())
+}

@@ -1,0 +1,293 @@
+//! Map files: `.mema` (binary, see `mema_core::map`), `.csv` and `.json`, written atomically.
+
+use anyhow::{Context, Result, bail};
+use mema_core::map::{MapFile, encode, encoded_len};
+use mema_core::{Entity, EntityKind, MapEntity, Point3};
+use serde::{Deserialize, Serialize};
+use std::io::Write;
+use std::path::Path;
+
+/// A map on the host: the local frame's origin (f64, the cloud's own coordinates) and entities.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HostMap {
+    pub origin: [f64; 3],
+    pub entities: Vec<MapEntity>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MapFormat {
+    Mema,
+    Csv,
+    Json,
+}
+
+impl MapFormat {
+    pub fn from_path(path: &Path) -> Result<Self> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("mema") => Ok(Self::Mema),
+            Some("csv") => Ok(Self::Csv),
+            Some("json") => Ok(Self::Json),
+            _ => bail!(
+                "{}: unknown map extension; consider .mema (binary), .csv or .json",
+                path.display()
+            ),
+        }
+    }
+}
+
+impl HostMap {
+    /// Centre of entity `i` in the cloud's own coordinates.
+    pub fn world_center(&self, e: &Entity) -> [f64; 3] {
+        let c = e.center.to_f64();
+        [self.origin[0] + c[0], self.origin[1] + c[1], self.origin[2] + c[2]]
+    }
+
+    pub fn to_mema(&self) -> Result<Vec<u8>> {
+        let mut out = vec![0u8; encoded_len(self.entities.len())];
+        encode(self.origin, &self.entities, &mut out).map_err(anyhow::Error::from)?;
+        Ok(out)
+    }
+
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("cx,cy,cz,rx,ry,rz,kind\n");
+        for e in &self.entities {
+            let c = self.world_center(&e.entity);
+            let r = e.entity.semi_axes();
+            // Shortest round-trip formatting, and `inf` for a degenerated axis.
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{}\n",
+                c[0],
+                c[1],
+                c[2],
+                r[0],
+                r[1],
+                r[2],
+                e.kind.name()
+            ));
+        }
+        s
+    }
+
+    pub fn to_json(&self) -> Result<String> {
+        let doc = JsonMap {
+            format: "mema-map".into(),
+            version: mema_core::map::VERSION,
+            origin: self.origin,
+            entities: self
+                .entities
+                .iter()
+                .map(|e| JsonEntity {
+                    center: self.world_center(&e.entity),
+                    local_center: e.entity.center.to_array(),
+                    weights: e.entity.weights,
+                    semi_axes: e.entity.semi_axes().map(|r| r.is_finite().then_some(r)),
+                    kind: e.kind.name().into(),
+                })
+                .collect(),
+        };
+        Ok(serde_json::to_string_pretty(&doc)? + "\n")
+    }
+
+    pub fn encode_as(&self, format: MapFormat) -> Result<Vec<u8>> {
+        Ok(match format {
+            MapFormat::Mema => self.to_mema()?,
+            MapFormat::Csv => self.to_csv().into_bytes(),
+            MapFormat::Json => self.to_json()?.into_bytes(),
+        })
+    }
+
+    /// Writes the map in the format of `path`'s extension, atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let bytes = self.encode_as(MapFormat::from_path(path)?)?;
+        write_atomically(path, &bytes)
+    }
+
+    pub fn read(path: &Path) -> Result<Self> {
+        let format = MapFormat::from_path(path)?;
+        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read map", path.display()))?;
+        let parsed = match format {
+            MapFormat::Mema => Self::from_mema(&bytes),
+            MapFormat::Csv => Self::from_csv(&String::from_utf8_lossy(&bytes)),
+            MapFormat::Json => Self::from_json(&bytes),
+        };
+        parsed.with_context(|| format!("{}", path.display()))
+    }
+
+    pub fn from_mema(bytes: &[u8]) -> Result<Self> {
+        let file = MapFile::new_checked(bytes).map_err(anyhow::Error::from)?;
+        Ok(Self {
+            origin: file.origin(),
+            entities: file.entities().collect(),
+        })
+    }
+
+    fn from_world(rows: Vec<([f64; 3], [f64; 3], EntityKind)>) -> Result<Self> {
+        // A local origin at the centres' mean keeps georeferenced centres precise in f32.
+        let n = rows.len().max(1) as f64;
+        let mut origin = [0.0; 3];
+        for (c, _, _) in &rows {
+            for j in 0..3 {
+                origin[j] += c[j] / n;
+            }
+        }
+        let entities = rows
+            .into_iter()
+            .map(|(c, r, kind)| {
+                let center = Point3::new(
+                    (c[0] - origin[0]) as f32,
+                    (c[1] - origin[1]) as f32,
+                    (c[2] - origin[2]) as f32,
+                );
+                let weights = r.map(|r| if r.is_finite() { (1.0 / (r * r)) as f32 } else { 0.0 });
+                MapEntity { entity: Entity { center, weights }, kind }
+            })
+            .collect();
+        Ok(Self { origin, entities })
+    }
+
+    fn from_csv(text: &str) -> Result<Self> {
+        let mut rows = Vec::new();
+        for (i, line) in text.lines().enumerate() {
+            let line = line.trim();
+            if line.is_empty() || (i == 0 && line.starts_with("cx")) {
+                continue;
+            }
+            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+            let [cx, cy, cz, rx, ry, rz, kind] = fields[..] else {
+                bail!("line {}: expected cx,cy,cz,rx,ry,rz,kind", i + 1);
+            };
+            let num = |s: &str| -> Result<f64> {
+                let v: f64 = s.parse().with_context(|| format!("line {}: '{s}' is not a number", i + 1))?;
+                if v.is_nan() {
+                    bail!("line {}: NaN in a map", i + 1);
+                }
+                Ok(v)
+            };
+            let c = [num(cx)?, num(cy)?, num(cz)?];
+            let r = [num(rx)?, num(ry)?, num(rz)?];
+            if c.iter().any(|v| !v.is_finite()) || r.iter().any(|&v| v <= 0.0) {
+                bail!("line {}: centre must be finite and semi-axes positive", i + 1);
+            }
+            let kind = EntityKind::from_name(kind)
+                .with_context(|| format!("line {}: unknown kind '{kind}'", i + 1))?;
+            rows.push((c, r, kind));
+        }
+        Self::from_world(rows)
+    }
+
+    fn from_json(bytes: &[u8]) -> Result<Self> {
+        let doc: JsonMap = serde_json::from_slice(bytes).context("not a mema JSON map")?;
+        let mut entities = Vec::with_capacity(doc.entities.len());
+        for (i, e) in doc.entities.iter().enumerate() {
+            let kind = EntityKind::from_name(&e.kind).with_context(|| format!("entity {i}: unknown kind '{}'", e.kind))?;
+            let entity = Entity { center: Point3::from(e.local_center), weights: e.weights };
+            if !entity.center.is_finite() || entity.weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+                bail!("entity {i}: invalid centre or weights");
+            }
+            entities.push(MapEntity { entity, kind });
+        }
+        Ok(Self { origin: doc.origin, entities })
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonMap {
+    format: String,
+    version: u16,
+    origin: [f64; 3],
+    entities: Vec<JsonEntity>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct JsonEntity {
+    /// World coordinates (origin + local centre).
+    center: [f64; 3],
+    /// The stored f32 centre in the map's local frame.
+    local_center: [f32; 3],
+    /// `1 / r^2`, 0 for a degenerated axis: the exact stored values.
+    weights: [f32; 3],
+    /// `null` for a degenerated (infinite) axis.
+    semi_axes: [Option<f32>; 3],
+    kind: String,
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
+/// reader (or a crash) never sees a partial map at `path`.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    let name = path
+        .file_name()
+        .with_context(|| format!("{}: not a file path", path.display()))?
+        .to_string_lossy();
+    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| -> std::io::Result<()> {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("cannot write map to {}", path.display()));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> HostMap {
+        let mut entities = Vec::new();
+        for (i, kind) in EntityKind::ALL.into_iter().enumerate() {
+            let r = [0.5 + i as f64, 0.25, if i >= 2 { f64::INFINITY } else { 0.75 }];
+            let weights = r.map(|r| if r.is_finite() { (1.0 / (r * r)) as f32 } else { 0.0 });
+            entities.push(MapEntity {
+                entity: Entity { center: Point3::new(i as f32, -1.5, 0.25), weights },
+                kind,
+            });
+        }
+        HostMap { origin: [631_000.5, 4_833_000.25, 120.0], entities }
+    }
+
+    #[test]
+    fn all_formats_round_trip() {
+        let map = sample();
+        let bytes = map.to_mema().expect("encode");
+        assert_eq!(HostMap::from_mema(&bytes).expect("decode"), map);
+        // The trailer is the standard CRC-32, as an independent implementation computes it.
+        let (body, crc) = bytes.split_at(bytes.len() - 4);
+        assert_eq!(crc, crc32fast::hash(body).to_le_bytes());
+        assert_eq!(HostMap::from_json(map.to_json().expect("json").as_bytes()).expect("decode"), map);
+        let csv = HostMap::from_csv(&map.to_csv()).expect("csv");
+        assert!(map.to_csv().lines().nth(3).expect("row").contains("inf"));
+        for (a, b) in csv.entities.iter().zip(map.entities.iter()) {
+            assert_eq!(a.kind, b.kind);
+            let (wa, wb) = (csv.world_center(&a.entity), map.world_center(&b.entity));
+            for j in 0..3 {
+                assert!((wa[j] - wb[j]).abs() < 1e-6);
+                assert!((a.entity.weights[j] - b.entity.weights[j]).abs() <= 1e-6 * b.entity.weights[j]);
+            }
+        }
+    }
+
+    #[test]
+    fn atomic_write_leaves_no_temp_and_fails_cleanly() {
+        let dir = std::env::temp_dir().join(format!("mema-atomic-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let path = dir.join("m.mema");
+        sample().write(&path).expect("write");
+        let names: Vec<_> = std::fs::read_dir(&dir).expect("ls").map(|e| e.expect("entry").file_name()).collect();
+        assert_eq!(names, vec![std::ffi::OsString::from("m.mema")]);
+        let err = sample().write(&dir.join("missing/m.mema")).expect_err("no such dir");
+        assert!(format!("{err:#}").contains("cannot write map"), "{err:#}");
+        std::fs::remove_dir_all(&dir).expect("cleanup");
+    }
+}

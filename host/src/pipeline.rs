@@ -1,0 +1,138 @@
+//! The batch pipeline of the paper: k-means++/Lloyd, one DE fit per cluster, eq. 13 per cluster.
+
+use anyhow::{Context, Result, bail};
+use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper, fit_sphere_paper};
+use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, kmeans};
+use mema_core::moments::{CentralMoments, Moments};
+use mema_core::rng::stream_rng;
+use mema_core::closest_point::SurfaceError;
+use mema_core::{Entity, MapEntity, Point3};
+use rayon::prelude::*;
+
+use crate::mapfile::HostMap;
+
+/// Which entity a map is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EntityChoice {
+    Ellipsoid,
+    Sphere,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct PipelineConfig {
+    pub k: usize,
+    pub seed: u64,
+    pub kmeans: KMeansParams,
+    pub fit: FitParams,
+}
+
+/// Clusters of a cloud: labels and per-cluster central moments.
+pub struct Clusters {
+    pub labels: Vec<u32>,
+    pub moments: Vec<CentralMoments>,
+    pub outcome: KMeansOutcome,
+}
+
+/// Both fits of every cluster, as the paper compares them (Section 4.5).
+pub struct Fitted {
+    pub ellipsoids: Vec<Fit>,
+    pub spheres: Vec<Fit>,
+}
+
+/// Runs k-means and gathers each cluster's moments.
+pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clusters> {
+    if k == 0 {
+        bail!("k must be at least 1");
+    }
+    if k > points.len() {
+        bail!(
+            "k = {k} is larger than the cloud ({} points); consider -k {}",
+            points.len(),
+            (points.len() / 100).max(1)
+        );
+    }
+    let mut centres = vec![Point3::default(); k];
+    let mut labels = vec![0u32; points.len()];
+    let mut distances = vec![0f32; points.len()];
+    let mut sums = vec![CentroidSum::default(); k];
+    let outcome = kmeans(points, &mut centres, &mut labels, &mut distances, &mut sums, params)
+        .map_err(anyhow::Error::from)
+        .context("k-means")?;
+    // Shifting each cluster's sums by its centroid keeps the moment conversion well conditioned.
+    let mut moments: Vec<Moments> = centres.iter().map(|c| Moments::with_shift(c.to_f64())).collect();
+    for (p, &l) in points.iter().zip(labels.iter()) {
+        if let Some(m) = moments.get_mut(l as usize) {
+            m.add(*p);
+        }
+    }
+    let moments = moments
+        .iter()
+        .enumerate()
+        .map(|(i, m)| m.central().with_context(|| format!("cluster {i} is empty after k-means")))
+        .collect::<Result<Vec<_>>>()?;
+    Ok(Clusters { labels, moments, outcome })
+}
+
+/// Fits an ellipsoid and a sphere to every cluster, in parallel. Each cluster draws from its
+/// own random stream, so the result does not depend on the thread count or order.
+pub fn fit_all(moments: &[CentralMoments], seed: u64, params: &FitParams) -> Fitted {
+    let pairs: Vec<(Fit, Fit)> = moments
+        .par_iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let e = fit_ellipsoid_paper(m, params, &mut stream_rng(seed, 2 * i as u64));
+            let s = fit_sphere_paper(m, params, &mut stream_rng(seed, 2 * i as u64 + 1));
+            (e, s)
+        })
+        .collect();
+    let (ellipsoids, spheres) = pairs.into_iter().unzip();
+    Fitted { ellipsoids, spheres }
+}
+
+/// Eq. 13 for every cluster: RMS distance of its points to its entity's surface.
+pub fn cluster_errors(points: &[Point3], labels: &[u32], entities: &[Entity]) -> Vec<f64> {
+    // Fixed-size chunks merged in order: the sums do not depend on the thread count.
+    const CHUNK: usize = 8192;
+    let partials: Vec<Vec<SurfaceError>> = points
+        .par_chunks(CHUNK)
+        .zip(labels.par_chunks(CHUNK))
+        .map(|(pts, lbl)| {
+            let mut acc = vec![SurfaceError::default(); entities.len()];
+            for (p, &l) in pts.iter().zip(lbl.iter()) {
+                if let (Some(a), Some(e)) = (acc.get_mut(l as usize), entities.get(l as usize)) {
+                    a.add(e, p.to_f64());
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut total = vec![SurfaceError::default(); entities.len()];
+    for part in &partials {
+        for (t, p) in total.iter_mut().zip(part.iter()) {
+            t.merge(p);
+        }
+    }
+    total.iter().map(SurfaceError::rmse).collect()
+}
+
+/// Labels each point with its nearest entity centre (ties: lowest index), as `mema eval` does.
+pub fn nearest_centre_labels(points: &[Point3], centres: &[Point3]) -> Vec<u32> {
+    points
+        .par_iter()
+        .map(|p| mema_core::kmeans::nearest(*p, centres).0 as u32)
+        .collect()
+}
+
+pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap {
+    HostMap {
+        origin,
+        entities: fits
+            .iter()
+            .map(|f| MapEntity {
+                entity: f.entity,
+                kind: f.entity.kind(sphere_tolerance),
+            })
+            .collect(),
+    }
+}

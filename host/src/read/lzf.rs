@@ -1,0 +1,245 @@
+//! LZF decompression (Marc Lehmann's liblzf format, as PCL's `DATA binary_compressed` uses).
+//!
+//! The stream is a sequence of chunks, each starting with a control byte `c`:
+//! - `c < 32`: a literal run; the next `c + 1` bytes are copied to the output.
+//! - otherwise a back reference: `len = c >> 5`, and if `len == 7` one more byte is added to it;
+//!   then one byte `lo` gives the distance `((c & 0x1f) << 8 | lo) + 1` back from the end of the
+//!   output, from where `len + 2` bytes are copied (the source may overlap the bytes being
+//!   written, which repeats a pattern).
+//!
+//! Every length and distance comes from the file, so each is checked before use: corrupt input
+//! is an [`LzfError`], never a panic or an out-of-bounds read.
+
+use std::fmt;
+
+/// The most output one input byte can produce: a 3-byte back reference copies up to 264 bytes.
+const MAX_EXPANSION: usize = 88;
+
+/// Why an LZF stream could not be decompressed; `at` is the offset in the compressed input.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub(crate) enum LzfError {
+    /// The declared output is larger than any stream of this length could produce.
+    CannotExpand { input: usize, expected: usize },
+    /// A literal run or back reference reads past the end of the input.
+    InputEnds { at: usize },
+    /// A back reference points before the start of the output.
+    BeforeStart {
+        at: usize,
+        distance: usize,
+        produced: usize,
+    },
+    /// The stream produces more than the declared output size.
+    TooLong { at: usize, expected: usize },
+    /// The stream ends before producing the declared output size.
+    TooShort { produced: usize, expected: usize },
+}
+
+impl LzfError {
+    /// Offset in the compressed input where the problem was found.
+    pub fn at(&self) -> usize {
+        match *self {
+            LzfError::CannotExpand { .. } | LzfError::TooShort { .. } => 0,
+            LzfError::InputEnds { at }
+            | LzfError::BeforeStart { at, .. }
+            | LzfError::TooLong { at, .. } => at,
+        }
+    }
+}
+
+impl fmt::Display for LzfError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            LzfError::CannotExpand { input, expected } => write!(
+                f,
+                "{input} compressed bytes cannot expand to the declared {expected} bytes"
+            ),
+            LzfError::InputEnds { at } => {
+                write!(
+                    f,
+                    "LZF chunk at compressed byte {at} runs past the end of the data"
+                )
+            }
+            LzfError::BeforeStart {
+                at,
+                distance,
+                produced,
+            } => write!(
+                f,
+                "LZF back reference at compressed byte {at} reaches {distance} bytes back, \
+                 but only {produced} are decompressed"
+            ),
+            LzfError::TooLong { at, expected } => write!(
+                f,
+                "LZF data at compressed byte {at} decompresses past the declared {expected} bytes"
+            ),
+            LzfError::TooShort { produced, expected } => write!(
+                f,
+                "LZF data decompresses to {produced} bytes, the header declares {expected}"
+            ),
+        }
+    }
+}
+
+/// Decompresses `input`, which must produce exactly `expected` bytes.
+pub(crate) fn decompress(input: &[u8], expected: usize) -> Result<Vec<u8>, LzfError> {
+    if expected > input.len().saturating_mul(MAX_EXPANSION) {
+        return Err(LzfError::CannotExpand {
+            input: input.len(),
+            expected,
+        });
+    }
+    let mut out = Vec::with_capacity(expected);
+    let mut ip = 0;
+    while let Some(&ctrl) = input.get(ip) {
+        let at = ip;
+        let ctrl = usize::from(ctrl);
+        ip += 1;
+        if ctrl < 32 {
+            let run = input
+                .get(ip..ip + ctrl + 1)
+                .ok_or(LzfError::InputEnds { at })?;
+            if out.len() + run.len() > expected {
+                return Err(LzfError::TooLong { at, expected });
+            }
+            out.extend_from_slice(run);
+            ip += run.len();
+        } else {
+            let mut len = ctrl >> 5;
+            if len == 7 {
+                len += usize::from(*input.get(ip).ok_or(LzfError::InputEnds { at })?);
+                ip += 1;
+            }
+            let lo = usize::from(*input.get(ip).ok_or(LzfError::InputEnds { at })?);
+            ip += 1;
+            let len = len + 2;
+            let distance = ((ctrl & 0x1f) << 8 | lo) + 1;
+            let produced = out.len();
+            let start = produced
+                .checked_sub(distance)
+                .ok_or(LzfError::BeforeStart {
+                    at,
+                    distance,
+                    produced,
+                })?;
+            if produced + len > expected {
+                return Err(LzfError::TooLong { at, expected });
+            }
+            // Copy in pieces no longer than what already exists past `start`: for an
+            // overlapping reference this repeats the pattern exactly as a byte-by-byte copy
+            // would, and every range stays inside `out`.
+            let mut left = len;
+            while left > 0 {
+                let piece = left.min(out.len() - start);
+                out.extend_from_within(start..start + piece);
+                left -= piece;
+            }
+        }
+    }
+    if out.len() != expected {
+        return Err(LzfError::TooShort {
+            produced: out.len(),
+            expected,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn literal_run() {
+        assert_eq!(decompress(&[2, b'a', b'b', b'c'], 3).unwrap(), b"abc");
+    }
+
+    #[test]
+    fn overlapping_back_reference_repeats_the_pattern() {
+        // "ab", then copy 2 + 2 = 4 bytes from 2 back: "ababab".
+        assert_eq!(decompress(&[1, b'a', b'b', 0x40, 1], 6).unwrap(), b"ababab");
+        // One byte repeated: distance 1, length 7 + 3 + 2 = 12 via the extra length byte.
+        let mut want = vec![b'z'; 13];
+        assert_eq!(decompress(&[0, b'z', 0xe0, 3, 0], 13).unwrap(), want);
+        want.truncate(4);
+        assert_eq!(decompress(&[0, b'z', 0x20, 0], 4).unwrap(), want);
+    }
+
+    #[test]
+    fn non_overlapping_back_reference() {
+        // "abcd" then copy 3 bytes from 4 back: "abcdabc".
+        assert_eq!(
+            decompress(&[3, b'a', b'b', b'c', b'd', 0x20, 3], 7).unwrap(),
+            b"abcdabc"
+        );
+    }
+
+    #[test]
+    fn longest_back_reference_reaches_the_expansion_bound() {
+        // 3 input bytes after the literal produce 264 bytes; the whole stream is 5 bytes.
+        let out = decompress(&[0, b'q', 0xe0, 255, 0], 265).unwrap();
+        assert_eq!(out, vec![b'q'; 265]);
+    }
+
+    #[test]
+    fn corrupt_streams_are_errors() {
+        assert_eq!(
+            decompress(&[5, b'a'], 6),
+            Err(LzfError::InputEnds { at: 0 })
+        );
+        assert_eq!(
+            decompress(&[0, b'a', 0x20, 5], 4),
+            Err(LzfError::BeforeStart {
+                at: 2,
+                distance: 6,
+                produced: 1
+            })
+        );
+        assert_eq!(
+            decompress(&[0, b'a', 0xe0], 9),
+            Err(LzfError::InputEnds { at: 2 })
+        );
+        assert_eq!(
+            decompress(&[0, b'a', 0xe0, 1], 9),
+            Err(LzfError::InputEnds { at: 2 })
+        );
+        assert_eq!(
+            decompress(&[2, b'a', b'b', b'c'], 2),
+            Err(LzfError::TooLong { at: 0, expected: 2 })
+        );
+        assert_eq!(
+            decompress(&[0, b'a', 0x20, 0], 2),
+            Err(LzfError::TooLong { at: 2, expected: 2 })
+        );
+        assert_eq!(
+            decompress(&[2, b'a', b'b', b'c'], 4),
+            Err(LzfError::TooShort {
+                produced: 3,
+                expected: 4
+            })
+        );
+        assert_eq!(
+            decompress(&[0, 0], 1_000_000),
+            Err(LzfError::CannotExpand {
+                input: 2,
+                expected: 1_000_000
+            })
+        );
+        assert_eq!(decompress(&[], 0), Ok(Vec::new()));
+    }
+
+    #[test]
+    fn every_corruption_of_a_small_stream_is_handled() {
+        let good = [
+            3, b'a', b'b', b'c', b'd', 0x20, 3, 0xe0, 10, 0, 1, b'x', b'y',
+        ];
+        let expected = decompress(&good, 4 + 3 + 19 + 2).unwrap().len();
+        for i in 0..good.len() {
+            for v in 0..=255u8 {
+                let mut bad = good;
+                bad[i] = v;
+                let _ = decompress(&bad, expected);
+            }
+            let _ = decompress(&good[..i], expected);
+        }
+    }
+}

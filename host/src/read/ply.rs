@@ -1,0 +1,673 @@
+//! PLY reader: `ascii`, `binary_little_endian` and `binary_big_endian`, format 1.0.
+//!
+//! Only the `vertex` element's x, y, z are kept, whatever their type and position among the
+//! other properties. Elements before `vertex` are skipped: a fixed-size element in one step,
+//! one with list properties instance by instance, reading each list's count. Elements after
+//! `vertex` are never read: the points are complete by then, and a damaged face list should
+//! not cost the user a cloud.
+
+use super::{
+    At, Cloud, Ctx, Endian, Format, Line, Lines, Points, ReadError, Scalar, parse_f64, parse_usize,
+    quote, tokens,
+};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Encoding {
+    Ascii,
+    Binary(Endian),
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Kind {
+    Scalar(Scalar),
+    List { count: Scalar, item: Scalar },
+}
+
+/// What a vertex property is read for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Role {
+    X,
+    Y,
+    Z,
+    Skip,
+}
+
+struct Property {
+    name: String,
+    kind: Kind,
+}
+
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+impl Element {
+    /// Bytes per instance when it has no list property.
+    fn fixed_stride(&self) -> Option<usize> {
+        self.props.iter().try_fold(0, |sum, p| match p.kind {
+            Kind::Scalar(s) => Some(sum + s.size()),
+            Kind::List { .. } => None,
+        })
+    }
+
+    /// Bytes per instance when every list is empty; at least 1 for any element with properties.
+    fn min_stride(&self) -> usize {
+        self.props
+            .iter()
+            .map(|p| match p.kind {
+                Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+            })
+            .sum()
+    }
+
+    fn prop_names(&self) -> String {
+        let names: Vec<&str> = self.props.iter().map(|p| p.name.as_str()).collect();
+        names.join(" ")
+    }
+}
+
+fn set(p: &mut [f64; 3], role: Role, v: f64) {
+    match role {
+        Role::X => p[0] = v,
+        Role::Y => p[1] = v,
+        Role::Z => p[2] = v,
+        Role::Skip => {}
+    }
+}
+
+pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
+    let (encoding, elements, body) = parse_header(ctx, bytes)?;
+    let vertex_at = elements
+        .iter()
+        .position(|e| e.name == "vertex")
+        .ok_or_else(|| {
+            let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
+            ctx.bad_header(
+                At::Header,
+                format!("no vertex element (elements: {})", names.join(" ")),
+            )
+        })?;
+    let (before, rest) = elements.split_at(vertex_at);
+    let Some(vertex) = rest.first() else {
+        return Err(ctx.bad_header(At::Header, "no vertex element"));
+    };
+    let roles = roles(ctx, vertex)?;
+    let (points, format) = match encoding {
+        Encoding::Ascii => (ascii(ctx, body, before, vertex, &roles)?, Format::PlyAscii),
+        Encoding::Binary(endian) => {
+            let format = match endian {
+                Endian::Little => Format::PlyBinaryLittleEndian,
+                Endian::Big => Format::PlyBinaryBigEndian,
+            };
+            let points = binary(ctx, bytes, body.pos(), endian, before, vertex, &roles)?;
+            (points, format)
+        }
+    };
+    points.finish(ctx, format)
+}
+
+fn scalar(name: &[u8]) -> Option<Scalar> {
+    Some(match name {
+        b"char" | b"int8" => Scalar::I8,
+        b"uchar" | b"uint8" => Scalar::U8,
+        b"short" | b"int16" => Scalar::I16,
+        b"ushort" | b"uint16" => Scalar::U16,
+        b"int" | b"int32" => Scalar::I32,
+        b"uint" | b"uint32" => Scalar::U32,
+        b"float" | b"float32" => Scalar::F32,
+        b"double" | b"float64" => Scalar::F64,
+        // Not in the 1.0 spec, but written by some tools; accepting them costs nothing.
+        b"int64" => Scalar::I64,
+        b"uint64" => Scalar::U64,
+        _ => return None,
+    })
+}
+
+/// Returns the encoding, the elements, and the lines positioned at the start of the body.
+fn parse_header<'a>(
+    ctx: Ctx,
+    bytes: &'a [u8],
+) -> Result<(Encoding, Vec<Element>, Lines<'a>), ReadError> {
+    let mut lines = Lines::new(bytes);
+    lines.next(); // the `ply` magic line, already checked by the caller
+    let mut encoding = None;
+    let mut elements: Vec<Element> = Vec::new();
+    loop {
+        // A header line without its newline is a cut file, whatever the line says.
+        let Some(line) = lines.next().filter(|l| l.terminated) else {
+            return Err(ctx.truncated(format!(
+                "PLY header ends at byte {} before its end_header line",
+                bytes.len()
+            )));
+        };
+        let at = At::Line(line.number);
+        let mut toks = tokens(line.text);
+        let Some(keyword) = toks.next() else { continue };
+        let mut next = |what: &str| {
+            toks.next().ok_or_else(|| {
+                ctx.bad_header(at, format!("{} line without {what}", quote(keyword)))
+            })
+        };
+        match keyword {
+            b"comment" | b"obj_info" => {}
+            b"format" => {
+                if encoding.is_some() {
+                    return Err(ctx.bad_header(at, "a second format line"));
+                }
+                let enc = match next("an encoding")? {
+                    b"ascii" => Encoding::Ascii,
+                    b"binary_little_endian" => Encoding::Binary(Endian::Little),
+                    b"binary_big_endian" => Encoding::Binary(Endian::Big),
+                    other => {
+                        return Err(ctx.bad_header(at, format!(
+                            "unknown format {}; expected ascii, binary_little_endian or binary_big_endian",
+                            quote(other)
+                        )));
+                    }
+                };
+                let version = next("a version")?;
+                if parse_f64(version) != Some(1.0) {
+                    return Err(ctx.unsupported(format!(
+                        "PLY version {} on line {}; only 1.0 is defined",
+                        quote(version),
+                        line.number
+                    )));
+                }
+                encoding = Some(enc);
+            }
+            b"element" => {
+                let name = String::from_utf8_lossy(next("a name")?).into_owned();
+                let count = next("a count")?;
+                let count = parse_usize(count).ok_or_else(|| {
+                    ctx.bad_header(at, format!("{} is not an element count", quote(count)))
+                })?;
+                elements.push(Element {
+                    name,
+                    count,
+                    props: Vec::new(),
+                });
+            }
+            b"property" => {
+                let ty = |t: &[u8]| {
+                    scalar(t).ok_or_else(|| {
+                        ctx.bad_header(at, format!("unknown property type {}", quote(t)))
+                    })
+                };
+                let kind = match next("a type")? {
+                    b"list" => {
+                        let count = ty(next("a list count type")?)?;
+                        let item = ty(next("a list item type")?)?;
+                        if !count.is_integer() {
+                            return Err(
+                                ctx.bad_header(at, "a list count type must be an integer type")
+                            );
+                        }
+                        Kind::List { count, item }
+                    }
+                    t => Kind::Scalar(ty(t)?),
+                };
+                let name = String::from_utf8_lossy(next("a name")?).into_owned();
+                let element = elements
+                    .last_mut()
+                    .ok_or_else(|| ctx.bad_header(at, "property before any element line"))?;
+                element.props.push(Property { name, kind });
+            }
+            b"end_header" => break,
+            other => {
+                return Err(ctx.bad_header(at, format!("unknown header keyword {}", quote(other))));
+            }
+        }
+    }
+    let encoding = encoding.ok_or_else(|| ctx.bad_header(At::Header, "no format line"))?;
+    Ok((encoding, elements, lines))
+}
+
+fn roles(ctx: Ctx, vertex: &Element) -> Result<Vec<Role>, ReadError> {
+    let mut roles = vec![Role::Skip; vertex.props.len()];
+    for (axis, role) in [("x", Role::X), ("y", Role::Y), ("z", Role::Z)] {
+        let i = vertex
+            .props
+            .iter()
+            .position(|p| p.name == axis)
+            .ok_or_else(|| {
+                ctx.bad_header(
+                    At::Header,
+                    format!(
+                        "element vertex has no property {axis} (it has: {})",
+                        vertex.prop_names()
+                    ),
+                )
+            })?;
+        if let Some(Property {
+            kind: Kind::List { .. },
+            ..
+        }) = vertex.props.get(i)
+        {
+            return Err(ctx.unsupported(format!("vertex property {axis} is a list")));
+        }
+        if let Some(r) = roles.get_mut(i) {
+            *r = role;
+        }
+    }
+    Ok(roles)
+}
+
+fn ascii(
+    ctx: Ctx,
+    mut lines: Lines,
+    before: &[Element],
+    vertex: &Element,
+    roles: &[Role],
+) -> Result<Points, ReadError> {
+    let ends = |el: &Element, done: usize| {
+        ctx.truncated(format!(
+            "element {} declares {} lines, the file ends after {done}",
+            el.name, el.count
+        ))
+    };
+    for el in before {
+        // An instance without properties has no text, and would otherwise loop `count` times.
+        if el.props.is_empty() {
+            continue;
+        }
+        for done in 0..el.count {
+            lines.next_non_blank().ok_or_else(|| ends(el, done))?;
+        }
+    }
+    // Each value takes at least a character and a separator.
+    let capacity = vertex
+        .count
+        .min(lines.remaining() / (2 * vertex.props.len()));
+    let mut points = Points::with_capacity(capacity);
+    for done in 0..vertex.count {
+        let line = lines.next_non_blank().ok_or_else(|| ends(vertex, done))?;
+        points.push(ascii_vertex(ctx, &line, vertex, roles).map_err(|e| ctx.cut_short(&line, e))?);
+    }
+    Ok(points)
+}
+
+fn ascii_vertex(
+    ctx: Ctx,
+    line: &Line,
+    vertex: &Element,
+    roles: &[Role],
+) -> Result<[f64; 3], ReadError> {
+    let at = At::Line(line.number);
+    let mut toks = tokens(line.text);
+    let too_few = || {
+        ctx.bad_value(
+            at,
+            format!(
+                "too few values for vertex properties {}",
+                vertex.prop_names()
+            ),
+        )
+    };
+    let mut p = [f64::NAN; 3];
+    for (prop, &role) in vertex.props.iter().zip(roles) {
+        let tok = toks.next().ok_or_else(too_few)?;
+        match prop.kind {
+            Kind::List { .. } => {
+                let n = parse_usize(tok).ok_or_else(|| {
+                    ctx.bad_value(
+                        at,
+                        format!("{} is not a count for list {}", quote(tok), prop.name),
+                    )
+                })?;
+                // Bounded by the tokens on this line, whatever `n` claims.
+                for _ in 0..n {
+                    toks.next().ok_or_else(too_few)?;
+                }
+            }
+            Kind::Scalar(_) if role == Role::Skip => {}
+            Kind::Scalar(_) => {
+                let v = parse_f64(tok).ok_or_else(|| {
+                    ctx.bad_value(
+                        at,
+                        format!(
+                            "{} is not a number; expected vertex {}",
+                            quote(tok),
+                            prop.name
+                        ),
+                    )
+                })?;
+                set(&mut p, role, v);
+            }
+        }
+    }
+    if toks.next().is_some() {
+        return Err(ctx.bad_value(
+            at,
+            format!(
+                "more values than the vertex properties {}",
+                vertex.prop_names()
+            ),
+        ));
+    }
+    Ok(p)
+}
+
+fn binary(
+    ctx: Ctx,
+    bytes: &[u8],
+    mut pos: usize,
+    endian: Endian,
+    before: &[Element],
+    vertex: &Element,
+    roles: &[Role],
+) -> Result<Points, ReadError> {
+    for el in before {
+        pos = skip(ctx, bytes, pos, endian, el)?;
+    }
+    if let Some(stride) = vertex.fixed_stride() {
+        let data = take(ctx, bytes, pos, vertex, stride)?;
+        let mut fields = Vec::with_capacity(3);
+        let mut offset = 0;
+        for (prop, &role) in vertex.props.iter().zip(roles) {
+            if let Kind::Scalar(s) = prop.kind {
+                if role != Role::Skip {
+                    fields.push((role, offset, s));
+                }
+                offset += s.size();
+            }
+        }
+        let mut points = Points::with_capacity(vertex.count);
+        for record in data.chunks_exact(stride) {
+            let mut p = [f64::NAN; 3];
+            for &(role, offset, s) in &fields {
+                // offset + size <= stride, so the read always succeeds.
+                let v = record.get(offset..).and_then(|b| s.read(b, endian));
+                set(&mut p, role, v.unwrap_or(f64::NAN));
+            }
+            points.push(p);
+        }
+        return Ok(points);
+    }
+    let capacity = vertex
+        .count
+        .min(bytes.len().saturating_sub(pos) / vertex.min_stride());
+    let mut points = Points::with_capacity(capacity);
+    for index in 0..vertex.count {
+        let (next, p) = walk(ctx, bytes, pos, endian, vertex, roles, index)?;
+        pos = next;
+        points.push(p);
+    }
+    Ok(points)
+}
+
+/// The `count × stride` bytes of a fixed-size element, checked against the file's length.
+fn take<'a>(
+    ctx: Ctx,
+    bytes: &'a [u8],
+    pos: usize,
+    el: &Element,
+    stride: usize,
+) -> Result<&'a [u8], ReadError> {
+    let need = el.count as u128 * stride as u128;
+    let have = bytes.len().saturating_sub(pos);
+    if need > have as u128 {
+        return Err(ctx.truncated(format!(
+            "element {} needs {} × {stride} = {need} bytes from offset {pos}, file has {have}",
+            el.name, el.count
+        )));
+    }
+    Ok(bytes.get(pos..pos + need as usize).unwrap_or_default())
+}
+
+fn skip(
+    ctx: Ctx,
+    bytes: &[u8],
+    pos: usize,
+    endian: Endian,
+    el: &Element,
+) -> Result<usize, ReadError> {
+    if let Some(stride) = el.fixed_stride() {
+        return Ok(pos + take(ctx, bytes, pos, el, stride)?.len());
+    }
+    // Every instance holds at least one list count, so this loop ends with the file.
+    let mut pos = pos;
+    for index in 0..el.count {
+        pos = walk(ctx, bytes, pos, endian, el, &[], index)?.0;
+    }
+    Ok(pos)
+}
+
+/// Reads one instance of an element with list properties; returns the offset after it and
+/// the coordinates picked out by `roles` (empty roles pick nothing).
+fn walk(
+    ctx: Ctx,
+    bytes: &[u8],
+    mut pos: usize,
+    endian: Endian,
+    el: &Element,
+    roles: &[Role],
+    index: usize,
+) -> Result<(usize, [f64; 3]), ReadError> {
+    let ends = |pos: usize| {
+        ctx.truncated(format!(
+            "element {} instance {index} runs past the end of the file at offset {pos} of {}",
+            el.name,
+            bytes.len()
+        ))
+    };
+    let mut p = [f64::NAN; 3];
+    for (i, prop) in el.props.iter().enumerate() {
+        let rest = bytes.get(pos..).unwrap_or_default();
+        match prop.kind {
+            Kind::Scalar(s) => {
+                let v = s.read(rest, endian).ok_or_else(|| ends(pos))?;
+                set(&mut p, roles.get(i).copied().unwrap_or(Role::Skip), v);
+                pos += s.size();
+            }
+            Kind::List { count, item } => {
+                let n = count.read(rest, endian).ok_or_else(|| ends(pos))?;
+                if n < 0.0 {
+                    return Err(ctx.bad_value(
+                        At::Offset(pos),
+                        format!(
+                            "negative count {n} for list {} of element {}",
+                            prop.name, el.name
+                        ),
+                    ));
+                }
+                pos += count.size();
+                let len = n as u128 * item.size() as u128;
+                if len > bytes.len().saturating_sub(pos) as u128 {
+                    return Err(ends(pos));
+                }
+                pos += len as usize;
+            }
+        }
+    }
+    Ok((pos, p))
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::super::testkit::{assert_same, header_count, shared};
+    use super::super::{Endian, Format, ReadError, read_cloud_bytes};
+    use ply_rs_bw::ply::{DefaultElement, Property};
+
+    /// Writes a PLY. Each element is (name, property lines such as "float x" or
+    /// "list uchar int vertex_indices", rows); a row holds scalars in order, a list as its
+    /// count followed by its items.
+    pub fn write_ply(format: &str, elements: &[(&str, Vec<&str>, Vec<Vec<f64>>)]) -> Vec<u8> {
+        let mut out = format!("ply\nformat {format} 1.0\ncomment written by the tests\n");
+        for (name, props, rows) in elements {
+            out += &format!("element {name} {}\n", rows.len());
+            props.iter().for_each(|p| out += &format!("property {p}\n"));
+        }
+        let mut out = (out + "end_header\n").into_bytes();
+        for (_, props, rows) in elements {
+            for row in rows {
+                let mut values = row.iter().copied();
+                for prop in props {
+                    let words: Vec<&str> = prop.split(' ').collect();
+                    let (count_ty, item_ty) = match words[..] {
+                        ["list", c, i, _] => (Some(c), i),
+                        [t, _] => (None, t),
+                        _ => panic!("{prop}"),
+                    };
+                    let n = match count_ty {
+                        Some(c) => put(&mut out, format, c, values.next().unwrap()) as usize,
+                        None => 1,
+                    };
+                    (0..n).for_each(|_| _ = put(&mut out, format, item_ty, values.next().unwrap()));
+                }
+                if format == "ascii" {
+                    out.push(b'\n');
+                }
+            }
+        }
+        out
+    }
+
+    fn put(out: &mut Vec<u8>, format: &str, ty: &str, v: f64) -> f64 {
+        macro_rules! bytes {
+            ($t:ty) => {{
+                let x = v as $t;
+                match format {
+                    "binary_big_endian" => out.extend_from_slice(&x.to_be_bytes()),
+                    "binary_little_endian" => out.extend_from_slice(&x.to_le_bytes()),
+                    _ => out.extend_from_slice(format!("{x} ").as_bytes()),
+                }
+            }};
+        }
+        match ty {
+            "char" | "int8" => bytes!(i8),
+            "uchar" | "uint8" => bytes!(u8),
+            "short" | "int16" => bytes!(i16),
+            "ushort" | "uint16" => bytes!(u16),
+            "int" | "int32" => bytes!(i32),
+            "uint" | "uint32" => bytes!(u32),
+            "float" | "float32" => bytes!(f32),
+            "double" | "float64" => bytes!(f64),
+            _ => panic!("{ty}"),
+        }
+        v
+    }
+
+    /// bun_zipper.ply re-encoded, with its confidence, intensity and faces.
+    pub fn bunny_binary(endian: Endian) -> Vec<u8> {
+        let text = String::from_utf8(shared("bun_zipper.ply")).unwrap();
+        let body = text.split("end_header\n").nth(1).unwrap();
+        let rows: Vec<Vec<f64>> =
+            body.lines().map(|l| l.split_whitespace().map(|t| t.parse().unwrap()).collect()).collect();
+        let (vertices, faces) = rows.split_at(header_count(text.as_bytes(), "element vertex"));
+        let format = match endian {
+            Endian::Little => "binary_little_endian",
+            Endian::Big => "binary_big_endian",
+        };
+        let xyzci = vec!["float x", "float y", "float z", "float confidence", "float intensity"];
+        let faces = ("face", vec!["list uchar int vertex_indices"], faces.to_vec());
+        write_ply(format, &[("vertex", xyzci, vertices.to_vec()), faces])
+    }
+
+    /// The vertices as the independent ply-rs-bw crate reads them.
+    fn ply_rs(bytes: &[u8]) -> Vec<[f64; 3]> {
+        let parser = ply_rs_bw::parser::Parser::<DefaultElement>::new();
+        let ply = parser.read_ply(&mut &bytes[..]).unwrap();
+        let value = |v: &DefaultElement, k: &str| match v[k] {
+            Property::Float(f) => f64::from(f),
+            Property::Double(d) => d,
+            ref other => panic!("{k}: {other:?}"),
+        };
+        ply.payload["vertex"].iter().map(|v| ["x", "y", "z"].map(|k| value(v, k))).collect()
+    }
+
+    #[test]
+    fn shared_plys_match_ply_rs_bw() {
+        for (name, count) in [("bun000.ply", 40_256), ("bun_zipper.ply", 35_947)] {
+            let bytes = shared(name);
+            let cloud = read_cloud_bytes(name, &bytes).unwrap();
+            assert_eq!(cloud.slots, header_count(&bytes, "element vertex"));
+            assert_eq!((cloud.slots, cloud.points.len(), cloud.format), (count, count, Format::PlyAscii));
+            assert_same(&cloud, &ply_rs(&bytes), name);
+        }
+    }
+
+    #[test]
+    fn binary_bunny_in_both_byte_orders() {
+        let ascii = read_cloud_bytes("bun_zipper.ply", &shared("bun_zipper.ply")).unwrap();
+        let want: Vec<[f64; 3]> = ascii
+            .points
+            .iter()
+            .map(|p| std::array::from_fn(|k| ascii.origin[k] + f64::from(p[k])))
+            .collect();
+        for (endian, format) in [
+            (Endian::Little, Format::PlyBinaryLittleEndian),
+            (Endian::Big, Format::PlyBinaryBigEndian),
+        ] {
+            let bytes = bunny_binary(endian);
+            let cloud = read_cloud_bytes("bunny.ply", &bytes).unwrap();
+            assert_eq!((cloud.format, cloud.slots), (format, 35_947));
+            assert_same(&cloud, &ply_rs(&bytes), "binary vs ply-rs-bw");
+            assert_same(&cloud, &want, "binary vs ascii");
+        }
+    }
+
+    /// x, y, z of every type and alias, among other properties (a list among them), after
+    /// elements that must be skipped, in all three encodings.
+    #[test]
+    fn every_type_and_layout_in_every_encoding() {
+        let types = [
+            "char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "uint8",
+            "int16", "uint16", "int32", "uint32", "float32", "float64",
+        ];
+        for (i, ty) in types.iter().enumerate() {
+            let (ty_x, ty_y) = (types[(i + 3) % 16], types[(i + 7) % 16]);
+            let (z, x, y) = (format!("{ty} z"), format!("{ty_x} x"), format!("{ty_y} y"));
+            let props = vec![z.as_str(), "list uchar float junk", "ushort w", &x, &y];
+            let rows: Vec<Vec<f64>> = (0..20)
+                .map(|k| {
+                    let mut row = vec![f64::from(k), f64::from(k % 3)];
+                    row.extend((0..k % 3).map(|j| f64::from(j) + 0.5));
+                    row.extend([7.0, f64::from(k * 3 % 100), f64::from(100 - k)]);
+                    row
+                })
+                .collect();
+            let grid: Vec<Vec<f64>> = (0..9).map(|k| vec![f64::from(k % 4); 1 + k as usize % 4]).collect();
+            let elements = [
+                ("range_grid", vec!["list uchar int vertex_indices"], grid),
+                ("nothing", vec![], vec![vec![]; 5]),
+                ("camera", vec!["double view_x", "char flag"], vec![vec![1.5, -1.0]; 3]),
+                ("vertex", props, rows),
+                ("face", vec!["list uchar uint vertex_indices"], vec![vec![3.0, 0.0, 1.0, 2.0]]),
+            ];
+            for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
+                let bytes = write_ply(format, &elements);
+                let cloud = read_cloud_bytes("types.ply", &bytes).unwrap_or_else(|e| panic!("{e}"));
+                let want: Vec<[f64; 3]> = (0..20)
+                    .map(|k| [f64::from(k * 3 % 100), f64::from(100 - k), f64::from(k)])
+                    .collect();
+                assert_same(&cloud, &want, &format!("{format} {ty}"));
+            }
+        }
+    }
+
+    #[test]
+    fn header_problems_name_the_file() {
+        let cases: [(&str, fn(&ReadError) -> bool); 6] = [
+            ("element vertex 1\nproperty float x\nproperty float y\n", |e| matches!(e, ReadError::BadHeader { .. })),
+            ("element face 1\nproperty list uchar int i\n", |e| matches!(e, ReadError::BadHeader { .. })),
+            ("element vertex 1\nproperty list uchar float x\nproperty float y\nproperty float z\n", |e| matches!(e, ReadError::Unsupported { .. })),
+            ("element vertex 1\nproperty flt x\n", |e| matches!(e, ReadError::BadHeader { .. })),
+            ("property float x\n", |e| matches!(e, ReadError::BadHeader { .. })),
+            ("element vertex 0\nproperty float x\nproperty float y\nproperty float z\n", |e| matches!(e, ReadError::NoFinitePoints { slots: 0, .. })),
+        ];
+        for (header, check) in cases {
+            let bytes = format!("ply\nformat ascii 1.0\n{header}end_header\n");
+            let e = read_cloud_bytes("h.ply", bytes.as_bytes()).unwrap_err();
+            assert!(check(&e) && e.to_string().starts_with("h.ply: "), "{header}: {e:?}");
+        }
+        let e = read_cloud_bytes("v.ply", b"ply\nformat ascii 2.0\nend_header\n").unwrap_err();
+        assert!(matches!(e, ReadError::Unsupported { .. }), "{e:?}");
+        let e = read_cloud_bytes("v.ply", b"ply\nformat ascii 1.0\nend_header\n").unwrap_err();
+        assert!(matches!(e, ReadError::BadHeader { .. }), "{e:?}");
+        let bad = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 abc 3\n";
+        let e = read_cloud_bytes("bun.ply", bad.as_bytes()).unwrap_err();
+        assert_eq!(e.to_string(), "bun.ply: line 9: 'abc' is not a number; expected vertex y");
+    }
+}
