@@ -33,9 +33,9 @@ pub struct VariantRow {
 pub fn variants() -> Vec<(&'static str, FitParams)> {
     let d = FitParams::default();
     vec![
-        ("default (spread 0.05-3 s, clamp, exact, seeded)", d),
-        ("bounds spread 0.05-10 s", FitParams { bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 10.0 }, ..d }),
-        ("bounds threshold (log r)", FitParams { bounds: SemiAxisBounds::Threshold { lower: 0.05 }, ..d }),
+        ("default (threshold box in ln r, clamp, exact, seeded)", d),
+        ("bounds spread 0.05-3 s (linear)", FitParams { bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 3.0 }, ..d }),
+        ("bounds spread 0.05-10 s (linear)", FitParams { bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 10.0 }, ..d }),
         ("out-of-bounds reflect", FitParams { out_of_bounds: OutOfBounds::Reflect, ..d }),
         ("out-of-bounds resample", FitParams { out_of_bounds: OutOfBounds::Resample, ..d }),
         ("volume spread-relative", FitParams { volume: VolumeTerm::SpreadRelative, ..d }),

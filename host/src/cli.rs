@@ -76,7 +76,7 @@ pub struct FitArgs {
     /// Relative tolerance within which three semi-axes make a sphere.
     #[arg(long, default_value_t = 0.01)]
     pub sphere_tolerance: f64,
-    #[arg(long, value_enum, default_value_t = BoundsArg::Spread)]
+    #[arg(long, value_enum, default_value_t = BoundsArg::Threshold)]
     pub bounds: BoundsArg,
     #[arg(long, value_enum, default_value_t = OutOfBoundsArg::Clamp)]
     pub out_of_bounds: OutOfBoundsArg,
@@ -178,8 +178,8 @@ impl FitArgs {
             },
             de: DeParams { generations: self.generations, ..DeParams::default() },
             bounds: match self.bounds {
-                BoundsArg::Spread => SemiAxisBounds::default(),
-                BoundsArg::Threshold => SemiAxisBounds::Threshold { lower: 0.05 },
+                BoundsArg::Spread => SemiAxisBounds::Spread { lower: 0.05, upper: 3.0 },
+                BoundsArg::Threshold => SemiAxisBounds::default(),
             },
             out_of_bounds: match self.out_of_bounds {
                 OutOfBoundsArg::Clamp => OutOfBounds::Clamp,

@@ -242,4 +242,38 @@ mod tests {
             let _ = decompress(&good[..i], expected);
         }
     }
+
+    /// Damage to car6.pcd's LZF stream is a `BadValue` at an offset, never a panic.
+    #[test]
+    fn corrupt_pcd_stream_is_a_bad_value() {
+        use super::super::testkit::shared;
+        use super::super::{At, ReadError, read_cloud_bytes};
+        let good = shared("car6.pcd");
+        let body = good
+            .windows(18)
+            .position(|w| w == b"binary_compressed\n")
+            .unwrap()
+            + 18;
+        let stream = body + 8;
+        let read = |bytes: &[u8]| read_cloud_bytes("car6.pcd", bytes);
+        let mut bad = good.clone();
+        bad[stream] = 0xff; // a back reference before anything was decompressed
+        let e = read(&bad).unwrap_err();
+        assert!(
+            matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == stream),
+            "{e}"
+        );
+        let mut bad = good.clone();
+        let packed = u32::from_le_bytes(bad[body..body + 4].try_into().unwrap());
+        bad[body..body + 4].copy_from_slice(&(packed - 100).to_le_bytes());
+        assert!(matches!(read(&bad), Err(ReadError::BadValue { .. })));
+        for (i, at) in (stream..good.len()).step_by(97).enumerate() {
+            let mut bad = good.clone();
+            bad[at] ^= 1 << (i % 8);
+            match read(&bad) {
+                Ok(_) | Err(ReadError::BadValue { .. }) => {}
+                Err(e) => panic!("flip at {at}: {e}"),
+            }
+        }
+    }
 }

@@ -673,7 +673,15 @@ mod tests {
                 .windows(11)
                 .position(|w| w == b"end_header\n" || w.starts_with(b"DATA "))
                 .unwrap();
-            let cuts = [5, 40, body, body + 5, body + 20, body + 1000, body + 30_000];
+            let cuts = [
+                12,
+                40,
+                body,
+                body + 5,
+                body + 20,
+                body + 1000,
+                body + 30_000,
+            ];
             for cut in cuts {
                 let e = err(name, &bytes[..cut]);
                 let ok = match e {

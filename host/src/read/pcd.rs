@@ -426,7 +426,12 @@ pub(crate) mod tests {
     /// Writes a PCD; `fields` are (name, TYPE, SIZE, COUNT) and each row holds every value of
     /// a point in field order. binary_compressed uses literal-only LZF runs, which any LZF
     /// decoder must accept, so the test does not need a compressor.
-    pub fn write_pcd(data: &str, fields: &[(&str, char, usize, usize)], width: usize, rows: &[Vec<f64>]) -> Vec<u8> {
+    pub fn write_pcd(
+        data: &str,
+        fields: &[(&str, char, usize, usize)],
+        width: usize,
+        rows: &[Vec<f64>],
+    ) -> Vec<u8> {
         let list = |f: &dyn Fn(&(&str, char, usize, usize)) -> String| {
             fields.iter().map(f).collect::<Vec<_>>().join(" ")
         };
@@ -450,7 +455,10 @@ pub(crate) mod tests {
             _ => panic!("{ty}{size}"),
         };
         // Value index of each field's first value within a row.
-        let starts: Vec<usize> = fields.iter().scan(0, |n, f| Some(std::mem::replace(n, *n + f.3))).collect();
+        let starts: Vec<usize> = fields
+            .iter()
+            .scan(0, |n, f| Some(std::mem::replace(n, *n + f.3)))
+            .collect();
         if data == "binary_compressed" {
             let mut columns = Vec::new();
             for (f, start) in fields.iter().zip(&starts).filter(|(f, _)| f.0 != "_") {
@@ -458,7 +466,10 @@ pub(crate) mod tests {
                     (0..f.3).for_each(|c| put(&mut columns, (f.1, f.2), row[start + c]));
                 }
             }
-            let stream: Vec<u8> = columns.chunks(32).flat_map(|c| [&[c.len() as u8 - 1][..], c].concat()).collect();
+            let stream: Vec<u8> = columns
+                .chunks(32)
+                .flat_map(|c| [&[c.len() as u8 - 1][..], c].concat())
+                .collect();
             out.extend_from_slice(&(stream.len() as u32).to_le_bytes());
             out.extend_from_slice(&(columns.len() as u32).to_le_bytes());
             out.extend_from_slice(&stream);
@@ -478,7 +489,14 @@ pub(crate) mod tests {
     /// All slots of a shared PCD as the independent pcd-rs crate reads them.
     fn pcd_rs(name: &str) -> Vec<[f64; 3]> {
         let reader = pcd_rs::DynReader::open(format!("{DATA}/{name}")).unwrap();
-        let index = |axis: &str| reader.meta().field_defs.iter().position(|f| f.name == axis).unwrap();
+        let index = |axis: &str| {
+            reader
+                .meta()
+                .field_defs
+                .iter()
+                .position(|f| f.name == axis)
+                .unwrap()
+        };
         let [ix, iy, iz] = ["x", "y", "z"].map(index);
         let value = |f: &pcd_rs::Field| match f {
             pcd_rs::Field::F32(v) => f64::from(v[0]),
@@ -486,11 +504,18 @@ pub(crate) mod tests {
             other => panic!("{other:?}"),
         };
         let records: Vec<pcd_rs::DynRecord> = reader.collect::<Result<_, _>>().unwrap();
-        records.iter().map(|r| [value(&r.0[ix]), value(&r.0[iy]), value(&r.0[iz])]).collect()
+        records
+            .iter()
+            .map(|r| [value(&r.0[ix]), value(&r.0[iy]), value(&r.0[iz])])
+            .collect()
     }
 
     fn finite(points: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        points.iter().copied().filter(|p| p.iter().all(|c| c.is_finite())).collect()
+        points
+            .iter()
+            .copied()
+            .filter(|p| p.iter().all(|c| c.is_finite()))
+            .collect()
     }
 
     #[test]
@@ -501,13 +526,23 @@ pub(crate) mod tests {
             ("lamppost.pcd", 1_771, 1_771, Format::PcdAscii),
             ("rops_cloud.pcd", 32_087, 32_087, Format::PcdAscii),
             ("cturtle.pcd", 167_198, 167_198, Format::PcdBinaryCompressed),
-            ("five_people.pcd", 307_200, 239_075, Format::PcdBinaryCompressed),
+            (
+                "five_people.pcd",
+                307_200,
+                239_075,
+                Format::PcdBinaryCompressed,
+            ),
             ("office1.pcd", 307_200, 254_456, Format::PcdBinaryCompressed),
         ] {
             let bytes = shared(name);
             let cloud = read_cloud_bytes(name, &bytes).unwrap();
             assert_eq!(cloud.slots, header_count(&bytes, "POINTS"), "{name}");
-            let got = (cloud.slots, cloud.points.len(), cloud.dropped_non_finite, cloud.format);
+            let got = (
+                cloud.slots,
+                cloud.points.len(),
+                cloud.dropped_non_finite,
+                cloud.format,
+            );
             assert_eq!(got, (slots, kept, slots - kept, format), "{name}");
             assert_same(&cloud, &finite(&pcd_rs(name)), name);
         }
@@ -519,7 +554,24 @@ pub(crate) mod tests {
         let points = pcd_rs("car6.pcd");
         let hole = |i: usize, c: f64| if i % 10 == 3 { f64::NAN } else { c };
         let rows = points[..10_030].iter().enumerate();
-        rows.map(|(i, p)| vec![i as f64, hole(i, p[0]), 0.0, 1.0, 2.0, 3.0, 7.0, p[1], 0.5, 0.25, 0.125, p[2], 255.0]).collect()
+        rows.map(|(i, p)| {
+            vec![
+                i as f64,
+                hole(i, p[0]),
+                0.0,
+                1.0,
+                2.0,
+                3.0,
+                7.0,
+                p[1],
+                0.5,
+                0.25,
+                0.125,
+                p[2],
+                255.0,
+            ]
+        })
+        .collect()
     }
 
     pub fn car6_as(data: &str) -> Vec<u8> {
@@ -542,7 +594,12 @@ pub(crate) mod tests {
 
     #[test]
     fn car6_in_every_encoding_and_coordinate_type() {
-        let want: Vec<[f64; 3]> = finite(&car6_rows().iter().map(|r| [r[1], r[7], r[11]]).collect::<Vec<_>>());
+        let want: Vec<[f64; 3]> = finite(
+            &car6_rows()
+                .iter()
+                .map(|r| [r[1], r[7], r[11]])
+                .collect::<Vec<_>>(),
+        );
         for (data, format) in [
             ("ascii", Format::PcdAscii),
             ("binary", Format::PcdBinary),
@@ -550,7 +607,10 @@ pub(crate) mod tests {
         ] {
             for size in [4, 8] {
                 let cloud = read_cloud_bytes("car6.pcd", &car6_as_typed(data, size)).unwrap();
-                assert_eq!((cloud.format, cloud.slots, cloud.dropped_non_finite), (format, 10_030, 1003));
+                assert_eq!(
+                    (cloud.format, cloud.slots, cloud.dropped_non_finite),
+                    (format, 10_030, 1003)
+                );
                 assert_same(&cloud, &want, &format!("{data} F{size}"));
             }
         }
@@ -561,13 +621,22 @@ pub(crate) mod tests {
         // v0.5/0.6 style: no VERSION, COLUMNS, no SIZE/TYPE (4-byte floats), no WIDTH.
         let old = b"COLUMNS x y z\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 nan\n";
         let cloud = read_cloud_bytes("old.pcd", old).unwrap();
-        assert_eq!((cloud.slots, cloud.points.len(), cloud.origin), (2, 1, [1.0, 2.0, 3.0]));
+        assert_eq!(
+            (cloud.slots, cloud.points.len(), cloud.origin),
+            (2, 1, [1.0, 2.0, 3.0])
+        );
         let bad = b"FIELDS x y z\nWIDTH 2\nDATA ascii\n1 2 3\n4 5\n";
         let e = read_cloud_bytes("bad.pcd", bad).unwrap_err();
-        assert_eq!(e.to_string(), "bad.pcd: line 5: 2 values; the fields need 3");
+        assert_eq!(
+            e.to_string(),
+            "bad.pcd: line 5: 2 values; the fields need 3"
+        );
         let nan = b"FIELDS x y z\nWIDTH 2\nDATA ascii\nnan nan nan\nnan 1 1\n";
         let e = read_cloud_bytes("nan.pcd", nan).unwrap_err();
-        assert!(matches!(e, ReadError::NoFinitePoints { slots: 2, .. }), "{e:?}");
+        assert!(
+            matches!(e, ReadError::NoFinitePoints { slots: 2, .. }),
+            "{e:?}"
+        );
         let e = read_cloud_bytes("x.pcd", b"FIELDS x y z\nWIDTH 1\nDATA lzma\n").unwrap_err();
         assert!(matches!(e, ReadError::Unsupported { .. }), "{e:?}");
     }

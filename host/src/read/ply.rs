@@ -553,15 +553,27 @@ pub(crate) mod tests {
     pub fn bunny_binary(endian: Endian) -> Vec<u8> {
         let text = String::from_utf8(shared("bun_zipper.ply")).unwrap();
         let body = text.split("end_header\n").nth(1).unwrap();
-        let rows: Vec<Vec<f64>> =
-            body.lines().map(|l| l.split_whitespace().map(|t| t.parse().unwrap()).collect()).collect();
+        let rows: Vec<Vec<f64>> = body
+            .lines()
+            .map(|l| l.split_whitespace().map(|t| t.parse().unwrap()).collect())
+            .collect();
         let (vertices, faces) = rows.split_at(header_count(text.as_bytes(), "element vertex"));
         let format = match endian {
             Endian::Little => "binary_little_endian",
             Endian::Big => "binary_big_endian",
         };
-        let xyzci = vec!["float x", "float y", "float z", "float confidence", "float intensity"];
-        let faces = ("face", vec!["list uchar int vertex_indices"], faces.to_vec());
+        let xyzci = vec![
+            "float x",
+            "float y",
+            "float z",
+            "float confidence",
+            "float intensity",
+        ];
+        let faces = (
+            "face",
+            vec!["list uchar int vertex_indices"],
+            faces.to_vec(),
+        );
         write_ply(format, &[("vertex", xyzci, vertices.to_vec()), faces])
     }
 
@@ -574,7 +586,10 @@ pub(crate) mod tests {
             Property::Double(d) => d,
             ref other => panic!("{k}: {other:?}"),
         };
-        ply.payload["vertex"].iter().map(|v| ["x", "y", "z"].map(|k| value(v, k))).collect()
+        ply.payload["vertex"]
+            .iter()
+            .map(|v| ["x", "y", "z"].map(|k| value(v, k)))
+            .collect()
     }
 
     #[test]
@@ -583,7 +598,10 @@ pub(crate) mod tests {
             let bytes = shared(name);
             let cloud = read_cloud_bytes(name, &bytes).unwrap();
             assert_eq!(cloud.slots, header_count(&bytes, "element vertex"));
-            assert_eq!((cloud.slots, cloud.points.len(), cloud.format), (count, count, Format::PlyAscii));
+            assert_eq!(
+                (cloud.slots, cloud.points.len(), cloud.format),
+                (count, count, Format::PlyAscii)
+            );
             assert_same(&cloud, &ply_rs(&bytes), name);
         }
     }
@@ -628,13 +646,23 @@ pub(crate) mod tests {
                     row
                 })
                 .collect();
-            let grid: Vec<Vec<f64>> = (0..9).map(|k| vec![f64::from(k % 4); 1 + k as usize % 4]).collect();
+            let grid: Vec<Vec<f64>> = (0..9)
+                .map(|k| vec![f64::from(k % 4); 1 + k as usize % 4])
+                .collect();
             let elements = [
                 ("range_grid", vec!["list uchar int vertex_indices"], grid),
                 ("nothing", vec![], vec![vec![]; 5]),
-                ("camera", vec!["double view_x", "char flag"], vec![vec![1.5, -1.0]; 3]),
+                (
+                    "camera",
+                    vec!["double view_x", "char flag"],
+                    vec![vec![1.5, -1.0]; 3],
+                ),
                 ("vertex", props, rows),
-                ("face", vec!["list uchar uint vertex_indices"], vec![vec![3.0, 0.0, 1.0, 2.0]]),
+                (
+                    "face",
+                    vec!["list uchar uint vertex_indices"],
+                    vec![vec![3.0, 0.0, 1.0, 2.0]],
+                ),
             ];
             for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
                 let bytes = write_ply(format, &elements);
@@ -650,17 +678,35 @@ pub(crate) mod tests {
     #[test]
     fn header_problems_name_the_file() {
         let cases: [(&str, fn(&ReadError) -> bool); 6] = [
-            ("element vertex 1\nproperty float x\nproperty float y\n", |e| matches!(e, ReadError::BadHeader { .. })),
-            ("element face 1\nproperty list uchar int i\n", |e| matches!(e, ReadError::BadHeader { .. })),
-            ("element vertex 1\nproperty list uchar float x\nproperty float y\nproperty float z\n", |e| matches!(e, ReadError::Unsupported { .. })),
-            ("element vertex 1\nproperty flt x\n", |e| matches!(e, ReadError::BadHeader { .. })),
-            ("property float x\n", |e| matches!(e, ReadError::BadHeader { .. })),
-            ("element vertex 0\nproperty float x\nproperty float y\nproperty float z\n", |e| matches!(e, ReadError::NoFinitePoints { slots: 0, .. })),
+            (
+                "element vertex 1\nproperty float x\nproperty float y\n",
+                |e| matches!(e, ReadError::BadHeader { .. }),
+            ),
+            ("element face 1\nproperty list uchar int i\n", |e| {
+                matches!(e, ReadError::BadHeader { .. })
+            }),
+            (
+                "element vertex 1\nproperty list uchar float x\nproperty float y\nproperty float z\n",
+                |e| matches!(e, ReadError::Unsupported { .. }),
+            ),
+            ("element vertex 1\nproperty flt x\n", |e| {
+                matches!(e, ReadError::BadHeader { .. })
+            }),
+            ("property float x\n", |e| {
+                matches!(e, ReadError::BadHeader { .. })
+            }),
+            (
+                "element vertex 0\nproperty float x\nproperty float y\nproperty float z\n",
+                |e| matches!(e, ReadError::NoFinitePoints { slots: 0, .. }),
+            ),
         ];
         for (header, check) in cases {
             let bytes = format!("ply\nformat ascii 1.0\n{header}end_header\n");
             let e = read_cloud_bytes("h.ply", bytes.as_bytes()).unwrap_err();
-            assert!(check(&e) && e.to_string().starts_with("h.ply: "), "{header}: {e:?}");
+            assert!(
+                check(&e) && e.to_string().starts_with("h.ply: "),
+                "{header}: {e:?}"
+            );
         }
         let e = read_cloud_bytes("v.ply", b"ply\nformat ascii 2.0\nend_header\n").unwrap_err();
         assert!(matches!(e, ReadError::Unsupported { .. }), "{e:?}");
@@ -668,6 +714,9 @@ pub(crate) mod tests {
         assert!(matches!(e, ReadError::BadHeader { .. }), "{e:?}");
         let bad = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 abc 3\n";
         let e = read_cloud_bytes("bun.ply", bad.as_bytes()).unwrap_err();
-        assert_eq!(e.to_string(), "bun.ply: line 9: 'abc' is not a number; expected vertex y");
+        assert_eq!(
+            e.to_string(),
+            "bun.ply: line 9: 'abc' is not a number; expected vertex y"
+        );
     }
 }

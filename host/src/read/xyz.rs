@@ -65,3 +65,82 @@ fn first_three<'a>(toks: impl Iterator<Item = &'a [u8]>) -> Result<[f64; 3], Not
     }
     Ok(p)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Format, ReadError, read_cloud_bytes};
+
+    fn read(text: &str) -> Result<super::Cloud, ReadError> {
+        read_cloud_bytes("pts.xyz", text.as_bytes())
+    }
+
+    #[test]
+    fn whitespace_csv_headers_and_comments() {
+        let text = "Scanner v2 export\nX Y Z I\n# a comment\n\n1 2 3 9\n\t3  4\t5\r\n# another\n5 6 7 extra columns\n";
+        let cloud = read(text).unwrap();
+        assert_eq!(
+            (cloud.format, cloud.slots, cloud.origin),
+            (Format::Xyz, 3, [3.0, 4.0, 5.0])
+        );
+        assert_eq!(
+            cloud.points,
+            [[-2.0, -2.0, -2.0], [0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]
+        );
+        let csv = read("x,y,z,intensity\n1, 2,3,0.5\n-1,-2,-3,1\n").unwrap();
+        assert_eq!((csv.origin, csv.points[0]), ([0.0; 3], [1.0, 2.0, 3.0]));
+    }
+
+    #[test]
+    fn far_coordinates_keep_their_precision() {
+        // UTM-like eastings: 0.001 steps survive because they are stored around the origin.
+        let cloud = read("500000.001 4000000.002 10\n500000.003 4000000.006 12\n").unwrap();
+        let want = [500000.002, 4000000.004, 11.0];
+        assert!(
+            cloud
+                .origin
+                .iter()
+                .zip(want)
+                .all(|(o, w)| (o - w).abs() < 1e-9)
+        );
+        let p = cloud.points[0];
+        assert!((p[0] + 0.001).abs() < 1e-6 && (p[1] + 0.002).abs() < 1e-6 && p[2] == -1.0);
+    }
+
+    #[test]
+    fn bad_lines_after_data_starts() {
+        let e = read("x y z\n1 2 3\n4 5 6\nabc 1 2\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "pts.xyz: line 4: 'abc' is not a number; expected x y z"
+        );
+        let e = read("1 2 3\n4 5\n6 7 8\n").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "pts.xyz: line 2: 2 values; expected at least 3 (x y z)"
+        );
+        let e = read("1,2,3\n4,,6\n").unwrap_err();
+        assert!(matches!(e, ReadError::BadValue { .. }), "{e:?}");
+        let e = read("1 2 3\n4 5 6\n7 8").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "pts.xyz: truncated: the file ends inside line 3"
+        );
+    }
+
+    #[test]
+    fn non_finite_points_are_counted() {
+        let cloud = read("1 2 3\nnan 0 0\n0 inf 0\n3 4 5\n").unwrap();
+        assert_eq!(
+            (cloud.slots, cloud.dropped_non_finite, cloud.points.len()),
+            (4, 2, 2)
+        );
+        let e = read_cloud_bytes("nan.xyz", "NaN nan nan\n".repeat(12).as_bytes()).unwrap_err();
+        assert!(matches!(e, ReadError::NoFinitePoints { slots: 12, .. }));
+        assert_eq!(
+            e.to_string(),
+            "nan.xyz: no finite points (12 slots, all NaN or infinite)"
+        );
+        let e = read("1e300 0 0\n-1e300 0 0\n").unwrap_err();
+        assert!(matches!(e, ReadError::Unsupported { .. }), "{e:?}");
+    }
+}

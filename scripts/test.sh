@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The test command (README, .ci/run): installs what the tests need, then runs every check.
+# Real-data tests run in the release profile; the shared clouds are read from ../shared/data.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+if [ ! -d ../shared/data ]; then
+  echo "test.sh: ../shared/data is missing; the tests read the shared real clouds from there" >&2
+  exit 1
+fi
+rustup component add rustfmt clippy >/dev/null 2>&1 || true
+
+echo "== cargo fmt --check"
+cargo fmt --all --check
+echo "== cargo clippy"
+cargo clippy --workspace --all-targets -- -D warnings
+echo "== core builds without std"
+cargo build -p mema-core --no-default-features
+echo "== tests (release profile: real clouds)"
+cargo test --workspace --release
