@@ -390,7 +390,10 @@ mod tests {
         );
         assert_eq!(fit.entity.weights[2], 0.0);
         let spread_params = FitParams {
-            bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 3.0 },
+            bounds: SemiAxisBounds::Spread {
+                lower: 0.05,
+                upper: 3.0,
+            },
             ..FitParams::default()
         };
         let spread = fit_ellipsoid_paper(&moments, &spread_params, &mut stream_rng(1, 0));

@@ -34,28 +34,86 @@ pub fn variants() -> Vec<(&'static str, FitParams)> {
     let d = FitParams::default();
     vec![
         ("default (threshold box in ln r, clamp, exact, seeded)", d),
-        ("bounds spread 0.05-3 s (linear)", FitParams { bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 3.0 }, ..d }),
-        ("bounds spread 0.05-10 s (linear)", FitParams { bounds: SemiAxisBounds::Spread { lower: 0.05, upper: 10.0 }, ..d }),
-        ("out-of-bounds reflect", FitParams { out_of_bounds: OutOfBounds::Reflect, ..d }),
-        ("out-of-bounds resample", FitParams { out_of_bounds: OutOfBounds::Resample, ..d }),
-        ("volume spread-relative", FitParams { volume: VolumeTerm::SpreadRelative, ..d }),
-        ("init random (paper)", FitParams { initialisation: Initialisation::Random, ..d }),
+        (
+            "bounds spread 0.05-3 s (linear)",
+            FitParams {
+                bounds: SemiAxisBounds::Spread {
+                    lower: 0.05,
+                    upper: 3.0,
+                },
+                ..d
+            },
+        ),
+        (
+            "bounds spread 0.05-10 s (linear)",
+            FitParams {
+                bounds: SemiAxisBounds::Spread {
+                    lower: 0.05,
+                    upper: 10.0,
+                },
+                ..d
+            },
+        ),
+        (
+            "out-of-bounds reflect",
+            FitParams {
+                out_of_bounds: OutOfBounds::Reflect,
+                ..d
+            },
+        ),
+        (
+            "out-of-bounds resample",
+            FitParams {
+                out_of_bounds: OutOfBounds::Resample,
+                ..d
+            },
+        ),
+        (
+            "volume spread-relative",
+            FitParams {
+                volume: VolumeTerm::SpreadRelative,
+                ..d
+            },
+        ),
+        (
+            "init random (paper)",
+            FitParams {
+                initialisation: Initialisation::Random,
+                ..d
+            },
+        ),
         (
             "init random, resample",
-            FitParams { initialisation: Initialisation::Random, out_of_bounds: OutOfBounds::Resample, ..d },
+            FitParams {
+                initialisation: Initialisation::Random,
+                out_of_bounds: OutOfBounds::Resample,
+                ..d
+            },
         ),
     ]
 }
 
 pub fn run(cloud: &LocalCloud, k: usize, seed: u64, json: bool) -> Result<()> {
-    let clusters = pipeline::cluster(&cloud.points, k, &KMeansParams { seed, ..KMeansParams::default() })?;
+    let clusters = pipeline::cluster(
+        &cloud.points,
+        k,
+        &KMeansParams {
+            seed,
+            ..KMeansParams::default()
+        },
+    )?;
     let n = clusters.moments.len() as f64;
     let mut rows: Vec<VariantRow> = Vec::new();
     for (name, params) in variants() {
         let fitted = pipeline::fit_all(&clusters.moments, seed, &params);
         let mean_error = |fits: &[mema_core::fit::Fit]| {
             let entities: Vec<_> = fits.iter().map(|f| f.entity).collect();
-            ErrorStats::from_errors(&pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)).mean
+            ErrorStats::from_errors(&pipeline::cluster_errors(
+                &cloud.points,
+                &clusters.labels,
+                &entities,
+            ))
+            .mean
         };
         let ellipsoid_mean = mean_error(&fitted.ellipsoids);
         let percent = |count: usize| 100.0 * count as f64 / n;
@@ -65,12 +123,34 @@ pub fn run(cloud: &LocalCloud, k: usize, seed: u64, json: bool) -> Result<()> {
             ellipsoid_mean,
             change_percent: 100.0 * (ellipsoid_mean / baseline - 1.0),
             sphere_mean: mean_error(&fitted.spheres),
-            on_upper_bound_percent: percent(fitted.ellipsoids.iter().filter(|f| f.on_upper_bound > 0).count()),
-            degenerated_percent: percent(fitted.ellipsoids.iter().filter(|f| f.entity.degenerated_axes() > 0).count()),
-            ellipsoid_worse_than_sphere_percent: percent(
-                fitted.ellipsoids.iter().zip(fitted.spheres.iter()).filter(|(e, s)| e.fitness > s.fitness).count(),
+            on_upper_bound_percent: percent(
+                fitted
+                    .ellipsoids
+                    .iter()
+                    .filter(|f| f.on_upper_bound > 0)
+                    .count(),
             ),
-            volume_share: fitted.ellipsoids.iter().map(|f| f.volume_term / f.fitness).sum::<f64>() / n,
+            degenerated_percent: percent(
+                fitted
+                    .ellipsoids
+                    .iter()
+                    .filter(|f| f.entity.degenerated_axes() > 0)
+                    .count(),
+            ),
+            ellipsoid_worse_than_sphere_percent: percent(
+                fitted
+                    .ellipsoids
+                    .iter()
+                    .zip(fitted.spheres.iter())
+                    .filter(|(e, s)| e.fitness > s.fitness)
+                    .count(),
+            ),
+            volume_share: fitted
+                .ellipsoids
+                .iter()
+                .map(|f| f.volume_term / f.fitness)
+                .sum::<f64>()
+                / n,
         });
     }
     if json {

@@ -2,11 +2,11 @@
 
 use crate::pipeline::{EntityChoice, PipelineConfig};
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use mema_core::Degeneration;
 use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::kmeans::KMeansParams;
-use mema_core::Degeneration;
 use std::path::PathBuf;
 
 #[derive(Parser, Debug)]
@@ -158,27 +158,47 @@ impl FitArgs {
     /// Checks the values and builds the pipeline configuration.
     pub fn config(&self, k: usize) -> Result<PipelineConfig, UsageError> {
         if k == 0 {
-            return Err(UsageError("k must be at least 1; consider -k 150 (about one entity per 100 points)".into()));
+            return Err(UsageError(
+                "k must be at least 1; consider -k 150 (about one entity per 100 points)".into(),
+            ));
         }
         if !(self.alpha >= 0.0 && self.alpha <= 1.0) {
-            return Err(UsageError(format!("--alpha {} is outside [0, 1]; the paper uses 0.8", self.alpha)));
+            return Err(UsageError(format!(
+                "--alpha {} is outside [0, 1]; the paper uses 0.8",
+                self.alpha
+            )));
         }
         if !(self.threshold > 0.0 && self.threshold.is_finite()) {
-            return Err(UsageError(format!("--threshold {} must be a positive length", self.threshold)));
+            return Err(UsageError(format!(
+                "--threshold {} must be a positive length",
+                self.threshold
+            )));
         }
         if !(self.sphere_tolerance >= 0.0 && self.sphere_tolerance.is_finite()) {
-            return Err(UsageError(format!("--sphere-tolerance {} must be >= 0", self.sphere_tolerance)));
+            return Err(UsageError(format!(
+                "--sphere-tolerance {} must be >= 0",
+                self.sphere_tolerance
+            )));
         }
-        let degeneration = Degeneration { threshold: self.threshold, sphere_tolerance: self.sphere_tolerance };
+        let degeneration = Degeneration {
+            threshold: self.threshold,
+            sphere_tolerance: self.sphere_tolerance,
+        };
         let fit = FitParams {
             alpha: self.alpha,
             volume: match self.volume {
                 VolumeArg::Exact => VolumeTerm::Exact,
                 VolumeArg::Spread => VolumeTerm::SpreadRelative,
             },
-            de: DeParams { generations: self.generations, ..DeParams::default() },
+            de: DeParams {
+                generations: self.generations,
+                ..DeParams::default()
+            },
             bounds: match self.bounds {
-                BoundsArg::Spread => SemiAxisBounds::Spread { lower: 0.05, upper: 3.0 },
+                BoundsArg::Spread => SemiAxisBounds::Spread {
+                    lower: 0.05,
+                    upper: 3.0,
+                },
                 BoundsArg::Threshold => SemiAxisBounds::default(),
             },
             out_of_bounds: match self.out_of_bounds {
@@ -195,7 +215,11 @@ impl FitArgs {
         Ok(PipelineConfig {
             k,
             seed: self.seed,
-            kmeans: KMeansParams { max_iterations: self.max_iterations, seed: self.seed, ..KMeansParams::default() },
+            kmeans: KMeansParams {
+                max_iterations: self.max_iterations,
+                seed: self.seed,
+                ..KMeansParams::default()
+            },
             fit,
         })
     }

@@ -29,12 +29,28 @@ impl LocalCloud {
                 hi[j] = hi[j].max(p[j]);
             }
         }
-        let origin = [0, 1, 2].map(|j| if points.is_empty() { 0.0 } else { 0.5 * (lo[j] + hi[j]) });
+        let origin = [0, 1, 2].map(|j| {
+            if points.is_empty() {
+                0.0
+            } else {
+                0.5 * (lo[j] + hi[j])
+            }
+        });
         let points = points
             .iter()
-            .map(|p| Point3::new((p[0] - origin[0]) as f32, (p[1] - origin[1]) as f32, (p[2] - origin[2]) as f32))
+            .map(|p| {
+                Point3::new(
+                    (p[0] - origin[0]) as f32,
+                    (p[1] - origin[1]) as f32,
+                    (p[2] - origin[2]) as f32,
+                )
+            })
             .collect();
-        Self { origin, points, dropped_non_finite: 0 }
+        Self {
+            origin,
+            points,
+            dropped_non_finite: 0,
+        }
     }
 }
 
@@ -82,7 +98,12 @@ pub struct MapReport {
 }
 
 /// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map.
-pub fn map_cloud(cloud: &LocalCloud, config: &PipelineConfig, entity: EntityChoice, output: &Path) -> Result<MapReport> {
+pub fn map_cloud(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    entity: EntityChoice,
+    output: &Path,
+) -> Result<MapReport> {
     let clusters = pipeline::cluster(&cloud.points, config.k, &config.kmeans)?;
     let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
     let tolerance = config.fit.degeneration.sphere_tolerance;
@@ -90,7 +111,11 @@ pub fn map_cloud(cloud: &LocalCloud, config: &PipelineConfig, entity: EntityChoi
     let spheres = pipeline::to_map(cloud.origin, &fitted.spheres, tolerance);
     let errors = |map: &HostMap| {
         let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
-        ErrorStats::from_errors(&pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities))
+        ErrorStats::from_errors(&pipeline::cluster_errors(
+            &cloud.points,
+            &clusters.labels,
+            &entities,
+        ))
     };
     let chosen = match entity {
         EntityChoice::Ellipsoid => &ellipsoids,
@@ -119,7 +144,10 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
     println!("{}", stats::MEMORY_HEADER);
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
-    println!("Table 4: eq. 13 error per cluster (cloud units), over {} clusters", r.ellipsoidal.clusters);
+    println!(
+        "Table 4: eq. 13 error per cluster (cloud units), over {} clusters",
+        r.ellipsoidal.clusters
+    );
     println!("{}", stats::ERROR_HEADER);
     println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
     println!("{}", stats::format_error_row("spherical", &r.spherical));
@@ -131,14 +159,36 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
     eprintln!(
         "k-means: {} iterations{}; wrote {}",
         r.kmeans_iterations,
-        if r.kmeans_converged { ", converged" } else { ", iteration cap reached" },
+        if r.kmeans_converged {
+            ", converged"
+        } else {
+            ", iteration cap reached"
+        },
         r.output
     );
     Ok(())
 }
 
+/// Fails before any work if the map could not be written where asked.
+fn check_output(path: &Path) -> Result<()> {
+    crate::mapfile::MapFormat::from_path(path)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        anyhow::bail!(
+            "cannot write map to {}: {} is not a directory",
+            path.display(),
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn map(args: &MapArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
+    check_output(&args.output)?;
     let cloud = load_cloud(&args.input)?;
     let report = map_cloud(&cloud, &config, args.entity, &args.output)
         .with_context(|| args.input.display().to_string())?;
@@ -147,14 +197,19 @@ pub fn map(args: &MapArgs) -> Result<()> {
 
 pub fn demo(args: &DemoArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let scan = crate::scene::scan(&crate::scene::Scene::demo(), &crate::scene::ScanConfig::default());
+    check_output(&args.output)?;
+    let scan = crate::scene::scan(
+        &crate::scene::Scene::demo(),
+        &crate::scene::ScanConfig::default(),
+    );
     eprintln!(
         "demo: simulated rangefinder scan of the built-in scene (floor, trash can, box, person): {} points from {} rays",
         scan.points.len(),
         scan.rays
     );
     let cloud = LocalCloud::from_world(&scan.points);
-    let report = map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output).context("demo scene")?;
+    let report =
+        map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output).context("demo scene")?;
     print_map_report(&report, args.json)
 }
 
@@ -182,7 +237,11 @@ pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
         .iter()
         .map(|p| {
             let q = p.to_f64();
-            Point3::new((q[0] + shift[0]) as f32, (q[1] + shift[1]) as f32, (q[2] + shift[2]) as f32)
+            Point3::new(
+                (q[0] + shift[0]) as f32,
+                (q[1] + shift[1]) as f32,
+                (q[2] + shift[2]) as f32,
+            )
         })
         .collect();
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
@@ -225,11 +284,21 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&r)?);
     } else {
         println!("{}", stats::MEMORY_HEADER);
-        println!("{}", stats::format_memory_row(&MemoryRow::new(r.points, map.entities.len())));
+        println!(
+            "{}",
+            stats::format_memory_row(&MemoryRow::new(r.points, map.entities.len()))
+        );
         println!();
         println!("eq. 13 error over {} non-empty clusters", r.clusters);
         println!("{}", stats::ERROR_HEADER);
-        let s = ErrorStats { clusters: r.clusters, mean: r.mean, std: r.std, max: r.max, min: r.min, total: r.total };
+        let s = ErrorStats {
+            clusters: r.clusters,
+            mean: r.mean,
+            std: r.std,
+            max: r.max,
+            min: r.min,
+            total: r.total,
+        };
         println!("{}", stats::format_error_row("map", &s));
     }
     Ok(())
@@ -289,13 +358,20 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         );
         println!("origin: {:?}", r.origin);
         println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
-        println!("finite semi-axes: {} .. {}", r.semi_axis_min, r.semi_axis_max);
-        println!("bytes: {} (paper's 24 per entity), {} on disk", r.map_bytes, r.file_bytes);
+        println!(
+            "finite semi-axes: {} .. {}",
+            r.semi_axis_min, r.semi_axis_max
+        );
+        println!(
+            "bytes: {} (paper's 24 per entity), {} on disk",
+            r.map_bytes, r.file_bytes
+        );
     }
     Ok(())
 }
 
 pub fn ablation(args: &AblationArgs) -> Result<()> {
     let cloud = load_cloud(&args.input)?;
-    crate::ablation::run(&cloud, args.k, args.seed, args.json).with_context(|| args.input.display().to_string())
+    crate::ablation::run(&cloud, args.k, args.seed, args.json)
+        .with_context(|| args.input.display().to_string())
 }

@@ -22,7 +22,7 @@ pub enum MapFormat {
 }
 
 impl MapFormat {
-    pub fn from_path(path: &Path) -> Result<Self> {
+    pub fn from_path(path: &Path) -> Result<Self, crate::cli::UsageError> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -31,10 +31,10 @@ impl MapFormat {
             Some("mema") => Ok(Self::Mema),
             Some("csv") => Ok(Self::Csv),
             Some("json") => Ok(Self::Json),
-            _ => bail!(
+            _ => Err(crate::cli::UsageError(format!(
                 "{}: unknown map extension; consider .mema (binary), .csv or .json",
                 path.display()
-            ),
+            ))),
         }
     }
 }
@@ -43,7 +43,11 @@ impl HostMap {
     /// Centre of entity `i` in the cloud's own coordinates.
     pub fn world_center(&self, e: &Entity) -> [f64; 3] {
         let c = e.center.to_f64();
-        [self.origin[0] + c[0], self.origin[1] + c[1], self.origin[2] + c[2]]
+        [
+            self.origin[0] + c[0],
+            self.origin[1] + c[1],
+            self.origin[2] + c[2],
+        ]
     }
 
     pub fn to_mema(&self) -> Result<Vec<u8>> {
@@ -108,7 +112,8 @@ impl HostMap {
 
     pub fn read(path: &Path) -> Result<Self> {
         let format = MapFormat::from_path(path)?;
-        let bytes = std::fs::read(path).with_context(|| format!("{}: cannot read map", path.display()))?;
+        let bytes =
+            std::fs::read(path).with_context(|| format!("{}: cannot read map", path.display()))?;
         let parsed = match format {
             MapFormat::Mema => Self::from_mema(&bytes),
             MapFormat::Csv => Self::from_csv(&String::from_utf8_lossy(&bytes)),
@@ -142,8 +147,17 @@ impl HostMap {
                     (c[1] - origin[1]) as f32,
                     (c[2] - origin[2]) as f32,
                 );
-                let weights = r.map(|r| if r.is_finite() { (1.0 / (r * r)) as f32 } else { 0.0 });
-                MapEntity { entity: Entity { center, weights }, kind }
+                let weights = r.map(|r| {
+                    if r.is_finite() {
+                        (1.0 / (r * r)) as f32
+                    } else {
+                        0.0
+                    }
+                });
+                MapEntity {
+                    entity: Entity { center, weights },
+                    kind,
+                }
             })
             .collect();
         Ok(Self { origin, entities })
@@ -161,7 +175,9 @@ impl HostMap {
                 bail!("line {}: expected cx,cy,cz,rx,ry,rz,kind", i + 1);
             };
             let num = |s: &str| -> Result<f64> {
-                let v: f64 = s.parse().with_context(|| format!("line {}: '{s}' is not a number", i + 1))?;
+                let v: f64 = s
+                    .parse()
+                    .with_context(|| format!("line {}: '{s}' is not a number", i + 1))?;
                 if v.is_nan() {
                     bail!("line {}: NaN in a map", i + 1);
                 }
@@ -170,7 +186,10 @@ impl HostMap {
             let c = [num(cx)?, num(cy)?, num(cz)?];
             let r = [num(rx)?, num(ry)?, num(rz)?];
             if c.iter().any(|v| !v.is_finite()) || r.iter().any(|&v| v <= 0.0) {
-                bail!("line {}: centre must be finite and semi-axes positive", i + 1);
+                bail!(
+                    "line {}: centre must be finite and semi-axes positive",
+                    i + 1
+                );
             }
             let kind = EntityKind::from_name(kind)
                 .with_context(|| format!("line {}: unknown kind '{kind}'", i + 1))?;
@@ -183,14 +202,23 @@ impl HostMap {
         let doc: JsonMap = serde_json::from_slice(bytes).context("not a mema JSON map")?;
         let mut entities = Vec::with_capacity(doc.entities.len());
         for (i, e) in doc.entities.iter().enumerate() {
-            let kind = EntityKind::from_name(&e.kind).with_context(|| format!("entity {i}: unknown kind '{}'", e.kind))?;
-            let entity = Entity { center: Point3::from(e.local_center), weights: e.weights };
-            if !entity.center.is_finite() || entity.weights.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            let kind = EntityKind::from_name(&e.kind)
+                .with_context(|| format!("entity {i}: unknown kind '{}'", e.kind))?;
+            let entity = Entity {
+                center: Point3::from(e.local_center),
+                weights: e.weights,
+            };
+            if !entity.center.is_finite()
+                || entity.weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
+            {
                 bail!("entity {i}: invalid centre or weights");
             }
             entities.push(MapEntity { entity, kind });
         }
-        Ok(Self { origin: doc.origin, entities })
+        Ok(Self {
+            origin: doc.origin,
+            entities,
+        })
     }
 }
 
@@ -247,14 +275,30 @@ mod tests {
     fn sample() -> HostMap {
         let mut entities = Vec::new();
         for (i, kind) in EntityKind::ALL.into_iter().enumerate() {
-            let r = [0.5 + i as f64, 0.25, if i >= 2 { f64::INFINITY } else { 0.75 }];
-            let weights = r.map(|r| if r.is_finite() { (1.0 / (r * r)) as f32 } else { 0.0 });
+            let r = [
+                0.5 + i as f64,
+                0.25,
+                if i >= 2 { f64::INFINITY } else { 0.75 },
+            ];
+            let weights = r.map(|r| {
+                if r.is_finite() {
+                    (1.0 / (r * r)) as f32
+                } else {
+                    0.0
+                }
+            });
             entities.push(MapEntity {
-                entity: Entity { center: Point3::new(i as f32, -1.5, 0.25), weights },
+                entity: Entity {
+                    center: Point3::new(i as f32, -1.5, 0.25),
+                    weights,
+                },
                 kind,
             });
         }
-        HostMap { origin: [631_000.5, 4_833_000.25, 120.0], entities }
+        HostMap {
+            origin: [631_000.5, 4_833_000.25, 120.0],
+            entities,
+        }
     }
 
     #[test]
@@ -265,7 +309,10 @@ mod tests {
         // The trailer is the standard CRC-32, as an independent implementation computes it.
         let (body, crc) = bytes.split_at(bytes.len() - 4);
         assert_eq!(crc, crc32fast::hash(body).to_le_bytes());
-        assert_eq!(HostMap::from_json(map.to_json().expect("json").as_bytes()).expect("decode"), map);
+        assert_eq!(
+            HostMap::from_json(map.to_json().expect("json").as_bytes()).expect("decode"),
+            map
+        );
         let csv = HostMap::from_csv(&map.to_csv()).expect("csv");
         assert!(map.to_csv().lines().nth(3).expect("row").contains("inf"));
         for (a, b) in csv.entities.iter().zip(map.entities.iter()) {
@@ -273,7 +320,9 @@ mod tests {
             let (wa, wb) = (csv.world_center(&a.entity), map.world_center(&b.entity));
             for j in 0..3 {
                 assert!((wa[j] - wb[j]).abs() < 1e-6);
-                assert!((a.entity.weights[j] - b.entity.weights[j]).abs() <= 1e-6 * b.entity.weights[j]);
+                assert!(
+                    (a.entity.weights[j] - b.entity.weights[j]).abs() <= 1e-6 * b.entity.weights[j]
+                );
             }
         }
     }
@@ -284,9 +333,14 @@ mod tests {
         std::fs::create_dir_all(&dir).expect("dir");
         let path = dir.join("m.mema");
         sample().write(&path).expect("write");
-        let names: Vec<_> = std::fs::read_dir(&dir).expect("ls").map(|e| e.expect("entry").file_name()).collect();
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .expect("ls")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
         assert_eq!(names, vec![std::ffi::OsString::from("m.mema")]);
-        let err = sample().write(&dir.join("missing/m.mema")).expect_err("no such dir");
+        let err = sample()
+            .write(&dir.join("missing/m.mema"))
+            .expect_err("no such dir");
         assert!(format!("{err:#}").contains("cannot write map"), "{err:#}");
         std::fs::remove_dir_all(&dir).expect("cleanup");
     }

@@ -1,11 +1,11 @@
 //! The batch pipeline of the paper: k-means++/Lloyd, one DE fit per cluster, eq. 13 per cluster.
 
 use anyhow::{Context, Result, bail};
+use mema_core::closest_point::SurfaceError;
 use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper, fit_sphere_paper};
 use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, kmeans};
 use mema_core::moments::{CentralMoments, Moments};
 use mema_core::rng::stream_rng;
-use mema_core::closest_point::SurfaceError;
 use mema_core::{Entity, MapEntity, Point3};
 use rayon::prelude::*;
 
@@ -56,11 +56,21 @@ pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clu
     let mut labels = vec![0u32; points.len()];
     let mut distances = vec![0f32; points.len()];
     let mut sums = vec![CentroidSum::default(); k];
-    let outcome = kmeans(points, &mut centres, &mut labels, &mut distances, &mut sums, params)
-        .map_err(anyhow::Error::from)
-        .context("k-means")?;
+    let outcome = kmeans(
+        points,
+        &mut centres,
+        &mut labels,
+        &mut distances,
+        &mut sums,
+        params,
+    )
+    .map_err(anyhow::Error::from)
+    .context("k-means")?;
     // Shifting each cluster's sums by its centroid keeps the moment conversion well conditioned.
-    let mut moments: Vec<Moments> = centres.iter().map(|c| Moments::with_shift(c.to_f64())).collect();
+    let mut moments: Vec<Moments> = centres
+        .iter()
+        .map(|c| Moments::with_shift(c.to_f64()))
+        .collect();
     for (p, &l) in points.iter().zip(labels.iter()) {
         if let Some(m) = moments.get_mut(l as usize) {
             m.add(*p);
@@ -69,9 +79,16 @@ pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clu
     let moments = moments
         .iter()
         .enumerate()
-        .map(|(i, m)| m.central().with_context(|| format!("cluster {i} is empty after k-means")))
+        .map(|(i, m)| {
+            m.central()
+                .with_context(|| format!("cluster {i} is empty after k-means"))
+        })
         .collect::<Result<Vec<_>>>()?;
-    Ok(Clusters { labels, moments, outcome })
+    Ok(Clusters {
+        labels,
+        moments,
+        outcome,
+    })
 }
 
 /// Fits an ellipsoid and a sphere to every cluster, in parallel. Each cluster draws from its
@@ -87,7 +104,10 @@ pub fn fit_all(moments: &[CentralMoments], seed: u64, params: &FitParams) -> Fit
         })
         .collect();
     let (ellipsoids, spheres) = pairs.into_iter().unzip();
-    Fitted { ellipsoids, spheres }
+    Fitted {
+        ellipsoids,
+        spheres,
+    }
 }
 
 /// Eq. 13 for every cluster: RMS distance of its points to its entity's surface.

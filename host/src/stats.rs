@@ -110,7 +110,10 @@ mod tests {
     #[test]
     fn error_stats_by_hand() {
         let s = ErrorStats::from_errors(&[1.0, 2.0, 3.0, 6.0]);
-        assert_eq!((s.clusters, s.total, s.mean, s.max, s.min), (4, 12.0, 3.0, 6.0, 1.0));
+        assert_eq!(
+            (s.clusters, s.total, s.mean, s.max, s.min),
+            (4, 12.0, 3.0, 6.0, 1.0)
+        );
         assert!((s.std - 3.5f64.sqrt()).abs() < 1e-12);
     }
 }

@@ -1,1 +1,17 @@
+//! One integration binary, as ripgrep does; each module is one concern.
 
+// Helpers: temp dirs, the mema binary, the shared data.
+mod util;
+
+// Bad input: every kind of broken file or argument gives a one-line error and an exit code.
+mod bad_input;
+// Eq. 13's closest point against a brute-force search on the surface.
+mod closest_point;
+// The CLI end to end on real clouds: determinism, formats, eval, info, demo.
+mod cli;
+// The no_std, no-panic contract of core, checked on its source.
+mod core_contract;
+// Eq. 12 from moments against the direct per-point f64 sum on real clusters.
+mod fitness;
+// The paper's tables on the shared clouds: ellipsoids beat spheres.
+mod paper_tables;

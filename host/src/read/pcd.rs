@@ -7,10 +7,8 @@
 //! ...), with padding fields named `_` left out as PCL's writer does. Organized clouds keep
 //! invalid pixels as NaN slots; they are counted and dropped.
 
-use super::{
-    At, Cloud, Ctx, Endian, Format, Line, Lines, Points, ReadError, Scalar, lzf, parse_f64,
-    parse_usize, quote, tokens,
-};
+use super::xyz::{Line, Lines, parse_f64, parse_usize, quote, tokens};
+use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar, lzf};
 
 /// True if the first line that is not a comment starts a PCD header.
 pub(super) fn has_header(bytes: &[u8]) -> bool {
@@ -19,29 +17,26 @@ pub(super) fn has_header(bytes: &[u8]) -> bool {
         if text.starts_with(b"# .PCD") {
             return true;
         }
-        if text.is_empty() || text.starts_with(b"#") {
-            continue;
+        if !text.is_empty() && !text.starts_with(b"#") {
+            let keyword = tokens(text).next();
+            return matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS"));
         }
-        return matches!(
-            tokens(text).next(),
-            Some(b"VERSION" | b"FIELDS" | b"COLUMNS")
-        );
     }
     false
 }
 
-struct Field {
-    name: String,
+/// A header line: its keyword, line number and values.
+struct Entry<'a> {
+    key: &'a [u8],
+    line: usize,
+    values: Vec<&'a [u8]>,
+}
+
+struct Field<'a> {
+    name: &'a [u8],
     size: usize,
     ty: u8,
     count: usize,
-}
-
-#[derive(Clone, Copy)]
-enum Data {
-    Ascii,
-    Binary,
-    Compressed,
 }
 
 /// Where one coordinate sits in each of the three layouts.
@@ -52,140 +47,108 @@ struct Coord {
     value: usize,
     /// Byte offset inside a row-major record.
     offset: usize,
-    /// Byte offset of its column per point of the field-major layout (times the point count).
+    /// Bytes per point of the columns before it in the field-major layout.
     column: usize,
 }
 
-/// A header line's values, with its line number for errors.
-type Entries<T> = Option<(usize, Vec<T>)>;
-
 pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
     let mut lines = Lines::new(bytes);
-    let mut names: Entries<String> = None;
-    let mut sizes: Entries<usize> = None;
-    let mut types: Entries<u8> = None;
-    let mut counts: Entries<usize> = None;
-    let (mut width, mut height, mut points) = (None, None, None);
-    let data = loop {
+    let mut header = Vec::new();
+    let format = loop {
         // A header line without its newline is a cut file, whatever the line says.
         let Some(line) = lines.next().filter(|l| l.terminated) else {
-            return Err(ctx.truncated(format!(
-                "PCD header ends at byte {} before its DATA line",
-                bytes.len()
-            )));
+            let at = bytes.len();
+            return Err(ctx.truncated(format!("PCD header ends at byte {at} before its DATA line")));
         };
-        let at = At::Line(line.number);
         let mut toks = tokens(line.text);
-        let Some(keyword) = toks.next() else { continue };
-        let number = |t: &[u8]| {
-            parse_usize(t).ok_or_else(|| {
-                ctx.bad_header(
-                    at,
-                    format!("{} is not a count for {}", quote(t), quote(keyword)),
-                )
-            })
-        };
-        match keyword {
-            _ if keyword.starts_with(b"#") => {}
-            b"VERSION" | b"VIEWPOINT" => {}
-            b"FIELDS" | b"COLUMNS" => {
-                let list = toks
-                    .map(|t| String::from_utf8_lossy(t).into_owned())
-                    .collect();
-                names = Some((line.number, list));
-            }
-            b"SIZE" => sizes = Some((line.number, toks.map(number).collect::<Result<_, _>>()?)),
-            b"COUNT" => counts = Some((line.number, toks.map(number).collect::<Result<_, _>>()?)),
-            b"TYPE" => {
-                let list = toks.map(|t| match t {
-                    [ty @ (b'F' | b'I' | b'U')] => Ok(*ty),
-                    _ => Err(ctx.bad_header(at, format!("TYPE {}; expected F, I or U", quote(t)))),
-                });
-                types = Some((line.number, list.collect::<Result<_, _>>()?));
-            }
-            b"WIDTH" | b"HEIGHT" | b"POINTS" => {
-                let t = toks.next().unwrap_or_default();
-                let n = Some(number(t)?);
-                match keyword {
-                    b"WIDTH" => width = n,
-                    b"HEIGHT" => height = n,
-                    _ => points = n,
-                }
-            }
-            b"DATA" => {
-                break match toks.next() {
-                    Some(b"ascii") => Data::Ascii,
-                    Some(b"binary") => Data::Binary,
-                    Some(b"binary_compressed") => Data::Compressed,
-                    Some(other) => return Err(ctx.unsupported(format!("DATA {}", quote(other)))),
-                    None => return Err(ctx.bad_header(at, "DATA line without a kind")),
-                };
-            }
-            other => {
-                return Err(ctx.bad_header(at, format!("unknown header keyword {}", quote(other))));
+        match toks.next() {
+            None => {}
+            Some(key) if key.starts_with(b"#") => {}
+            Some(b"DATA") => match toks.next() {
+                Some(b"ascii") => break Format::PcdAscii,
+                Some(b"binary") => break Format::PcdBinary,
+                Some(b"binary_compressed") => break Format::PcdBinaryCompressed,
+                Some(other) => return Err(ctx.unsupported(format!("DATA {}", quote(other)))),
+                None => return Err(ctx.bad_header(At::Line(line.number), "DATA without a kind")),
+            },
+            Some(
+                key @ (b"VERSION" | b"FIELDS" | b"COLUMNS" | b"SIZE" | b"TYPE" | b"COUNT"
+                | b"WIDTH" | b"HEIGHT" | b"VIEWPOINT" | b"POINTS"),
+            ) => header.push(Entry {
+                key,
+                line: line.number,
+                values: toks.collect(),
+            }),
+            Some(other) => {
+                let what = format!("unknown header keyword {}", quote(other));
+                return Err(ctx.bad_header(At::Line(line.number), what));
             }
         }
     };
-
-    let fields = fields(ctx, names, sizes, types, counts)?;
-    let slots = slots(ctx, width, height, points)?;
-    let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
-    let coords = [x?, y?, z?];
-    let format = match data {
-        Data::Ascii => Format::PcdAscii,
-        Data::Binary => Format::PcdBinary,
-        Data::Compressed => Format::PcdBinaryCompressed,
+    let find = |keys: &[&[u8]]| header.iter().rev().find(|e| keys.contains(&e.key));
+    let Some(names) = find(&[b"FIELDS", b"COLUMNS"]).filter(|e| !e.values.is_empty()) else {
+        return Err(ctx.bad_header(At::Header, "no FIELDS line naming the fields"));
     };
-    let points = if slots == 0 {
-        Points::with_capacity(0)
-    } else {
-        match data {
-            Data::Ascii => ascii(ctx, lines, &fields, slots, coords)?,
-            Data::Binary => binary(ctx, bytes, lines.pos(), &fields, slots, coords)?,
-            Data::Compressed => compressed(ctx, bytes, lines.pos(), &fields, slots, coords)?,
-        }
-    };
-    points.finish(ctx, format)
-}
-
-fn fields(
-    ctx: Ctx,
-    names: Entries<String>,
-    sizes: Entries<usize>,
-    types: Entries<u8>,
-    counts: Entries<usize>,
-) -> Result<Vec<Field>, ReadError> {
-    let (line, names) = names.ok_or_else(|| ctx.bad_header(At::Header, "no FIELDS line"))?;
-    let n = names.len();
-    if n == 0 {
-        return Err(ctx.bad_header(At::Line(line), "FIELDS names no field"));
-    }
-    let check = |keyword: &str, entries: Option<(usize, usize)>| match entries {
-        Some((line, len)) if len != n => Err(ctx.bad_header(
-            At::Line(line),
-            format!("{keyword} has {len} entries, FIELDS has {n}"),
-        )),
-        _ => Ok(()),
-    };
-    check("SIZE", sizes.as_ref().map(|(l, v)| (*l, v.len())))?;
-    check("TYPE", types.as_ref().map(|(l, v)| (*l, v.len())))?;
-    check("COUNT", counts.as_ref().map(|(l, v)| (*l, v.len())))?;
+    let n = names.values.len();
     // Old headers without SIZE/TYPE/COUNT mean one 4-byte float per field, as in PCL.
-    let sizes = sizes.map_or_else(|| vec![4; n], |(_, v)| v);
-    let types = types.map_or_else(|| vec![b'F'; n], |(_, v)| v);
-    let counts = counts.map_or_else(|| vec![1; n], |(_, v)| v);
-    let fields = names
-        .into_iter()
-        .zip(sizes)
-        .zip(types.into_iter().zip(counts))
-        .map(|((name, size), (ty, count))| Field {
+    let sizes = per_field(ctx, find(&[b"SIZE"]), n, 4, parse_usize)?;
+    let counts = per_field(ctx, find(&[b"COUNT"]), n, 1, parse_usize)?;
+    let types = per_field(ctx, find(&[b"TYPE"]), n, b'F', |t| match t {
+        [ty @ (b'F' | b'I' | b'U')] => Some(*ty),
+        _ => None,
+    })?;
+    let fields: Vec<Field> = (names.values.iter().zip(sizes).zip(types).zip(counts))
+        .map(|(((name, size), ty), count)| Field {
             name,
             size,
             ty,
             count,
         })
         .collect();
-    Ok(fields)
+    let one = |key: &[u8]| match find(&[key]) {
+        None => Ok(None),
+        Some(e) => e
+            .values
+            .first()
+            .and_then(|t| parse_usize(t))
+            .map(Some)
+            .ok_or_else(|| {
+                let what = format!("{} needs a count", quote(key));
+                ctx.bad_header(At::Line(e.line), what)
+            }),
+    };
+    let slots = slots(ctx, one(b"WIDTH")?, one(b"HEIGHT")?, one(b"POINTS")?)?;
+    let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
+    let coords = [x?, y?, z?];
+    let body = lines.pos();
+    let points = match format {
+        _ if slots == 0 => Points::with_capacity(0),
+        Format::PcdAscii => ascii(ctx, lines, &fields, slots, coords)?,
+        Format::PcdBinary => binary(ctx, bytes, body, &fields, slots, coords)?,
+        _ => compressed(ctx, bytes, body, &fields, slots, coords)?,
+    };
+    points.finish(ctx, format)
+}
+
+/// One value per field from a SIZE, TYPE or COUNT line, or `default` for each if it is absent.
+fn per_field<T: Clone>(
+    ctx: Ctx,
+    entry: Option<&Entry>,
+    n: usize,
+    default: T,
+    parse: impl Fn(&[u8]) -> Option<T>,
+) -> Result<Vec<T>, ReadError> {
+    let Some(e) = entry else {
+        return Ok(vec![default; n]);
+    };
+    let (at, key) = (At::Line(e.line), String::from_utf8_lossy(e.key));
+    if e.values.len() != n {
+        let what = format!("{key} has {} entries, FIELDS has {n}", e.values.len());
+        return Err(ctx.bad_header(at, what));
+    }
+    let value =
+        |t: &&[u8]| parse(t).ok_or_else(|| ctx.bad_header(at, format!("{key} {}", quote(t))));
+    e.values.iter().map(value).collect()
 }
 
 fn slots(
@@ -194,23 +157,21 @@ fn slots(
     height: Option<usize>,
     points: Option<usize>,
 ) -> Result<usize, ReadError> {
+    let bad = |what: String| Err(ctx.bad_header(At::Header, what));
     match (width, height, points) {
         (Some(w), h, p) => {
             let h = h.unwrap_or(1);
-            let wh = w.checked_mul(h).ok_or_else(|| {
-                ctx.bad_header(At::Header, format!("WIDTH {w} × HEIGHT {h} overflows"))
-            })?;
-            match p {
-                Some(p) if p != wh => Err(ctx.bad_header(
-                    At::Header,
-                    format!("POINTS {p}, but WIDTH {w} × HEIGHT {h} = {wh}"),
-                )),
-                _ => Ok(wh),
+            match (w.checked_mul(h), p) {
+                (None, _) => bad(format!("WIDTH {w} × HEIGHT {h} overflows")),
+                (Some(wh), Some(p)) if p != wh => {
+                    bad(format!("POINTS {p}, but WIDTH {w} × HEIGHT {h} = {wh}"))
+                }
+                (Some(wh), _) => Ok(wh),
             }
         }
         (None, None, Some(p)) => Ok(p),
-        (None, Some(h), _) => Err(ctx.bad_header(At::Header, format!("HEIGHT {h} without WIDTH"))),
-        (None, None, None) => Err(ctx.bad_header(At::Header, "no WIDTH or POINTS line")),
+        (None, Some(h), _) => bad(format!("HEIGHT {h} without WIDTH")),
+        (None, None, None) => bad("no WIDTH or POINTS line".into()),
     }
 }
 
@@ -218,8 +179,7 @@ fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
     let overflow = || ctx.bad_header(At::Header, "the point size overflows");
     let (mut value, mut offset, mut column) = (0usize, 0usize, 0usize);
     for f in fields {
-        let bytes = f.size.checked_mul(f.count).ok_or_else(overflow)?;
-        if f.name == axis {
+        if f.name == axis.as_bytes() {
             let scalar = match (f.ty, f.size) {
                 (b'F', 4) => Scalar::F32,
                 (b'F', 8) => Scalar::F64,
@@ -246,32 +206,26 @@ fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
                 column,
             });
         }
+        let bytes = f.size.checked_mul(f.count).ok_or_else(overflow)?;
         value = value.checked_add(f.count).ok_or_else(overflow)?;
         offset = offset.checked_add(bytes).ok_or_else(overflow)?;
-        if f.name != "_" {
+        if f.name != b"_" {
             column = column.checked_add(bytes).ok_or_else(overflow)?;
         }
     }
-    let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
-    Err(ctx.bad_header(
-        At::Header,
-        format!("no field {axis} (FIELDS {})", names.join(" ")),
-    ))
+    let names: Vec<_> = fields
+        .iter()
+        .map(|f| String::from_utf8_lossy(f.name))
+        .collect();
+    let what = format!("no field {axis} (FIELDS {})", names.join(" "));
+    Err(ctx.bad_header(At::Header, what))
 }
 
 /// Sum of `size × count` over the fields `keep` selects, checked.
-fn record_size(
-    ctx: Ctx,
-    fields: &[Field],
-    keep: impl Fn(&Field) -> bool,
-) -> Result<usize, ReadError> {
-    fields
-        .iter()
-        .filter(|f| keep(f))
-        .try_fold(0usize, |sum, f| {
-            f.size.checked_mul(f.count).and_then(|b| sum.checked_add(b))
-        })
-        .ok_or_else(|| ctx.bad_header(At::Header, "the point size overflows"))
+fn record_size(ctx: Ctx, fields: &[Field], keep: fn(&Field) -> bool) -> Result<usize, ReadError> {
+    let add = |sum: usize, f: &Field| f.size.checked_mul(f.count).and_then(|b| sum.checked_add(b));
+    let size = fields.iter().filter(|f| keep(f)).try_fold(0, add);
+    size.ok_or_else(|| ctx.bad_header(At::Header, "the point size overflows"))
 }
 
 fn ascii(
@@ -288,11 +242,10 @@ fn ascii(
     // Each value takes at least a character and a separator; `values` >= 3 (x, y, z).
     let mut points = Points::with_capacity(slots.min(lines.remaining() / values.saturating_mul(2)));
     for done in 0..slots {
-        let line = lines.next_non_blank().ok_or_else(|| {
-            ctx.truncated(format!(
-                "DATA ascii has {done} point lines, POINTS declares {slots}"
-            ))
-        })?;
+        let Some(line) = lines.next_non_blank() else {
+            let what = format!("DATA ascii has {done} point lines, POINTS declares {slots}");
+            return Err(ctx.truncated(what));
+        };
         let p = ascii_point(ctx, &line, values, coords).map_err(|e| ctx.cut_short(&line, e))?;
         points.push(p);
     }
@@ -312,12 +265,8 @@ fn ascii_point(
         found += 1;
         for ((c, coord), axis) in p.iter_mut().zip(coords).zip(["x", "y", "z"]) {
             if coord.value == i {
-                *c = parse_f64(tok).ok_or_else(|| {
-                    ctx.bad_value(
-                        at,
-                        format!("{} is not a number; expected {axis}", quote(tok)),
-                    )
-                })?;
+                let what = || format!("{} is not a number; expected {axis}", quote(tok));
+                *c = parse_f64(tok).ok_or_else(|| ctx.bad_value(at, what()))?;
             }
         }
     }
@@ -327,7 +276,7 @@ fn ascii_point(
     Ok(p)
 }
 
-/// Bytes of the data section that must be present, or a `Truncated` naming what is missing.
+/// The first `need` bytes of the data section, or a `Truncated` naming what is missing.
 fn need<'a>(
     ctx: Ctx,
     bytes: &'a [u8],
@@ -347,10 +296,8 @@ fn need<'a>(
 #[inline]
 fn read_at(bytes: &[u8], at: usize, scalar: Scalar) -> f64 {
     // Callers pass offsets inside records they sized from the same fields; NaN is unreachable.
-    bytes
-        .get(at..)
-        .and_then(|b| scalar.read(b, Endian::Little))
-        .unwrap_or(f64::NAN)
+    let value = bytes.get(at..).and_then(|b| scalar.read(b, Endian::Little));
+    value.unwrap_or(f64::NAN)
 }
 
 fn binary(
@@ -384,36 +331,35 @@ fn compressed(
         sizes
             .get(i..)
             .and_then(|w| w.first_chunk())
-            .map_or(0, |w| u32::from_le_bytes(*w))
+            .map(|w| u32::from_le_bytes(*w))
     };
-    let (packed, unpacked) = (word(0) as usize, word(4) as usize);
+    let (packed, unpacked) = (word(0).unwrap_or(0) as usize, word(4).unwrap_or(0) as usize);
     let stream = need(ctx, bytes, body, "binary_compressed", 8 + packed as u128)?;
-    let stream = stream.get(8..).unwrap_or_default();
-    let record = record_size(ctx, fields, |f| f.name != "_")?;
+    let record = record_size(ctx, fields, |f| f.name != b"_")?;
     let expected = slots as u128 * record as u128;
     if unpacked as u128 != expected {
-        return Err(ctx.bad_value(At::Offset(body + 4), format!(
-            "uncompressed size {unpacked} does not match POINTS {slots} × {record} bytes = {expected}"
-        )));
+        let what = format!(
+            "uncompressed size {unpacked}, but POINTS {slots} × {record} bytes = {expected}"
+        );
+        return Err(ctx.bad_value(At::Offset(body + 4), what));
     }
-    let data = lzf::decompress(stream, unpacked)
+    let data = lzf::decompress(stream.get(8..).unwrap_or_default(), unpacked)
         .map_err(|e| ctx.bad_value(At::Offset(body + 8 + e.at()), e.to_string()))?;
-    // Each column is `slots × size` bytes starting at `column × slots`, inside `data` because
-    // its length was checked to be `slots × record`.
+    // A column starts at `column × slots` and spans `slots × size` bytes, inside `data`
+    // because its length was checked to be `slots × record`.
     let column = |c: Coord| {
         let start = c.column * slots;
-        data.get(start..start + slots * c.scalar.size())
-            .unwrap_or_default()
+        let bytes = data
+            .get(start..start + slots * c.scalar.size())
+            .unwrap_or_default();
+        bytes
             .chunks_exact(c.scalar.size())
+            .map(move |b| read_at(b, 0, c.scalar))
     };
     let [cx, cy, cz] = coords;
     let mut points = Points::with_capacity(slots);
     for ((x, y), z) in column(cx).zip(column(cy)).zip(column(cz)) {
-        points.push([
-            read_at(x, 0, cx.scalar),
-            read_at(y, 0, cy.scalar),
-            read_at(z, 0, cz.scalar),
-        ]);
+        points.push([x, y, z]);
     }
     Ok(points)
 }

@@ -6,35 +6,20 @@
 //! `vertex` are never read: the points are complete by then, and a damaged face list should
 //! not cost the user a cloud.
 
-use super::{
-    At, Cloud, Ctx, Endian, Format, Line, Lines, Points, ReadError, Scalar, parse_f64, parse_usize,
-    quote, tokens,
-};
+use super::xyz::{Line, Lines, parse_f64, parse_usize, quote, tokens};
+use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Encoding {
-    Ascii,
-    Binary(Endian),
-}
-
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone, Copy)]
 enum Kind {
     Scalar(Scalar),
     List { count: Scalar, item: Scalar },
 }
 
-/// What a vertex property is read for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Role {
-    X,
-    Y,
-    Z,
-    Skip,
-}
-
 struct Property {
     name: String,
     kind: Kind,
+    /// 0, 1, 2 for the vertex's x, y, z; `None` for everything that is skipped.
+    axis: Option<usize>,
 }
 
 struct Element {
@@ -44,22 +29,18 @@ struct Element {
 }
 
 impl Element {
-    /// Bytes per instance when it has no list property.
-    fn fixed_stride(&self) -> Option<usize> {
-        self.props.iter().try_fold(0, |sum, p| match p.kind {
-            Kind::Scalar(s) => Some(sum + s.size()),
-            Kind::List { .. } => None,
-        })
+    /// Bytes per instance if every list is empty: the least each instance takes.
+    fn min_stride(&self) -> usize {
+        let size = |p: &Property| match p.kind {
+            Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+        };
+        self.props.iter().map(size).sum()
     }
 
-    /// Bytes per instance when every list is empty; at least 1 for any element with properties.
-    fn min_stride(&self) -> usize {
+    fn has_lists(&self) -> bool {
         self.props
             .iter()
-            .map(|p| match p.kind {
-                Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
-            })
-            .sum()
+            .any(|p| matches!(p.kind, Kind::List { .. }))
     }
 
     fn prop_names(&self) -> String {
@@ -68,42 +49,36 @@ impl Element {
     }
 }
 
-fn set(p: &mut [f64; 3], role: Role, v: f64) {
-    match role {
-        Role::X => p[0] = v,
-        Role::Y => p[1] = v,
-        Role::Z => p[2] = v,
-        Role::Skip => {}
-    }
-}
-
 pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
-    let (encoding, elements, body) = parse_header(ctx, bytes)?;
-    let vertex_at = elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| {
-            let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
-            ctx.bad_header(
-                At::Header,
-                format!("no vertex element (elements: {})", names.join(" ")),
-            )
-        })?;
-    let (before, rest) = elements.split_at(vertex_at);
-    let Some(vertex) = rest.first() else {
+    let (encoding, mut elements, body) = parse_header(ctx, bytes)?;
+    let Some(vertex_at) = elements.iter().position(|e| e.name == "vertex") else {
+        let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
+        let what = format!("no vertex element (elements: {})", names.join(" "));
+        return Err(ctx.bad_header(At::Header, what));
+    };
+    elements.truncate(vertex_at + 1);
+    let Some(vertex) = elements.last_mut() else {
         return Err(ctx.bad_header(At::Header, "no vertex element"));
     };
-    let roles = roles(ctx, vertex)?;
-    let (points, format) = match encoding {
-        Encoding::Ascii => (ascii(ctx, body, before, vertex, &roles)?, Format::PlyAscii),
-        Encoding::Binary(endian) => {
-            let format = match endian {
-                Endian::Little => Format::PlyBinaryLittleEndian,
-                Endian::Big => Format::PlyBinaryBigEndian,
-            };
-            let points = binary(ctx, bytes, body.pos(), endian, before, vertex, &roles)?;
-            (points, format)
+    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
+        let names = vertex.prop_names();
+        let Some(prop) = vertex.props.iter_mut().find(|p| p.name == name) else {
+            let what = format!("element vertex has no property {name} (it has: {names})");
+            return Err(ctx.bad_header(At::Header, what));
+        };
+        if let Kind::List { .. } = prop.kind {
+            return Err(ctx.unsupported(format!("vertex property {name} is a list")));
         }
+        prop.axis = Some(axis);
+    }
+    let format = match encoding {
+        None => Format::PlyAscii,
+        Some(Endian::Little) => Format::PlyBinaryLittleEndian,
+        Some(Endian::Big) => Format::PlyBinaryBigEndian,
+    };
+    let points = match encoding {
+        None => ascii(ctx, body, &elements)?,
+        Some(endian) => binary(ctx, bytes, body.pos(), endian, &elements)?,
     };
     points.finish(ctx, format)
 }
@@ -125,11 +100,11 @@ fn scalar(name: &[u8]) -> Option<Scalar> {
     })
 }
 
-/// Returns the encoding, the elements, and the lines positioned at the start of the body.
+/// The encoding (`None` for ascii), the elements, and the lines positioned at the body.
 fn parse_header<'a>(
     ctx: Ctx,
     bytes: &'a [u8],
-) -> Result<(Encoding, Vec<Element>, Lines<'a>), ReadError> {
+) -> Result<(Option<Endian>, Vec<Element>, Lines<'a>), ReadError> {
     let mut lines = Lines::new(bytes);
     lines.next(); // the `ply` magic line, already checked by the caller
     let mut encoding = None;
@@ -137,52 +112,39 @@ fn parse_header<'a>(
     loop {
         // A header line without its newline is a cut file, whatever the line says.
         let Some(line) = lines.next().filter(|l| l.terminated) else {
-            return Err(ctx.truncated(format!(
-                "PLY header ends at byte {} before its end_header line",
-                bytes.len()
-            )));
+            let at = bytes.len();
+            return Err(ctx.truncated(format!("PLY header ends at byte {at} before end_header")));
         };
         let at = At::Line(line.number);
+        let bad = |what: String| ctx.bad_header(at, what);
         let mut toks = tokens(line.text);
         let Some(keyword) = toks.next() else { continue };
         let mut next = |what: &str| {
-            toks.next().ok_or_else(|| {
-                ctx.bad_header(at, format!("{} line without {what}", quote(keyword)))
-            })
+            toks.next()
+                .ok_or_else(|| bad(format!("{} line without {what}", quote(keyword))))
         };
+        let ty = |t: &[u8]| scalar(t).ok_or_else(|| bad(format!("unknown type {}", quote(t))));
         match keyword {
             b"comment" | b"obj_info" => {}
+            b"format" if encoding.is_some() => return Err(bad("a second format line".into())),
             b"format" => {
-                if encoding.is_some() {
-                    return Err(ctx.bad_header(at, "a second format line"));
-                }
-                let enc = match next("an encoding")? {
-                    b"ascii" => Encoding::Ascii,
-                    b"binary_little_endian" => Encoding::Binary(Endian::Little),
-                    b"binary_big_endian" => Encoding::Binary(Endian::Big),
-                    other => {
-                        return Err(ctx.bad_header(at, format!(
-                            "unknown format {}; expected ascii, binary_little_endian or binary_big_endian",
-                            quote(other)
-                        )));
-                    }
-                };
+                encoding = Some(match next("an encoding")? {
+                    b"ascii" => None,
+                    b"binary_little_endian" => Some(Endian::Little),
+                    b"binary_big_endian" => Some(Endian::Big),
+                    other => return Err(bad(format!("unknown format {}", quote(other)))),
+                });
                 let version = next("a version")?;
                 if parse_f64(version) != Some(1.0) {
-                    return Err(ctx.unsupported(format!(
-                        "PLY version {} on line {}; only 1.0 is defined",
-                        quote(version),
-                        line.number
-                    )));
+                    let v = quote(version);
+                    return Err(ctx.unsupported(format!("PLY version {v}; only 1.0 is defined")));
                 }
-                encoding = Some(enc);
             }
             b"element" => {
                 let name = String::from_utf8_lossy(next("a name")?).into_owned();
                 let count = next("a count")?;
-                let count = parse_usize(count).ok_or_else(|| {
-                    ctx.bad_header(at, format!("{} is not an element count", quote(count)))
-                })?;
+                let count = parse_usize(count)
+                    .ok_or_else(|| bad(format!("{} is not an element count", quote(count))))?;
                 elements.push(Element {
                     name,
                     count,
@@ -190,287 +152,176 @@ fn parse_header<'a>(
                 });
             }
             b"property" => {
-                let ty = |t: &[u8]| {
-                    scalar(t).ok_or_else(|| {
-                        ctx.bad_header(at, format!("unknown property type {}", quote(t)))
-                    })
-                };
                 let kind = match next("a type")? {
                     b"list" => {
                         let count = ty(next("a list count type")?)?;
                         let item = ty(next("a list item type")?)?;
                         if !count.is_integer() {
-                            return Err(
-                                ctx.bad_header(at, "a list count type must be an integer type")
-                            );
+                            return Err(bad("a list count type must be an integer".into()));
                         }
                         Kind::List { count, item }
                     }
                     t => Kind::Scalar(ty(t)?),
                 };
                 let name = String::from_utf8_lossy(next("a name")?).into_owned();
-                let element = elements
-                    .last_mut()
-                    .ok_or_else(|| ctx.bad_header(at, "property before any element line"))?;
-                element.props.push(Property { name, kind });
+                let Some(element) = elements.last_mut() else {
+                    return Err(bad("property before any element line".into()));
+                };
+                element.props.push(Property {
+                    name,
+                    kind,
+                    axis: None,
+                });
             }
             b"end_header" => break,
-            other => {
-                return Err(ctx.bad_header(at, format!("unknown header keyword {}", quote(other))));
-            }
+            other => return Err(bad(format!("unknown header keyword {}", quote(other)))),
         }
     }
     let encoding = encoding.ok_or_else(|| ctx.bad_header(At::Header, "no format line"))?;
     Ok((encoding, elements, lines))
 }
 
-fn roles(ctx: Ctx, vertex: &Element) -> Result<Vec<Role>, ReadError> {
-    let mut roles = vec![Role::Skip; vertex.props.len()];
-    for (axis, role) in [("x", Role::X), ("y", Role::Y), ("z", Role::Z)] {
-        let i = vertex
-            .props
-            .iter()
-            .position(|p| p.name == axis)
-            .ok_or_else(|| {
-                ctx.bad_header(
-                    At::Header,
-                    format!(
-                        "element vertex has no property {axis} (it has: {})",
-                        vertex.prop_names()
-                    ),
-                )
-            })?;
-        if let Some(Property {
-            kind: Kind::List { .. },
-            ..
-        }) = vertex.props.get(i)
-        {
-            return Err(ctx.unsupported(format!("vertex property {axis} is a list")));
-        }
-        if let Some(r) = roles.get_mut(i) {
-            *r = role;
-        }
-    }
-    Ok(roles)
-}
-
-fn ascii(
-    ctx: Ctx,
-    mut lines: Lines,
-    before: &[Element],
-    vertex: &Element,
-    roles: &[Role],
-) -> Result<Points, ReadError> {
-    let ends = |el: &Element, done: usize| {
-        ctx.truncated(format!(
-            "element {} declares {} lines, the file ends after {done}",
-            el.name, el.count
-        ))
-    };
-    for el in before {
+/// Reads `elements` (the last is the vertex) one line per instance.
+fn ascii(ctx: Ctx, mut lines: Lines, elements: &[Element]) -> Result<Points, ReadError> {
+    let mut points = Points::with_capacity(0);
+    for (i, el) in elements.iter().enumerate() {
         // An instance without properties has no text, and would otherwise loop `count` times.
         if el.props.is_empty() {
             continue;
         }
-        for done in 0..el.count {
-            lines.next_non_blank().ok_or_else(|| ends(el, done))?;
+        let is_vertex = i + 1 == elements.len();
+        if is_vertex {
+            // Each value takes at least a character and a separator.
+            let capacity = el.count.min(lines.remaining() / (2 * el.props.len()));
+            points = Points::with_capacity(capacity);
         }
-    }
-    // Each value takes at least a character and a separator.
-    let capacity = vertex
-        .count
-        .min(lines.remaining() / (2 * vertex.props.len()));
-    let mut points = Points::with_capacity(capacity);
-    for done in 0..vertex.count {
-        let line = lines.next_non_blank().ok_or_else(|| ends(vertex, done))?;
-        points.push(ascii_vertex(ctx, &line, vertex, roles).map_err(|e| ctx.cut_short(&line, e))?);
+        for done in 0..el.count {
+            let Some(line) = lines.next_non_blank() else {
+                let (name, count) = (&el.name, el.count);
+                let what =
+                    format!("element {name} declares {count} lines, the file ends after {done}");
+                return Err(ctx.truncated(what));
+            };
+            if is_vertex {
+                let p = ascii_vertex(ctx, &line, el).map_err(|e| ctx.cut_short(&line, e))?;
+                points.push(p);
+            }
+        }
     }
     Ok(points)
 }
 
-fn ascii_vertex(
-    ctx: Ctx,
-    line: &Line,
-    vertex: &Element,
-    roles: &[Role],
-) -> Result<[f64; 3], ReadError> {
+fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], ReadError> {
     let at = At::Line(line.number);
     let mut toks = tokens(line.text);
-    let too_few = || {
-        ctx.bad_value(
-            at,
-            format!(
-                "too few values for vertex properties {}",
-                vertex.prop_names()
-            ),
-        )
-    };
+    let names = || vertex.prop_names();
+    let too_few = || ctx.bad_value(at, format!("too few values for properties {}", names()));
     let mut p = [f64::NAN; 3];
-    for (prop, &role) in vertex.props.iter().zip(roles) {
+    for prop in &vertex.props {
         let tok = toks.next().ok_or_else(too_few)?;
-        match prop.kind {
-            Kind::List { .. } => {
+        match (prop.kind, prop.axis.and_then(|a| p.get_mut(a))) {
+            (Kind::List { .. }, _) => {
                 let n = parse_usize(tok).ok_or_else(|| {
-                    ctx.bad_value(
-                        at,
-                        format!("{} is not a count for list {}", quote(tok), prop.name),
-                    )
+                    let what = format!("{} is not a count for list {}", quote(tok), prop.name);
+                    ctx.bad_value(at, what)
                 })?;
                 // Bounded by the tokens on this line, whatever `n` claims.
                 for _ in 0..n {
                     toks.next().ok_or_else(too_few)?;
                 }
             }
-            Kind::Scalar(_) if role == Role::Skip => {}
-            Kind::Scalar(_) => {
-                let v = parse_f64(tok).ok_or_else(|| {
-                    ctx.bad_value(
-                        at,
-                        format!(
-                            "{} is not a number; expected vertex {}",
-                            quote(tok),
-                            prop.name
-                        ),
-                    )
+            (Kind::Scalar(_), None) => {}
+            (Kind::Scalar(_), Some(c)) => {
+                *c = parse_f64(tok).ok_or_else(|| {
+                    let what = format!(
+                        "{} is not a number; expected vertex {}",
+                        quote(tok),
+                        prop.name
+                    );
+                    ctx.bad_value(at, what)
                 })?;
-                set(&mut p, role, v);
             }
         }
     }
     if toks.next().is_some() {
-        return Err(ctx.bad_value(
-            at,
-            format!(
-                "more values than the vertex properties {}",
-                vertex.prop_names()
-            ),
-        ));
+        return Err(ctx.bad_value(at, format!("more values than the properties {}", names())));
     }
     Ok(p)
 }
 
+/// Reads `elements` (the last is the vertex) from `pos`.
 fn binary(
     ctx: Ctx,
     bytes: &[u8],
     mut pos: usize,
     endian: Endian,
-    before: &[Element],
-    vertex: &Element,
-    roles: &[Role],
+    elements: &[Element],
 ) -> Result<Points, ReadError> {
-    for el in before {
-        pos = skip(ctx, bytes, pos, endian, el)?;
-    }
-    if let Some(stride) = vertex.fixed_stride() {
-        let data = take(ctx, bytes, pos, vertex, stride)?;
-        let mut fields = Vec::with_capacity(3);
-        let mut offset = 0;
-        for (prop, &role) in vertex.props.iter().zip(roles) {
-            if let Kind::Scalar(s) = prop.kind {
-                if role != Role::Skip {
-                    fields.push((role, offset, s));
-                }
-                offset += s.size();
+    let mut points = Points::with_capacity(0);
+    for (i, el) in elements.iter().enumerate() {
+        // Checked up front so that an absurd count fails at once, naming the sizes involved.
+        let need = el.count as u128 * el.min_stride() as u128;
+        let have = bytes.len().saturating_sub(pos);
+        if need > have as u128 {
+            let (name, count, stride) = (&el.name, el.count, el.min_stride());
+            return Err(ctx.truncated(format!(
+                "element {name} needs at least {count} × {stride} = {need} bytes from offset {pos}, file has {have}"
+            )));
+        }
+        let is_vertex = i + 1 == elements.len();
+        if is_vertex {
+            points = Points::with_capacity(el.count);
+        } else if !el.has_lists() {
+            pos += need as usize;
+            continue;
+        }
+        // Each instance takes at least one byte (the vertex has x, y, z; the others a list
+        // count), so this loop ends with the file whatever `count` claims.
+        for index in 0..el.count {
+            let (next, p) = walk(ctx, bytes, pos, endian, el, index)?;
+            pos = next;
+            if is_vertex {
+                points.push(p);
             }
         }
-        let mut points = Points::with_capacity(vertex.count);
-        for record in data.chunks_exact(stride) {
-            let mut p = [f64::NAN; 3];
-            for &(role, offset, s) in &fields {
-                // offset + size <= stride, so the read always succeeds.
-                let v = record.get(offset..).and_then(|b| s.read(b, endian));
-                set(&mut p, role, v.unwrap_or(f64::NAN));
-            }
-            points.push(p);
-        }
-        return Ok(points);
-    }
-    let capacity = vertex
-        .count
-        .min(bytes.len().saturating_sub(pos) / vertex.min_stride());
-    let mut points = Points::with_capacity(capacity);
-    for index in 0..vertex.count {
-        let (next, p) = walk(ctx, bytes, pos, endian, vertex, roles, index)?;
-        pos = next;
-        points.push(p);
     }
     Ok(points)
 }
 
-/// The `count × stride` bytes of a fixed-size element, checked against the file's length.
-fn take<'a>(
-    ctx: Ctx,
-    bytes: &'a [u8],
-    pos: usize,
-    el: &Element,
-    stride: usize,
-) -> Result<&'a [u8], ReadError> {
-    let need = el.count as u128 * stride as u128;
-    let have = bytes.len().saturating_sub(pos);
-    if need > have as u128 {
-        return Err(ctx.truncated(format!(
-            "element {} needs {} × {stride} = {need} bytes from offset {pos}, file has {have}",
-            el.name, el.count
-        )));
-    }
-    Ok(bytes.get(pos..pos + need as usize).unwrap_or_default())
-}
-
-fn skip(
-    ctx: Ctx,
-    bytes: &[u8],
-    pos: usize,
-    endian: Endian,
-    el: &Element,
-) -> Result<usize, ReadError> {
-    if let Some(stride) = el.fixed_stride() {
-        return Ok(pos + take(ctx, bytes, pos, el, stride)?.len());
-    }
-    // Every instance holds at least one list count, so this loop ends with the file.
-    let mut pos = pos;
-    for index in 0..el.count {
-        pos = walk(ctx, bytes, pos, endian, el, &[], index)?.0;
-    }
-    Ok(pos)
-}
-
-/// Reads one instance of an element with list properties; returns the offset after it and
-/// the coordinates picked out by `roles` (empty roles pick nothing).
+/// Reads one instance; returns the offset after it and its x, y, z if it has them.
 fn walk(
     ctx: Ctx,
     bytes: &[u8],
     mut pos: usize,
     endian: Endian,
     el: &Element,
-    roles: &[Role],
     index: usize,
 ) -> Result<(usize, [f64; 3]), ReadError> {
     let ends = |pos: usize| {
+        let (name, len) = (&el.name, bytes.len());
         ctx.truncated(format!(
-            "element {} instance {index} runs past the end of the file at offset {pos} of {}",
-            el.name,
-            bytes.len()
+            "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
         ))
     };
     let mut p = [f64::NAN; 3];
-    for (i, prop) in el.props.iter().enumerate() {
+    for prop in &el.props {
         let rest = bytes.get(pos..).unwrap_or_default();
         match prop.kind {
             Kind::Scalar(s) => {
                 let v = s.read(rest, endian).ok_or_else(|| ends(pos))?;
-                set(&mut p, roles.get(i).copied().unwrap_or(Role::Skip), v);
+                if let Some(c) = prop.axis.and_then(|a| p.get_mut(a)) {
+                    *c = v;
+                }
                 pos += s.size();
             }
             Kind::List { count, item } => {
                 let n = count.read(rest, endian).ok_or_else(|| ends(pos))?;
                 if n < 0.0 {
-                    return Err(ctx.bad_value(
-                        At::Offset(pos),
-                        format!(
-                            "negative count {n} for list {} of element {}",
-                            prop.name, el.name
-                        ),
-                    ));
+                    let what = format!(
+                        "negative count {n} for list {} of element {}",
+                        prop.name, el.name
+                    );
+                    return Err(ctx.bad_value(At::Offset(pos), what));
                 }
                 pos += count.size();
                 let len = n as u128 * item.size() as u128;

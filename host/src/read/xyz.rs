@@ -1,11 +1,106 @@
-//! XYZ/CSV text reader: one point per line, x y z first, separated by whitespace or commas.
+//! Text: the line and number primitives every text part of these formats is read with, and
+//! the XYZ/CSV reader: one point per line, x y z first, separated by whitespace or commas.
 //!
 //! Lines before the first data line that do not start with three numbers are taken as a header
 //! (`x,y,z,intensity`, a scanner's banner); after data has started such a line is an error, since
 //! silently skipping it would hide a damaged file. Blank lines and `#` comments are skipped
 //! anywhere; columns after z are not parsed.
 
-use super::{At, Cloud, Ctx, Format, Lines, Points, ReadError, parse_f64, quote, tokens};
+use super::{At, Cloud, Ctx, Format, Points, ReadError};
+
+/// Text is anything without control bytes other than whitespace in its first few KiB; bytes
+/// >= 0x80 pass so that Latin-1 or UTF-8 header comments do not disqualify a file.
+pub(super) fn looks_like_text(bytes: &[u8]) -> bool {
+    let head = bytes.get(..4096).unwrap_or(bytes);
+    head.iter()
+        .all(|&b| matches!(b, b'\t' | b'\n' | b'\r' | 0x0c) || (b >= 0x20 && b != 0x7f))
+}
+
+/// Quotes a token from the file for an error message: lossy, short and on one line.
+pub(crate) fn quote(token: &[u8]) -> String {
+    let text = String::from_utf8_lossy(token);
+    let mut out: String = text.chars().take(40).flat_map(char::escape_debug).collect();
+    if text.chars().nth(40).is_some() {
+        out.push_str("...");
+    }
+    format!("'{out}'")
+}
+
+pub(crate) fn parse_f64(token: &[u8]) -> Option<f64> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+pub(crate) fn parse_usize(token: &[u8]) -> Option<usize> {
+    std::str::from_utf8(token).ok()?.parse().ok()
+}
+
+/// Whitespace-separated tokens of a line.
+pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
+    line.split(u8::is_ascii_whitespace)
+        .filter(|t| !t.is_empty())
+}
+
+/// One line of a byte slice: its 1-based number, its text without the line ending, and
+/// whether a newline ended it (the last line of a cut file has none).
+pub(crate) struct Line<'a> {
+    pub number: usize,
+    pub text: &'a [u8],
+    pub terminated: bool,
+}
+
+/// Lines of a byte slice, `\n` or `\r\n` terminated; keeps counting across a header and a body.
+#[derive(Clone)]
+pub(crate) struct Lines<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+    number: usize,
+}
+
+impl<'a> Lines<'a> {
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Lines {
+            bytes,
+            pos: 0,
+            number: 0,
+        }
+    }
+
+    /// Offset of the first byte not yet returned: after a header's last line, where a binary
+    /// body starts.
+    pub fn pos(&self) -> usize {
+        self.pos
+    }
+
+    /// Bytes not yet returned.
+    pub fn remaining(&self) -> usize {
+        self.bytes.len().saturating_sub(self.pos)
+    }
+
+    /// The next line that has something other than whitespace in it.
+    pub fn next_non_blank(&mut self) -> Option<Line<'a>> {
+        self.find(|l| !l.text.iter().all(u8::is_ascii_whitespace))
+    }
+}
+
+impl<'a> Iterator for Lines<'a> {
+    type Item = Line<'a>;
+
+    fn next(&mut self) -> Option<Line<'a>> {
+        let rest = self.bytes.get(self.pos..).filter(|r| !r.is_empty())?;
+        let (text, len, terminated) = match rest.iter().position(|&b| b == b'\n') {
+            Some(i) => (rest.get(..i).unwrap_or_default(), i + 1, true),
+            None => (rest, rest.len(), false),
+        };
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        self.pos += len;
+        self.number += 1;
+        Some(Line {
+            number: self.number,
+            text,
+            terminated,
+        })
+    }
+}
 
 /// Why a line is not a data line.
 enum NotData<'a> {

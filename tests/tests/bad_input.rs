@@ -1,0 +1,195 @@
+use crate::util::{Dir, MemaCommand, shared};
+
+fn map(dir: &Dir, input: &std::path::Path, k: &str) -> MemaCommand {
+    MemaCommand::new(dir)
+        .arg("map")
+        .arg(input)
+        .args(["-k", k, "-o"])
+        .arg(dir.join("out.mema"))
+}
+
+/// No map, and no temporary file either, is left behind by a failed run.
+fn assert_nothing_written(dir: &Dir, inputs: &[&str]) {
+    let left: Vec<String> = dir
+        .listing()
+        .into_iter()
+        .filter(|n| !inputs.contains(&n.as_str()))
+        .collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
+#[test]
+fn a_file_that_is_not_a_point_cloud() {
+    let dir = Dir::new("not-a-cloud");
+    let mut junk = Vec::new();
+    let mut s = 0x1234_5678u32;
+    for _ in 0..4096 {
+        s ^= s << 13;
+        s ^= s >> 17;
+        s ^= s << 5;
+        junk.push((s >> 24) as u8);
+    }
+    let path = dir.write("random.pcd", &junk);
+    map(&dir, &path, "10").run().assert_error(1, "random.pcd");
+    let text = dir.write("words.xyz", b"this is a letter\nnot a cloud at all\n");
+    map(&dir, &text, "10").run().assert_error(1, "words.xyz");
+    assert_nothing_written(&dir, &["random.pcd", "words.xyz"]);
+}
+
+#[test]
+fn an_empty_file() {
+    let dir = Dir::new("empty");
+    let path = dir.write("empty.ply", b"");
+    map(&dir, &path, "10").run().assert_error(1, "empty.ply");
+    assert_nothing_written(&dir, &["empty.ply"]);
+}
+
+#[test]
+fn truncated_pcd_and_ply() {
+    let dir = Dir::new("truncated");
+    for (name, fraction) in [
+        ("car6.pcd", 2),
+        ("five_people.pcd", 3),
+        ("bun_zipper.ply", 4),
+        ("lamppost.pcd", 2),
+    ] {
+        let bytes = std::fs::read(shared(name)).expect("shared cloud");
+        let cut = format!("cut-{name}");
+        // Cut inside the data, and inside the header.
+        let path = dir.write(&cut, &bytes[..bytes.len() / fraction]);
+        map(&dir, &path, "10").run().assert_error(1, &cut);
+        let header_cut = format!("header-{name}");
+        let path = dir.write(&header_cut, &bytes[..40]);
+        map(&dir, &path, "10").run().assert_error(1, &header_cut);
+    }
+}
+
+#[test]
+fn a_cloud_of_only_nan() {
+    let dir = Dir::new("nan");
+    let path = dir.write("nan.xyz", b"nan nan nan\nNaN 1 2\n3 nan 4\n");
+    map(&dir, &path, "2").run().assert_error(1, "nan.xyz");
+    let pcd = b"# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\nHEIGHT 2\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 4\nDATA ascii\nnan nan nan\nnan nan nan\nnan nan nan\nnan nan nan\n";
+    let path = dir.write("organized-nan.pcd", pcd);
+    map(&dir, &path, "2")
+        .run()
+        .assert_error(1, "organized-nan.pcd");
+}
+
+#[test]
+fn nan_points_are_dropped_and_the_rest_mapped() {
+    let dir = Dir::new("some-nan");
+    let mut text = String::new();
+    for i in 0..200 {
+        if i % 10 == 0 {
+            text.push_str("nan 0 0\n");
+        } else {
+            text.push_str(&format!(
+                "{} {} {}\n",
+                (i as f64 * 0.37).sin(),
+                (i as f64 * 0.11).cos(),
+                i as f64 * 0.01
+            ));
+        }
+    }
+    let path = dir.write("some.xyz", text.as_bytes());
+    let ran = map(&dir, &path, "5").arg("--json").run().assert_ok();
+    let v = ran.json();
+    assert_eq!(v["memory"]["points"], 180);
+    assert_eq!(v["dropped_non_finite"], 20);
+}
+
+#[test]
+fn k_zero_and_k_larger_than_the_cloud() {
+    let dir = Dir::new("k");
+    let car = shared("car6.pcd");
+    map(&dir, &car, "0")
+        .run()
+        .assert_error(2, "k must be at least 1");
+    map(&dir, &car, "10032")
+        .run()
+        .assert_error(1, "larger than the cloud");
+    // Ten points, two of them distinct: k = 3 cannot place three distinct centres.
+    let path = dir.write(
+        "dup.xyz",
+        b"1 2 3\n1 2 3\n1 2 3\n1 2 3\n1 2 3\n4 5 6\n4 5 6\n4 5 6\n4 5 6\n4 5 6\n",
+    );
+    map(&dir, &path, "3")
+        .run()
+        .assert_error(1, "distinct points");
+    assert_nothing_written(&dir, &["dup.xyz"]);
+}
+
+#[test]
+fn bad_option_values_are_usage_errors() {
+    let dir = Dir::new("usage");
+    let car = shared("car6.pcd");
+    map(&dir, &car, "10")
+        .args(["--alpha", "1.5"])
+        .run()
+        .assert_error(2, "--alpha");
+    map(&dir, &car, "10")
+        .arg("--threshold=-1")
+        .run()
+        .assert_error(2, "--threshold");
+}
+
+#[test]
+fn an_unwritable_output_directory() {
+    let dir = Dir::new("out-dir");
+    let car = shared("car6.pcd");
+    let missing = dir.join("no/such/dir/map.mema");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "10", "-o"])
+        .arg(&missing)
+        .run()
+        .assert_error(1, "no/such/dir");
+    // A regular file where a directory should be: tests run as root, so permission bits alone
+    // would not stop the write.
+    let file = dir.write("plain-file", b"x");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "10", "-o"])
+        .arg(file.join("map.mema"))
+        .run()
+        .assert_error(1, "plain-file");
+    assert_eq!(dir.listing(), vec!["plain-file".to_string()]);
+}
+
+#[test]
+fn unknown_map_extension_and_corrupt_map() {
+    let dir = Dir::new("map-files");
+    let car = shared("car6.pcd");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "10", "-o"])
+        .arg(dir.join("map.txt"))
+        .run()
+        .assert_error(2, "map.txt");
+    let good = dir.join("m.mema");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "10", "-o"])
+        .arg(&good)
+        .run()
+        .assert_ok();
+    let mut bytes = std::fs::read(&good).expect("map");
+    bytes[50] ^= 0x10;
+    let bad = dir.write("bad.mema", &bytes);
+    MemaCommand::new(&dir)
+        .arg("info")
+        .arg(&bad)
+        .run()
+        .assert_error(1, "checksum");
+    MemaCommand::new(&dir)
+        .arg("eval")
+        .arg(&car)
+        .arg(&bad)
+        .run()
+        .assert_error(1, "bad.mema");
+}

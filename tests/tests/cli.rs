@@ -1,0 +1,174 @@
+use crate::util::{Dir, MemaCommand, shared};
+use mema::mapfile::HostMap;
+
+#[test]
+fn same_seed_same_bytes_and_exactly_k_finite_entities() {
+    let dir = Dir::new("determinism");
+    let car = shared("car6.pcd");
+    let run = |name: &str, seed: &str| {
+        let out = dir.join(name);
+        MemaCommand::new(&dir)
+            .arg("map")
+            .arg(&car)
+            .args(["-k", "150", "--seed", seed, "-o"])
+            .arg(&out)
+            .run()
+            .assert_ok();
+        std::fs::read(out).expect("map written")
+    };
+    let first = run("a.mema", "7");
+    let second = run("b.mema", "7");
+    assert_eq!(first, second, "same seed, different bytes");
+    assert_ne!(first, run("c.mema", "8"), "the seed has no effect");
+    let map = HostMap::from_mema(&first).expect("valid map");
+    assert_eq!(map.entities.len(), 150);
+    assert!(map.origin.iter().all(|v| v.is_finite()));
+    for e in &map.entities {
+        assert!(e.entity.center.is_finite());
+        assert!(
+            e.entity.weights.iter().all(|w| w.is_finite() && *w >= 0.0),
+            "{e:?}"
+        );
+        assert!(e.entity.degenerated_axes() < 3);
+    }
+}
+
+#[test]
+fn csv_and_json_maps_carry_the_same_entities() {
+    let dir = Dir::new("formats");
+    let bunny = shared("bun_zipper.ply");
+    for name in ["m.mema", "m.csv", "m.json"] {
+        MemaCommand::new(&dir)
+            .arg("map")
+            .arg(&bunny)
+            .args(["-k", "60", "-o"])
+            .arg(dir.join(name))
+            .run()
+            .assert_ok();
+    }
+    let csv = std::fs::read_to_string(dir.join("m.csv")).expect("csv");
+    assert_eq!(csv.lines().next(), Some("cx,cy,cz,rx,ry,rz,kind"));
+    assert_eq!(csv.lines().count(), 61);
+    let mema = HostMap::read(&dir.join("m.mema")).expect("mema");
+    let json = HostMap::read(&dir.join("m.json")).expect("json");
+    assert_eq!(mema, json, "json keeps the exact stored values");
+    let from_csv = HostMap::read(&dir.join("m.csv")).expect("csv map");
+    for (a, b) in from_csv.entities.iter().zip(mema.entities.iter()) {
+        let (wa, wb) = (
+            from_csv.world_center(&a.entity),
+            mema.world_center(&b.entity),
+        );
+        for j in 0..3 {
+            assert!((wa[j] - wb[j]).abs() < 1e-6, "{wa:?} vs {wb:?}");
+        }
+        assert_eq!(a.kind, b.kind);
+    }
+    // The world centres lie inside the bunny's bounding box (x about -0.095..0.061 m).
+    for e in &mema.entities {
+        let c = mema.world_center(&e.entity);
+        assert!((-0.1..0.07).contains(&c[0]), "{c:?}");
+    }
+}
+
+#[test]
+fn eval_json_has_the_documented_keys_and_consistent_figures() {
+    let dir = Dir::new("eval");
+    let car = shared("car6.pcd");
+    let map = dir.join("car.mema");
+    let mapped = MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "150", "--json", "-o"])
+        .arg(&map)
+        .run()
+        .assert_ok();
+    let m = mapped.json();
+    let ran = MemaCommand::new(&dir)
+        .arg("eval")
+        .arg(&car)
+        .arg(&map)
+        .arg("--json")
+        .run()
+        .assert_ok();
+    let v = ran.json();
+    let keys: Vec<&str> = v
+        .as_object()
+        .expect("object")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    let mut want = vec![
+        "points",
+        "clusters",
+        "mean",
+        "std",
+        "max",
+        "min",
+        "total",
+        "cloud_bytes",
+        "map_bytes",
+        "percent",
+    ];
+    let mut got = keys.clone();
+    want.sort();
+    got.sort();
+    assert_eq!(got, want);
+    assert_eq!(v["points"], 10_031);
+    assert_eq!(v["cloud_bytes"], 10_031 * 12);
+    assert_eq!(v["map_bytes"], 150 * 24);
+    let clusters = v["clusters"].as_u64().expect("clusters");
+    assert!(clusters > 140 && clusters <= 150, "{clusters}");
+    let (mean, total) = (
+        v["mean"].as_f64().expect("mean"),
+        v["total"].as_f64().expect("total"),
+    );
+    assert!((mean * clusters as f64 - total).abs() < 1e-9 * total);
+    // Nearest-centre membership differs from k-means' labels only at cluster borders.
+    let map_mean = m["ellipsoidal"]["mean"].as_f64().expect("map mean");
+    assert!(
+        (mean / map_mean - 1.0).abs() < 0.15,
+        "eval {mean} vs map {map_mean}"
+    );
+}
+
+#[test]
+fn info_counts_kinds_that_sum_to_the_entities() {
+    let dir = Dir::new("info");
+    let map = dir.join("p.mema");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(shared("five_people.pcd"))
+        .args(["-k", "120", "-o"])
+        .arg(&map)
+        .run()
+        .assert_ok();
+    let v = MemaCommand::new(&dir)
+        .arg("info")
+        .arg(&map)
+        .arg("--json")
+        .run()
+        .assert_ok()
+        .json();
+    let kinds = &v["kinds"];
+    let sum: u64 = ["ellipsoid", "sphere", "pseudocylinder", "plane_pair"]
+        .iter()
+        .map(|k| kinds[k].as_u64().expect("count"))
+        .sum();
+    assert_eq!(sum, 120);
+    assert_eq!(v["entities"], 120);
+    assert_eq!(v["file_bytes"], 36 + 25 * 120 + 4);
+}
+
+#[test]
+fn demo_needs_no_files_and_writes_its_map() {
+    let dir = Dir::new("demo");
+    let ran = MemaCommand::new(&dir).arg("demo").run().assert_ok();
+    assert!(
+        ran.stdout().contains("Table 2") && ran.stdout().contains("ellipsoidal"),
+        "{}",
+        ran.stdout()
+    );
+    let map = HostMap::read(&dir.join("mema-demo.mema")).expect("demo map");
+    assert_eq!(map.entities.len(), 250);
+    assert_eq!(dir.listing(), vec!["mema-demo.mema".to_string()]);
+}
