@@ -4,8 +4,8 @@
 //! something shaped like real data: several objects of paper-like size, one-sided
 //! visibility, occlusion and range noise. Every primitive has an exact ray
 //! intersection so the noise-free scan is a known ground truth, and all noise
-//! comes from one seeded Pcg32, so a seed reproduces a scan bit for bit (on
-//! one platform: `sin`, `cos` and `ln` come from its libm).
+//! comes from one seeded Pcg32, so a seed reproduces a scan bit for bit, on every
+//! platform: `sin`, `cos` and `ln` come from the `libm` crate, not the platform's maths library.
 
 use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
@@ -246,7 +246,7 @@ fn gaussian(rng: &mut Pcg32) -> f64 {
     const SCALE: f64 = 1.0 / (1u64 << 53) as f64;
     let u1 = ((rng.next_u64() >> 11) + 1) as f64 * SCALE;
     let u2 = (rng.next_u64() >> 11) as f64 * SCALE;
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    libm::sqrt(-2.0 * libm::log(u1)) * libm::cos(std::f64::consts::TAU * u2)
 }
 
 /// Centre of cell `i` of `n` equal cells spanning `range`, so `n = 1` looks at the middle.
@@ -268,7 +268,11 @@ fn scan_labelled(scene: &Scene, config: &ScanConfig) -> (Scan, Vec<usize>) {
         let el = cell(config.elevation_range, e, config.elevation_steps);
         for a in 0..config.azimuth_steps {
             let az = cell(config.azimuth_range, a, config.azimuth_steps);
-            let d = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+            let d = [
+                libm::cos(el) * libm::cos(az),
+                libm::cos(el) * libm::sin(az),
+                libm::sin(el),
+            ];
             let Some(hit) = scene.cast_unit(config.sensor, d, config.max_range) else {
                 misses += 1;
                 continue;
