@@ -145,8 +145,24 @@ pub(crate) fn decompress(input: &[u8], expected: usize) -> Result<Vec<u8>, LzfEr
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A valid LZF stream of literal runs only: what a compressor may emit for data it cannot
+    /// shrink, and enough for tests to write binary_compressed files without a compressor.
+    pub fn literal_stream(data: &[u8]) -> Vec<u8> {
+        let run = |c: &[u8]| [&[c.len() as u8 - 1][..], c].concat();
+        data.chunks(32).flat_map(run).collect()
+    }
+
+    #[test]
+    fn literal_streams_round_trip() {
+        let data: Vec<u8> = (0..1000u32).map(|i| (i * 7919 % 251) as u8).collect();
+        assert_eq!(
+            decompress(&literal_stream(&data), data.len()).unwrap(),
+            data
+        );
+    }
 
     #[test]
     fn literal_run() {
@@ -267,6 +283,13 @@ mod tests {
         let packed = u32::from_le_bytes(bad[body..body + 4].try_into().unwrap());
         bad[body..body + 4].copy_from_slice(&(packed - 100).to_le_bytes());
         assert!(matches!(read(&bad), Err(ReadError::BadValue { .. })));
+        let mut bad = good.clone();
+        bad[body + 4..body + 8].copy_from_slice(&u32::MAX.to_le_bytes()); // not POINTS × 12
+        assert!(
+            matches!(read(&bad), Err(ReadError::BadValue { at: At::Offset(o), .. }) if o == body + 4)
+        );
+        bad.truncate(body + 8 + 100); // the stream is shorter than its declared size
+        assert!(matches!(read(&bad), Err(ReadError::Truncated { .. })));
         for (i, at) in (stream..good.len()).step_by(97).enumerate() {
             let mut bad = good.clone();
             bad[at] ^= 1 << (i % 8);

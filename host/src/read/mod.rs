@@ -140,9 +140,8 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
 pub fn read_cloud_bytes(name: &str, bytes: &[u8]) -> Result<Cloud, ReadError> {
     let ctx = Ctx(name);
     if bytes.is_empty() {
-        return Err(ReadError::Empty {
-            name: name.to_owned(),
-        });
+        let name = name.to_owned();
+        return Err(ReadError::Empty { name });
     }
     if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
         return ply::read(ctx, bytes);
@@ -166,33 +165,23 @@ impl Ctx<'_> {
     }
 
     fn truncated(self, what: impl Into<String>) -> ReadError {
-        ReadError::Truncated {
-            name: self.name(),
-            what: what.into(),
-        }
+        let (name, what) = (self.name(), what.into());
+        ReadError::Truncated { name, what }
     }
 
     fn bad_header(self, at: At, what: impl Into<String>) -> ReadError {
-        ReadError::BadHeader {
-            name: self.name(),
-            at,
-            what: what.into(),
-        }
+        let (name, what) = (self.name(), what.into());
+        ReadError::BadHeader { name, at, what }
     }
 
     fn bad_value(self, at: At, what: impl Into<String>) -> ReadError {
-        ReadError::BadValue {
-            name: self.name(),
-            at,
-            what: what.into(),
-        }
+        let (name, what) = (self.name(), what.into());
+        ReadError::BadValue { name, at, what }
     }
 
     fn unsupported(self, what: impl Into<String>) -> ReadError {
-        ReadError::Unsupported {
-            name: self.name(),
-            what: what.into(),
-        }
+        let (name, what) = (self.name(), what.into());
+        ReadError::Unsupported { name, what }
     }
 
     /// A bad value on the last line of a file that lacks its newline is a cut file, and saying
@@ -214,10 +203,8 @@ impl Ctx<'_> {
             Some("pcd") => format!("{why}; named .pcd but has no VERSION/FIELDS header"),
             _ => why.to_owned(),
         };
-        ReadError::NotAPointCloud {
-            name: self.name(),
-            why,
-        }
+        let name = self.name();
+        ReadError::NotAPointCloud { name, why }
     }
 }
 
@@ -257,7 +244,7 @@ impl Scalar {
     }
 
     /// The value at the start of `bytes`, or `None` if `bytes` is too short. 64-bit integers
-    /// round to the nearest f64, which is exact for any coordinate or count that fits a file.
+    /// round to the nearest f64; a count too large to be exact is too large for any file.
     #[inline]
     pub fn read(self, bytes: &[u8], endian: Endian) -> Option<f64> {
         macro_rules! get {
@@ -321,10 +308,8 @@ impl Points {
 
     pub fn finish(self, ctx: Ctx, format: Format) -> Result<Cloud, ReadError> {
         if self.xyz.is_empty() {
-            return Err(ReadError::NoFinitePoints {
-                name: ctx.name(),
-                slots: self.slots,
-            });
+            let (name, slots) = (ctx.name(), self.slots);
+            return Err(ReadError::NoFinitePoints { name, slots });
         }
         // Halving before adding keeps the centre and the half-extent finite even for
         // coordinates near f64::MAX.
@@ -336,11 +321,8 @@ impl Points {
                 )));
             }
         }
-        let points = self
-            .xyz
-            .iter()
-            .map(|p| std::array::from_fn(|i| (p[i] - origin[i]) as f32))
-            .collect();
+        let local = |p: &[f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
+        let points = self.xyz.iter().map(local).collect();
         Ok(Cloud {
             origin,
             points,
@@ -354,7 +336,7 @@ impl Points {
 /// Helpers shared by the readers' tests.
 #[cfg(test)]
 pub(crate) mod testkit {
-    use super::Cloud;
+    use super::{Cloud, ReadError, read_cloud_bytes};
 
     /// The real clouds; read in place, never copied into the repository.
     pub const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data");
@@ -373,27 +355,32 @@ pub(crate) mod testkit {
         line[keyword.len()..].trim().parse().expect(line)
     }
 
+    /// Requires reading `bytes` to fail with the `variant` (its Debug name), and the message to
+    /// be one line starting with the file's name.
+    pub fn expect_err(name: &str, bytes: &[u8], variant: &str) -> ReadError {
+        let e = read_cloud_bytes(name, bytes).expect_err(name);
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("{name}: ")) && !msg.contains('\n'),
+            "{msg}"
+        );
+        assert!(
+            format!("{e:?}").starts_with(variant),
+            "want {variant}: {e:?}"
+        );
+        e
+    }
+
     /// Requires `cloud` to hold exactly `want`, in order, to 1e-6 of the cloud's extent.
     pub fn assert_same(cloud: &Cloud, want: &[[f64; 3]], what: &str) {
         assert_eq!(cloud.points.len(), want.len(), "{what}: point count");
-        let extent = (0..3)
-            .map(|k| {
-                let (lo, hi) = want.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
-                    (lo.min(p[k]), hi.max(p[k]))
-                });
-                hi - lo
-            })
-            .fold(0.0, f64::max);
+        let axis = |k: usize| want.iter().map(move |p| p[k]);
+        let span = |k| axis(k).fold(f64::MIN, f64::max) - axis(k).fold(f64::MAX, f64::min);
+        let tolerance = 1e-6 * span(0).max(span(1)).max(span(2));
         for (i, (p, w)) in cloud.points.iter().zip(want).enumerate() {
-            for k in 0..3 {
-                let got = cloud.origin[k] + f64::from(p[k]);
-                let err = (got - w[k]).abs();
-                assert!(
-                    err <= 1e-6 * extent,
-                    "{what}: point {i}[{k}] = {got}, want {}",
-                    w[k]
-                );
-            }
+            let got: [f64; 3] = std::array::from_fn(|k| cloud.origin[k] + f64::from(p[k]));
+            let err = (0..3).map(|k| (got[k] - w[k]).abs()).fold(0.0, f64::max);
+            assert!(err <= tolerance, "{what}: point {i} is {got:?}, want {w:?}");
         }
     }
 
@@ -416,247 +403,92 @@ pub(crate) mod testkit {
 
 #[cfg(test)]
 mod tests {
-    use super::testkit::{XorShift, shared};
+    use super::testkit::{XorShift, expect_err, shared};
     use super::*;
-
-    fn err(name: &str, bytes: &[u8]) -> ReadError {
-        let e = read_cloud_bytes(name, bytes).expect_err(name);
-        let msg = e.to_string();
-        assert!(msg.starts_with(&format!("{name}: ")), "{msg}");
-        assert!(!msg.contains('\n'), "{msg}");
-        e
-    }
 
     #[test]
     fn content_decides_the_format_not_the_extension() {
         let car = read_cloud_bytes("car6.ply", &shared("car6.pcd")).unwrap();
-        assert_eq!(
-            (car.format, car.slots),
-            (Format::PcdBinaryCompressed, 10_031)
-        );
+        assert_eq!(car.format, Format::PcdBinaryCompressed);
+        assert_eq!(car.slots, 10_031);
         let bunny = read_cloud_bytes("bunny.txt", &shared("bun_zipper.ply")).unwrap();
         assert_eq!((bunny.format, bunny.slots), (Format::PlyAscii, 35_947));
         let text = read_cloud_bytes("a.pcd", b"# comment\n1 2 3\n").unwrap();
         assert_eq!(text.format, Format::Xyz);
         let disk = read_cloud(Path::new(&format!("{}/milk.pcd", testkit::DATA))).unwrap();
-        assert_eq!(
-            disk,
-            read_cloud_bytes("milk.pcd", &shared("milk.pcd")).unwrap()
-        );
+        let memory = read_cloud_bytes("milk.pcd", &shared("milk.pcd")).unwrap();
+        assert_eq!(disk, memory);
     }
 
     #[test]
     fn empty_random_and_missing_files() {
-        assert!(matches!(err("empty.ply", b""), ReadError::Empty { .. }));
+        expect_err("empty.ply", b"", "Empty");
         let mut rng = XorShift(7);
         let noise: Vec<u8> = (0..4096).map(|_| rng.next() as u8).collect();
-        assert!(matches!(
-            err("x.bin", &noise),
-            ReadError::NotAPointCloud { .. }
-        ));
-        let e = err("x.ply", &noise);
+        let e = expect_err("x.bin", &noise, "NotAPointCloud");
+        let want = "x.bin: not a point cloud (no PLY/PCD header, and not XYZ/CSV text)";
+        assert_eq!(e.to_string(), want);
+        let e = expect_err("x.ply", &noise, "NotAPointCloud");
         assert!(e.to_string().contains("named .ply"), "{e}");
-        let e = err("notes.txt", b"Meeting notes\nnothing numeric here\n");
-        assert!(matches!(e, ReadError::NotAPointCloud { .. }), "{e}");
+        let notes = b"Meeting notes\nnothing numeric\n";
+        expect_err("notes.txt", notes, "NotAPointCloud");
         let e = read_cloud(Path::new("/nonexistent/dir/cloud.ply")).unwrap_err();
         assert!(matches!(e, ReadError::Io { .. }));
-        assert!(
-            e.to_string().starts_with("/nonexistent/dir/cloud.ply: "),
-            "{e}"
-        );
-    }
-
-    #[test]
-    fn lying_headers_are_errors_not_allocations() {
-        let ply = |format: &str, before: &str, body: &[u8]| {
-            let mut b = format!("ply\nformat {format} 1.0\n{before}element vertex 1000000000000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n").into_bytes();
-            b.extend_from_slice(body);
-            b
-        };
-        let grid = "element grid 1000000000000000000\nproperty list uchar int i\n";
-        let fixed = "element grid 1000000000000000000\nproperty int i\n";
-        for bytes in [
-            ply("binary_little_endian", "", &[0; 24]),
-            ply("binary_big_endian", grid, &[1, 0, 0, 0, 0]),
-            ply("binary_big_endian", fixed, &[0; 24]),
-            ply("ascii", "", b"1 2 3\n4 5 6\n"),
-            ply("ascii", grid, b"1 2\n"),
-        ] {
-            assert!(matches!(
-                err("absurd.ply", &bytes),
-                ReadError::Truncated { .. }
-            ));
-        }
-        let neg = ply(
-            "binary_little_endian",
-            "element g 1\nproperty list char int i\n",
-            &[255],
-        );
-        assert!(matches!(
-            err("neg.ply", &neg),
-            ReadError::BadValue {
-                at: At::Offset(_),
-                ..
-            }
-        ));
-
-        let pcd = |fields: &str, points: &str, data: &str, body: &[u8]| {
-            let mut b = format!("VERSION 0.7\n{fields}\n{points}\nDATA {data}\n").into_bytes();
-            b.extend_from_slice(body);
-            b
-        };
-        let xyz = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1";
-        let n = "WIDTH 1000000000000000000\nHEIGHT 1\nPOINTS 1000000000000000000";
-        for (bytes, want) in [
-            (pcd(xyz, n, "binary", &[0; 100]), "Truncated"),
-            (pcd(xyz, n, "ascii", b"1 2 3\n"), "Truncated"),
-            (
-                pcd(
-                    xyz,
-                    n,
-                    "binary_compressed",
-                    &[9, 0, 0, 0, 255, 255, 255, 255],
-                ),
-                "Truncated",
-            ),
-            (
-                pcd(
-                    xyz,
-                    "WIDTH 2\nPOINTS 2",
-                    "binary_compressed",
-                    &[1, 0, 0, 0, 255, 255, 255, 255, 0],
-                ),
-                "BadValue",
-            ),
-            (
-                pcd(xyz, "WIDTH 4294967296\nHEIGHT 4294967296", "binary", b""),
-                "BadHeader",
-            ),
-            (pcd(xyz, "WIDTH 3\nPOINTS 4", "binary", b""), "BadHeader"),
-            (
-                pcd(
-                    "FIELDS x y z w\nSIZE 4 4 4 4\nCOUNT 1 1 1 1000000000000000000000",
-                    "WIDTH 1",
-                    "binary",
-                    b"",
-                ),
-                "BadHeader",
-            ),
-            (
-                pcd(
-                    "FIELDS x y z w\nSIZE 4 4 4 1000000000000\nCOUNT 1 1 1 1000000000",
-                    "WIDTH 1",
-                    "binary",
-                    b"",
-                ),
-                "BadHeader",
-            ),
-            (
-                pcd(
-                    "FIELDS x y z\nSIZE 2 4 4\nTYPE F F F",
-                    "WIDTH 1",
-                    "binary",
-                    b"",
-                ),
-                "Unsupported",
-            ),
-            (pcd("FIELDS x y q", "WIDTH 1", "binary", b""), "BadHeader"),
-        ] {
-            let e = err("absurd.pcd", &bytes);
-            assert!(format!("{e:?}").starts_with(want), "{want}: {e:?}");
-        }
+        let msg = e.to_string();
+        assert!(msg.starts_with("/nonexistent/dir/cloud.ply: "), "{msg}");
     }
 
     #[test]
     fn real_files_cut_anywhere_are_errors() {
-        for name in [
-            "bun000.ply",
-            "bun_zipper.ply",
-            "lamppost.pcd",
-            "car6.pcd",
-            "office1.pcd",
-        ] {
+        for name in "bun000.ply bun_zipper.ply lamppost.pcd car6.pcd office1.pcd".split(' ') {
             let bytes = shared(name);
-            let body = bytes
+            let header = bytes
                 .windows(11)
-                .position(|w| w == b"end_header\n" || w.starts_with(b"DATA "))
-                .unwrap();
-            let cuts = [
-                12,
-                40,
-                body,
-                body + 5,
-                body + 20,
-                body + 1000,
-                body + 30_000,
-            ];
-            for cut in cuts {
-                let e = err(name, &bytes[..cut]);
-                let ok = match e {
-                    ReadError::Truncated { .. } => true,
-                    // A text line cut short has too few values.
-                    ReadError::BadValue { .. } => {
-                        !name.contains("car6") && !name.contains("office")
-                    }
-                    _ => false,
-                };
-                assert!(ok, "{name} cut at {cut}: {e:?}");
+                .position(|w| w == b"end_header\n" || w.starts_with(b"DATA "));
+            let body = header.unwrap();
+            let after = [0, 5, 20, 1000, 30_000].map(|n| body + n);
+            for cut in [12, 40].into_iter().chain(after) {
+                let e = read_cloud_bytes(name, &bytes[..cut]).unwrap_err();
+                assert!(e.to_string().starts_with(name), "{e}");
+                let truncated = matches!(e, ReadError::Truncated { .. });
+                assert!(truncated, "{name} cut at {cut}: {e:?}");
             }
         }
     }
 
-    /// Seeded byte flips, truncations and insertions of real file prefixes: any result is
-    /// fine except a panic, and every error is one line naming the file.
+    /// Seeded byte flips, truncations and insertions of real files: any result is fine except
+    /// a panic, and every error is one line naming the file.
     #[test]
     fn mutated_real_files_never_panic() {
-        let seeds: Vec<Vec<u8>> = [
-            "bun_zipper.ply",
-            "bun000.ply",
-            "car6.pcd",
-            "milk.pcd",
-            "lamppost.pcd",
-            "office1.pcd",
-        ]
-        .iter()
-        .map(|n| shared(n))
-        .chain([
-            ply::tests::bunny_binary(Endian::Big),
-            pcd::tests::car6_as("binary"),
-        ])
-        .collect();
+        let names = "bun_zipper.ply bun000.ply car6.pcd milk.pcd lamppost.pcd office1.pcd";
+        let bunny = ply::tests::bunny_binary(Endian::Big);
+        let car = pcd::tests::car6_as("binary", 4);
+        let seeds: Vec<Vec<u8>> = names.split(' ').map(shared).chain([bunny, car]).collect();
+        let one_line = |msg: &str| msg.starts_with("fuzz.in: ") && !msg.contains('\n');
         let mut rng = XorShift(0x9e37_79b9_7f4a_7c15);
         for case in 0..2000 {
             let seed = &seeds[rng.below(seeds.len())];
-            // Small files whole, so LZF streams get decoded; big ones as a prefix.
-            let len = if seed.len() < 100_000 {
-                seed.len()
-            } else {
-                256 + rng.below(1 << 16)
-            };
-            let mut bytes = seed[..len.min(seed.len())].to_vec();
+            // Small files whole, so that LZF streams get decoded; big ones as a prefix.
+            let (n, prefix) = (seed.len(), 256 + rng.below(1 << 16));
+            let len = if n < 100_000 { n } else { prefix };
+            let mut bytes = seed[..len].to_vec();
             for _ in 0..1 + rng.below(4) {
                 let at = rng.below(bytes.len());
                 match rng.below(4) {
                     0 => bytes[at] ^= 1 << rng.below(8),
                     1 => bytes[at] = rng.next() as u8,
-                    2 => bytes.truncate(at),
+                    2 => bytes.truncate(at.max(1)),
                     _ => {
                         let insert: Vec<u8> =
                             (0..1 + rng.below(8)).map(|_| rng.next() as u8).collect();
                         bytes.splice(at..at, insert);
                     }
                 }
-                if bytes.is_empty() {
-                    break;
-                }
             }
             let result = std::panic::catch_unwind(|| read_cloud_bytes("fuzz.in", &bytes));
-            match result {
-                Err(_) => panic!("case {case} panicked"),
-                Ok(Err(e)) => {
-                    assert!(e.to_string().starts_with("fuzz.in: ") && !e.to_string().contains('\n'))
-                }
-                Ok(Ok(cloud)) => assert!(cloud.points.iter().flatten().all(|c| c.is_finite())),
+            match result.unwrap_or_else(|_| panic!("case {case} panicked")) {
+                Ok(cloud) => assert!(cloud.points.iter().flatten().all(|c| c.is_finite())),
+                Err(e) => assert!(one_line(&e.to_string()), "{e}"),
             }
         }
     }

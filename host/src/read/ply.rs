@@ -198,8 +198,7 @@ fn ascii(ctx: Ctx, mut lines: Lines, elements: &[Element]) -> Result<Points, Rea
         for done in 0..el.count {
             let Some(line) = lines.next_non_blank() else {
                 let (name, count) = (&el.name, el.count);
-                let what =
-                    format!("element {name} declares {count} lines, the file ends after {done}");
+                let what = format!("element {name} ends after {done} of its {count} lines");
                 return Err(ctx.truncated(what));
             };
             if is_vertex {
@@ -337,14 +336,15 @@ fn walk(
 
 #[cfg(test)]
 pub(crate) mod tests {
-    use super::super::testkit::{assert_same, header_count, shared};
-    use super::super::{Endian, Format, ReadError, read_cloud_bytes};
+    use super::super::testkit::{assert_same, expect_err, header_count, shared};
+    use super::super::{Endian, Format, read_cloud_bytes};
     use ply_rs_bw::ply::{DefaultElement, Property};
 
-    /// Writes a PLY. Each element is (name, property lines such as "float x" or
-    /// "list uchar int vertex_indices", rows); a row holds scalars in order, a list as its
-    /// count followed by its items.
-    pub fn write_ply(format: &str, elements: &[(&str, Vec<&str>, Vec<Vec<f64>>)]) -> Vec<u8> {
+    /// An element to write: name, property lines ("float x", "list uchar int vertex_indices")
+    /// and rows, each holding scalars in order and a list as its count then its items.
+    type Element<'a> = (&'a str, Vec<&'a str>, Vec<Vec<f64>>);
+
+    pub fn write_ply(format: &str, elements: &[Element]) -> Vec<u8> {
         let mut out = format!("ply\nformat {format} 1.0\ncomment written by the tests\n");
         for (name, props, rows) in elements {
             out += &format!("element {name} {}\n", rows.len());
@@ -356,16 +356,15 @@ pub(crate) mod tests {
                 let mut values = row.iter().copied();
                 for prop in props {
                     let words: Vec<&str> = prop.split(' ').collect();
-                    let (count_ty, item_ty) = match words[..] {
-                        ["list", c, i, _] => (Some(c), i),
-                        [t, _] => (None, t),
+                    let (n, ty) = match words[..] {
+                        ["list", c, ty, _] => {
+                            (put(&mut out, format, c, values.next().unwrap()), ty)
+                        }
+                        [ty, _] => (1.0, ty),
                         _ => panic!("{prop}"),
                     };
-                    let n = match count_ty {
-                        Some(c) => put(&mut out, format, c, values.next().unwrap()) as usize,
-                        None => 1,
-                    };
-                    (0..n).for_each(|_| _ = put(&mut out, format, item_ty, values.next().unwrap()));
+                    (0..n as usize)
+                        .for_each(|_| _ = put(&mut out, format, ty, values.next().unwrap()));
                 }
                 if format == "ascii" {
                     out.push(b'\n');
@@ -400,32 +399,22 @@ pub(crate) mod tests {
         v
     }
 
-    /// bun_zipper.ply re-encoded, with its confidence, intensity and faces.
+    /// bun_zipper.ply re-encoded in binary, with its confidence, intensity and faces.
     pub fn bunny_binary(endian: Endian) -> Vec<u8> {
         let text = String::from_utf8(shared("bun_zipper.ply")).unwrap();
         let body = text.split("end_header\n").nth(1).unwrap();
-        let rows: Vec<Vec<f64>> = body
-            .lines()
-            .map(|l| l.split_whitespace().map(|t| t.parse().unwrap()).collect())
-            .collect();
+        let parse = |l: &str| l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+        let rows: Vec<Vec<f64>> = body.lines().map(parse).collect();
         let (vertices, faces) = rows.split_at(header_count(text.as_bytes(), "element vertex"));
         let format = match endian {
             Endian::Little => "binary_little_endian",
             Endian::Big => "binary_big_endian",
         };
-        let xyzci = vec![
-            "float x",
-            "float y",
-            "float z",
-            "float confidence",
-            "float intensity",
-        ];
-        let faces = (
-            "face",
-            vec!["list uchar int vertex_indices"],
-            faces.to_vec(),
-        );
-        write_ply(format, &[("vertex", xyzci, vertices.to_vec()), faces])
+        let props = "float x,float y,float z,float confidence,float intensity".split(',');
+        let vertices = ("vertex", props.collect(), vertices.to_vec());
+        let face_props = vec!["list uchar int vertex_indices"];
+        let faces = ("face", face_props, faces.to_vec());
+        write_ply(format, &[vertices, faces])
     }
 
     /// The vertices as the independent ply-rs-bw crate reads them.
@@ -434,7 +423,6 @@ pub(crate) mod tests {
         let ply = parser.read_ply(&mut &bytes[..]).unwrap();
         let value = |v: &DefaultElement, k: &str| match v[k] {
             Property::Float(f) => f64::from(f),
-            Property::Double(d) => d,
             ref other => panic!("{k}: {other:?}"),
         };
         ply.payload["vertex"]
@@ -449,10 +437,8 @@ pub(crate) mod tests {
             let bytes = shared(name);
             let cloud = read_cloud_bytes(name, &bytes).unwrap();
             assert_eq!(cloud.slots, header_count(&bytes, "element vertex"));
-            assert_eq!(
-                (cloud.slots, cloud.points.len(), cloud.format),
-                (count, count, Format::PlyAscii)
-            );
+            let got = (cloud.slots, cloud.points.len(), cloud.format);
+            assert_eq!(got, (count, count, Format::PlyAscii));
             assert_same(&cloud, &ply_rs(&bytes), name);
         }
     }
@@ -460,11 +446,9 @@ pub(crate) mod tests {
     #[test]
     fn binary_bunny_in_both_byte_orders() {
         let ascii = read_cloud_bytes("bun_zipper.ply", &shared("bun_zipper.ply")).unwrap();
-        let want: Vec<[f64; 3]> = ascii
-            .points
-            .iter()
-            .map(|p| std::array::from_fn(|k| ascii.origin[k] + f64::from(p[k])))
-            .collect();
+        let origin = ascii.origin;
+        let to_f64 = |p: &[f32; 3]| std::array::from_fn(|k| origin[k] + f64::from(p[k]));
+        let want: Vec<[f64; 3]> = ascii.points.iter().map(to_f64).collect();
         for (endian, format) in [
             (Endian::Little, Format::PlyBinaryLittleEndian),
             (Endian::Big, Format::PlyBinaryBigEndian),
@@ -485,89 +469,80 @@ pub(crate) mod tests {
             "char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8", "uint8",
             "int16", "uint16", "int32", "uint32", "float32", "float64",
         ];
+        let want: Vec<[f64; 3]> = (0..20)
+            .map(|k| [f64::from(k * 3), f64::from(100 - k), f64::from(k)])
+            .collect();
+        let row = |k: usize, [x, y, z]: [f64; 3]| {
+            let list = (0..k % 3).map(|j| j as f64 + 0.5);
+            [z, (k % 3) as f64]
+                .into_iter()
+                .chain(list)
+                .chain([7.0, x, y])
+                .collect()
+        };
+        let grid: Vec<Vec<f64>> = (0..9).map(|k| vec![(k % 4) as f64; 1 + k % 4]).collect();
+        let rows: Vec<Vec<f64>> = want.iter().enumerate().map(|(k, p)| row(k, *p)).collect();
         for (i, ty) in types.iter().enumerate() {
-            let (ty_x, ty_y) = (types[(i + 3) % 16], types[(i + 7) % 16]);
-            let (z, x, y) = (format!("{ty} z"), format!("{ty_x} x"), format!("{ty_y} y"));
-            let props = vec![z.as_str(), "list uchar float junk", "ushort w", &x, &y];
-            let rows: Vec<Vec<f64>> = (0..20)
-                .map(|k| {
-                    let mut row = vec![f64::from(k), f64::from(k % 3)];
-                    row.extend((0..k % 3).map(|j| f64::from(j) + 0.5));
-                    row.extend([7.0, f64::from(k * 3 % 100), f64::from(100 - k)]);
-                    row
-                })
-                .collect();
-            let grid: Vec<Vec<f64>> = (0..9)
-                .map(|k| vec![f64::from(k % 4); 1 + k as usize % 4])
-                .collect();
+            let z = format!("{ty} z");
+            let x = format!("{} x", types[(i + 3) % 16]);
+            let y = format!("{} y", types[(i + 7) % 16]);
+            let vertex = vec![z.as_str(), "list uchar float junk", "ushort w", &x, &y];
+            let (grid_props, camera) = (vec!["list uchar int i"], vec!["double u", "char v"]);
             let elements = [
-                ("range_grid", vec!["list uchar int vertex_indices"], grid),
+                ("range_grid", grid_props, grid.clone()),
                 ("nothing", vec![], vec![vec![]; 5]),
-                (
-                    "camera",
-                    vec!["double view_x", "char flag"],
-                    vec![vec![1.5, -1.0]; 3],
-                ),
-                ("vertex", props, rows),
+                ("camera", camera, vec![vec![1.5, -1.0]; 3]),
+                ("vertex", vertex, rows.clone()),
                 (
                     "face",
-                    vec!["list uchar uint vertex_indices"],
+                    vec!["list uchar uint i"],
                     vec![vec![3.0, 0.0, 1.0, 2.0]],
                 ),
             ];
             for format in ["ascii", "binary_little_endian", "binary_big_endian"] {
-                let bytes = write_ply(format, &elements);
-                let cloud = read_cloud_bytes("types.ply", &bytes).unwrap_or_else(|e| panic!("{e}"));
-                let want: Vec<[f64; 3]> = (0..20)
-                    .map(|k| [f64::from(k * 3 % 100), f64::from(100 - k), f64::from(k)])
-                    .collect();
+                let cloud = read_cloud_bytes("types.ply", &write_ply(format, &elements)).unwrap();
                 assert_same(&cloud, &want, &format!("{format} {ty}"));
             }
         }
     }
 
     #[test]
-    fn header_problems_name_the_file() {
-        let cases: [(&str, fn(&ReadError) -> bool); 6] = [
-            (
-                "element vertex 1\nproperty float x\nproperty float y\n",
-                |e| matches!(e, ReadError::BadHeader { .. }),
-            ),
-            ("element face 1\nproperty list uchar int i\n", |e| {
-                matches!(e, ReadError::BadHeader { .. })
-            }),
-            (
-                "element vertex 1\nproperty list uchar float x\nproperty float y\nproperty float z\n",
-                |e| matches!(e, ReadError::Unsupported { .. }),
-            ),
-            ("element vertex 1\nproperty flt x\n", |e| {
-                matches!(e, ReadError::BadHeader { .. })
-            }),
-            ("property float x\n", |e| {
-                matches!(e, ReadError::BadHeader { .. })
-            }),
-            (
-                "element vertex 0\nproperty float x\nproperty float y\nproperty float z\n",
-                |e| matches!(e, ReadError::NoFinitePoints { slots: 0, .. }),
-            ),
-        ];
-        for (header, check) in cases {
-            let bytes = format!("ply\nformat ascii 1.0\n{header}end_header\n");
-            let e = read_cloud_bytes("h.ply", bytes.as_bytes()).unwrap_err();
-            assert!(
-                check(&e) && e.to_string().starts_with("h.ply: "),
-                "{header}: {e:?}"
-            );
-        }
-        let e = read_cloud_bytes("v.ply", b"ply\nformat ascii 2.0\nend_header\n").unwrap_err();
-        assert!(matches!(e, ReadError::Unsupported { .. }), "{e:?}");
-        let e = read_cloud_bytes("v.ply", b"ply\nformat ascii 1.0\nend_header\n").unwrap_err();
-        assert!(matches!(e, ReadError::BadHeader { .. }), "{e:?}");
-        let bad = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n1 abc 3\n";
-        let e = read_cloud_bytes("bun.ply", bad.as_bytes()).unwrap_err();
-        assert_eq!(
-            e.to_string(),
-            "bun.ply: line 9: 'abc' is not a number; expected vertex y"
+    fn bad_headers_and_lying_counts() {
+        let check = |format: &str, header: &str, body: &[u8], variant: &str| {
+            let xyz = "property float x\nproperty float y\nproperty float z\n";
+            let header = header.replace("XYZ", xyz);
+            let head = format!("ply\nformat {format} 1.0\n{header}end_header\n");
+            expect_err("h.ply", &[head.as_bytes(), body].concat(), variant)
+        };
+        let (a, le, be) = ("ascii", "binary_little_endian", "binary_big_endian");
+        let huge = "element vertex 1000000000000000000\nXYZ";
+        let grid = format!("element grid 1000000000000000000\nproperty list uchar int i\n{huge}");
+        let fixed = format!("element grid 1000000000000000000\nproperty int i\n{huge}");
+        check(le, huge, &[0; 24], "Truncated");
+        check(be, &grid, &[1, 0, 0, 0, 0], "Truncated");
+        check(be, &fixed, &[0; 24], "Truncated");
+        check(a, huge, b"1 2 3\n4 5 6\n", "Truncated");
+        check(a, &grid, b"1 2\n", "Truncated");
+        let negative = "element g 1\nproperty list char int i\nelement vertex 1\nXYZ";
+        check(le, negative, &[255], "BadValue");
+        let (no_z, no_vertex) = (
+            "element vertex 1\nproperty float x\nproperty float y\n",
+            "element face 1\n",
         );
+        check(a, no_z, b"", "BadHeader");
+        check(a, no_vertex, b"", "BadHeader");
+        let list_x = "element vertex 1\nproperty list uchar float x\nXYZ";
+        check(a, list_x, b"", "Unsupported");
+        check(a, "element vertex 1\nproperty flt x\n", b"", "BadHeader");
+        check(a, "property float x\n", b"", "BadHeader");
+        check(a, "element vertex 0\nXYZ", b"", "NoFinitePoints");
+        check(a, "element vertex 1\nXYZ", b"1 2 3 4\n", "BadValue");
+        check("2.0", "", b"", "BadHeader");
+        check(a, "XYZ", b"", "BadHeader");
+        let version = b"ply\nformat ascii 2.0\nend_header\n";
+        expect_err("v.ply", version, "Unsupported");
+        let e = check(a, "element vertex 2\nXYZ", b"1 2 3\n1 abc 3\n", "BadValue");
+        let want = "h.ply: line 9: 'abc' is not a number; expected vertex y";
+        assert_eq!(e.to_string(), want);
     }
 }

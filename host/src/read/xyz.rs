@@ -109,6 +109,9 @@ enum NotData<'a> {
 }
 
 pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
+    // Spreadsheet exports start with a byte-order mark, which would turn the first data line
+    // into a "header" and silently lose its point.
+    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
     let mut points = Points::with_capacity(0);
     let mut started = false;
     for line in Lines::new(bytes) {
@@ -171,7 +174,7 @@ mod tests {
 
     #[test]
     fn whitespace_csv_headers_and_comments() {
-        let text = "Scanner v2 export\nX Y Z I\n# a comment\n\n1 2 3 9\n\t3  4\t5\r\n# another\n5 6 7 extra columns\n";
+        let text = "Scanner v2 export\nx,y,z,i\n# a comment\n\n1 2 3 9\n\t3  4\t5\r\n# another\n5 6 7 extra columns\n";
         let cloud = read(text).unwrap();
         assert_eq!(
             (cloud.format, cloud.slots, cloud.origin),
@@ -181,7 +184,7 @@ mod tests {
             cloud.points,
             [[-2.0, -2.0, -2.0], [0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]
         );
-        let csv = read("x,y,z,intensity\n1, 2,3,0.5\n-1,-2,-3,1\n").unwrap();
+        let csv = read("\u{feff}1, 2,3,0.5\n-1,-2,-3,1\n").unwrap();
         assert_eq!((csv.origin, csv.points[0]), ([0.0; 3], [1.0, 2.0, 3.0]));
     }
 
