@@ -79,22 +79,59 @@ pub struct Fit {
     pub evaluations: u32,
 }
 
-/// The box `[lo, hi]` for one semi-axis and whether DE searches it in `ln r`.
-fn search_box(moments: &CentralMoments, params: &FitParams) -> (f64, f64, bool) {
-    // A cluster of coincident points has s = 0; any positive scale keeps the box non-empty.
-    let s = {
-        let s = moments.rms_radius();
-        if s > 0.0 && s.is_finite() { s } else { 1e-6 }
-    };
-    match params.bounds {
-        SemiAxisBounds::Spread { lower, upper } => {
-            let lo = (lower * s).max(f64::MIN_POSITIVE);
-            (lo, (upper * s).max(lo), false)
+/// The box `[lo, hi]` for every semi-axis, and whether DE searches it in `ln r`.
+#[derive(Clone, Copy, Debug)]
+struct SearchBox {
+    lo: f64,
+    hi: f64,
+    log_space: bool,
+}
+
+impl SearchBox {
+    fn new(moments: &CentralMoments, params: &FitParams) -> Self {
+        // A cluster of coincident points has s = 0; any positive scale keeps the box non-empty.
+        let s = {
+            let s = moments.rms_radius();
+            if s > 0.0 && s.is_finite() { s } else { 1e-6 }
+        };
+        let (lower, upper, log_space) = match params.bounds {
+            SemiAxisBounds::Spread { lower, upper } => (lower, upper * s, false),
+            SemiAxisBounds::Threshold { lower } => (lower, params.degeneration.threshold, true),
+        };
+        let lo = (lower * s).max(f64::MIN_POSITIVE);
+        Self {
+            lo,
+            hi: upper.max(lo),
+            log_space,
         }
-        SemiAxisBounds::Threshold { lower } => {
-            let lo = (lower * s).max(f64::MIN_POSITIVE);
-            (lo, params.degeneration.threshold.max(lo), true)
-        }
+    }
+
+    fn search_coordinate(&self, r: f64) -> f64 {
+        if self.log_space { libm::log(r) } else { r }
+    }
+
+    fn semi_axis(&self, x: f64) -> f64 {
+        if self.log_space { libm::exp(x) } else { x }
+    }
+
+    /// Runs DE over `D` semi-axes in this box; `objective` sees semi-axes, not search coordinates.
+    fn minimize<const D: usize, const POP: usize, R: Rng + ?Sized>(
+        &self,
+        objective: impl Fn(&[f64; D]) -> f64,
+        seed: Option<[f64; D]>,
+        params: &FitParams,
+        rng: &mut R,
+    ) -> ([f64; D], u32) {
+        let result = minimize::<D, POP, R, _>(
+            |x| objective(&x.map(|v| self.semi_axis(v))),
+            [self.search_coordinate(self.lo); D],
+            [self.search_coordinate(self.hi); D],
+            &params.de,
+            params.out_of_bounds,
+            seed.map(|r| r.map(|v| self.search_coordinate(v))),
+            rng,
+        );
+        (result.best.map(|v| self.semi_axis(v)), result.evaluations)
     }
 }
 
@@ -180,7 +217,8 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Fit {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
-    let (lo, hi, log_space) = search_box(moments, params);
+    let search = SearchBox::new(moments, params);
+    let (lo, hi) = (search.lo, search.hi);
     let seed = match params.initialisation {
         Initialisation::Random => None,
         Initialisation::MomentSeeded => {
@@ -191,26 +229,9 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
             })
         }
     };
-    let to_search = |r: f64| if log_space { libm::log(r) } else { r };
-    let from_search = |x: f64| if log_space { libm::exp(x) } else { x };
-    let result = minimize::<3, POP, R, _>(
-        |x| terms.fitness(&x.map(from_search)),
-        [to_search(lo); 3],
-        [to_search(hi); 3],
-        &params.de,
-        params.out_of_bounds,
-        seed.map(|r| r.map(to_search)),
-        rng,
-    );
-    finish(
-        moments,
-        &terms,
-        result.best.map(from_search),
-        hi,
-        result.evaluations,
-        params,
-        false,
-    )
+    let (semi_axes, evaluations) =
+        search.minimize::<3, POP, R>(|r| terms.fitness(r), seed, params, rng);
+    finish(moments, &terms, semi_axes, hi, evaluations, params, false)
 }
 
 /// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.
@@ -220,29 +241,19 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
     rng: &mut R,
 ) -> Fit {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
-    let (lo, hi, log_space) = search_box(moments, params);
+    let search = SearchBox::new(moments, params);
     let seed = match params.initialisation {
         Initialisation::Random => None,
-        Initialisation::MomentSeeded => Some([optimal_sphere_radius(&terms, lo, hi)]),
+        Initialisation::MomentSeeded => Some([optimal_sphere_radius(&terms, search.lo, search.hi)]),
     };
-    let to_search = |r: f64| if log_space { libm::log(r) } else { r };
-    let from_search = |x: f64| if log_space { libm::exp(x) } else { x };
-    let result = minimize::<1, POP, R, _>(
-        |x| terms.sphere_fitness(from_search(x[0])),
-        [to_search(lo)],
-        [to_search(hi)],
-        &params.de,
-        params.out_of_bounds,
-        seed.map(|r| r.map(to_search)),
-        rng,
-    );
-    let radius = from_search(result.best[0]);
+    let ([radius], evaluations) =
+        search.minimize::<1, POP, R>(|r| terms.sphere_fitness(r[0]), seed, params, rng);
     finish(
         moments,
         &terms,
         [radius; 3],
-        hi,
-        result.evaluations,
+        search.hi,
+        evaluations,
         params,
         true,
     )
@@ -310,8 +321,9 @@ mod tests {
     use super::*;
     use crate::moments::Moments;
     use crate::rng::stream_rng;
+    use crate::test_support::{OrFail, TestResult};
 
-    fn shell(axes: [f64; 3], n: usize) -> CentralMoments {
+    fn shell(axes: [f64; 3], n: usize) -> Result<CentralMoments, &'static str> {
         let mut m = Moments::new();
         let golden = core::f64::consts::PI * (3.0 - libm::sqrt(5.0));
         for i in 0..n {
@@ -325,13 +337,13 @@ mod tests {
                 0.5 + axes[2] * z,
             ]);
         }
-        m.central().expect("points")
+        m.central().or_fail("points")
     }
 
     #[test]
-    fn recovers_the_semi_axes_of_a_sampled_ellipsoid() {
+    fn recovers_the_semi_axes_of_a_sampled_ellipsoid() -> TestResult {
         let axes = [0.3, 0.2, 0.1];
-        let moments = shell(axes, 2000);
+        let moments = shell(axes, 2000)?;
         // 50 generations of 10 from random starts get close, not exact; the seeded start is exact.
         for (init, tolerance) in [
             (Initialisation::Random, 0.1),
@@ -351,15 +363,16 @@ mod tests {
             }
         }
         // The least-squares candidate alone is exact here.
-        let seeded = least_squares_semi_axes(&moments, 0.0, 10.0).expect("solvable");
+        let seeded = least_squares_semi_axes(&moments, 0.0, 10.0).or_fail("solvable")?;
         for (got, want) in seeded.iter().zip(axes.iter()) {
             assert!((got - want).abs() < 1e-3 * want, "{seeded:?}");
         }
+        Ok(())
     }
 
     #[test]
-    fn sphere_fit_finds_the_radius_and_never_beats_the_seeded_ellipsoid() {
-        let moments = shell([0.25, 0.25, 0.25], 1000);
+    fn sphere_fit_finds_the_radius_and_never_beats_the_seeded_ellipsoid() -> TestResult {
+        let moments = shell([0.25, 0.25, 0.25], 1000)?;
         let params = FitParams::default();
         let sphere = fit_sphere_paper(&moments, &params, &mut stream_rng(0, 1));
         assert!(
@@ -369,10 +382,11 @@ mod tests {
         );
         let ellipsoid = fit_ellipsoid_paper(&moments, &params, &mut stream_rng(0, 1));
         assert!(ellipsoid.fitness <= sphere.fitness * (1.0 + 1e-9));
+        Ok(())
     }
 
     #[test]
-    fn a_cylinder_patch_degenerates_under_threshold_bounds() {
+    fn a_cylinder_patch_degenerates_under_threshold_bounds() -> TestResult {
         // Points on a cylinder of radius 0.2 along z, 1 m long: the fit wants r_z infinite.
         let mut m = Moments::new();
         for i in 0..400 {
@@ -380,7 +394,7 @@ mod tests {
             let z = (i % 20) as f64 * 0.05 - 0.5;
             m.add_f64([0.2 * libm::cos(t), 0.2 * libm::sin(t), z]);
         }
-        let moments = m.central().expect("points");
+        let moments = m.central().or_fail("points")?;
         let fit = fit_ellipsoid_paper(&moments, &FitParams::default(), &mut stream_rng(1, 0));
         assert_eq!(
             fit.entity.kind(0.01),
@@ -398,5 +412,6 @@ mod tests {
         };
         let spread = fit_ellipsoid_paper(&moments, &spread_params, &mut stream_rng(1, 0));
         assert_eq!(spread.on_upper_bound, 1, "{:?}", spread.semi_axes);
+        Ok(())
     }
 }

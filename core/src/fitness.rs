@@ -94,6 +94,7 @@ impl FitnessTerms {
 mod tests {
     use super::*;
     use crate::moments::Moments;
+    use crate::test_support::{OrFail, TestResult};
 
     /// Direct per-point eq. 12 in f64, the independent computation.
     fn direct(points: &[[f64; 3]], alpha: f64, r: [f64; 3]) -> f64 {
@@ -117,7 +118,7 @@ mod tests {
     }
 
     #[test]
-    fn moments_fitness_equals_direct_sum() {
+    fn moments_fitness_equals_direct_sum() -> TestResult {
         // Points on a noisy ellipsoid shell: the residual is small, the hard case for moments.
         let mut pts = [[0.0; 3]; 200];
         let mut s = 11u64;
@@ -136,11 +137,12 @@ mod tests {
         for p in &pts {
             m.add_f64(*p);
         }
-        let terms = FitnessTerms::new(&m.central().expect("points"), 0.8, VolumeTerm::Exact);
+        let terms = FitnessTerms::new(&m.central().or_fail("points")?, 0.8, VolumeTerm::Exact);
         for r in [[0.3, 0.2, 0.1], [0.5, 0.5, 0.5], [0.05, 2.0, 0.01]] {
             let want = direct(&pts, 0.8, r);
             let got = terms.fitness(&r);
             assert!((got - want).abs() <= 1e-9 * want, "{r:?}: {got} vs {want}");
         }
+        Ok(())
     }
 }

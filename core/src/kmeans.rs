@@ -325,6 +325,7 @@ fn mean_axis_variance(points: &[Point3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::{OrFail, TestResult};
 
     fn blobs() -> [Point3; 300] {
         let mut pts = [Point3::default(); 300];
@@ -344,7 +345,7 @@ mod tests {
     }
 
     #[test]
-    fn separates_blobs_and_labels_are_nearest_centres() {
+    fn separates_blobs_and_labels_are_nearest_centres() -> TestResult {
         // k-means++ is a randomised guarantee: a run can still put two seeds in one blob (about
         // 1% here), so require the blobs split in nearly every seed, and the Lloyd fixed point in all.
         let pts = blobs();
@@ -367,7 +368,7 @@ mod tests {
                 &mut sums,
                 &params,
             )
-            .expect("clusters");
+            .or_fail("clusters")?;
             assert!(out.converged);
             for (p, &label) in pts.iter().zip(labels.iter()) {
                 assert_eq!(label as usize, nearest(*p, &centres).0);
@@ -380,6 +381,7 @@ mod tests {
             separated += usize::from(split);
         }
         assert!(separated >= 18, "{separated} of 20 seeds split the blobs");
+        Ok(())
     }
 
     #[test]
@@ -435,7 +437,7 @@ mod tests {
     }
 
     #[test]
-    fn exactly_k_distinct_points_give_k_clusters() {
+    fn exactly_k_distinct_points_give_k_clusters() -> TestResult {
         let pts = [
             Point3::new(0.0, 0.0, 0.0),
             Point3::new(1.0, 0.0, 0.0),
@@ -453,12 +455,13 @@ mod tests {
             &mut sums,
             &KMeansParams::default(),
         )
-        .expect("3 distinct points suffice for k = 3");
+        .or_fail("3 distinct points suffice for k = 3")?;
         assert_eq!(out.inertia, 0.0);
         let mut seen = [false; 3];
         for l in labels {
             seen[l as usize] = true;
         }
         assert!(seen.iter().all(|&s| s));
+        Ok(())
     }
 }

@@ -29,3 +29,25 @@ pub mod rng;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};
 pub use map::{Map, MapEntity};
+
+/// Test helpers: tests return `Result` and use `?`, so core has no `expect` even in tests.
+#[cfg(test)]
+mod test_support {
+    pub type TestResult = Result<(), &'static str>;
+
+    pub trait OrFail<T> {
+        fn or_fail(self, what: &'static str) -> Result<T, &'static str>;
+    }
+
+    impl<T> OrFail<T> for Option<T> {
+        fn or_fail(self, what: &'static str) -> Result<T, &'static str> {
+            self.ok_or(what)
+        }
+    }
+
+    impl<T, E> OrFail<T> for Result<T, E> {
+        fn or_fail(self, what: &'static str) -> Result<T, &'static str> {
+            self.map_err(|_| what)
+        }
+    }
+}

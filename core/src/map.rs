@@ -349,8 +349,9 @@ impl<'a> MapFile<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::{OrFail, TestResult};
 
-    fn sample() -> Map<4> {
+    fn sample() -> Result<Map<4>, &'static str> {
         let mut map = Map::<4>::new([1e6, -2.5, 300.125]);
         for (i, kind) in EntityKind::ALL.into_iter().enumerate() {
             let w = i as f32;
@@ -361,19 +362,19 @@ mod tests {
                 },
                 kind,
             })
-            .expect("room for four");
+            .or_fail("room for four")?;
         }
-        map
+        Ok(map)
     }
 
     #[test]
-    fn round_trip_and_capacity() {
-        let mut map = sample();
+    fn round_trip_and_capacity() -> TestResult {
+        let mut map = sample()?;
         let mut buf = [0u8; encoded_len(4)];
-        let n = encode(map.origin, map.entities(), &mut buf).expect("fits");
+        let n = encode(map.origin, map.entities(), &mut buf).or_fail("fits")?;
         assert_eq!(n, buf.len());
-        let file = MapFile::new_checked(&buf).expect("valid");
-        assert_eq!(Map::<4>::from_file(&file).expect("fits"), map);
+        let file = MapFile::new_checked(&buf).or_fail("valid")?;
+        assert_eq!(Map::<4>::from_file(&file).or_fail("fits")?, map);
         assert_eq!(
             Map::<3>::from_file(&file),
             Err(CapacityExceeded { capacity: 3 })
@@ -386,13 +387,14 @@ mod tests {
             encode(map.origin, map.entities(), &mut small),
             Err(EncodeError::BufferTooSmall { .. })
         ));
+        Ok(())
     }
 
     #[test]
-    fn every_corruption_is_rejected() {
-        let map = sample();
+    fn every_corruption_is_rejected() -> TestResult {
+        let map = sample()?;
         let mut buf = [0u8; encoded_len(4)];
-        encode(map.origin, map.entities(), &mut buf).expect("fits");
+        encode(map.origin, map.entities(), &mut buf).or_fail("fits")?;
         for cut in 0..buf.len() {
             assert!(MapFile::new_checked(&buf[..cut]).is_err(), "cut at {cut}");
         }
@@ -403,5 +405,6 @@ mod tests {
                 assert!(MapFile::new_checked(&bad).is_err(), "flip {byte}.{bit}");
             }
         }
+        Ok(())
     }
 }

@@ -245,6 +245,7 @@ impl CentralMoments {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_support::{OrFail, TestResult};
 
     fn lcg_points(n: usize, seed: u64, offset: [f64; 3]) -> ([[f64; 3]; 64], usize) {
         let mut out = [[0.0; 3]; 64];
@@ -306,19 +307,20 @@ mod tests {
     }
 
     #[test]
-    fn incremental_matches_two_pass_far_from_origin() {
+    fn incremental_matches_two_pass_far_from_origin() -> TestResult {
         // A cluster 1 km from the origin: raw sums about zero would lose everything here.
         let (pts, n) = lcg_points(64, 7, [1000.0, -250.0, 30.0]);
         let mut m = Moments::new();
         for p in &pts[..n] {
             m.add_f64(*p);
         }
-        let got = m.central().expect("non-empty");
+        let got = m.central().or_fail("non-empty")?;
         assert_close(&got, &direct(&pts[..n]), 1e-9);
+        Ok(())
     }
 
     #[test]
-    fn merge_equals_one_pass_and_reshift_is_exact() {
+    fn merge_equals_one_pass_and_reshift_is_exact() -> TestResult {
         let (a, na) = lcg_points(40, 1, [1.0, 2.0, 3.0]);
         let (b, nb) = lcg_points(24, 2, [1.5, 1.8, 3.1]);
         let mut ma = Moments::new();
@@ -334,10 +336,11 @@ mod tests {
         }
         ma.merge(&mb);
         let expected = direct(&all[..na + nb]);
-        assert_close(&ma.central().expect("non-empty"), &expected, 1e-9);
+        assert_close(&ma.central().or_fail("non-empty")?, &expected, 1e-9);
         // A shift 50 spreads away costs (50)^4 in cancellation: 6e6 * 1e-16, hence 1e-8.
         let moved = ma.reshifted([-3.0, 7.0, 0.5]);
-        assert_close(&moved.central().expect("non-empty"), &expected, 1e-8);
+        assert_close(&moved.central().or_fail("non-empty")?, &expected, 1e-8);
+        Ok(())
     }
 
     #[test]

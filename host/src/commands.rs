@@ -213,16 +213,13 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     print_map_report(&report, args.json)
 }
 
-/// `mema eval`'s JSON shape (documented in the README; keys are stable).
+/// `mema eval`'s JSON shape (documented in the README; keys are stable): `points`, the
+/// statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes, percent`.
 #[derive(Serialize)]
 pub struct EvalReport {
     pub points: usize,
-    pub clusters: usize,
-    pub mean: f64,
-    pub std: f64,
-    pub max: f64,
-    pub min: f64,
-    pub total: f64,
+    #[serde(flatten)]
+    pub errors: ErrorStats,
     pub cloud_bytes: usize,
     pub map_bytes: usize,
     pub percent: f64,
@@ -257,16 +254,10 @@ pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
         .filter(|(_, n)| **n > 0)
         .map(|(e, _)| e)
         .collect();
-    let s = ErrorStats::from_errors(&errors);
     let memory = MemoryRow::new(points.len(), entities.len());
     EvalReport {
         points: points.len(),
-        clusters: s.clusters,
-        mean: s.mean,
-        std: s.std,
-        max: s.max,
-        min: s.min,
-        total: s.total,
+        errors: ErrorStats::from_errors(&errors),
         cloud_bytes: memory.cloud_bytes,
         map_bytes: memory.map_bytes,
         percent: memory.percent,
@@ -289,17 +280,9 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             stats::format_memory_row(&MemoryRow::new(r.points, map.entities.len()))
         );
         println!();
-        println!("eq. 13 error over {} non-empty clusters", r.clusters);
+        println!("eq. 13 error over {} non-empty clusters", r.errors.clusters);
         println!("{}", stats::ERROR_HEADER);
-        let s = ErrorStats {
-            clusters: r.clusters,
-            mean: r.mean,
-            std: r.std,
-            max: r.max,
-            min: r.min,
-            total: r.total,
-        };
-        println!("{}", stats::format_error_row("map", &s));
+        println!("{}", stats::format_error_row("map", &r.errors));
     }
     Ok(())
 }
