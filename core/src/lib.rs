@@ -26,6 +26,7 @@ pub mod kmeans;
 pub mod map;
 pub mod moments;
 pub mod rng;
+pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};
 pub use map::{Map, MapEntity};

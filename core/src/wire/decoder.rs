@@ -1,0 +1,284 @@
+//! A byte-at-a-time frame decoder: feed it whatever slice the UART delivered, from one byte to
+//! kilobytes, and it hands back each frame with the unconsumed rest of the input.
+
+use super::{Frame, FrameError, MAX_FRAME_LEN, cobs_decode_in_place};
+
+/// Counters for every outcome, so a link's health can be reported.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DecoderStats {
+    pub bytes: u64,
+    pub accepted: u64,
+    /// Frames refused for corruption (CRC, COBS, length, version, reserved bits, oversize).
+    pub rejected: u64,
+    pub bad_crc: u64,
+    pub bad_cobs: u64,
+    pub bad_length: u64,
+    pub bad_version: u64,
+    pub oversized: u64,
+    /// Valid frames whose sequence number was already used (not counted as rejected).
+    pub duplicates: u64,
+    /// Frames never seen: gaps in the sequence numbers of accepted frames.
+    pub lost: u64,
+}
+
+/// What one call to [`Decoder::feed`] produced. Every variant but `Consumed` carries the rest of
+/// the input, to be fed next.
+#[derive(Debug)]
+pub enum Decoded<'d, 'i> {
+    /// All input was taken; no frame ended in it.
+    Consumed,
+    Frame {
+        frame: Frame<&'d [u8]>,
+        remaining: &'i [u8],
+    },
+    Rejected {
+        error: FrameError,
+        remaining: &'i [u8],
+    },
+}
+
+/// COBS accumulator plus frame validation and sequence tracking, in fixed memory.
+#[derive(Clone, Debug)]
+pub struct Decoder {
+    buf: [u8; MAX_FRAME_LEN],
+    len: usize,
+    /// Set when a block outgrew the buffer: bytes are dropped until the next delimiter.
+    overflowed: bool,
+    last_sequence: Option<u32>,
+    stats: DecoderStats,
+}
+
+impl Default for Decoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Decoder {
+    pub const fn new() -> Self {
+        Self {
+            buf: [0; MAX_FRAME_LEN],
+            len: 0,
+            overflowed: false,
+            last_sequence: None,
+            stats: DecoderStats {
+                bytes: 0,
+                accepted: 0,
+                rejected: 0,
+                bad_crc: 0,
+                bad_cobs: 0,
+                bad_length: 0,
+                bad_version: 0,
+                oversized: 0,
+                duplicates: 0,
+                lost: 0,
+            },
+        }
+    }
+
+    pub const fn stats(&self) -> &DecoderStats {
+        &self.stats
+    }
+
+    /// Takes bytes until a frame ends (delimiter) or the input runs out.
+    pub fn feed<'d, 'i>(&'d mut self, input: &'i [u8]) -> Decoded<'d, 'i> {
+        for (i, &byte) in input.iter().enumerate() {
+            if byte != 0 {
+                if let Some(slot) = self.buf.get_mut(self.len) {
+                    *slot = byte;
+                    self.len += 1;
+                } else {
+                    self.overflowed = true;
+                }
+                continue;
+            }
+            let remaining = input.get(i + 1..).unwrap_or(&[]);
+            self.stats.bytes += (i + 1) as u64;
+            let block_len = core::mem::take(&mut self.len);
+            if core::mem::take(&mut self.overflowed) {
+                return self.reject(FrameError::Oversized, remaining);
+            }
+            if block_len == 0 {
+                // Back-to-back delimiters: idle line fill, not a frame.
+                return self.feed(remaining);
+            }
+            let block = self.buf.get_mut(..block_len).unwrap_or(&mut []);
+            let Some(raw_len) = cobs_decode_in_place(block) else {
+                return self.reject(FrameError::BadCobs, remaining);
+            };
+            let raw = self.buf.get(..raw_len).unwrap_or(&[]);
+            let frame = match Frame::new_checked(raw) {
+                Ok(frame) => frame,
+                Err(error) => return self.reject(error, remaining),
+            };
+            let sequence = frame.sequence();
+            if let Some(last) = self.last_sequence {
+                let ahead = sequence.wrapping_sub(last);
+                // Half the sequence space ahead counts as new; the rest is a repeat or stale.
+                if ahead == 0 || ahead > u32::MAX / 2 {
+                    self.stats.duplicates += 1;
+                    return Decoded::Rejected {
+                        error: FrameError::Duplicate { sequence },
+                        remaining,
+                    };
+                }
+                self.stats.lost += (ahead - 1) as u64;
+            }
+            self.last_sequence = Some(sequence);
+            self.stats.accepted += 1;
+            let raw = self.buf.get(..raw_len).unwrap_or(&[]);
+            return Decoded::Frame {
+                frame: Frame::new_unchecked(raw),
+                remaining,
+            };
+        }
+        self.stats.bytes += input.len() as u64;
+        Decoded::Consumed
+    }
+
+    fn reject<'d, 'i>(&'d mut self, error: FrameError, remaining: &'i [u8]) -> Decoded<'d, 'i> {
+        let s = &mut self.stats;
+        s.rejected += 1;
+        match error {
+            FrameError::BadCrc { .. } => s.bad_crc += 1,
+            FrameError::BadCobs => s.bad_cobs += 1,
+            FrameError::Oversized => s.oversized += 1,
+            FrameError::UnsupportedVersion { .. } | FrameError::Reserved => s.bad_version += 1,
+            FrameError::Truncated { .. }
+            | FrameError::LengthMismatch { .. }
+            | FrameError::TooManyPoints { .. } => s.bad_length += 1,
+            FrameError::Duplicate { .. } => {}
+        }
+        Decoded::Rejected { error, remaining }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::{OrFail, TestResult};
+    use crate::wire::{FrameRepr, MAX_RAW_LEN, cobs_encode};
+
+    /// Encodes frames 0..n with a few points each into `out`; returns the length.
+    fn stream(n: u32, out: &mut [u8]) -> Result<usize, &'static str> {
+        let mut at = 0;
+        for seq in 0..n {
+            let pts = [[seq as i32, 2, 3], [4, 5, seq as i32 * 1000]];
+            let repr = FrameRepr {
+                sequence: seq,
+                end_of_stream: seq + 1 == n,
+                unit_exponent: -3,
+                points: &pts,
+            };
+            let mut raw = [0u8; MAX_RAW_LEN];
+            let len = repr.emit(&mut raw).or_fail("emit")?;
+            at += cobs_encode(&raw[..len], out.get_mut(at..).or_fail("room")?).or_fail("encode")?;
+            *out.get_mut(at).or_fail("room")? = 0;
+            at += 1;
+        }
+        Ok(at)
+    }
+
+    /// Feeds `input` in chunks of `chunk` bytes; returns the sequence numbers decoded.
+    fn decode_all(d: &mut Decoder, input: &[u8], chunk: usize, seqs: &mut [u32; 64]) -> usize {
+        let mut found = 0;
+        for piece in input.chunks(chunk.max(1)) {
+            let mut window = piece;
+            loop {
+                match d.feed(window) {
+                    Decoded::Consumed => break,
+                    Decoded::Frame { frame, remaining } => {
+                        if let Some(slot) = seqs.get_mut(found) {
+                            *slot = frame.sequence();
+                            found += 1;
+                        }
+                        window = remaining;
+                    }
+                    Decoded::Rejected { remaining, .. } => window = remaining,
+                }
+            }
+        }
+        found
+    }
+
+    #[test]
+    fn same_frames_whatever_the_chunking() -> TestResult {
+        let mut wire = [0u8; 2048];
+        let n = stream(20, &mut wire)?;
+        for chunk in [1, 2, 3, 7, 64, 4096] {
+            let mut d = Decoder::new();
+            let mut seqs = [0u32; 64];
+            assert_eq!(
+                decode_all(&mut d, &wire[..n], chunk, &mut seqs),
+                20,
+                "chunk {chunk}"
+            );
+            assert!(seqs[..20].iter().enumerate().all(|(i, &s)| s == i as u32));
+            assert_eq!(d.stats().accepted, 20);
+            assert_eq!(d.stats().bytes, n as u64);
+        }
+        Ok(())
+    }
+
+    #[test]
+    fn resyncs_after_garbage_counts_gaps_and_repeats() -> TestResult {
+        let mut wire = [0u8; 2048];
+        let n = stream(6, &mut wire)?;
+        // Garbage first, then the sender's leading delimiter (PROTOCOL.md: a sender starts with
+        // 0x00 so a receiver that saw noise resyncs before frame 0), then frames 0..6 with
+        // frame 2 sent twice and frame 4 cut out.
+        let mut input = [0u8; 4096];
+        let mut at = 0;
+        for b in [0x13u8, 0x77, 0x01, 0xFF, 0x42, 0x00] {
+            input[at] = b;
+            at += 1;
+        }
+        let mut starts = [0usize; 7];
+        let mut k = 1;
+        for (i, &b) in wire[..n].iter().enumerate() {
+            if b == 0 && k < 7 {
+                starts[k] = i + 1;
+                k += 1;
+            }
+        }
+        for frame in [0usize, 1, 2, 2, 3, 5] {
+            let bytes = &wire[starts[frame]..starts[frame + 1]];
+            input[at..at + bytes.len()].copy_from_slice(bytes);
+            at += bytes.len();
+        }
+        let mut d = Decoder::new();
+        let mut seqs = [0u32; 64];
+        let found = decode_all(&mut d, &input[..at], 5, &mut seqs);
+        assert_eq!(&seqs[..found], &[0, 1, 2, 3, 5]);
+        let s = d.stats();
+        assert_eq!((s.accepted, s.duplicates, s.lost, s.rejected), (5, 1, 1, 1));
+        // Without the leading delimiter the noise runs into frame 0, which is then refused.
+        let mut no_delimiter = [0u8; 4096];
+        no_delimiter[..5].copy_from_slice(&input[..5]);
+        no_delimiter[5..at - 1].copy_from_slice(&input[6..at]);
+        let mut d = Decoder::new();
+        let found = decode_all(&mut d, &no_delimiter[..at - 1], 5, &mut seqs);
+        assert_eq!(&seqs[..found], &[1, 2, 3, 5]);
+        assert_eq!(d.stats().rejected, 1);
+        Ok(())
+    }
+
+    #[test]
+    fn an_endless_block_is_dropped_not_jammed() -> TestResult {
+        let mut d = Decoder::new();
+        let noise = [0x55u8; MAX_FRAME_LEN + 10];
+        assert!(matches!(d.feed(&noise), Decoded::Consumed));
+        assert!(matches!(
+            d.feed(&[0]),
+            Decoded::Rejected {
+                error: FrameError::Oversized,
+                ..
+            }
+        ));
+        let mut wire = [0u8; 512];
+        let n = stream(1, &mut wire)?;
+        let mut seqs = [0u32; 64];
+        assert_eq!(decode_all(&mut d, &wire[..n], 4096, &mut seqs), 1);
+        Ok(())
+    }
+}

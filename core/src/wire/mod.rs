@@ -1,0 +1,59 @@
+//! The rangefinder wire protocol: frames of points, COBS-framed, CRC-32 protected.
+//!
+//! This module doc is the contract; `PROTOCOL.md` at the repository root walks a firmware engineer
+//! through writing a sender. Every multi-byte field is little-endian.
+//!
+//! A frame before framing (the *raw* frame):
+//!
+//! | bytes            | field                                                          |
+//! |------------------|----------------------------------------------------------------|
+//! | 0                | protocol version, u8 = 1                                        |
+//! | 1                | flags, u8: bit 0 = end of stream; other bits 0                  |
+//! | 2..6             | sequence number, u32, +1 per frame (wraps)                      |
+//! | 6..8             | point count n, u16, 0..=[`MAX_POINTS`]                          |
+//! | 8                | unit exponent e, i8: a coordinate is `value * 10^e` metres (-3: millimetres) |
+//! | 9                | reserved, u8 = 0                                                |
+//! | 10..10+12n       | points: x, y, z as i32 each, in the sensor frame               |
+//! | 10+12n..14+12n   | CRC-32 (IEEE, as zip/PNG) of bytes 0..10+12n                    |
+//!
+//! On the wire the raw frame is COBS-encoded (Cheshire and Baker, 1999), so it contains no zero
+//! byte, and followed by one `0x00` delimiter. A receiver that joins mid-stream, or loses bytes,
+//! resynchronises at the next `0x00`.
+//!
+//! Why integers: a rangefinder measures to about a millimetre, i32 millimetres cover +-2,147 km
+//! exactly, and an integer cannot be NaN, so a frame that passes its CRC holds finite points.
+//!
+//! [`Frame::new_checked`] validates a raw frame once (length, version, count, CRC); after it, no
+//! accessor can fail. [`FrameRepr::emit`] cannot fail into a buffer of [`FrameRepr::buffer_len`]
+//! bytes. The CRC check is skipped under `cfg(fuzzing)` so a fuzzer reaches the field logic.
+
+mod cobs;
+mod decoder;
+mod frame;
+
+pub use cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
+pub use decoder::{Decoded, Decoder, DecoderStats};
+pub use frame::{Frame, FrameError, FrameRepr};
+
+pub const VERSION: u8 = 1;
+/// Points per frame: 1,550 raw bytes, under a typical UART DMA buffer.
+pub const MAX_POINTS: usize = 128;
+pub const HEADER_LEN: usize = 10;
+pub const CRC_LEN: usize = 4;
+pub const POINT_LEN: usize = 12;
+/// Flag bit 0: the sender has nothing more to send.
+pub const FLAG_END_OF_STREAM: u8 = 1;
+/// The largest raw frame.
+pub const MAX_RAW_LEN: usize = HEADER_LEN + POINT_LEN * MAX_POINTS + CRC_LEN;
+/// The largest frame on the wire, COBS overhead and delimiter included: size UART buffers from it.
+pub const MAX_FRAME_LEN: usize = cobs_max_encoded_len(MAX_RAW_LEN) + 1;
+
+pub(crate) mod field {
+    use core::ops::Range;
+    pub const VERSION: usize = 0;
+    pub const FLAGS: usize = 1;
+    pub const SEQUENCE: Range<usize> = 2..6;
+    pub const COUNT: Range<usize> = 6..8;
+    pub const UNIT_EXPONENT: usize = 8;
+    pub const RESERVED: usize = 9;
+}
