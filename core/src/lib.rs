@@ -22,10 +22,12 @@ pub mod de;
 pub mod fit;
 pub mod fitness;
 pub mod geometry;
+pub mod grid;
 pub mod kmeans;
 pub mod map;
 pub mod moments;
 pub mod rng;
+pub mod stream;
 pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};

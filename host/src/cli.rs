@@ -28,6 +28,22 @@ pub enum Command {
     Demo(DemoArgs),
     /// Measure the fit options the paper leaves open on one cloud (same clusters for all).
     Ablation(AblationArgs),
+    /// Streaming mapper vs batch map on one cloud, and its ingest rate vs the SRI-500.
+    StreamBench(StreamBenchArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct StreamBenchArgs {
+    pub input: PathBuf,
+    #[arg(short)]
+    pub k: usize,
+    /// Timed repetitions of the ingest (the best is reported).
+    #[arg(long, default_value_t = 3)]
+    pub repetitions: usize,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -358,3 +358,40 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
     crate::ablation::run(&cloud, args.k, args.seed, args.json)
         .with_context(|| args.input.display().to_string())
 }
+
+pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    if args.k > crate::serial::link::MAX_CLUSTERS {
+        return Err(crate::cli::UsageError(format!(
+            "-k {} is over the streaming mapper's capacity of {}",
+            args.k,
+            crate::serial::link::MAX_CLUSTERS
+        ))
+        .into());
+    }
+    let cloud = load_cloud(&args.input)?;
+    let r = crate::stream_bench::run(&cloud, &config, args.repetitions)
+        .with_context(|| args.input.display().to_string())?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        println!(
+            "{}: {} points, k = {}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%)\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
+            args.input.display(),
+            r.points,
+            r.k,
+            r.stream_entities,
+            r.batch_entities,
+            r.stream_mean_error,
+            r.batch_mean_error,
+            r.error_change_percent,
+            r.mapper_points_per_s,
+            r.mapper_vs_sri500,
+            r.wire_points_per_s,
+            r.wire_vs_sri500,
+            r.finish_seconds,
+            r.merges
+        );
+    }
+    Ok(())
+}

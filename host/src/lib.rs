@@ -7,4 +7,6 @@ pub mod mapfile;
 pub mod pipeline;
 pub mod read;
 pub mod scene;
+pub mod serial;
 pub mod stats;
+pub mod stream_bench;

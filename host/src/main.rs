@@ -13,6 +13,7 @@ fn main() -> ExitCode {
         Command::Info(a) => mema::commands::info(a),
         Command::Demo(a) => mema::commands::demo(a),
         Command::Ablation(a) => mema::commands::ablation(a),
+        Command::StreamBench(a) => mema::commands::stream_bench(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

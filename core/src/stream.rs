@@ -1,0 +1,449 @@
+//! The streaming mapper: points arrive one at a time, the map lives in fixed memory (K clusters).
+//!
+//! Each point joins its nearest centre if one lies within the join radius `r`, else it opens a
+//! new cluster. When all K slots are taken, the two closest clusters merge (their moments merge
+//! exactly) and `r` grows to their distance: the radius adapts to what K can cover, as in the
+//! doubling algorithm for incremental clustering, so no scale has to be known in advance.
+//! Semi-axes are refitted by DE under a per-point budget (one cluster every `refit_interval`
+//! points), scheduled by points ingested and never by time: the same points give the same map
+//! whatever the chunking or timing. [`StreamMapper::finish`] refits every cluster.
+
+use crate::fit::{FitParams, fit_ellipsoid_paper};
+use crate::geometry::{Entity, Point3};
+use crate::grid::CentreGrid;
+use crate::map::MapEntity;
+use crate::moments::Moments;
+use crate::rng::stream_rng;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamParams {
+    pub fit: FitParams,
+    pub seed: u64,
+    /// At most this many clusters (<= K); lets a host pick k at run time under a fixed K.
+    pub max_clusters: usize,
+    /// Refit one cluster every this many points (0: only at `finish`).
+    pub refit_interval: u32,
+}
+
+/// One cluster: its moments, running centre and latest fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StreamCluster {
+    pub moments: Moments,
+    pub center: Point3,
+    pub entity: Entity,
+    /// Points added since the last fit; `u32::MAX` when never fitted.
+    pub stale: u32,
+}
+
+/// Counters a caller reports.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StreamStats {
+    pub points: u64,
+    pub non_finite: u64,
+    pub merges: u64,
+    pub refits: u64,
+    pub grid_rebuilds: u64,
+}
+
+/// The streaming mapper with capacity `K` and a `G`-bucket spatial hash over the centres.
+#[derive(Clone, Debug)]
+pub struct StreamMapper<const K: usize, const G: usize> {
+    clusters: heapless::Vec<StreamCluster, K>,
+    grid: CentreGrid<K, G>,
+    radius: f32,
+    params: StreamParams,
+    stats: StreamStats,
+}
+
+/// Most pairs merged per search for room: one search frees up to this many slots.
+const MAX_MERGE_BATCH: usize = 32;
+
+/// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
+/// is independent of visiting order.
+struct ClosestPairs {
+    pairs: [(f32, usize, usize); MAX_MERGE_BATCH],
+    len: usize,
+    wanted: usize,
+}
+
+impl ClosestPairs {
+    fn new(wanted: usize) -> Self {
+        Self {
+            pairs: [(0.0, 0, 0); MAX_MERGE_BATCH],
+            len: 0,
+            wanted: wanted.clamp(1, MAX_MERGE_BATCH),
+        }
+    }
+
+    fn offer(&mut self, a: usize, b: usize, d: f32) {
+        if a >= b {
+            return; // each pair once, as (low, high)
+        }
+        let item = (d, a, b);
+        let before = |x: &(f32, usize, usize), y: &(f32, usize, usize)| {
+            x.0 < y.0 || (x.0 == y.0 && (x.1, x.2) < (y.1, y.2))
+        };
+        if self.len == self.wanted
+            && self
+                .pairs
+                .get(self.len - 1)
+                .is_none_or(|worst| !before(&item, worst))
+        {
+            return;
+        }
+        // Into the last slot (appending, or replacing the worst), then bubbled into order.
+        let mut at = self.len.min(self.wanted - 1);
+        if let Some(slot) = self.pairs.get_mut(at) {
+            *slot = item;
+        }
+        while at > 0
+            && self
+                .pairs
+                .get(at - 1)
+                .is_some_and(|prev| before(&item, prev))
+        {
+            self.pairs.swap(at - 1, at);
+            at -= 1;
+        }
+        self.len = (self.len + 1).min(self.wanted);
+    }
+
+    fn as_slice(&self) -> &[(f32, usize, usize)] {
+        self.pairs.get(..self.len).unwrap_or(&[])
+    }
+}
+
+/// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
+/// favours small neighbours over big ones, as k-means' objective would.
+fn ward(a: &Moments, b: &Moments, d2: f32) -> f32 {
+    let (na, nb) = (a.count() as f32, b.count() as f32);
+    na * nb / (na + nb) * d2
+}
+
+fn center_of(m: &Moments) -> Point3 {
+    let c = m.mean().unwrap_or([0.0; 3]);
+    Point3::new(c[0] as f32, c[1] as f32, c[2] as f32)
+}
+
+impl<const K: usize, const G: usize> StreamMapper<K, G> {
+    /// A `const fn`, so firmware can place the mapper in a `static`.
+    pub const fn new(params: StreamParams) -> Self {
+        Self {
+            clusters: heapless::Vec::new(),
+            grid: CentreGrid::new(f32::MIN_POSITIVE),
+            radius: 0.0,
+            params,
+            stats: StreamStats {
+                points: 0,
+                non_finite: 0,
+                merges: 0,
+                refits: 0,
+                grid_rebuilds: 0,
+            },
+        }
+    }
+
+    pub fn stats(&self) -> &StreamStats {
+        &self.stats
+    }
+
+    pub fn clusters(&self) -> &[StreamCluster] {
+        &self.clusters
+    }
+
+    /// The current join radius.
+    pub fn radius(&self) -> f32 {
+        self.radius
+    }
+
+    fn limit(&self) -> usize {
+        self.params.max_clusters.clamp(1, K)
+    }
+
+    /// Adds one point; non-finite points are counted and skipped, never stored.
+    pub fn add(&mut self, p: Point3) {
+        if !p.is_finite() {
+            self.stats.non_finite += 1;
+            return;
+        }
+        self.stats.points += 1;
+        match self.nearest_within_radius(p) {
+            Some(i) => self.grow(i, p),
+            None => {
+                if self.clusters.len() >= self.limit() {
+                    self.merge_closest_pairs();
+                }
+                self.open(p);
+            }
+        }
+        let interval = self.params.refit_interval as u64;
+        if interval > 0 && self.stats.points % interval == 0 {
+            self.refit_stalest();
+        }
+    }
+
+    pub fn add_all(&mut self, points: &[Point3]) {
+        for &p in points {
+            self.add(p);
+        }
+    }
+
+    fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
+        let r2 = self.radius * self.radius;
+        let mut best: Option<(usize, f32)> = None;
+        self.grid.for_each_within_half_cell(p, |i| {
+            if let Some(c) = self.clusters.get(i) {
+                let d = p.distance_squared(c.center);
+                let better = match best {
+                    None => true,
+                    Some((bi, bd)) => d < bd || (d == bd && i < bi),
+                };
+                if d <= r2 && better {
+                    best = Some((i, d));
+                }
+            }
+        });
+        best.map(|(i, _)| i)
+    }
+
+    fn grow(&mut self, i: usize, p: Point3) {
+        if let Some(c) = self.clusters.get_mut(i) {
+            c.moments.add(p);
+            c.center = center_of(&c.moments);
+            c.stale = c.stale.saturating_add(1);
+            let center = c.center;
+            self.grid.update(i, center);
+        }
+    }
+
+    fn open(&mut self, p: Point3) {
+        let mut moments = Moments::new();
+        moments.add(p);
+        let cluster = StreamCluster {
+            moments,
+            center: p,
+            entity: Entity::sphere(p, 0.0),
+            stale: u32::MAX,
+        };
+        let index = self.clusters.len();
+        if self.clusters.push(cluster).is_ok() {
+            self.grid.insert(index, p);
+        }
+    }
+
+    /// Makes room: merges the closest pair of clusters, and with it the next closest disjoint
+    /// pairs up to 1/32 of the capacity, so the search is paid once per batch of far points.
+    /// The join radius widens to the largest merged distance.
+    fn merge_closest_pairs(&mut self) {
+        let mut closest = ClosestPairs::new(self.limit() / MAX_MERGE_BATCH);
+        let cell2 = self.grid.cell() * self.grid.cell();
+        for (a, ca) in self.clusters.iter().enumerate() {
+            self.grid.for_each_near(ca.center, |b| {
+                if let Some(cb) = self.clusters.get(b) {
+                    let d = ca.center.distance_squared(cb.center);
+                    // Only pairs closer than a cell are all seen by the 27-cell queries.
+                    if d < cell2 {
+                        closest.offer(a, b, ward(&ca.moments, &cb.moments, d));
+                    }
+                }
+            });
+        }
+        if closest.len == 0 {
+            // Centres sparser than the grid: the exhaustive search, rare by construction.
+            for (a, ca) in self.clusters.iter().enumerate() {
+                for (b, cb) in self.clusters.iter().enumerate().skip(a + 1) {
+                    let d = ca.center.distance_squared(cb.center);
+                    closest.offer(a, b, ward(&ca.moments, &cb.moments, d));
+                }
+            }
+        }
+        // Merge disjoint pairs in order; a cluster already merged this round has moved.
+        let mut absorbed = [0usize; MAX_MERGE_BATCH];
+        let mut count = 0;
+        let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
+        for &(_, a, b) in closest.as_slice() {
+            if touched.contains(&a) || touched.contains(&b) {
+                continue;
+            }
+            let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+                continue;
+            };
+            let (moments, d2) = (cb.moments, ca.center.distance_squared(cb.center));
+            if let Some(ca) = self.clusters.get_mut(a) {
+                ca.moments.merge(&moments);
+                ca.center = center_of(&ca.moments);
+                ca.stale = u32::MAX;
+            }
+            if let (Some(slot), Some(pair)) = (
+                absorbed.get_mut(count),
+                touched.get_mut(2 * count..2 * count + 2),
+            ) {
+                *slot = b;
+                pair.copy_from_slice(&[a, b]);
+                count += 1;
+            }
+            self.radius = self.radius.max(libm::sqrtf(d2));
+        }
+        // Remove from the highest index down, so swap_remove never moves a slot still to go.
+        let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
+        absorbed.sort_unstable_by(|x, y| y.cmp(x));
+        for &b in absorbed.iter() {
+            self.clusters.swap_remove(b);
+        }
+        self.stats.merges += count as u64;
+        let cell = if self.radius * 2.0 > self.grid.cell() {
+            self.stats.grid_rebuilds += 1;
+            (self.radius * 2.0).max(f32::MIN_POSITIVE)
+        } else {
+            self.grid.cell()
+        };
+        // Indices moved and the radius may have outgrown the cells: refile every centre.
+        self.grid
+            .rebuild(cell, self.clusters.iter().map(|c| c.center));
+    }
+
+    fn fit(&self, index: usize, cluster: &StreamCluster) -> Option<Entity> {
+        let central = cluster.moments.central()?;
+        let stream = (index as u64) << 32 | (self.stats.points & 0xFFFF_FFFF);
+        let fit = fit_ellipsoid_paper(
+            &central,
+            &self.params.fit,
+            &mut stream_rng(self.params.seed, stream),
+        );
+        Some(fit.entity)
+    }
+
+    /// Refits the cluster with the most points added since its last fit (ties: lowest index).
+    fn refit_stalest(&mut self) {
+        let mut pick: Option<(usize, u32)> = None;
+        for (i, c) in self.clusters.iter().enumerate() {
+            if c.stale > 0 && pick.is_none_or(|(_, s)| c.stale > s) {
+                pick = Some((i, c.stale));
+            }
+        }
+        let Some((i, _)) = pick else {
+            return;
+        };
+        let entity = self.clusters.get(i).and_then(|c| self.fit(i, c));
+        if let (Some(entity), Some(c)) = (entity, self.clusters.get_mut(i)) {
+            c.entity = entity;
+            c.stale = 0;
+            self.stats.refits += 1;
+        }
+    }
+
+    /// Refits every cluster changed since its last fit, so the entities describe all points so far.
+    pub fn refit_stale(&mut self) {
+        for i in 0..self.clusters.len() {
+            if self.clusters.get(i).is_some_and(|c| c.stale > 0) {
+                let entity = self.clusters.get(i).and_then(|c| self.fit(i, c));
+                if let (Some(entity), Some(c)) = (entity, self.clusters.get_mut(i)) {
+                    c.entity = entity;
+                    c.stale = 0;
+                    self.stats.refits += 1;
+                }
+            }
+        }
+    }
+
+    /// The entities as they stand (call [`StreamMapper::refit_stale`] first for a snapshot).
+    pub fn entities(&self) -> impl Iterator<Item = MapEntity> + '_ {
+        let tolerance = self.params.fit.degeneration.sphere_tolerance;
+        self.clusters.iter().map(move |c| MapEntity {
+            entity: c.entity,
+            kind: c.entity.kind(tolerance),
+        })
+    }
+
+    /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on
+    /// the cluster's index only, so the final map is a function of the points alone.
+    pub fn finish(&mut self) {
+        for i in 0..self.clusters.len() {
+            let central = self.clusters.get(i).and_then(|c| c.moments.central());
+            if let Some(central) = central {
+                let fit = fit_ellipsoid_paper(
+                    &central,
+                    &self.params.fit,
+                    &mut stream_rng(self.params.seed, i as u64),
+                );
+                if let Some(c) = self.clusters.get_mut(i) {
+                    c.entity = fit.entity;
+                    c.stale = 0;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params(max_clusters: usize) -> StreamParams {
+        StreamParams {
+            fit: FitParams::default(),
+            seed: 0,
+            max_clusters,
+            refit_interval: 64,
+        }
+    }
+
+    fn shells() -> [Point3; 2000] {
+        // Four separated ellipsoid shells, points interleaved as a sweeping scanner would not.
+        let mut pts = [Point3::default(); 2000];
+        for (i, p) in pts.iter_mut().enumerate() {
+            let shell = (i % 4) as f32;
+            let t = i as f32 * 0.618;
+            let u = i as f32 * 0.377;
+            *p = Point3::new(
+                10.0 * shell + 0.5 * libm::cosf(t) * libm::sinf(u),
+                0.3 * libm::sinf(t) * libm::sinf(u),
+                0.2 * libm::cosf(u),
+            );
+        }
+        pts
+    }
+
+    #[test]
+    fn fills_capacity_and_merges_exactly() {
+        let pts = shells();
+        let mut m = StreamMapper::<16, 64>::new(params(8));
+        m.add_all(&pts);
+        m.finish();
+        assert_eq!(m.clusters().len(), 8);
+        // Every point is in exactly one cluster: merged moments lose nothing.
+        let total: u64 = m.clusters().iter().map(|c| c.moments.count()).sum();
+        assert_eq!(total, 2000);
+        // Clusters never straddle two shells 10 apart: each centre sits on one shell.
+        for c in m.clusters() {
+            let x = c.center.x / 10.0;
+            assert!((x - libm::roundf(x)).abs() < 0.06, "{:?}", c.center);
+        }
+        assert!(m.stats().merges > 0 && m.radius() > 0.0);
+    }
+
+    #[test]
+    fn same_points_same_map_whatever_the_batching() {
+        let pts = shells();
+        let mut whole = StreamMapper::<16, 64>::new(params(12));
+        whole.add_all(&pts);
+        whole.finish();
+        let mut pieces = StreamMapper::<16, 64>::new(params(12));
+        for chunk in pts.chunks(7) {
+            pieces.add_all(chunk);
+        }
+        pieces.finish();
+        assert!(whole.entities().eq(pieces.entities()));
+    }
+
+    #[test]
+    fn non_finite_points_are_counted_not_stored() {
+        let mut m = StreamMapper::<4, 8>::new(params(4));
+        m.add(Point3::new(f32::NAN, 0.0, 0.0));
+        m.add(Point3::new(1.0, f32::INFINITY, 0.0));
+        m.add(Point3::new(1.0, 2.0, 3.0));
+        assert_eq!(m.stats().non_finite, 2);
+        assert_eq!(m.stats().points, 1);
+        assert_eq!(m.clusters().len(), 1);
+    }
+}

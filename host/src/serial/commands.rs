@@ -1,0 +1,1 @@
+//! `mema stream`, `record`, `replay` and `scanner-sim`.

@@ -1,0 +1,98 @@
+//! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
+
+use mema_core::Point3;
+use mema_core::fit::FitParams;
+use mema_core::stream::{StreamMapper, StreamParams};
+use mema_core::wire::{Decoded, Decoder, DecoderStats};
+
+use crate::mapfile::HostMap;
+
+/// The host's capacity: `-k` may be at most this.
+pub const MAX_CLUSTERS: usize = 2048;
+/// Buckets of the centre hash: twice the capacity keeps chains short.
+pub const GRID_BUCKETS: usize = 4096;
+/// One cluster refit (about 600 fitness evaluations, ~0.1 ms) per this many points.
+pub const REFIT_INTERVAL: u32 = 1024;
+
+pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS>;
+
+/// A boxed mapper: at 2,048 clusters it is too large for a test thread's stack.
+pub fn new_mapper(k: usize, seed: u64, fit: FitParams) -> Box<HostStreamMapper> {
+    let params = StreamParams {
+        fit,
+        seed,
+        max_clusters: k,
+        refit_interval: REFIT_INTERVAL,
+    };
+    // Built on a thread with a large stack, then moved into the box by pointer.
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(move || Box::new(HostStreamMapper::new(params)))
+        .ok()
+        .and_then(|h| h.join().ok())
+        .unwrap_or_else(|| Box::new(HostStreamMapper::new(params)))
+}
+
+/// Decoder + mapper, fed with whatever chunks of bytes arrive.
+pub struct Link {
+    pub decoder: Decoder,
+    pub mapper: Box<HostStreamMapper>,
+    pub end_of_stream: bool,
+    pub frames_after_end: u64,
+}
+
+impl Link {
+    pub fn new(k: usize, seed: u64, fit: FitParams) -> Self {
+        Self {
+            decoder: Decoder::new(),
+            mapper: new_mapper(k, seed, fit),
+            end_of_stream: false,
+            frames_after_end: 0,
+        }
+    }
+
+    /// Feeds one chunk; frames go straight into the mapper.
+    pub fn feed(&mut self, chunk: &[u8]) {
+        let mut window = chunk;
+        loop {
+            match self.decoder.feed(window) {
+                Decoded::Consumed => break,
+                Decoded::Rejected { remaining, .. } => window = remaining,
+                Decoded::Frame { frame, remaining } => {
+                    if self.end_of_stream {
+                        self.frames_after_end += 1;
+                    }
+                    for p in frame.points_metres() {
+                        self.mapper
+                            .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+                    }
+                    self.end_of_stream |= frame.end_of_stream();
+                    window = remaining;
+                }
+            }
+        }
+    }
+
+    pub fn stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+
+    /// The map so far: stale clusters refitted first (a snapshot).
+    pub fn snapshot(&mut self) -> HostMap {
+        self.mapper.refit_stale();
+        self.map()
+    }
+
+    /// The final map: every cluster refitted from its final moments.
+    pub fn finish(&mut self) -> HostMap {
+        self.mapper.finish();
+        self.map()
+    }
+
+    fn map(&self) -> HostMap {
+        HostMap {
+            origin: [0.0; 3],
+            entities: self.mapper.entities().collect(),
+        }
+    }
+}
