@@ -177,7 +177,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
             }
         }
         let interval = self.params.refit_interval as u64;
-        if interval > 0 && self.stats.points % interval == 0 {
+        if interval > 0 && self.stats.points.is_multiple_of(interval) {
             self.refit_stalest();
         }
     }
