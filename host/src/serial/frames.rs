@@ -12,7 +12,7 @@ pub const UNIT_EXPONENT: i8 = -3;
 /// Quantises a local-frame point (metres) to wire integers (millimetres, rounded to nearest).
 pub fn quantise(p: Point3) -> Result<[i32; 3]> {
     let q = p.to_f64().map(|v| (v * 1000.0).round());
-    if q.iter().any(|v| !(v.abs() <= i32::MAX as f64)) {
+    if q.iter().any(|v| v.is_nan() || v.abs() > i32::MAX as f64) {
         bail!("point {p:?} does not fit the wire's i32 millimetres");
     }
     Ok(q.map(|v| v as i32))
