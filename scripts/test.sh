@@ -9,6 +9,11 @@ if [ ! -d ../shared/data ]; then
   exit 1
 fi
 rustup component add rustfmt clippy >/dev/null 2>&1 || true
+# The serial tests drive the real binaries over a pseudo-terminal pair made by socat.
+if ! command -v socat >/dev/null 2>&1; then
+  echo "== installing socat"
+  if [ "$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq socat; else sudo apt-get update -qq && sudo apt-get install -y -qq socat; fi
+fi
 
 echo "== cargo fmt --check"
 cargo fmt --all --check

@@ -30,6 +30,89 @@ pub enum Command {
     Ablation(AblationArgs),
     /// Streaming mapper vs batch map on one cloud, and its ingest rate vs the SRI-500.
     StreamBench(StreamBenchArgs),
+    /// Map points arriving from a serial rangefinder (PROTOCOL.md) until end of stream, Ctrl-C
+    /// or the port vanishing; the map so far is always written. Exit 3: link lost before the
+    /// end-of-stream frame.
+    Stream(StreamArgs),
+    /// Save a rangefinder's raw byte stream to a capture file.
+    Record(RecordArgs),
+    /// Feed a capture through the same decoder and mapper as `stream`.
+    Replay(ReplayArgs),
+    /// Play a cloud (or the built-in scene) as a rangefinder would, to a port or a capture file.
+    ScannerSim(ScannerSimArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct StreamArgs {
+    /// Serial device or pty, e.g. /dev/ttyUSB0.
+    #[arg(long)]
+    pub port: PathBuf,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    /// Most ellipsoids the map may hold (at most 2,048).
+    #[arg(short)]
+    pub k: usize,
+    /// Map file (.mema, .csv or .json), written atomically at each snapshot and at the end.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Write the map so far every this many seconds.
+    #[arg(long)]
+    pub snapshot_every: Option<f64>,
+    /// Also save the raw bytes received, as `mema record` would.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    /// Print the summary as JSON on stdout (instead of the map path).
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    #[arg(long)]
+    pub port: PathBuf,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    pub capture: PathBuf,
+    #[arg(short, default_value_t = 150)]
+    pub k: usize,
+    /// Map file; default: the capture's path with the extension .mema.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Deliver at most this many points per second (default: as fast as possible).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Bytes per delivery, as a UART would hand them over.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk_bytes: usize,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ScannerSimArgs {
+    /// Serial device or pty to write to; a path that is not a device becomes a capture file.
+    #[arg(long)]
+    pub port: PathBuf,
+    /// The cloud to play (PLY, PCD, XYZ/CSV); default: the built-in demo scene's scan.
+    pub cloud: Option<PathBuf>,
+    /// Points per second (default: as fast as the port takes them).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Bytes per write.
+    #[arg(long, default_value_t = 256)]
+    pub chunk_bytes: usize,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
 }
 
 #[derive(Args, Debug)]

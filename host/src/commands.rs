@@ -170,8 +170,13 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
 }
 
 /// Fails before any work if the map could not be written where asked.
-fn check_output(path: &Path) -> Result<()> {
+pub fn check_output(path: &Path) -> Result<()> {
     crate::mapfile::MapFormat::from_path(path)?;
+    check_output_dir(path)
+}
+
+/// Fails before any work if `path`'s directory does not exist.
+pub fn check_output_dir(path: &Path) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

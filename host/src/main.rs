@@ -1,8 +1,10 @@
 //! `mema`: errors are printed once as `mema: <context>: <cause>` (no backtrace, whatever
-//! RUST_BACKTRACE says). Exit status: 0 success, 1 bad input or I/O failure, 2 bad usage.
+//! RUST_BACKTRACE says). Exit status: 0 success, 1 bad input or I/O failure, 2 bad usage,
+//! 3 a stream that ended before its end-of-stream frame (its map is still written).
 
 use clap::Parser;
 use mema::cli::{Cli, Command, UsageError};
+use mema::serial::commands::LinkLost;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -14,6 +16,10 @@ fn main() -> ExitCode {
         Command::Demo(a) => mema::commands::demo(a),
         Command::Ablation(a) => mema::commands::ablation(a),
         Command::StreamBench(a) => mema::commands::stream_bench(a),
+        Command::Stream(a) => mema::serial::commands::stream(a),
+        Command::Record(a) => mema::serial::commands::record(a),
+        Command::Replay(a) => mema::serial::commands::replay(a),
+        Command::ScannerSim(a) => mema::serial::commands::scanner_sim(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -21,6 +27,8 @@ fn main() -> ExitCode {
             eprintln!("mema: {e:#}");
             if e.downcast_ref::<UsageError>().is_some() {
                 ExitCode::from(2)
+            } else if e.downcast_ref::<LinkLost>().is_some() {
+                ExitCode::from(3)
             } else {
                 ExitCode::from(1)
             }

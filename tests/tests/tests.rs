@@ -15,3 +15,5 @@ mod core_contract;
 mod fitness;
 // The paper's tables on the shared clouds: ellipsoids beat spheres.
 mod paper_tables;
+// The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
+mod stream;

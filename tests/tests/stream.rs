@@ -1,0 +1,263 @@
+//! The serial path end to end over a real pseudo-terminal pair (socat, installed by
+//! scripts/test.sh): `scanner-sim` on one end, `stream` on the other.
+
+use crate::util::{Dir, MemaCommand, mema_bin, shared};
+use clap::Parser;
+use mema::cli::{Cli, Command as MemaSub};
+use mema::commands::load_cloud;
+use mema::serial::commands::map_points_directly;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A socat-made pty pair, killed on drop.
+struct PtyPair {
+    child: Child,
+    pub a: PathBuf,
+    pub b: PathBuf,
+}
+
+impl PtyPair {
+    fn new(dir: &Dir) -> Self {
+        let (a, b) = (dir.join("ttyA"), dir.join("ttyB"));
+        let child = Command::new("socat")
+            .arg(format!("pty,raw,echo=0,link={}", a.display()))
+            .arg(format!("pty,raw,echo=0,link={}", b.display()))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("socat runs (scripts/test.sh installs it)");
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while !(a.exists() && b.exists()) {
+            assert!(Instant::now() < deadline, "socat made no ptys");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Self { child, a, b }
+    }
+
+    fn unplug(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+impl Drop for PtyPair {
+    fn drop(&mut self) {
+        self.unplug();
+    }
+}
+
+fn spawn_mema(dir: &Dir, args: &[&str]) -> Child {
+    Command::new(mema_bin())
+        .args(args)
+        .current_dir(&dir.path)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("mema runs")
+}
+
+/// Waits for `child` up to `limit`; a hang is a failure, never a stuck test run.
+fn finish(mut child: Child, limit: Duration) -> (i32, String, String) {
+    let deadline = Instant::now() + limit;
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            let out = child.wait_with_output().expect("output");
+            return (
+                status.code().unwrap_or(-1),
+                String::from_utf8_lossy(&out.stdout).into_owned(),
+                String::from_utf8_lossy(&out.stderr).into_owned(),
+            );
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("mema did not finish within {limit:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn wait_for_reader(path: &Path) {
+    // The stream side must hold the pty open before the scanner writes, or bytes are dropped.
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(path.exists());
+}
+
+/// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them.
+fn default_fit() -> mema_core::fit::FitParams {
+    let cli = Cli::parse_from(["mema", "map", "x.pcd", "-k", "150", "-o", "x.mema"]);
+    let MemaSub::Map(args) = cli.command else {
+        unreachable!("parsed as map")
+    };
+    args.fit.config(150).expect("valid defaults").fit
+}
+
+#[test]
+fn pty_stream_equals_replay_and_the_direct_mapper() {
+    let dir = Dir::new("pty");
+    let car = shared("car6.pcd");
+    let mut pty = PtyPair::new(&dir);
+    let stream = spawn_mema(
+        &dir,
+        &[
+            "stream",
+            "--port",
+            pty.b.to_str().expect("utf8"),
+            "-k",
+            "150",
+            "-o",
+            "stream.mema",
+            "--record",
+            "wire.bin",
+        ],
+    );
+    wait_for_reader(&pty.b);
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .arg("--port")
+        .arg(&pty.a)
+        .arg(&car)
+        .args(["--chunk-bytes", "61"])
+        .run()
+        .assert_ok();
+    let (code, stdout, stderr) = finish(stream, Duration::from_secs(60));
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(stdout.trim(), "stream.mema", "the map path on stdout");
+    assert!(
+        stderr.contains("10031 points") && stderr.contains("101 accepted / 0 rejected / 0 lost"),
+        "{stderr}"
+    );
+    pty.unplug();
+
+    MemaCommand::new(&dir)
+        .args(["replay", "wire.bin", "-k", "150", "-o", "replay.mema"])
+        .run()
+        .assert_ok();
+    let streamed = std::fs::read(dir.join("stream.mema")).expect("stream map");
+    assert_eq!(
+        streamed,
+        std::fs::read(dir.join("replay.mema")).expect("replay map"),
+        "stream vs replay"
+    );
+
+    let cloud = load_cloud(&car).expect("car6");
+    let direct = map_points_directly(&cloud, 150, 0, default_fit()).expect("direct map");
+    assert_eq!(
+        streamed,
+        direct.to_mema().expect("encode"),
+        "stream vs the mapper fed directly"
+    );
+    // The stream's map holds real ellipsoids of the car: at most k, and most of the capacity.
+    assert!(
+        (120..=150).contains(&direct.entities.len()),
+        "{}",
+        direct.entities.len()
+    );
+
+    // The recorded bytes are exactly what the scanner sends (its capture-file mode).
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .args(["--port", "file.bin"])
+        .arg(&car)
+        .run()
+        .assert_ok();
+    assert_eq!(
+        std::fs::read(dir.join("wire.bin")).expect("recorded"),
+        std::fs::read(dir.join("file.bin")).expect("file")
+    );
+}
+
+#[test]
+fn unplugging_mid_stream_keeps_the_map_of_what_arrived() {
+    let dir = Dir::new("unplug");
+    let mut pty = PtyPair::new(&dir);
+    let stream = spawn_mema(
+        &dir,
+        &[
+            "stream",
+            "--port",
+            pty.b.to_str().expect("utf8"),
+            "-k",
+            "100",
+            "-o",
+            "map.mema",
+            "--record",
+            "got.bin",
+        ],
+    );
+    wait_for_reader(&pty.b);
+    // About 1.5 s of points at 24,000 points/s; the cable is pulled after 0.4 s.
+    let scanner = spawn_mema(
+        &dir,
+        &[
+            "scanner-sim",
+            "--port",
+            pty.a.to_str().expect("utf8"),
+            shared("bun_zipper.ply").to_str().expect("utf8"),
+            "--rate",
+            "24000",
+        ],
+    );
+    std::thread::sleep(Duration::from_millis(400));
+    pty.unplug();
+    let (code, _, stderr) = finish(stream, Duration::from_secs(30));
+    let _ = finish(scanner, Duration::from_secs(30));
+    assert_eq!(code, 3, "documented status for a lost link:\n{stderr}");
+    assert!(
+        stderr.contains("link lost before end of stream"),
+        "{stderr}"
+    );
+    let listing = dir.listing();
+    assert!(
+        !listing.iter().any(|n| n.ends_with(".tmp")),
+        "temporary files left: {listing:?}"
+    );
+    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("a valid map was written");
+    assert!(!map.entities.is_empty() && map.entities.len() <= 100);
+    // It is the map of exactly the bytes that arrived.
+    let replay = MemaCommand::new(&dir)
+        .args(["replay", "got.bin", "-k", "100", "-o", "replay.mema"])
+        .run();
+    assert_eq!(replay.output.status.code(), Some(3), "{}", replay.stderr());
+    assert_eq!(
+        std::fs::read(dir.join("map.mema")).expect("map"),
+        std::fs::read(dir.join("replay.mema")).expect("replay")
+    );
+    let arrived = std::fs::metadata(dir.join("got.bin"))
+        .expect("capture")
+        .len();
+    assert!(
+        arrived > 0 && arrived < 400_000,
+        "{arrived} bytes: not a partial stream"
+    );
+}
+
+#[test]
+fn ctrl_c_ends_the_stream_cleanly() {
+    let dir = Dir::new("ctrl-c");
+    let pty = PtyPair::new(&dir);
+    let stream = spawn_mema(
+        &dir,
+        &[
+            "stream",
+            "--port",
+            pty.b.to_str().expect("utf8"),
+            "-k",
+            "10",
+            "-o",
+            "map.mema",
+        ],
+    );
+    wait_for_reader(&pty.b);
+    let status = Command::new("kill")
+        .args(["-INT", &stream.id().to_string()])
+        .status()
+        .expect("kill");
+    assert!(status.success());
+    let (code, stdout, stderr) = finish(stream, Duration::from_secs(10));
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stderr.contains("interrupted"), "{stderr}");
+    assert_eq!(stdout.trim(), "map.mema");
+    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
+    assert!(map.entities.is_empty());
+}
