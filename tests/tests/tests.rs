@@ -9,6 +9,8 @@ mod bad_input;
 mod closest_point;
 // The CLI end to end on real clouds: determinism, formats, eval, info, demo.
 mod cli;
+// Fault injection on the wire: corrupted frames refused, clean frames used once.
+mod faults;
 // The no_std, no-panic contract of core, checked on its source.
 mod core_contract;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.

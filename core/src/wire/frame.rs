@@ -87,6 +87,11 @@ impl<T: AsRef<[u8]>> Frame<T> {
         Self { buffer }
     }
 
+    /// The underlying buffer.
+    pub fn into_inner(self) -> T {
+        self.buffer
+    }
+
     /// `new_unchecked` followed by [`Frame::check`].
     pub fn new_checked(buffer: T) -> Result<Self, FrameError> {
         let frame = Self::new_unchecked(buffer);
