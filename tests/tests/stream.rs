@@ -6,8 +6,10 @@ use clap::Parser;
 use mema::cli::{Cli, Command as MemaSub};
 use mema::commands::load_cloud;
 use mema::serial::commands::map_points_directly;
-use std::path::{Path, PathBuf};
+use std::io::Read;
+use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// A socat-made pty pair, killed on drop.
@@ -47,40 +49,82 @@ impl Drop for PtyPair {
     }
 }
 
-fn spawn_mema(dir: &Dir, args: &[&str]) -> Child {
-    Command::new(mema_bin())
+/// A running `mema` whose stderr is collected as it arrives.
+struct Running {
+    child: Child,
+    stderr: Arc<Mutex<String>>,
+    reader: Option<std::thread::JoinHandle<()>>,
+}
+
+fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
+    let mut child = Command::new(mema_bin())
         .args(args)
         .current_dir(&dir.path)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
-        .expect("mema runs")
+        .expect("mema runs");
+    let stderr = Arc::new(Mutex::new(String::new()));
+    let sink = stderr.clone();
+    let mut pipe = child.stderr.take().expect("stderr piped");
+    let reader = std::thread::spawn(move || {
+        let mut buf = [0u8; 1024];
+        while let Ok(n) = pipe.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            sink.lock()
+                .expect("lock")
+                .push_str(&String::from_utf8_lossy(&buf[..n]));
+        }
+    });
+    Running {
+        child,
+        stderr,
+        reader: Some(reader),
+    }
 }
 
-/// Waits for `child` up to `limit`; a hang is a failure, never a stuck test run.
-fn finish(mut child: Child, limit: Duration) -> (i32, String, String) {
+impl Running {
+    /// Blocks until the command has opened its port (it says so on stderr).
+    fn wait_until_listening(&self) {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while !self.stderr.lock().expect("lock").contains("listening on") {
+            assert!(
+                Instant::now() < deadline,
+                "mema never opened its port: {}",
+                self.stderr.lock().expect("lock")
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+
+    fn id(&self) -> u32 {
+        self.child.id()
+    }
+}
+
+/// Waits for the command up to `limit`; a hang is a failure, never a stuck test run.
+fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
     let deadline = Instant::now() + limit;
     loop {
-        if let Some(status) = child.try_wait().expect("wait") {
-            let out = child.wait_with_output().expect("output");
-            return (
-                status.code().unwrap_or(-1),
-                String::from_utf8_lossy(&out.stdout).into_owned(),
-                String::from_utf8_lossy(&out.stderr).into_owned(),
-            );
+        if let Some(status) = running.child.try_wait().expect("wait") {
+            let mut stdout = String::new();
+            if let Some(mut out) = running.child.stdout.take() {
+                out.read_to_string(&mut stdout).expect("stdout");
+            }
+            if let Some(reader) = running.reader.take() {
+                reader.join().expect("stderr reader");
+            }
+            let stderr = running.stderr.lock().expect("lock").clone();
+            return (status.code().unwrap_or(-1), stdout, stderr);
         }
         if Instant::now() > deadline {
-            let _ = child.kill();
+            let _ = running.child.kill();
             panic!("mema did not finish within {limit:?}");
         }
         std::thread::sleep(Duration::from_millis(20));
     }
-}
-
-fn wait_for_reader(path: &Path) {
-    // The stream side must hold the pty open before the scanner writes, or bytes are dropped.
-    std::thread::sleep(Duration::from_millis(300));
-    assert!(path.exists());
 }
 
 /// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them.
@@ -111,7 +155,7 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
             "wire.bin",
         ],
     );
-    wait_for_reader(&pty.b);
+    stream.wait_until_listening();
     MemaCommand::new(&dir)
         .arg("scanner-sim")
         .arg("--port")
@@ -185,7 +229,7 @@ fn unplugging_mid_stream_keeps_the_map_of_what_arrived() {
             "got.bin",
         ],
     );
-    wait_for_reader(&pty.b);
+    stream.wait_until_listening();
     // About 1.5 s of points at 24,000 points/s; the cable is pulled after 0.4 s.
     let scanner = spawn_mema(
         &dir,
@@ -248,7 +292,7 @@ fn ctrl_c_ends_the_stream_cleanly() {
             "map.mema",
         ],
     );
-    wait_for_reader(&pty.b);
+    stream.wait_until_listening();
     let status = Command::new("kill")
         .args(["-INT", &stream.id().to_string()])
         .status()
@@ -260,4 +304,45 @@ fn ctrl_c_ends_the_stream_cleanly() {
     assert_eq!(stdout.trim(), "map.mema");
     let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
     assert!(map.entities.is_empty());
+}
+
+#[test]
+fn record_saves_exactly_the_bytes_sent() {
+    let dir = Dir::new("record");
+    let mut pty = PtyPair::new(&dir);
+    let record = spawn_mema(
+        &dir,
+        &[
+            "record",
+            "--port",
+            pty.b.to_str().expect("utf8"),
+            "-o",
+            "capture.bin",
+        ],
+    );
+    record.wait_until_listening();
+    let lamppost = shared("lamppost.pcd");
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .arg("--port")
+        .arg(&pty.a)
+        .arg(&lamppost)
+        .args(["--chunk-bytes", "7"])
+        .run()
+        .assert_ok();
+    let (code, stdout, stderr) = finish(record, Duration::from_secs(30));
+    assert_eq!(code, 0, "{stderr}");
+    assert_eq!(stdout.trim(), "capture.bin");
+    assert!(stderr.contains("end of stream"), "{stderr}");
+    pty.unplug();
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .args(["--port", "sent.bin"])
+        .arg(&lamppost)
+        .run()
+        .assert_ok();
+    assert_eq!(
+        std::fs::read(dir.join("capture.bin")).expect("capture"),
+        std::fs::read(dir.join("sent.bin")).expect("sent")
+    );
 }

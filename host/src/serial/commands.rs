@@ -15,6 +15,9 @@ use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, UsageError}
 use crate::commands::{LocalCloud, load_cloud};
 use crate::mapfile::{HostMap, write_atomically};
 
+/// How often `stream` reports progress on stderr.
+const PROGRESS_EVERY: Duration = Duration::from_secs(5);
+
 /// The stream ended without its end-of-stream frame (port closed, cable pulled, capture cut).
 /// The map of what arrived is written; the exit status is 3 so scripts can tell.
 #[derive(Debug, thiserror::Error)]
@@ -148,10 +151,25 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     };
     let stop = interrupted();
     let mut link = Link::new(args.k, config.seed, config.fit);
+    eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
+    let mut last_progress = Instant::now();
     let mut buf = [0u8; 4096];
     let end = loop {
+        if last_progress.elapsed() >= PROGRESS_EVERY {
+            let s = link.stats();
+            eprintln!(
+                "mema: {:.0} s: {} points, frames {} accepted / {} rejected / {} lost, {} clusters",
+                started.elapsed().as_secs_f64(),
+                link.mapper.stats().points,
+                s.accepted,
+                s.rejected,
+                s.lost,
+                link.mapper.clusters().len()
+            );
+            last_progress = Instant::now();
+        }
         if stop.load(Ordering::SeqCst) {
             break Some("interrupted".to_string());
         }
@@ -239,6 +257,7 @@ pub fn record(args: &RecordArgs) -> Result<()> {
     let stop = interrupted();
     // The decoder only watches for the end-of-stream frame; the capture keeps every byte.
     let mut watch = mema_core::wire::Decoder::new();
+    eprintln!("mema: listening on {}", args.port.display());
     let mut seen_end = false;
     let mut bytes = 0u64;
     let mut buf = [0u8; 4096];
