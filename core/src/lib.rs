@@ -26,8 +26,10 @@ pub mod grid;
 pub mod kmeans;
 pub mod map;
 pub mod moments;
+pub mod query;
 pub mod rng;
 pub mod stream;
+pub mod transform;
 pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};

@@ -34,14 +34,11 @@ pub struct VariantRow {
 pub fn variants() -> Vec<(&'static str, FitParams)> {
     let d = FitParams::default();
     vec![
-        ("default (threshold box in ln r, clamp, exact, seeded)", d),
+        ("default (spread 0.05-3 s linear, clamp, exact, seeded)", d),
         (
-            "bounds spread 0.05-3 s (linear)",
+            "bounds threshold (0.05 s to threshold, ln r)",
             FitParams {
-                bounds: SemiAxisBounds::Spread {
-                    lower: 0.05,
-                    upper: 3.0,
-                },
+                bounds: SemiAxisBounds::Threshold { lower: 0.05 },
                 ..d
             },
         ),

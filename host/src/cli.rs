@@ -40,6 +40,54 @@ pub enum Command {
     Replay(ReplayArgs),
     /// Play a cloud (or the built-in scene) as a rangefinder would, to a port or a capture file.
     ScannerSim(ScannerSimArgs),
+    /// Ask a map: signed distance and occupancy at a point, first hit along a ray.
+    Query(QueryArgs),
+    /// Move a map rigidly (translation exact; rotations see README).
+    Transform(TransformArgs),
+    /// Queries per second with the index vs a brute-force scan; the demo scan re-cast at its map.
+    QueryBench(QueryBenchArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct QueryArgs {
+    pub map: PathBuf,
+    /// x,y,z in the map's world coordinates.
+    #[arg(long, allow_hyphen_values = true)]
+    pub point: Option<String>,
+    /// ox,oy,oz,dx,dy,dz: origin and direction (any length).
+    #[arg(long, allow_hyphen_values = true)]
+    pub ray: Option<String>,
+    #[arg(long, default_value_t = 1e6)]
+    pub max_range: f64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TransformArgs {
+    pub map: PathBuf,
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// tx,ty,tz, applied after the rotation.
+    #[arg(long, allow_hyphen_values = true)]
+    pub translate: Option<String>,
+    /// Degrees about x, then y, then z.
+    #[arg(long, allow_hyphen_values = true)]
+    pub rotate: Option<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct QueryBenchArgs {
+    /// A map to query; default: the demo scene's map, with its scan re-cast against it.
+    pub map: Option<PathBuf>,
+    /// Entities of the demo map.
+    #[arg(short, default_value_t = 250)]
+    pub k: usize,
+    /// Random points (each asked nearest and occupancy, and a ray from it).
+    #[arg(long, default_value_t = 100_000)]
+    pub queries: usize,
+    #[arg(long)]
+    pub json: bool,
 }
 
 #[derive(Args, Debug)]
@@ -175,7 +223,7 @@ pub struct FitArgs {
     /// Relative tolerance within which three semi-axes make a sphere.
     #[arg(long, default_value_t = 0.01)]
     pub sphere_tolerance: f64,
-    #[arg(long, value_enum, default_value_t = BoundsArg::Threshold)]
+    #[arg(long, value_enum, default_value_t = BoundsArg::Spread)]
     pub bounds: BoundsArg,
     #[arg(long, value_enum, default_value_t = OutOfBoundsArg::Clamp)]
     pub out_of_bounds: OutOfBoundsArg,
@@ -298,7 +346,7 @@ impl FitArgs {
                     lower: 0.05,
                     upper: 3.0,
                 },
-                BoundsArg::Threshold => SemiAxisBounds::default(),
+                BoundsArg::Threshold => SemiAxisBounds::Threshold { lower: 0.05 },
             },
             out_of_bounds: match self.out_of_bounds {
                 OutOfBoundsArg::Clamp => OutOfBounds::Clamp,
@@ -321,5 +369,27 @@ impl FitArgs {
             },
             fit,
         })
+    }
+}
+
+/// The fit options as their defaults, for commands that fit without exposing every flag.
+pub fn default_fit_args() -> FitArgs {
+    use clap::FromArgMatches;
+    let command = FitArgs::augment_args(clap::Command::new("fit-defaults"));
+    // Every fit option has a default, so an empty command line always parses (tested below).
+    command
+        .try_get_matches_from(["fit-defaults"])
+        .ok()
+        .and_then(|m| FitArgs::from_arg_matches(&m).ok())
+        .expect("the fit options' defaults parse")
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn fit_defaults_are_the_papers_settings() {
+        let config = super::default_fit_args().config(10).expect("valid");
+        assert_eq!(config.fit, mema_core::fit::FitParams::default());
+        assert_eq!(config.kmeans.max_iterations, 100);
     }
 }

@@ -5,6 +5,7 @@ pub mod cli;
 pub mod commands;
 pub mod mapfile;
 pub mod pipeline;
+pub mod query;
 pub mod read;
 pub mod scene;
 pub mod serial;

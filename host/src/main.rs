@@ -20,6 +20,9 @@ fn main() -> ExitCode {
         Command::Record(a) => mema::serial::commands::record(a),
         Command::Replay(a) => mema::serial::commands::replay(a),
         Command::ScannerSim(a) => mema::serial::commands::scanner_sim(a),
+        Command::Query(a) => mema::query::query(a),
+        Command::Transform(a) => mema::query::transform(a),
+        Command::QueryBench(a) => mema::query::query_bench(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

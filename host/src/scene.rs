@@ -254,6 +254,24 @@ fn cell(range: (f64, f64), i: usize, n: usize) -> f64 {
     range.0 + (i as f64 + 0.5) * (range.1 - range.0) / n as f64
 }
 
+impl ScanConfig {
+    /// The unit ray directions of the scan, row by row (elevation outer, azimuth inner), each
+    /// through the centre of its grid cell.
+    pub fn ray_directions(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
+        (0..self.elevation_steps).flat_map(move |e| {
+            let el = cell(self.elevation_range, e, self.elevation_steps);
+            (0..self.azimuth_steps).map(move |a| {
+                let az = cell(self.azimuth_range, a, self.azimuth_steps);
+                [
+                    libm::cos(el) * libm::cos(az),
+                    libm::cos(el) * libm::sin(az),
+                    libm::sin(el),
+                ]
+            })
+        })
+    }
+}
+
 /// Casts the grid row by row (elevation outer, azimuth inner) and moves each
 /// hit along its ray by Gaussian noise.
 pub fn scan(scene: &Scene, config: &ScanConfig) -> Scan {
@@ -264,23 +282,14 @@ pub fn scan(scene: &Scene, config: &ScanConfig) -> Scan {
 fn scan_labelled(scene: &Scene, config: &ScanConfig) -> (Scan, Vec<usize>) {
     let mut rng = Pcg32::seed_from_u64(config.seed);
     let (mut points, mut labels, mut misses) = (Vec::new(), Vec::new(), 0);
-    for e in 0..config.elevation_steps {
-        let el = cell(config.elevation_range, e, config.elevation_steps);
-        for a in 0..config.azimuth_steps {
-            let az = cell(config.azimuth_range, a, config.azimuth_steps);
-            let d = [
-                libm::cos(el) * libm::cos(az),
-                libm::cos(el) * libm::sin(az),
-                libm::sin(el),
-            ];
-            let Some(hit) = scene.cast_unit(config.sensor, d, config.max_range) else {
-                misses += 1;
-                continue;
-            };
-            let range = hit.range + config.range_noise_sigma * gaussian(&mut rng);
-            points.push(at(config.sensor, d, range));
-            labels.push(hit.primitive);
-        }
+    for d in config.ray_directions() {
+        let Some(hit) = scene.cast_unit(config.sensor, d, config.max_range) else {
+            misses += 1;
+            continue;
+        };
+        let range = hit.range + config.range_noise_sigma * gaussian(&mut rng);
+        points.push(at(config.sensor, d, range));
+        labels.push(hit.primitive);
     }
     let rays = config.azimuth_steps * config.elevation_steps;
     let scan = Scan {
