@@ -17,5 +17,7 @@ mod core_contract;
 mod fitness;
 // The paper's tables on the shared clouds: ellipsoids beat spheres.
 mod paper_tables;
+// Map queries (distance, occupancy, rays) through the index vs brute force; rigid transforms.
+mod queries;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;

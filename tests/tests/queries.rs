@@ -1,0 +1,195 @@
+//! Map queries through the index against a brute-force scan of every entity, on maps of real
+//! clouds, including one whose entities degenerate (pseudocylinders).
+
+use crate::util::{Dir, MemaCommand, shared};
+use mema::commands::load_cloud;
+use mema::mapfile::HostMap;
+use mema::pipeline;
+use mema::query::{build_index, random_queries, transform_map};
+use mema_core::fit::SemiAxisBounds;
+use mema_core::query::{brute_force, contains};
+use mema_core::transform::RigidTransform;
+
+fn map_of(cloud: &str, k: usize, threshold_box: bool) -> HostMap {
+    let local = load_cloud(&shared(cloud)).expect("cloud");
+    let mut config = mema::cli::default_fit_args().config(k).expect("config");
+    if threshold_box {
+        config.fit.bounds = SemiAxisBounds::Threshold { lower: 0.05 };
+    }
+    let clusters = pipeline::cluster(&local.points, k, &config.kmeans).expect("clusters");
+    let fitted = pipeline::fit_all(&clusters.moments, 0, &config.fit);
+    pipeline::to_map(local.origin, &fitted.ellipsoids, 0.01)
+}
+
+#[test]
+fn index_answers_equal_the_brute_force_scan_on_100k_queries() {
+    for (cloud, k, threshold_box, queries) in [
+        ("car6.pcd", 150, false, 50_000),
+        ("bun_zipper.ply", 350, true, 50_000),
+    ] {
+        let map = map_of(cloud, k, threshold_box);
+        let degenerated = map
+            .entities
+            .iter()
+            .filter(|e| e.entity.degenerated_axes() > 0)
+            .count();
+        if threshold_box {
+            assert!(
+                degenerated > 0,
+                "{cloud}: the threshold box should degenerate some entities"
+            );
+        }
+        let index = build_index(&map).expect("index");
+        let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+        let (mut hits, mut inside) = (0, 0);
+        for (p, d) in random_queries(&map, queries, 7) {
+            let nearest = index.nearest(p);
+            assert_eq!(
+                nearest,
+                brute_force::nearest(&entities, p),
+                "{cloud}: nearest at {p:?}"
+            );
+            let occupied = index.occupied(p);
+            assert_eq!(
+                occupied,
+                brute_force::occupied(&entities, p),
+                "{cloud}: occupancy at {p:?}"
+            );
+            let ray = index.ray_cast(p, d, 1e9);
+            assert_eq!(
+                ray,
+                brute_force::ray_cast(&entities, p, d, 1e9),
+                "{cloud}: ray from {p:?}"
+            );
+            if let Some(hit) = ray {
+                hits += 1;
+                // The hit lies on the entity's surface: sum w (x - c)^2 = 1.
+                let e = &entities[hit.entity];
+                let c = e.center.to_f64();
+                let s: f64 = (0..3)
+                    .map(|j| e.weights[j] as f64 * (hit.point[j] - c[j]).powi(2))
+                    .sum();
+                assert!((s - 1.0).abs() < 1e-6, "{cloud}: hit off the surface ({s})");
+            }
+            if let Some(n) = nearest {
+                // The sign agrees with an independent containment test over all entities.
+                let any_inside = entities.iter().any(|e| contains(e, p));
+                assert_eq!(
+                    n.signed_distance < 0.0,
+                    any_inside && n.signed_distance != 0.0
+                );
+                inside += usize::from(any_inside);
+            }
+        }
+        eprintln!(
+            "{cloud}: {queries} points x 3 queries agree; {hits} rays hit, {inside} points inside; {degenerated} degenerated entities"
+        );
+        assert!(
+            hits > queries / 20 && inside > 0,
+            "{cloud}: queries too easy ({hits} hits, {inside} inside)"
+        );
+    }
+}
+
+#[test]
+fn translations_and_axis_permutations_move_answers_exactly() {
+    let map = map_of("car6.pcd", 150, false);
+    let index = build_index(&map).expect("index");
+    let quarter = RigidTransform::rotation_about(2, std::f64::consts::FRAC_PI_2);
+    let permutation = RigidTransform {
+        rotation: quarter.rotation.map(|r| r.map(f64::round)),
+        ..quarter
+    };
+    let t = RigidTransform::translation([12.5, -3.25, 100.0]).after(&permutation);
+    assert!(t.is_axis_permutation());
+    let moved = transform_map(&map, &t);
+    let moved_index = build_index(&moved).expect("index");
+    for (p, d) in random_queries(&map, 2000, 3) {
+        // Queries take map-local coordinates: world = origin + local.
+        let world = [
+            p[0] + map.origin[0],
+            p[1] + map.origin[1],
+            p[2] + map.origin[2],
+        ];
+        let w2 = t.apply_point(world);
+        let q = [
+            w2[0] - moved.origin[0],
+            w2[1] - moved.origin[1],
+            w2[2] - moved.origin[2],
+        ];
+        let (a, b) = (
+            index.nearest(p).expect("nearest"),
+            moved_index.nearest(q).expect("nearest"),
+        );
+        assert_eq!(a.entity, b.entity);
+        assert!(
+            (a.signed_distance - b.signed_distance).abs() < 1e-5,
+            "{a:?} vs {b:?}"
+        );
+        let (ra, rb) = (
+            index.ray_cast(p, d, 1e9),
+            moved_index.ray_cast(q, t.rotate_vector(d), 1e9),
+        );
+        assert_eq!(ra.map(|h| h.entity), rb.map(|h| h.entity));
+        if let (Some(ra), Some(rb)) = (ra, rb) {
+            assert!((ra.t - rb.t).abs() < 1e-5 * (1.0 + ra.t));
+        }
+    }
+}
+
+#[test]
+fn query_command_answers_in_world_coordinates() {
+    let dir = Dir::new("query");
+    let map_path = dir.join("car.mema");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(shared("car6.pcd"))
+        .args(["-k", "150", "-o"])
+        .arg(&map_path)
+        .run()
+        .assert_ok();
+    let map = HostMap::read(&map_path).expect("map");
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    // The first entity's centre, in world coordinates: inside the map.
+    let c = map.world_center(&entities[0]);
+    let point = format!("--point={},{},{}", c[0], c[1], c[2]);
+    let v = MemaCommand::new(&dir)
+        .arg("query")
+        .arg(&map_path)
+        .arg(&point)
+        .arg("--json")
+        .run()
+        .assert_ok()
+        .json();
+    let local = [
+        c[0] - map.origin[0],
+        c[1] - map.origin[1],
+        c[2] - map.origin[2],
+    ];
+    let want = brute_force::nearest(&entities, local).expect("nearest");
+    assert_eq!(v["nearest_entity"], want.entity);
+    assert!(
+        (v["signed_distance"].as_f64().expect("distance") - want.signed_distance).abs() < 1e-12
+    );
+    assert!(
+        v["signed_distance"].as_f64().expect("distance") < 0.0,
+        "a centre is inside its ellipsoid"
+    );
+    assert!(v["occupied_by"].as_u64().is_some());
+    let ray = format!("--ray={},{},{},0,0,1", c[0], c[1], c[2] - 50.0);
+    let r = MemaCommand::new(&dir)
+        .arg("query")
+        .arg(&map_path)
+        .arg(&ray)
+        .arg("--json")
+        .run()
+        .assert_ok()
+        .json();
+    assert_eq!(r["hit"], true);
+    MemaCommand::new(&dir)
+        .arg("query")
+        .arg(&map_path)
+        .arg("--point=1,2")
+        .run()
+        .assert_error(2, "--point");
+}
