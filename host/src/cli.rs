@@ -243,8 +243,15 @@ pub struct FitArgs {
 pub struct MapArgs {
     pub input: PathBuf,
     /// Number of clusters (entities).
-    #[arg(short)]
-    pub k: usize,
+    #[arg(short, required_unless_present = "tolerance", conflicts_with = "tolerance")]
+    pub k: Option<usize>,
+    /// Instead of k: split clusters until each one's eq. 13 error is at most T (cloud units),
+    /// then merge neighbours that stay under T.
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+    /// Most clusters the tolerance mode may make.
+    #[arg(long, default_value_t = 16_384)]
+    pub capacity: usize,
     /// Output map: .mema (binary), .csv or .json.
     #[arg(short, long)]
     pub output: PathBuf,

@@ -192,7 +192,10 @@ pub fn check_output_dir(path: &Path) -> Result<()> {
 }
 
 pub fn map(args: &MapArgs) -> Result<()> {
-    let config = args.fit.config(args.k)?;
+    if let Some(t) = args.tolerance {
+        return map_to_tolerance(args, t);
+    }
+    let config = args.fit.config(args.k.unwrap_or(0))?;
     check_output(&args.output)?;
     let cloud = load_cloud(&args.input)?;
     let report = map_cloud(&cloud, &config, args.entity, &args.output)
@@ -398,5 +401,74 @@ pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
             r.merges
         );
     }
+    Ok(())
+}
+
+/// What `mema map --tolerance` reports.
+#[derive(Serialize)]
+pub struct ToleranceReport {
+    pub tolerance: f64,
+    /// The k the hierarchy chose.
+    pub k: usize,
+    pub memory: MemoryRow,
+    pub ellipsoidal: ErrorStats,
+    pub clusters_over_tolerance: usize,
+    pub splits: usize,
+    pub merges: usize,
+    pub capacity_reached: bool,
+    pub kinds: KindCounts,
+    /// Eq. 13 error of each cluster, in map order.
+    pub errors: Vec<f64>,
+    pub output: String,
+}
+
+fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
+    if !(tolerance > 0.0 && tolerance.is_finite()) {
+        return Err(crate::cli::UsageError(format!("--tolerance {tolerance} must be a positive length in the cloud's units")).into());
+    }
+    if args.capacity == 0 {
+        return Err(crate::cli::UsageError("--capacity must be at least 1".into()).into());
+    }
+    let config = args.fit.config(1)?;
+    check_output(&args.output)?;
+    let cloud = load_cloud(&args.input)?;
+    let outcome = crate::tolerance::build(&cloud.points, tolerance, args.capacity, config.seed, &config.fit)
+        .with_context(|| args.input.display().to_string())?;
+    let tol = config.fit.degeneration.sphere_tolerance;
+    let map = HostMap {
+        origin: cloud.origin,
+        entities: outcome.nodes.iter().map(|n| mema_core::MapEntity { entity: n.fit.entity, kind: n.fit.entity.kind(tol) }).collect(),
+    };
+    map.write(&args.output)?;
+    let errors: Vec<f64> = outcome.nodes.iter().map(|n| n.error).collect();
+    let report = ToleranceReport {
+        tolerance,
+        k: map.entities.len(),
+        memory: MemoryRow::new(cloud.points.len(), map.entities.len()),
+        ellipsoidal: ErrorStats::from_errors(&errors),
+        clusters_over_tolerance: errors.iter().filter(|&&e| e > tolerance).count(),
+        splits: outcome.splits,
+        merges: outcome.merges,
+        capacity_reached: outcome.capacity_reached,
+        kinds: KindCounts::of(&map),
+        errors,
+        output: args.output.display().to_string(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!("tolerance {tolerance}: k = {} ({} splits, {} merges{})", report.k, report.splits, report.merges, if report.capacity_reached { ", capacity reached" } else { "" });
+    println!("{}", stats::MEMORY_HEADER);
+    println!("{}", stats::format_memory_row(&report.memory));
+    println!();
+    println!("eq. 13 error per cluster, {} over the tolerance", report.clusters_over_tolerance);
+    println!("{}", stats::ERROR_HEADER);
+    println!("{}", stats::format_error_row("ellipsoidal", &report.ellipsoidal));
+    println!(
+        "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+        report.kinds.ellipsoid, report.kinds.sphere, report.kinds.pseudocylinder, report.kinds.plane_pair
+    );
+    eprintln!("wrote {}", report.output);
     Ok(())
 }

@@ -11,3 +11,4 @@ pub mod scene;
 pub mod serial;
 pub mod stats;
 pub mod stream_bench;
+pub mod tolerance;

@@ -1,0 +1,180 @@
+//! `mema map --tolerance T`: the hierarchical clustering the paper's future work asks for. No k:
+//! clusters split (2-means inside, moments recomputed) while their eq. 13 error is above T, then
+//! neighbours merge while the merged fit stays at or under T, until every cluster meets T or the
+//! capacity is reached.
+
+use anyhow::{Result, bail};
+use mema_core::Point3;
+use mema_core::closest_point::SurfaceError;
+use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper};
+use mema_core::kmeans::{CentroidSum, KMeansParams, kmeans};
+use mema_core::moments::Moments;
+use mema_core::rng::stream_rng;
+use rayon::prelude::*;
+
+/// A cluster of the hierarchy: its points, its place in the tree (for seeds) and its fit.
+#[derive(Clone, Debug)]
+pub struct Node {
+    pub members: Vec<u32>,
+    /// Heap numbering of the split tree (root 1, children 2i and 2i+1; merges keep the lower):
+    /// every random stream derives from it, so the result does not depend on processing order.
+    pub id: u64,
+    pub fit: Fit,
+    /// Eq. 13 of `fit` over `members`.
+    pub error: f64,
+}
+
+#[derive(Clone, Debug)]
+pub struct ToleranceOutcome {
+    pub nodes: Vec<Node>,
+    pub splits: usize,
+    pub merges: usize,
+    /// True if the capacity stopped the splitting before every cluster met the tolerance.
+    pub capacity_reached: bool,
+}
+
+/// Clusters with fewer points cannot be split meaningfully (a 2-means of 3 points is noise).
+const MIN_SPLIT: usize = 8;
+/// Neighbours tried per cluster in the merge phase.
+const MERGE_NEIGHBOURS: usize = 4;
+
+fn evaluate(points: &[Point3], members: &[u32], id: u64, seed: u64, fit: &FitParams) -> Option<Node> {
+    let mut moments = Moments::new();
+    for &i in members {
+        moments.add(*points.get(i as usize)?);
+    }
+    let central = moments.central()?;
+    let f = fit_ellipsoid_paper(&central, fit, &mut stream_rng(seed, id));
+    let mut error = SurfaceError::default();
+    for &i in members {
+        error.add(&f.entity, points.get(i as usize)?.to_f64());
+    }
+    Some(Node { members: members.to_vec(), id, fit: f, error: error.rmse() })
+}
+
+/// Splits a node's points in two by 2-means; `None` if they cannot be split.
+fn split(points: &[Point3], node: &Node, seed: u64) -> Option<[Vec<u32>; 2]> {
+    if node.members.len() < MIN_SPLIT {
+        return None;
+    }
+    let subset: Vec<Point3> = node.members.iter().filter_map(|&i| points.get(i as usize).copied()).collect();
+    let mut centres = [Point3::default(); 2];
+    let mut labels = vec![0u32; subset.len()];
+    let mut distances = vec![0f32; subset.len()];
+    let mut sums = [CentroidSum::default(); 2];
+    let params = KMeansParams { seed: seed ^ node.id.wrapping_mul(0x9E37_79B9_7F4A_7C15), ..KMeansParams::default() };
+    kmeans(&subset, &mut centres, &mut labels, &mut distances, &mut sums, &params).ok()?;
+    let mut halves = [Vec::new(), Vec::new()];
+    for (&i, &l) in node.members.iter().zip(labels.iter()) {
+        halves.get_mut(l as usize)?.push(i);
+    }
+    (!halves[0].is_empty() && !halves[1].is_empty()).then_some(halves)
+}
+
+/// Builds the hierarchy for tolerance `t` with at most `capacity` clusters.
+pub fn build(points: &[Point3], t: f64, capacity: usize, seed: u64, fit: &FitParams) -> Result<ToleranceOutcome> {
+    if !(t > 0.0 && t.is_finite()) {
+        bail!("the tolerance must be a positive length");
+    }
+    if points.is_empty() {
+        bail!("no points");
+    }
+    let all: Vec<u32> = (0..points.len() as u32).collect();
+    let Some(root) = evaluate(points, &all, 1, seed, fit) else {
+        bail!("cannot fit the cloud");
+    };
+    let mut done: Vec<Node> = Vec::new();
+    let mut open = vec![root];
+    let mut splits = 0;
+    let mut capacity_reached = false;
+    // Rounds of splits, worst clusters first when the capacity runs short; each round in parallel.
+    while !open.is_empty() {
+        let (fine, mut over): (Vec<Node>, Vec<Node>) = open.into_iter().partition(|n| n.error <= t);
+        done.extend(fine);
+        over.sort_by(|a, b| b.error.total_cmp(&a.error).then(a.id.cmp(&b.id)));
+        let room = capacity.saturating_sub(done.len() + over.len());
+        if room == 0 && !over.is_empty() {
+            capacity_reached = true;
+            done.extend(over);
+            break;
+        }
+        let (to_split, rest) = over.split_at(over.len().min(room));
+        let results: Vec<(Node, Option<[Node; 2]>)> = to_split
+            .par_iter()
+            .map(|node| {
+                let children = split(points, node, seed).and_then(|[a, b]| {
+                    Some([evaluate(points, &a, 2 * node.id, seed, fit)?, evaluate(points, &b, 2 * node.id + 1, seed, fit)?])
+                });
+                (node.clone(), children)
+            })
+            .collect();
+        if !rest.is_empty() {
+            capacity_reached = true;
+            done.extend(rest.iter().cloned());
+        }
+        open = Vec::new();
+        for (node, children) in results {
+            match children {
+                Some([a, b]) => {
+                    splits += 1;
+                    open.push(a);
+                    open.push(b);
+                }
+                // Unsplittable (too few or coincident points): kept as it is.
+                None => done.push(node),
+            }
+        }
+    }
+    done.sort_by_key(|n| n.id);
+    let merges = merge_neighbours(points, &mut done, t, seed, fit);
+    Ok(ToleranceOutcome { nodes: done, splits, merges, capacity_reached })
+}
+
+/// Merges neighbouring clusters whose merged fit stays at or under `t`, cheapest first, until
+/// no pair qualifies. Returns the number of merges.
+fn merge_neighbours(points: &[Point3], nodes: &mut Vec<Node>, t: f64, seed: u64, fit: &FitParams) -> usize {
+    let mut merges = 0;
+    loop {
+        let centres: Vec<Point3> = nodes.iter().map(|n| n.fit.entity.center).collect();
+        let mut pairs: Vec<(f32, usize, usize)> = Vec::new();
+        for (a, ca) in centres.iter().enumerate() {
+            let mut near: Vec<(f32, usize)> = centres.iter().enumerate().filter(|(b, _)| *b != a).map(|(b, cb)| (ca.distance_squared(*cb), b)).collect();
+            near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            for &(d, b) in near.iter().take(MERGE_NEIGHBOURS) {
+                let (lo, hi) = (a.min(b), a.max(b));
+                let (na, nb) = (nodes[lo].members.len() as f32, nodes[hi].members.len() as f32);
+                pairs.push((na * nb / (na + nb) * d, lo, hi));
+            }
+        }
+        pairs.sort_by(|x, y| x.0.total_cmp(&y.0).then((x.1, x.2).cmp(&(y.1, y.2))));
+        pairs.dedup_by(|x, y| (x.1, x.2) == (y.1, y.2));
+        // Try all candidates in parallel, then accept in cost order, each cluster at most once.
+        let tried: Vec<Option<Node>> = pairs
+            .par_iter()
+            .map(|&(_, a, b)| {
+                let members: Vec<u32> = nodes[a].members.iter().chain(nodes[b].members.iter()).copied().collect();
+                evaluate(points, &members, nodes[a].id.min(nodes[b].id), seed, fit).filter(|n| n.error <= t)
+            })
+            .collect();
+        let mut used = vec![false; nodes.len()];
+        let mut merged: Vec<Node> = Vec::new();
+        for (&(_, a, b), candidate) in pairs.iter().zip(tried) {
+            if let Some(node) = candidate
+                && !used[a]
+                && !used[b]
+            {
+                used[a] = true;
+                used[b] = true;
+                merged.push(node);
+            }
+        }
+        if merged.is_empty() {
+            return merges;
+        }
+        merges += merged.len();
+        let mut next: Vec<Node> = nodes.iter().zip(used.iter()).filter(|(_, u)| !**u).map(|(n, _)| n.clone()).collect();
+        next.extend(merged);
+        next.sort_by_key(|n| n.id);
+        *nodes = next;
+    }
+}
