@@ -216,6 +216,38 @@ fn least_squares_semi_axes(moments: &CentralMoments, lo: f64, hi: f64) -> Option
     }))
 }
 
+/// The better of the least-squares ellipsoid and the optimal sphere, inside the search box.
+fn moment_candidate(
+    moments: &CentralMoments,
+    terms: &FitnessTerms,
+    search: &SearchBox,
+) -> [f64; 3] {
+    let (lo, hi) = (search.lo, search.hi);
+    let sphere = [optimal_sphere_radius(terms, lo, hi); 3];
+    match least_squares_semi_axes(moments, lo, hi) {
+        Some(e) if terms.fitness(&e) <= terms.fitness(&sphere) => e,
+        _ => sphere,
+    }
+}
+
+/// A cheap estimate of a cluster's eq. 13 error from its moments alone, for decisions that
+/// cannot see the points (the streaming mapper's tolerance mode): the moment candidate's
+/// algebraic residual over the mean gradient norm, `sqrt(E[g^2] / sum_j w_j^2 E[d_j^2])`, which
+/// is the first-order distance to the surface (exact for points near a sphere).
+pub fn surface_error_estimate(moments: &CentralMoments, params: &FitParams) -> f64 {
+    let terms = FitnessTerms::new(moments, params.alpha, params.volume);
+    let search = SearchBox::new(moments, params);
+    let r = moment_candidate(moments, &terms, &search);
+    let w = r.map(|r| 1.0 / (r * r));
+    let residual = terms.residual_rms(&w);
+    let gradient: f64 = (0..3).map(|j| w[j] * w[j] * moments.second[j]).sum();
+    if gradient > 0.0 {
+        residual / libm::sqrt(gradient)
+    } else {
+        0.0
+    }
+}
+
 /// Fits the ellipsoid semi-axes of one cluster (eq. 12 by DE) with a `POP`-member population.
 pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     moments: &CentralMoments,
@@ -224,16 +256,10 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
 ) -> Fit {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
-    let (lo, hi) = (search.lo, search.hi);
+    let hi = search.hi;
     let seed = match params.initialisation {
         Initialisation::Random => None,
-        Initialisation::MomentSeeded => {
-            let sphere = [optimal_sphere_radius(&terms, lo, hi); 3];
-            Some(match least_squares_semi_axes(moments, lo, hi) {
-                Some(e) if terms.fitness(&e) <= terms.fitness(&sphere) => e,
-                _ => sphere,
-            })
-        }
+        Initialisation::MomentSeeded => Some(moment_candidate(moments, &terms, &search)),
     };
     let (semi_axes, evaluations) =
         search.minimize::<3, POP, R>(|r| terms.fitness(r), seed, params, rng);

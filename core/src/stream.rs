@@ -8,7 +8,7 @@
 //! points), scheduled by points ingested and never by time: the same points give the same map
 //! whatever the chunking or timing. [`StreamMapper::finish`] refits every cluster.
 
-use crate::fit::{FitParams, fit_ellipsoid_paper};
+use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
 use crate::geometry::{Entity, Point3};
 use crate::grid::CentreGrid;
 use crate::map::MapEntity;
@@ -23,6 +23,10 @@ pub struct StreamParams {
     pub max_clusters: usize,
     /// Refit one cluster every this many points (0: only at `finish`).
     pub refit_interval: u32,
+    /// Tolerance mode when > 0: merges must keep the merged cluster's estimated eq. 13 error
+    /// (`fit::surface_error_estimate`) at or under this length, and `finish` keeps merging
+    /// neighbours while they stay under it, so k follows from the tolerance. 0: fixed capacity.
+    pub tolerance: f64,
 }
 
 /// One cluster: its moments, running centre and latest fit.
@@ -43,6 +47,8 @@ pub struct StreamStats {
     pub merges: u64,
     pub refits: u64,
     pub grid_rebuilds: u64,
+    /// Tolerance mode: merges forced by the capacity although over the tolerance.
+    pub forced_merges: u64,
 }
 
 /// The streaming mapper with capacity `K` and a `G`-bucket spatial hash over the centres.
@@ -139,6 +145,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
                 merges: 0,
                 refits: 0,
                 grid_rebuilds: 0,
+                forced_merges: 0,
             },
         }
     }
@@ -231,11 +238,9 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         }
     }
 
-    /// Makes room: merges the closest pair of clusters, and with it the next closest disjoint
-    /// pairs up to 1/32 of the capacity, so the search is paid once per batch of far points.
-    /// The join radius widens to the largest merged distance.
-    fn merge_closest_pairs(&mut self) {
-        let mut closest = ClosestPairs::new(self.limit() / MAX_MERGE_BATCH);
+    /// The `wanted` cheapest neighbour pairs by Ward's criterion.
+    fn candidate_pairs(&self, wanted: usize) -> ClosestPairs {
+        let mut closest = ClosestPairs::new(wanted);
         let cell2 = self.grid.cell() * self.grid.cell();
         for (a, ca) in self.clusters.iter().enumerate() {
             self.grid.for_each_near(ca.center, |b| {
@@ -257,12 +262,46 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
                 }
             }
         }
-        // Merge disjoint pairs in order; a cluster already merged this round has moved.
+        closest
+    }
+
+    /// Whether merging clusters `a` and `b` respects the tolerance (always, without one).
+    fn within_tolerance(&self, a: usize, b: usize) -> bool {
+        if self.params.tolerance <= 0.0 {
+            return true;
+        }
+        let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+            return false;
+        };
+        let mut merged = ca.moments;
+        merged.merge(&cb.moments);
+        merged
+            .central()
+            .is_some_and(|m| surface_error_estimate(&m, &self.params.fit) <= self.params.tolerance)
+    }
+
+    /// Merges the disjoint pairs of `pairs` that respect the tolerance, cheapest first; with
+    /// `force`, the cheapest pair merges even if none does (the capacity must give way).
+    fn merge_pairs(&mut self, pairs: &ClosestPairs, force: bool) -> usize {
         let mut absorbed = [0usize; MAX_MERGE_BATCH];
         let mut count = 0;
         let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
-        for &(_, a, b) in closest.as_slice() {
-            if touched.contains(&a) || touched.contains(&b) {
+        let forced = if force
+            && !pairs
+                .as_slice()
+                .iter()
+                .any(|&(_, a, b)| self.within_tolerance(a, b))
+        {
+            self.stats.forced_merges += u64::from(self.params.tolerance > 0.0);
+            pairs.as_slice().first().map(|&(_, a, b)| (a, b))
+        } else {
+            None
+        };
+        for &(_, a, b) in pairs.as_slice() {
+            if touched.contains(&a)
+                || touched.contains(&b)
+                || !(forced == Some((a, b)) || self.within_tolerance(a, b))
+            {
                 continue;
             }
             let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
@@ -300,6 +339,29 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         // Indices moved and the radius may have outgrown the cells: refile every centre.
         self.grid
             .rebuild(cell, self.clusters.iter().map(|c| c.center));
+        count
+    }
+
+    /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
+    /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
+    /// of far points. The join radius widens to the largest merged distance.
+    fn merge_closest_pairs(&mut self) {
+        let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
+        self.merge_pairs(&pairs, true);
+    }
+
+    /// Tolerance mode's last step: neighbours keep merging while the merged estimate stays
+    /// under the tolerance, so the final k is what the tolerance needs, not the capacity.
+    fn consolidate(&mut self) {
+        if self.params.tolerance <= 0.0 {
+            return;
+        }
+        while self.clusters.len() > 1 {
+            let pairs = self.candidate_pairs(MAX_MERGE_BATCH);
+            if self.merge_pairs(&pairs, false) == 0 {
+                break;
+            }
+        }
     }
 
     fn fit(&self, index: usize, cluster: &StreamCluster) -> Option<Entity> {
@@ -358,6 +420,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
     /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on
     /// the cluster's index only, so the final map is a function of the points alone.
     pub fn finish(&mut self) {
+        self.consolidate();
         for i in 0..self.clusters.len() {
             let central = self.clusters.get(i).and_then(|c| c.moments.central());
             if let Some(central) = central {
@@ -385,6 +448,7 @@ mod tests {
             seed: 0,
             max_clusters,
             refit_interval: 64,
+            tolerance: 0.0,
         }
     }
 
@@ -434,6 +498,30 @@ mod tests {
         }
         pieces.finish();
         assert!(whole.entities().eq(pieces.entities()));
+    }
+
+    #[test]
+    fn tolerance_mode_lets_the_tolerance_choose_k() {
+        let pts = shells();
+        let run = |tolerance: f64| {
+            let mut m = StreamMapper::<256, 512>::new(StreamParams {
+                tolerance,
+                ..params(256)
+            });
+            m.add_all(&pts);
+            m.finish();
+            (m.clusters().len(), m.stats().forced_merges)
+        };
+        let (coarse, coarse_forced) = run(0.1);
+        let (fine, fine_forced) = run(0.03);
+        // Capacity to spare: nothing forced, and k well under it, larger for the tighter tolerance.
+        assert_eq!((coarse_forced, fine_forced), (0, 0));
+        assert!(
+            coarse < fine && fine < 256,
+            "k = {coarse} at 0.1, {fine} at 0.03"
+        );
+        // Four shells 10 apart never share a cluster, however loose the tolerance.
+        assert!(coarse >= 4);
     }
 
     #[test]

@@ -106,6 +106,10 @@ pub struct StreamArgs {
     /// Write the map so far every this many seconds.
     #[arg(long)]
     pub snapshot_every: Option<f64>,
+    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
+    /// k follows from T (-k is then the capacity).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
     /// Also save the raw bytes received, as `mema record` would.
     #[arg(long)]
     pub record: Option<PathBuf>,
@@ -140,6 +144,10 @@ pub struct ReplayArgs {
     /// Bytes per delivery, as a UART would hand them over.
     #[arg(long, default_value_t = 4096)]
     pub chunk_bytes: usize,
+    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
+    /// k follows from T (-k is then the capacity).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
     #[command(flatten)]
     pub fit: FitArgs,
     #[arg(long)]
@@ -171,6 +179,10 @@ pub struct StreamBenchArgs {
     /// Timed repetitions of the ingest (the best is reported).
     #[arg(long, default_value_t = 3)]
     pub repetitions: usize,
+    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
+    /// k follows from T (-k is then the capacity).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
     #[command(flatten)]
     pub fit: FitArgs,
     #[arg(long)]
@@ -243,7 +255,11 @@ pub struct FitArgs {
 pub struct MapArgs {
     pub input: PathBuf,
     /// Number of clusters (entities).
-    #[arg(short, required_unless_present = "tolerance", conflicts_with = "tolerance")]
+    #[arg(
+        short,
+        required_unless_present = "tolerance",
+        conflicts_with = "tolerance"
+    )]
     pub k: Option<usize>,
     /// Instead of k: split clusters until each one's eq. 13 error is at most T (cloud units),
     /// then merge neighbours that stay under T.
@@ -252,6 +268,13 @@ pub struct MapArgs {
     /// Most clusters the tolerance mode may make.
     #[arg(long, default_value_t = 16_384)]
     pub capacity: usize,
+    /// Tolerance mode: rounds of re-checking T with nearest-centre membership (as `mema eval`
+    /// assigns points), splitting clusters that fail; costs entities.
+    #[arg(long, default_value_t = 0)]
+    pub voronoi_rounds: usize,
+    /// Also write each point's cluster index, one per line, in the cloud's order of finite points.
+    #[arg(long)]
+    pub labels: Option<PathBuf>,
     /// Output map: .mema (binary), .csv or .json.
     #[arg(short, long)]
     pub output: PathBuf,

@@ -97,14 +97,19 @@ pub struct MapReport {
     pub output: String,
 }
 
-/// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map.
+/// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map (and the
+/// points' cluster labels if asked).
 pub fn map_cloud(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     entity: EntityChoice,
     output: &Path,
+    labels: Option<&Path>,
 ) -> Result<MapReport> {
     let clusters = pipeline::cluster(&cloud.points, config.k, &config.kmeans)?;
+    if let Some(path) = labels {
+        write_labels(path, &clusters.labels)?;
+    }
     let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
     let tolerance = config.fit.degeneration.sphere_tolerance;
     let ellipsoids = pipeline::to_map(cloud.origin, &fitted.ellipsoids, tolerance);
@@ -198,8 +203,14 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let config = args.fit.config(args.k.unwrap_or(0))?;
     check_output(&args.output)?;
     let cloud = load_cloud(&args.input)?;
-    let report = map_cloud(&cloud, &config, args.entity, &args.output)
-        .with_context(|| args.input.display().to_string())?;
+    let report = map_cloud(
+        &cloud,
+        &config,
+        args.entity,
+        &args.output,
+        args.labels.as_deref(),
+    )
+    .with_context(|| args.input.display().to_string())?;
     print_map_report(&report, args.json)
 }
 
@@ -216,8 +227,8 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         scan.rays
     );
     let cloud = LocalCloud::from_world(&scan.points);
-    let report =
-        map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output).context("demo scene")?;
+    let report = map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output, None)
+        .context("demo scene")?;
     print_map_report(&report, args.json)
 }
 
@@ -378,13 +389,18 @@ pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
         .into());
     }
     let cloud = load_cloud(&args.input)?;
-    let r = crate::stream_bench::run(&cloud, &config, args.repetitions)
-        .with_context(|| args.input.display().to_string())?;
+    let r = crate::stream_bench::run(
+        &cloud,
+        &config,
+        args.repetitions,
+        args.tolerance.unwrap_or(0.0),
+    )
+    .with_context(|| args.input.display().to_string())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         println!(
-            "{}: {} points, k = {}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%)\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
+            "{}: {} points, k = {}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
             args.input.display(),
             r.points,
             r.k,
@@ -393,6 +409,7 @@ pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
             r.stream_mean_error,
             r.batch_mean_error,
             r.error_change_percent,
+            r.stream_max_error,
             r.mapper_points_per_s,
             r.mapper_vs_sri500,
             r.wire_points_per_s,
@@ -424,7 +441,10 @@ pub struct ToleranceReport {
 
 fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
     if !(tolerance > 0.0 && tolerance.is_finite()) {
-        return Err(crate::cli::UsageError(format!("--tolerance {tolerance} must be a positive length in the cloud's units")).into());
+        return Err(crate::cli::UsageError(format!(
+            "--tolerance {tolerance} must be a positive length in the cloud's units"
+        ))
+        .into());
     }
     if args.capacity == 0 {
         return Err(crate::cli::UsageError("--capacity must be at least 1".into()).into());
@@ -432,14 +452,39 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
     let config = args.fit.config(1)?;
     check_output(&args.output)?;
     let cloud = load_cloud(&args.input)?;
-    let outcome = crate::tolerance::build(&cloud.points, tolerance, args.capacity, config.seed, &config.fit)
-        .with_context(|| args.input.display().to_string())?;
+    let outcome = crate::tolerance::build(
+        &cloud.points,
+        tolerance,
+        args.capacity,
+        args.voronoi_rounds,
+        config.seed,
+        &config.fit,
+    )
+    .with_context(|| args.input.display().to_string())?;
     let tol = config.fit.degeneration.sphere_tolerance;
     let map = HostMap {
         origin: cloud.origin,
-        entities: outcome.nodes.iter().map(|n| mema_core::MapEntity { entity: n.fit.entity, kind: n.fit.entity.kind(tol) }).collect(),
+        entities: outcome
+            .nodes
+            .iter()
+            .map(|n| mema_core::MapEntity {
+                entity: n.fit.entity,
+                kind: n.fit.entity.kind(tol),
+            })
+            .collect(),
     };
     map.write(&args.output)?;
+    if let Some(path) = &args.labels {
+        let mut labels = vec![0u32; cloud.points.len()];
+        for (c, node) in outcome.nodes.iter().enumerate() {
+            for &i in &node.members {
+                if let Some(l) = labels.get_mut(i as usize) {
+                    *l = c as u32;
+                }
+            }
+        }
+        write_labels(path, &labels)?;
+    }
     let errors: Vec<f64> = outcome.nodes.iter().map(|n| n.error).collect();
     let report = ToleranceReport {
         tolerance,
@@ -458,17 +503,46 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
-    println!("tolerance {tolerance}: k = {} ({} splits, {} merges{})", report.k, report.splits, report.merges, if report.capacity_reached { ", capacity reached" } else { "" });
+    println!(
+        "tolerance {tolerance}: k = {} ({} splits, {} merges{})",
+        report.k,
+        report.splits,
+        report.merges,
+        if report.capacity_reached {
+            ", capacity reached"
+        } else {
+            ""
+        }
+    );
     println!("{}", stats::MEMORY_HEADER);
     println!("{}", stats::format_memory_row(&report.memory));
     println!();
-    println!("eq. 13 error per cluster, {} over the tolerance", report.clusters_over_tolerance);
+    println!(
+        "eq. 13 error per cluster, {} over the tolerance",
+        report.clusters_over_tolerance
+    );
     println!("{}", stats::ERROR_HEADER);
-    println!("{}", stats::format_error_row("ellipsoidal", &report.ellipsoidal));
+    println!(
+        "{}",
+        stats::format_error_row("ellipsoidal", &report.ellipsoidal)
+    );
     println!(
         "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
-        report.kinds.ellipsoid, report.kinds.sphere, report.kinds.pseudocylinder, report.kinds.plane_pair
+        report.kinds.ellipsoid,
+        report.kinds.sphere,
+        report.kinds.pseudocylinder,
+        report.kinds.plane_pair
     );
     eprintln!("wrote {}", report.output);
     Ok(())
+}
+
+/// One cluster index per line, atomically.
+pub fn write_labels(path: &Path, labels: &[u32]) -> Result<()> {
+    let mut text = String::with_capacity(labels.len() * 4);
+    for l in labels {
+        text.push_str(&l.to_string());
+        text.push('\n');
+    }
+    crate::mapfile::write_atomically(path, text.as_bytes())
 }

@@ -21,6 +21,8 @@ pub struct StreamBench {
     pub stream_entities: usize,
     pub batch_entities: usize,
     pub stream_mean_error: f64,
+    /// Largest per-cluster eq. 13 error of the streaming map (nearest-centre membership).
+    pub stream_max_error: f64,
     pub batch_mean_error: f64,
     /// stream / batch mean eq. 13 error, minus one, in percent.
     pub error_change_percent: f64,
@@ -34,7 +36,12 @@ pub struct StreamBench {
     pub merges: u64,
 }
 
-pub fn run(cloud: &LocalCloud, config: &PipelineConfig, repetitions: usize) -> Result<StreamBench> {
+pub fn run(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    repetitions: usize,
+    tolerance: f64,
+) -> Result<StreamBench> {
     let wire: Vec<[i32; 3]> = cloud
         .points
         .iter()
@@ -46,18 +53,18 @@ pub fn run(cloud: &LocalCloud, config: &PipelineConfig, repetitions: usize) -> R
     let mut mapper_rate = 0.0f64;
     let mut wire_rate = 0.0f64;
     for _ in 0..repetitions.max(1) {
-        let mut mapper = new_mapper(config.k, config.seed, config.fit);
+        let mut mapper = new_mapper(config.k, config.seed, config.fit, tolerance);
         let start = Instant::now();
         mapper.add_all(&points);
         mapper_rate = mapper_rate.max(points.len() as f64 / start.elapsed().as_secs_f64());
 
-        let mut link = Link::new(config.k, config.seed, config.fit);
+        let mut link = Link::new(config.k, config.seed, config.fit, tolerance);
         let start = Instant::now();
         link.feed(&bytes);
         wire_rate = wire_rate.max(points.len() as f64 / start.elapsed().as_secs_f64());
     }
 
-    let mut link = Link::new(config.k, config.seed, config.fit);
+    let mut link = Link::new(config.k, config.seed, config.fit, tolerance);
     link.feed(&bytes);
     let start = Instant::now();
     let mut stream_map = link.finish();
@@ -81,6 +88,7 @@ pub fn run(cloud: &LocalCloud, config: &PipelineConfig, repetitions: usize) -> R
         stream_entities: stream_map.entities.len(),
         batch_entities: batch_map.entities.len(),
         stream_mean_error: stream_eval.errors.mean,
+        stream_max_error: stream_eval.errors.max,
         batch_mean_error: batch_eval.errors.mean,
         error_change_percent: 100.0 * (stream_eval.errors.mean / batch_eval.errors.mean - 1.0),
         mapper_points_per_s: mapper_rate,

@@ -38,7 +38,13 @@ const MIN_SPLIT: usize = 8;
 /// Neighbours tried per cluster in the merge phase.
 const MERGE_NEIGHBOURS: usize = 4;
 
-fn evaluate(points: &[Point3], members: &[u32], id: u64, seed: u64, fit: &FitParams) -> Option<Node> {
+fn evaluate(
+    points: &[Point3],
+    members: &[u32],
+    id: u64,
+    seed: u64,
+    fit: &FitParams,
+) -> Option<Node> {
     let mut moments = Moments::new();
     for &i in members {
         moments.add(*points.get(i as usize)?);
@@ -49,7 +55,12 @@ fn evaluate(points: &[Point3], members: &[u32], id: u64, seed: u64, fit: &FitPar
     for &i in members {
         error.add(&f.entity, points.get(i as usize)?.to_f64());
     }
-    Some(Node { members: members.to_vec(), id, fit: f, error: error.rmse() })
+    Some(Node {
+        members: members.to_vec(),
+        id,
+        fit: f,
+        error: error.rmse(),
+    })
 }
 
 /// Splits a node's points in two by 2-means; `None` if they cannot be split.
@@ -57,13 +68,28 @@ fn split(points: &[Point3], node: &Node, seed: u64) -> Option<[Vec<u32>; 2]> {
     if node.members.len() < MIN_SPLIT {
         return None;
     }
-    let subset: Vec<Point3> = node.members.iter().filter_map(|&i| points.get(i as usize).copied()).collect();
+    let subset: Vec<Point3> = node
+        .members
+        .iter()
+        .filter_map(|&i| points.get(i as usize).copied())
+        .collect();
     let mut centres = [Point3::default(); 2];
     let mut labels = vec![0u32; subset.len()];
     let mut distances = vec![0f32; subset.len()];
     let mut sums = [CentroidSum::default(); 2];
-    let params = KMeansParams { seed: seed ^ node.id.wrapping_mul(0x9E37_79B9_7F4A_7C15), ..KMeansParams::default() };
-    kmeans(&subset, &mut centres, &mut labels, &mut distances, &mut sums, &params).ok()?;
+    let params = KMeansParams {
+        seed: seed ^ node.id.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        ..KMeansParams::default()
+    };
+    kmeans(
+        &subset,
+        &mut centres,
+        &mut labels,
+        &mut distances,
+        &mut sums,
+        &params,
+    )
+    .ok()?;
     let mut halves = [Vec::new(), Vec::new()];
     for (&i, &l) in node.members.iter().zip(labels.iter()) {
         halves.get_mut(l as usize)?.push(i);
@@ -72,7 +98,19 @@ fn split(points: &[Point3], node: &Node, seed: u64) -> Option<[Vec<u32>; 2]> {
 }
 
 /// Builds the hierarchy for tolerance `t` with at most `capacity` clusters.
-pub fn build(points: &[Point3], t: f64, capacity: usize, seed: u64, fit: &FitParams) -> Result<ToleranceOutcome> {
+///
+/// Every cluster of the result meets `t` over its own points (eq. 13's `S_i`). With
+/// `voronoi_rounds` > 0 the map is then checked the way `mema eval` judges any map: each point
+/// joins its nearest centre, clusters are refitted, and any cluster now over `t` is split again;
+/// this costs entities (README: tolerance mode).
+pub fn build(
+    points: &[Point3],
+    t: f64,
+    capacity: usize,
+    voronoi_rounds: usize,
+    seed: u64,
+    fit: &FitParams,
+) -> Result<ToleranceOutcome> {
     if !(t > 0.0 && t.is_finite()) {
         bail!("the tolerance must be a positive length");
     }
@@ -83,66 +121,128 @@ pub fn build(points: &[Point3], t: f64, capacity: usize, seed: u64, fit: &FitPar
     let Some(root) = evaluate(points, &all, 1, seed, fit) else {
         bail!("cannot fit the cloud");
     };
-    let mut done: Vec<Node> = Vec::new();
-    let mut open = vec![root];
-    let mut splits = 0;
-    let mut capacity_reached = false;
-    // Rounds of splits, worst clusters first when the capacity runs short; each round in parallel.
-    while !open.is_empty() {
-        let (fine, mut over): (Vec<Node>, Vec<Node>) = open.into_iter().partition(|n| n.error <= t);
-        done.extend(fine);
-        over.sort_by(|a, b| b.error.total_cmp(&a.error).then(a.id.cmp(&b.id)));
-        let room = capacity.saturating_sub(done.len() + over.len());
-        if room == 0 && !over.is_empty() {
-            capacity_reached = true;
-            done.extend(over);
+    let mut outcome = ToleranceOutcome {
+        nodes: Vec::new(),
+        splits: 0,
+        merges: 0,
+        capacity_reached: false,
+    };
+    split_until(points, vec![root], t, capacity, seed, fit, &mut outcome);
+    outcome.merges += merge_neighbours(points, &mut outcome.nodes, t, seed, fit);
+    for _ in 0..voronoi_rounds {
+        outcome.nodes = nearest_centre_refit(points, &outcome.nodes, seed, fit);
+        let (over, fine): (Vec<Node>, Vec<Node>) = std::mem::take(&mut outcome.nodes)
+            .into_iter()
+            .partition(|n| n.error > t);
+        outcome.nodes = fine;
+        if over.is_empty() || outcome.capacity_reached {
+            outcome.nodes.extend(over);
             break;
         }
+        split_until(points, over, t, capacity, seed, fit, &mut outcome);
+    }
+    outcome.nodes.sort_by_key(|n| n.id);
+    Ok(outcome)
+}
+
+/// Splits the `open` nodes (worst first when the capacity runs short) until each meets `t`,
+/// adding the results to `outcome.nodes`.
+fn split_until(
+    points: &[Point3],
+    mut open: Vec<Node>,
+    t: f64,
+    capacity: usize,
+    seed: u64,
+    fit: &FitParams,
+    outcome: &mut ToleranceOutcome,
+) {
+    while !open.is_empty() {
+        let (fine, mut over): (Vec<Node>, Vec<Node>) = open.into_iter().partition(|n| n.error <= t);
+        outcome.nodes.extend(fine);
+        over.sort_by(|a, b| b.error.total_cmp(&a.error).then(a.id.cmp(&b.id)));
+        let room = capacity.saturating_sub(outcome.nodes.len() + over.len());
         let (to_split, rest) = over.split_at(over.len().min(room));
+        if !rest.is_empty() {
+            outcome.capacity_reached = true;
+            outcome.nodes.extend(rest.iter().cloned());
+        }
         let results: Vec<(Node, Option<[Node; 2]>)> = to_split
             .par_iter()
             .map(|node| {
                 let children = split(points, node, seed).and_then(|[a, b]| {
-                    Some([evaluate(points, &a, 2 * node.id, seed, fit)?, evaluate(points, &b, 2 * node.id + 1, seed, fit)?])
+                    Some([
+                        evaluate(points, &a, 2 * node.id, seed, fit)?,
+                        evaluate(points, &b, 2 * node.id + 1, seed, fit)?,
+                    ])
                 });
                 (node.clone(), children)
             })
             .collect();
-        if !rest.is_empty() {
-            capacity_reached = true;
-            done.extend(rest.iter().cloned());
-        }
         open = Vec::new();
         for (node, children) in results {
             match children {
                 Some([a, b]) => {
-                    splits += 1;
+                    outcome.splits += 1;
                     open.push(a);
                     open.push(b);
                 }
                 // Unsplittable (too few or coincident points): kept as it is.
-                None => done.push(node),
+                None => outcome.nodes.push(node),
             }
         }
     }
-    done.sort_by_key(|n| n.id);
-    let merges = merge_neighbours(points, &mut done, t, seed, fit);
-    Ok(ToleranceOutcome { nodes: done, splits, merges, capacity_reached })
+}
+
+/// Reassigns every point to its nearest entity centre and refits each non-empty cluster.
+fn nearest_centre_refit(
+    points: &[Point3],
+    nodes: &[Node],
+    seed: u64,
+    fit: &FitParams,
+) -> Vec<Node> {
+    let centres: Vec<Point3> = nodes.iter().map(|n| n.fit.entity.center).collect();
+    let labels = crate::pipeline::nearest_centre_labels(points, &centres);
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
+    for (i, &l) in labels.iter().enumerate() {
+        if let Some(m) = members.get_mut(l as usize) {
+            m.push(i as u32);
+        }
+    }
+    nodes
+        .par_iter()
+        .zip(members.par_iter())
+        .filter(|(_, m)| !m.is_empty())
+        .filter_map(|(n, m)| evaluate(points, m, n.id, seed, fit))
+        .collect()
 }
 
 /// Merges neighbouring clusters whose merged fit stays at or under `t`, cheapest first, until
 /// no pair qualifies. Returns the number of merges.
-fn merge_neighbours(points: &[Point3], nodes: &mut Vec<Node>, t: f64, seed: u64, fit: &FitParams) -> usize {
+fn merge_neighbours(
+    points: &[Point3],
+    nodes: &mut Vec<Node>,
+    t: f64,
+    seed: u64,
+    fit: &FitParams,
+) -> usize {
     let mut merges = 0;
     loop {
         let centres: Vec<Point3> = nodes.iter().map(|n| n.fit.entity.center).collect();
         let mut pairs: Vec<(f32, usize, usize)> = Vec::new();
         for (a, ca) in centres.iter().enumerate() {
-            let mut near: Vec<(f32, usize)> = centres.iter().enumerate().filter(|(b, _)| *b != a).map(|(b, cb)| (ca.distance_squared(*cb), b)).collect();
+            let mut near: Vec<(f32, usize)> = centres
+                .iter()
+                .enumerate()
+                .filter(|(b, _)| *b != a)
+                .map(|(b, cb)| (ca.distance_squared(*cb), b))
+                .collect();
             near.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
             for &(d, b) in near.iter().take(MERGE_NEIGHBOURS) {
                 let (lo, hi) = (a.min(b), a.max(b));
-                let (na, nb) = (nodes[lo].members.len() as f32, nodes[hi].members.len() as f32);
+                let (na, nb) = (
+                    nodes[lo].members.len() as f32,
+                    nodes[hi].members.len() as f32,
+                );
                 pairs.push((na * nb / (na + nb) * d, lo, hi));
             }
         }
@@ -152,8 +252,14 @@ fn merge_neighbours(points: &[Point3], nodes: &mut Vec<Node>, t: f64, seed: u64,
         let tried: Vec<Option<Node>> = pairs
             .par_iter()
             .map(|&(_, a, b)| {
-                let members: Vec<u32> = nodes[a].members.iter().chain(nodes[b].members.iter()).copied().collect();
-                evaluate(points, &members, nodes[a].id.min(nodes[b].id), seed, fit).filter(|n| n.error <= t)
+                let members: Vec<u32> = nodes[a]
+                    .members
+                    .iter()
+                    .chain(nodes[b].members.iter())
+                    .copied()
+                    .collect();
+                evaluate(points, &members, nodes[a].id.min(nodes[b].id), seed, fit)
+                    .filter(|n| n.error <= t)
             })
             .collect();
         let mut used = vec![false; nodes.len()];
@@ -172,7 +278,12 @@ fn merge_neighbours(points: &[Point3], nodes: &mut Vec<Node>, t: f64, seed: u64,
             return merges;
         }
         merges += merged.len();
-        let mut next: Vec<Node> = nodes.iter().zip(used.iter()).filter(|(_, u)| !**u).map(|(n, _)| n.clone()).collect();
+        let mut next: Vec<Node> = nodes
+            .iter()
+            .zip(used.iter())
+            .filter(|(_, u)| !**u)
+            .map(|(n, _)| n.clone())
+            .collect();
         next.extend(merged);
         next.sort_by_key(|n| n.id);
         *nodes = next;

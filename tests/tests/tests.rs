@@ -19,5 +19,7 @@ mod fitness;
 mod paper_tables;
 // Map queries (distance, occupancy, rays) through the index vs brute force; rigid transforms.
 mod queries;
+// Automatic k: the tolerance mode meets T with fewer ellipsoids.
+mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;

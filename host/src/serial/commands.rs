@@ -150,7 +150,12 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
         None => None,
     };
     let stop = interrupted();
-    let mut link = Link::new(args.k, config.seed, config.fit);
+    let mut link = Link::new(
+        args.k,
+        config.seed,
+        config.fit,
+        args.tolerance.unwrap_or(0.0),
+    );
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
@@ -309,7 +314,12 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let bytes = std::fs::read(&args.capture)
         .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
     let stop = interrupted();
-    let mut link = Link::new(args.k, config.seed, config.fit);
+    let mut link = Link::new(
+        args.k,
+        config.seed,
+        config.fit,
+        args.tolerance.unwrap_or(0.0),
+    );
     let started = Instant::now();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
@@ -396,7 +406,7 @@ pub fn map_points_directly(
         .iter()
         .map(|p| quantise(*p))
         .collect::<Result<_>>()?;
-    let mut mapper = super::link::new_mapper(k, seed, fit);
+    let mut mapper = super::link::new_mapper(k, seed, fit, 0.0);
     for q in &wire {
         mapper.add(super::frames::dequantise(*q));
     }

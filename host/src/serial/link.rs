@@ -17,13 +17,19 @@ pub const REFIT_INTERVAL: u32 = 1024;
 pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS>;
 
 /// A boxed mapper: at 2,048 clusters it is too large for a test thread's stack.
-pub fn new_mapper(k: usize, seed: u64, fit: FitParams) -> Box<HostStreamMapper> {
-    let params = StreamParams {
+/// `tolerance` > 0 turns on the tolerance mode (k follows from it, `k` is the capacity).
+pub fn new_mapper(k: usize, seed: u64, fit: FitParams, tolerance: f64) -> Box<HostStreamMapper> {
+    new_mapper_with(StreamParams {
         fit,
         seed,
         max_clusters: k,
         refit_interval: REFIT_INTERVAL,
-    };
+        tolerance,
+    })
+}
+
+/// A boxed mapper with every parameter chosen by the caller (tolerance mode, say).
+pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
     // Built on a thread with a large stack, then moved into the box by pointer.
     std::thread::Builder::new()
         .stack_size(64 << 20)
@@ -42,10 +48,10 @@ pub struct Link {
 }
 
 impl Link {
-    pub fn new(k: usize, seed: u64, fit: FitParams) -> Self {
+    pub fn new(k: usize, seed: u64, fit: FitParams, tolerance: f64) -> Self {
         Self {
             decoder: Decoder::new(),
-            mapper: new_mapper(k, seed, fit),
+            mapper: new_mapper(k, seed, fit, tolerance),
             end_of_stream: false,
             frames_after_end: 0,
         }

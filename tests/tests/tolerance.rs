@@ -1,0 +1,104 @@
+//! `mema map --tolerance T` (the paper's future work): with T the worst per-cluster error of the
+//! fixed-k map, every cluster meets T and far fewer ellipsoids are needed.
+
+use crate::util::{Dir, MemaCommand, shared};
+use mema::commands::load_cloud;
+use mema::mapfile::HostMap;
+use mema_core::closest_point::distance_to_surface;
+
+/// Eq. 13 per cluster from the map, the written labels and the cloud, by direct per-point sums:
+/// none of the hierarchy's own bookkeeping is reused.
+fn errors_from_labels(cloud: &str, map: &HostMap, labels: &str) -> Vec<f64> {
+    let points = load_cloud(&shared(cloud)).expect("cloud").points;
+    let labels: Vec<usize> = labels.lines().map(|l| l.parse().expect("label")).collect();
+    assert_eq!(labels.len(), points.len());
+    let mut sums = vec![(0.0f64, 0usize); map.entities.len()];
+    for (p, &l) in points.iter().zip(labels.iter()) {
+        let e = &map.entities[l].entity;
+        let c = e.center.to_f64();
+        let q = p.to_f64();
+        let axes = e.weights.map(|w| {
+            if w > 0.0 {
+                1.0 / (w as f64).sqrt()
+            } else {
+                f64::INFINITY
+            }
+        });
+        let d = distance_to_surface(axes, [q[0] - c[0], q[1] - c[1], q[2] - c[2]]);
+        sums[l].0 += d * d;
+        sums[l].1 += 1;
+    }
+    sums.iter().map(|(s, n)| (s / *n as f64).sqrt()).collect()
+}
+
+#[test]
+fn tolerance_maps_meet_t_with_fewer_ellipsoids() {
+    let dir = Dir::new("tolerance");
+    for (cloud, k) in [
+        ("car6.pcd", 150),
+        ("bun_zipper.ply", 350),
+        ("five_people.pcd", 350),
+        ("cturtle.pcd", 400),
+    ] {
+        let fixed = MemaCommand::new(&dir)
+            .arg("map")
+            .arg(shared(cloud))
+            .args(["-k", &k.to_string(), "--json", "-o", "fixed.mema"])
+            .run()
+            .assert_ok()
+            .json();
+        let t = fixed["ellipsoidal"]["max"].as_f64().expect("max e_i");
+        let v = MemaCommand::new(&dir)
+            .arg("map")
+            .arg(shared(cloud))
+            .args([
+                "--tolerance",
+                &t.to_string(),
+                "--json",
+                "-o",
+                "tolerant.mema",
+                "--labels",
+                "labels.txt",
+            ])
+            .run()
+            .assert_ok()
+            .json();
+        let errors: Vec<f64> = v["errors"]
+            .as_array()
+            .expect("errors")
+            .iter()
+            .map(|e| e.as_f64().expect("e_i"))
+            .collect();
+        let chosen = v["k"].as_u64().expect("k") as usize;
+        assert_eq!(errors.len(), chosen);
+        assert!(
+            errors.iter().all(|&e| e <= t && e.is_finite()),
+            "{cloud}: a cluster over T = {t}"
+        );
+        assert_eq!(v["clusters_over_tolerance"], 0);
+        let saving = 1.0 - chosen as f64 / k as f64;
+        eprintln!(
+            "{cloud}: fixed k = {k}, T = {t:.6}: tolerance map k = {chosen} ({:.0}% fewer)",
+            100.0 * saving
+        );
+        assert!(
+            saving >= 0.30,
+            "{cloud}: {chosen} ellipsoids is not 30% fewer than {k}"
+        );
+        // Recomputed from the written map and labels: every cluster at or under T (to f32
+        // storage of the entities, 1e-6 relative).
+        let map = HostMap::read(&dir.join("tolerant.mema")).expect("map");
+        let labels = std::fs::read_to_string(dir.join("labels.txt")).expect("labels");
+        let recomputed = errors_from_labels(cloud, &map, &labels);
+        for (i, (&e, &r)) in errors.iter().zip(recomputed.iter()).enumerate() {
+            assert!(
+                (e - r).abs() <= 1e-6 * e.max(1e-9),
+                "{cloud} cluster {i}: reported {e}, recomputed {r}"
+            );
+            assert!(
+                r <= t * (1.0 + 1e-6),
+                "{cloud} cluster {i}: {r} over T = {t}"
+            );
+        }
+    }
+}
