@@ -33,3 +33,25 @@ done
 echo "## mema query-bench"
 echo "### \$ mema query-bench"
 "$mema" query-bench
+
+echo "## mema map --tolerance (T = the fixed-k map's largest e_i)"
+for run in "car6.pcd 150" "bun_zipper.ply 350" "five_people.pcd 350" "cturtle.pcd 400"; do
+  set -- $run
+  t=$("$mema" map "$data/$1" -k "$2" -o "$tmp/f.mema" --json | python3 -c 'import json,sys; print(json.load(sys.stdin)["ellipsoidal"]["max"])')
+  for rounds in 0 4; do
+    echo "### \$ mema map $data/$1 --tolerance $t --voronoi-rounds $rounds -o t.mema"
+    /usr/bin/time -f "wall %e s" "$mema" map "$data/$1" --tolerance "$t" --voronoi-rounds "$rounds" -o "$tmp/t.mema" 2>&1
+    echo "### \$ mema eval $data/$1 t.mema --json"
+    "$mema" eval "$data/$1" "$tmp/t.mema" --json
+  done
+  echo "### \$ mema stream-bench $data/$1 -k 2048 --tolerance $t --repetitions 1"
+  "$mema" stream-bench "$data/$1" -k 2048 --tolerance "$t" --repetitions 1
+done
+
+echo "## mema query-bench on a real map"
+"$mema" map "$data/car6.pcd" -k 150 -o "$tmp/car.mema" > /dev/null
+echo "### \$ mema query-bench car6-k150.mema"
+"$mema" query-bench "$tmp/car.mema"
+"$mema" map "$data/five_people.pcd" -k 350 -o "$tmp/people.mema" > /dev/null
+echo "### \$ mema query-bench five_people-k350.mema"
+"$mema" query-bench "$tmp/people.mema"

@@ -231,13 +231,19 @@ fn moment_candidate(
 }
 
 /// A cheap estimate of a cluster's eq. 13 error from its moments alone, for decisions that
-/// cannot see the points (the streaming mapper's tolerance mode): the moment candidate's
+/// cannot see the points (the streaming mapper's tolerance mode): the least-squares fit's
 /// algebraic residual over the mean gradient norm, `sqrt(E[g^2] / sum_j w_j^2 E[d_j^2])`, which
 /// is the first-order distance to the surface (exact for points near a sphere).
 pub fn surface_error_estimate(moments: &CentralMoments, params: &FitParams) -> f64 {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
-    let r = moment_candidate(moments, &terms, &search);
+    // Closed forms only (it runs for every merge candidate): the least-squares ellipsoid, or
+    // the least-squares sphere `r^2 = E[|d|^4] / E[|d|^2]` where the 3x3 system is singular.
+    let r = least_squares_semi_axes(moments, search.lo, search.hi).unwrap_or_else(|| {
+        let first: f64 = moments.second.iter().sum();
+        let second: f64 = moments.fourth.iter().flatten().sum();
+        [libm::sqrt(second / first).clamp(search.lo, search.hi); 3]
+    });
     let w = r.map(|r| 1.0 / (r * r));
     let residual = terms.residual_rms(&w);
     let gradient: f64 = (0..3).map(|j| w[j] * w[j] * moments.second[j]).sum();

@@ -286,22 +286,19 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         let mut absorbed = [0usize; MAX_MERGE_BATCH];
         let mut count = 0;
         let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
-        let forced = if force
-            && !pairs
-                .as_slice()
-                .iter()
-                .any(|&(_, a, b)| self.within_tolerance(a, b))
-        {
+        // Each pair's tolerance check once (each costs a small solve).
+        let mut allowed = [false; MAX_MERGE_BATCH];
+        for (ok, &(_, a, b)) in allowed.iter_mut().zip(pairs.as_slice()) {
+            *ok = self.within_tolerance(a, b);
+        }
+        let forced = if force && !allowed.iter().any(|&ok| ok) {
             self.stats.forced_merges += u64::from(self.params.tolerance > 0.0);
             pairs.as_slice().first().map(|&(_, a, b)| (a, b))
         } else {
             None
         };
-        for &(_, a, b) in pairs.as_slice() {
-            if touched.contains(&a)
-                || touched.contains(&b)
-                || !(forced == Some((a, b)) || self.within_tolerance(a, b))
-            {
+        for (&(_, a, b), &ok) in pairs.as_slice().iter().zip(allowed.iter()) {
+            if touched.contains(&a) || touched.contains(&b) || !(ok || forced == Some((a, b))) {
                 continue;
             }
             let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
