@@ -158,13 +158,7 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
 /// Distance from `point` (f64, same frame as the map) to `entity`'s surface: eq. 13's `|d(x) - x|`.
 pub fn surface_distance(entity: &Entity, point: [f64; 3]) -> f64 {
     let c = entity.center.to_f64();
-    let semi_axes = entity.weights.map(|w| {
-        if w > 0.0 {
-            1.0 / libm::sqrt(w as f64)
-        } else {
-            f64::INFINITY
-        }
-    });
+    let semi_axes = entity.semi_axes_f64();
     distance_to_surface(
         semi_axes,
         [point[0] - c[0], point[1] - c[1], point[2] - c[2]],

@@ -180,6 +180,17 @@ impl Entity {
         })
     }
 
+    /// Semi-axes in f64, `f64::INFINITY` for a degenerated axis: what eq. 13 and the queries use.
+    pub fn semi_axes_f64(&self) -> [f64; 3] {
+        self.weights.map(|w| {
+            if w > 0.0 {
+                1.0 / libm::sqrt(w as f64)
+            } else {
+                f64::INFINITY
+            }
+        })
+    }
+
     /// Number of degenerated (infinite) semi-axes.
     pub fn degenerated_axes(&self) -> usize {
         self.weights.iter().filter(|&&w| w == 0.0).count()

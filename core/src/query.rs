@@ -30,13 +30,7 @@ impl Aabb {
     /// The box of an entity: centre +- semi-axis, infinite along a degenerated axis.
     pub fn of(e: &Entity) -> Self {
         let c = e.center.to_f64();
-        let r = e.weights.map(|w| {
-            if w > 0.0 {
-                1.0 / libm::sqrt(w as f64)
-            } else {
-                f64::INFINITY
-            }
-        });
+        let r = e.semi_axes_f64();
         Self {
             min: [c[0] - r[0], c[1] - r[1], c[2] - r[2]],
             max: [c[0] + r[0], c[1] + r[1], c[2] + r[2]],
