@@ -18,7 +18,7 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Map a point cloud (PLY, PCD, XYZ/CSV) with k ellipsoids and print Tables 2 and 4.
+    /// Map a point cloud (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI .bin) with k ellipsoids and print Tables 2 and 4.
     Map(MapArgs),
     /// Evaluate any map against any cloud: eq. 13 statistics and memory.
     Eval(EvalArgs),
@@ -46,6 +46,14 @@ pub enum Command {
     Transform(TransformArgs),
     /// Queries per second with the index vs a brute-force scan; the demo scan re-cast at its map.
     QueryBench(QueryBenchArgs),
+    /// Render a cloud and its map to PNG (headless): shaded entities by kind, legend, scale bar.
+    Draw(crate::toolbox::DrawArgs),
+    /// Tessellate a map's entities as a mesh: .ply, .obj or .glb (binary glTF).
+    Export(crate::toolbox::ExportArgs),
+    /// Print a shell completion script generated from these definitions.
+    Completions(crate::toolbox::CompletionsArgs),
+    /// Print the man page (roff) generated from these definitions.
+    Man,
 }
 
 #[derive(Args, Debug)]
@@ -283,6 +291,16 @@ pub struct MapArgs {
     pub entity: EntityChoice,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Keep only the points inside this box, in the file's coordinates (PCL's CropBox).
+    #[arg(
+        long,
+        value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+        allow_hyphen_values = true
+    )]
+    pub crop: Option<crate::filter::CropBox>,
+    /// Voxel-grid downsampling after the crop: one centroid per occupied cube of this edge.
+    #[arg(long, value_name = "SIZE")]
+    pub voxel: Option<f64>,
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     pub json: bool,

@@ -95,6 +95,8 @@ pub struct MapReport {
     pub entity: EntityChoice,
     pub dropped_non_finite: usize,
     pub output: String,
+    /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
+    pub filter: crate::filter::FilterCounts,
 }
 
 /// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map (and the
@@ -106,21 +108,23 @@ pub fn map_cloud(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
-    let clusters = pipeline::cluster(&cloud.points, config.k, &config.kmeans)?;
+    let clusters = crate::progress::stage("k-means", || {
+        pipeline::cluster(&cloud.points, config.k, &config.kmeans)
+    })?;
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
     }
-    let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
+    let fitted = crate::progress::stage("fitting", || {
+        pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
+    });
     let tolerance = config.fit.degeneration.sphere_tolerance;
     let ellipsoids = pipeline::to_map(cloud.origin, &fitted.ellipsoids, tolerance);
     let spheres = pipeline::to_map(cloud.origin, &fitted.spheres, tolerance);
     let errors = |map: &HostMap| {
         let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
-        ErrorStats::from_errors(&pipeline::cluster_errors(
-            &cloud.points,
-            &clusters.labels,
-            &entities,
-        ))
+        ErrorStats::from_errors(&crate::progress::stage("evaluating", || {
+            pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
+        }))
     };
     let chosen = match entity {
         EntityChoice::Ellipsoid => &ellipsoids,
@@ -137,6 +141,10 @@ pub fn map_cloud(
         entity,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
+        filter: crate::filter::FilterCounts {
+            read: cloud.points.len(),
+            ..Default::default()
+        },
     })
 }
 
@@ -201,9 +209,12 @@ pub fn map(args: &MapArgs) -> Result<()> {
         return map_to_tolerance(args, t);
     }
     let config = args.fit.config(args.k.unwrap_or(0))?;
+    let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
-    let cloud = load_cloud(&args.input)?;
-    let report = map_cloud(
+    let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
+    let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
+        .with_context(|| args.input.display().to_string())?;
+    let mut report = map_cloud(
         &cloud,
         &config,
         args.entity,
@@ -211,6 +222,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
         args.labels.as_deref(),
     )
     .with_context(|| args.input.display().to_string())?;
+    report.filter = filter;
     print_map_report(&report, args.json)
 }
 
@@ -284,12 +296,12 @@ pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
 }
 
 pub fn eval(args: &EvalArgs) -> Result<()> {
-    let cloud = load_cloud(&args.input)?;
+    let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let map = HostMap::read(&args.map)?;
     if map.entities.is_empty() {
         anyhow::bail!("{}: the map has no entities", args.map.display());
     }
-    let r = evaluate(&cloud, &map);
+    let r = crate::progress::stage("evaluating", || evaluate(&cloud, &map));
     if args.json {
         println!("{}", serde_json::to_string(&r)?);
     } else {
@@ -450,8 +462,10 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
         return Err(crate::cli::UsageError("--capacity must be at least 1".into()).into());
     }
     let config = args.fit.config(1)?;
+    let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
-    let cloud = load_cloud(&args.input)?;
+    let (cloud, _) = crate::filter::apply(load_cloud(&args.input)?, args.crop, voxel)
+        .with_context(|| args.input.display().to_string())?;
     let outcome = crate::tolerance::build(
         &cloud.points,
         tolerance,

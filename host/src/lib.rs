@@ -3,8 +3,12 @@
 pub mod ablation;
 pub mod cli;
 pub mod commands;
+pub mod draw;
+pub mod export;
+pub mod filter;
 pub mod mapfile;
 pub mod pipeline;
+pub mod progress;
 pub mod query;
 pub mod read;
 pub mod scene;
@@ -12,3 +16,4 @@ pub mod serial;
 pub mod stats;
 pub mod stream_bench;
 pub mod tolerance;
+pub mod toolbox;

@@ -23,6 +23,10 @@ fn main() -> ExitCode {
         Command::Query(a) => mema::query::query(a),
         Command::Transform(a) => mema::query::transform(a),
         Command::QueryBench(a) => mema::query::query_bench(a),
+        Command::Draw(a) => mema::toolbox::draw(a),
+        Command::Export(a) => mema::toolbox::export(a),
+        Command::Completions(a) => mema::toolbox::completions(a),
+        Command::Man => mema::toolbox::man(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,4 +1,5 @@
-//! Point-cloud readers: PLY, PCD and XYZ/CSV text, recognised by content.
+//! Point-cloud readers: PLY, PCD, LAS/LAZ, XYZ/CSV text and KITTI `.bin`, recognised by content
+//! (KITTI, having no header, by its extension).
 //!
 //! The contract every reader keeps:
 //! - the file is read once into memory and parsed from that slice;
@@ -10,9 +11,12 @@
 //!   because real captures (airborne lidar in UTM metres, say) sit far from zero and would lose
 //!   centimetres in f32.
 //!
-//! Format detection looks at the bytes first (`ply` magic line, a PCD header, then text with a
-//! line of at least three numbers); the file extension only sharpens the error message.
+//! Format detection looks at the bytes first (`ply` magic line, a PCD header, the `LASF`
+//! signature, then text with a line of at least three numbers); the file extension only sharpens
+//! the error message, except for headerless KITTI `.bin` scans, which it selects.
 
+mod kitti;
+mod las;
 mod lzf;
 mod pcd;
 mod ply;
@@ -48,6 +52,9 @@ pub enum Format {
     PcdBinary,
     PcdBinaryCompressed,
     Xyz,
+    Las,
+    Laz,
+    KittiBin,
 }
 
 impl fmt::Display for Format {
@@ -60,6 +67,9 @@ impl fmt::Display for Format {
             Format::PcdBinary => "PCD binary",
             Format::PcdBinaryCompressed => "PCD binary_compressed",
             Format::Xyz => "XYZ text",
+            Format::Las => "LAS",
+            Format::Laz => "LAZ",
+            Format::KittiBin => "KITTI bin",
         })
     }
 }
@@ -100,7 +110,7 @@ pub enum ReadError {
     /// The file has no bytes at all.
     #[error("{name}: empty file")]
     Empty { name: String },
-    /// The bytes are neither PLY, PCD nor XYZ/CSV text.
+    /// The bytes are none of the formats above.
     #[error("{name}: not a point cloud ({why})")]
     NotAPointCloud { name: String, why: String },
     /// The file ends before the header or the data it declares.
@@ -127,7 +137,7 @@ fn no_finite_points(slots: &usize) -> String {
     }
 }
 
-/// Reads a PLY, PCD or XYZ/CSV file.
+/// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
     let bytes = std::fs::read(path).map_err(|cause| ReadError::Io {
         path: path.to_owned(),
@@ -149,10 +159,16 @@ pub fn read_cloud_bytes(name: &str, bytes: &[u8]) -> Result<Cloud, ReadError> {
     if pcd::has_header(bytes) {
         return pcd::read(ctx, bytes);
     }
+    if las::has_signature(bytes) {
+        return las::read(ctx, bytes);
+    }
+    if kitti::is_named_bin(name) {
+        return kitti::read(ctx, bytes);
+    }
     if xyz::looks_like_text(bytes) {
         return xyz::read(ctx, bytes);
     }
-    Err(ctx.not_a_cloud("no PLY/PCD header, and not XYZ/CSV text"))
+    Err(ctx.not_a_cloud("no PLY/PCD/LAS header, and not XYZ/CSV text"))
 }
 
 /// The file name, carried by every reader to build its errors.
@@ -425,8 +441,8 @@ mod tests {
         expect_err("empty.ply", b"", "Empty");
         let mut rng = XorShift(7);
         let noise: Vec<u8> = (0..4096).map(|_| rng.next() as u8).collect();
-        let e = expect_err("x.bin", &noise, "NotAPointCloud");
-        let want = "x.bin: not a point cloud (no PLY/PCD header, and not XYZ/CSV text)";
+        let e = expect_err("x.dat", &noise, "NotAPointCloud");
+        let want = "x.dat: not a point cloud (no PLY/PCD/LAS header, and not XYZ/CSV text)";
         assert_eq!(e.to_string(), want);
         let e = expect_err("x.ply", &noise, "NotAPointCloud");
         assert!(e.to_string().contains("named .ply"), "{e}");

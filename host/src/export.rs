@@ -1,0 +1,480 @@
+//! `mema export`: a map's entities as triangle meshes (PLY, OBJ, binary glTF).
+//!
+//! Tessellation, with S = `segments` and R = `rings` (these counts are the documented contract
+//! that the tests check):
+//! - ellipsoid and sphere: a UV sphere with poles on z, `(R - 1) S + 2` vertices and
+//!   `2 S (R - 1)` triangles;
+//! - pseudocylinder: an elliptic tube along its infinite axis, capped, spanning the bounding
+//!   box along that axis: `2 S + 2` vertices, `4 S` triangles;
+//! - pair of planes: two rectangles at `c ± r` on the finite axis, spanning the bounding box
+//!   on the other two: 8 vertices, 4 triangles.
+//!
+//! Coordinates: PLY (`double`) and OBJ (text) hold world coordinates, so the mesh lands on the
+//! cloud it came from; glTF positions are f32 by the specification, so they are local to the
+//! map's origin and the one node carries the origin as its translation.
+
+use anyhow::{Context, Result};
+use mema_core::{EntityKind, MapEntity};
+use serde::Serialize;
+use std::path::Path;
+
+use crate::cli::UsageError;
+use crate::mapfile::HostMap;
+
+/// Colours by kind (Okabe-Ito, readable with colour-blindness), shared with `mema draw`.
+pub fn kind_colour(kind: EntityKind) -> [u8; 3] {
+    match kind {
+        EntityKind::Ellipsoid => [0, 114, 178],
+        EntityKind::Sphere => [230, 159, 0],
+        EntityKind::Pseudocylinder => [0, 158, 115],
+        EntityKind::PlanePair => [213, 94, 0],
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum MeshFormat {
+    Ply,
+    Obj,
+    Glb,
+}
+
+impl MeshFormat {
+    pub fn from_path(path: &Path) -> Result<Self, UsageError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("ply") => Ok(Self::Ply),
+            Some("obj") => Ok(Self::Obj),
+            Some("glb") => Ok(Self::Glb),
+            _ => Err(UsageError(format!(
+                "{}: unknown mesh extension; consider .ply, .obj or .glb",
+                path.display()
+            ))),
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Tessellation {
+    pub segments: u32,
+    pub rings: u32,
+}
+
+impl Tessellation {
+    pub fn checked(segments: u32, rings: u32) -> Result<Self, UsageError> {
+        if !(3..=1024).contains(&segments) || !(2..=512).contains(&rings) {
+            return Err(UsageError(format!(
+                "--segments {segments} --rings {rings}: need 3..=1024 segments and 2..=512 rings; consider the defaults, 24 and 12"
+            )));
+        }
+        Ok(Self { segments, rings })
+    }
+
+    /// (vertices, triangles) of one entity with `degenerated` infinite axes.
+    pub fn counts(&self, degenerated: usize) -> (usize, usize) {
+        let (s, r) = (self.segments as usize, self.rings as usize);
+        match degenerated {
+            0 => ((r - 1) * s + 2, 2 * s * (r - 1)),
+            1 => (2 * s + 2, 4 * s),
+            _ => (8, 4),
+        }
+    }
+}
+
+/// An axis-aligned box in world coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Bounds {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+impl Bounds {
+    /// The world box of the map itself: each entity's centre ± its finite semi-axes, grown on
+    /// each side to at least the largest finite semi-axis so a lone degenerated entity still
+    /// gets a visible length.
+    pub fn of_map(map: &HostMap) -> Self {
+        let mut b = Bounds {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        let mut largest = 0.0f64;
+        for e in &map.entities {
+            let c = map.world_center(&e.entity);
+            let r = e.entity.semi_axes();
+            for j in 0..3 {
+                let r = if r[j].is_finite() {
+                    f64::from(r[j])
+                } else {
+                    0.0
+                };
+                largest = largest.max(r);
+                b.min[j] = b.min[j].min(c[j] - r);
+                b.max[j] = b.max[j].max(c[j] + r);
+            }
+        }
+        for j in 0..3 {
+            let grow = (largest - (b.max[j] - b.min[j])).max(0.0) / 2.0;
+            b.min[j] -= grow;
+            b.max[j] += grow;
+        }
+        b
+    }
+
+    /// The world box of a cloud's points.
+    pub fn of_points(origin: [f64; 3], points: &[mema_core::Point3]) -> Self {
+        let mut b = Bounds {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        for p in points {
+            let q = p.to_f64();
+            for j in 0..3 {
+                b.min[j] = b.min[j].min(origin[j] + q[j]);
+                b.max[j] = b.max[j].max(origin[j] + q[j]);
+            }
+        }
+        b
+    }
+}
+
+/// Triangles of one kind, in world coordinates.
+#[derive(Default)]
+pub struct Mesh {
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    fn add(&mut self, vertices: Vec<[f64; 3]>, triangles: impl IntoIterator<Item = [u32; 3]>) {
+        let base = self.positions.len() as u32;
+        self.positions.extend(vertices);
+        self.triangles
+            .extend(triangles.into_iter().map(|t| t.map(|i| base + i)));
+    }
+}
+
+/// The map as one mesh per kind present, in `EntityKind::ALL` order.
+pub fn tessellate(map: &HostMap, bounds: &Bounds, t: &Tessellation) -> Vec<(EntityKind, Mesh)> {
+    let mut meshes: Vec<(EntityKind, Mesh)> = Vec::new();
+    for kind in EntityKind::ALL {
+        let mut mesh = Mesh::default();
+        for e in map.entities.iter().filter(|e| e.kind == kind) {
+            entity_mesh(&mut mesh, map, e, bounds, t);
+        }
+        if !mesh.triangles.is_empty() {
+            meshes.push((kind, mesh));
+        }
+    }
+    meshes
+}
+
+fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Tessellation) {
+    let c = map.world_center(&e.entity);
+    let r = e.entity.semi_axes().map(f64::from);
+    let (s, rings) = (t.segments, t.rings);
+    let angle = |i: u32| std::f64::consts::TAU * f64::from(i) / f64::from(s);
+    let finite: Vec<usize> = (0..3).filter(|&j| r[j].is_finite()).collect();
+    match finite[..] {
+        [_, _, _] => {
+            let mut v = vec![[c[0], c[1], c[2] + r[2]]];
+            for ring in 1..rings {
+                let theta = std::f64::consts::PI * f64::from(ring) / f64::from(rings);
+                for i in 0..s {
+                    let (st, ct, phi) = (theta.sin(), theta.cos(), angle(i));
+                    v.push([
+                        c[0] + r[0] * st * phi.cos(),
+                        c[1] + r[1] * st * phi.sin(),
+                        c[2] + r[2] * ct,
+                    ]);
+                }
+            }
+            v.push([c[0], c[1], c[2] - r[2]]);
+            let south = 1 + (rings - 1) * s;
+            let at = |ring: u32, i: u32| 1 + (ring - 1) * s + i % s;
+            let mut tri = Vec::new();
+            for i in 0..s {
+                tri.push([0, at(1, i), at(1, i + 1)]);
+                tri.push([south, at(rings - 1, i + 1), at(rings - 1, i)]);
+            }
+            for ring in 1..rings - 1 {
+                for i in 0..s {
+                    let (a, b2, c2, d) = (
+                        at(ring, i),
+                        at(ring + 1, i),
+                        at(ring + 1, i + 1),
+                        at(ring, i + 1),
+                    );
+                    tri.push([a, b2, c2]);
+                    tri.push([a, c2, d]);
+                }
+            }
+            mesh.add(v, tri);
+        }
+        [j, k] => {
+            let a = 3 - j - k;
+            let mut v = Vec::with_capacity(2 * s as usize + 2);
+            for end in [b.min[a], b.max[a]] {
+                for i in 0..s {
+                    let mut p = [0.0; 3];
+                    p[a] = end;
+                    p[j] = c[j] + r[j] * angle(i).cos();
+                    p[k] = c[k] + r[k] * angle(i).sin();
+                    v.push(p);
+                }
+            }
+            for end in [b.min[a], b.max[a]] {
+                let mut p = c;
+                p[a] = end;
+                v.push(p);
+            }
+            let (cap0, cap1) = (2 * s, 2 * s + 1);
+            let mut tri = Vec::new();
+            for i in 0..s {
+                let n = (i + 1) % s;
+                tri.push([i, n, s + n]);
+                tri.push([i, s + n, s + i]);
+                tri.push([cap0, n, i]);
+                tri.push([cap1, s + i, s + n]);
+            }
+            mesh.add(v, tri);
+        }
+        [n] => {
+            let (u, w) = ((n + 1) % 3, (n + 2) % 3);
+            let mut v = Vec::with_capacity(8);
+            for side in [-1.0, 1.0] {
+                for (du, dw) in [
+                    (b.min[u], b.min[w]),
+                    (b.max[u], b.min[w]),
+                    (b.max[u], b.max[w]),
+                    (b.min[u], b.max[w]),
+                ] {
+                    let mut p = [0.0; 3];
+                    p[n] = c[n] + side * r[n];
+                    p[u] = du;
+                    p[w] = dw;
+                    v.push(p);
+                }
+            }
+            mesh.add(v, [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]);
+        }
+        // `Entity` keeps at least one finite axis; a map read from elsewhere without one has
+        // no surface to draw.
+        _ => {}
+    }
+}
+
+/// Binary little-endian PLY: `double x y z` and `uchar red green blue` per vertex (the kind's
+/// colour), `list uchar int vertex_indices` per face.
+pub fn to_ply(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Vec<u8> {
+    let vertices: usize = meshes.iter().map(|(_, m)| m.positions.len()).sum();
+    let faces: usize = meshes.iter().map(|(_, m)| m.triangles.len()).sum();
+    let o = map.origin;
+    let mut out = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment mema map, {} entities; map origin {} {} {}\n\
+         element vertex {vertices}\nproperty double x\nproperty double y\nproperty double z\n\
+         property uchar red\nproperty uchar green\nproperty uchar blue\n\
+         element face {faces}\nproperty list uchar int vertex_indices\nend_header\n",
+        map.entities.len(),
+        o[0],
+        o[1],
+        o[2]
+    )
+    .into_bytes();
+    for (kind, m) in meshes {
+        for p in &m.positions {
+            p.iter()
+                .for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
+            out.extend_from_slice(&kind_colour(*kind));
+        }
+    }
+    let mut base = 0u32;
+    for (_, m) in meshes {
+        for t in &m.triangles {
+            out.push(3);
+            t.iter()
+                .for_each(|i| out.extend_from_slice(&(base + i).to_le_bytes()));
+        }
+        base += m.positions.len() as u32;
+    }
+    out
+}
+
+/// Wavefront OBJ with one group per kind and the kind's colour after each vertex (the
+/// extension MeshLab, CloudCompare and Blender read).
+pub fn to_obj(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Vec<u8> {
+    use std::fmt::Write;
+    let o = map.origin;
+    let mut s = format!(
+        "# mema map, {} entities; map origin {} {} {}\n",
+        map.entities.len(),
+        o[0],
+        o[1],
+        o[2]
+    );
+    let mut base = 1u32;
+    for (kind, m) in meshes {
+        let [r, g, b] = kind_colour(*kind).map(|c| f64::from(c) / 255.0);
+        let _ = writeln!(s, "g {}", kind.name());
+        for p in &m.positions {
+            let _ = writeln!(s, "v {} {} {} {r:.4} {g:.4} {b:.4}", p[0], p[1], p[2]);
+        }
+        for t in &m.triangles {
+            let _ = writeln!(s, "f {} {} {}", base + t[0], base + t[1], base + t[2]);
+        }
+        base += m.positions.len() as u32;
+    }
+    s.into_bytes()
+}
+
+/// Binary glTF 2.0: one node translated to the map's origin, one mesh with a primitive and a
+/// material per kind, f32 positions relative to the origin and u32 indices.
+pub fn to_glb(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Result<Vec<u8>> {
+    use serde_json::json;
+    let mut bin: Vec<u8> = Vec::new();
+    let (mut views, mut accessors, mut primitives, mut materials) =
+        (vec![], vec![], vec![], vec![]);
+    for (kind, m) in meshes {
+        let local: Vec<[f32; 3]> = m
+            .positions
+            .iter()
+            .map(|p| [0, 1, 2].map(|j| (p[j] - map.origin[j]) as f32))
+            .collect();
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        let start = bin.len();
+        for p in &local {
+            for j in 0..3 {
+                lo[j] = lo[j].min(p[j]);
+                hi[j] = hi[j].max(p[j]);
+                bin.extend_from_slice(&p[j].to_le_bytes());
+            }
+        }
+        views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start, "target": 34962}));
+        accessors.push(
+            json!({"bufferView": views.len() - 1, "componentType": 5126, "count": local.len(),
+            "type": "VEC3", "min": lo, "max": hi}),
+        );
+        let start = bin.len();
+        for i in m.triangles.iter().flatten() {
+            bin.extend_from_slice(&i.to_le_bytes());
+        }
+        views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start, "target": 34963}));
+        accessors.push(json!({"bufferView": views.len() - 1, "componentType": 5125,
+            "count": 3 * m.triangles.len(), "type": "SCALAR"}));
+        let [r, g, b] = kind_colour(*kind).map(|c| f64::from(c) / 255.0);
+        materials.push(json!({"name": kind.name(),
+            "pbrMetallicRoughness": {"baseColorFactor": [r, g, b, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.8}}));
+        primitives.push(
+            json!({"attributes": {"POSITION": accessors.len() - 2}, "indices": accessors.len() - 1,
+            "material": materials.len() - 1, "mode": 4}),
+        );
+    }
+    let doc = json!({
+        "asset": {"version": "2.0", "generator": concat!("mema ", env!("CARGO_PKG_VERSION"))},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"name": "mema map", "mesh": 0, "translation": map.origin,
+            "extras": {"mema_origin": map.origin, "entities": map.entities.len()}}],
+        "meshes": [{"name": "entities", "primitives": primitives}],
+        "materials": materials,
+        "accessors": accessors,
+        "bufferViews": views,
+        "buffers": [{"byteLength": bin.len()}],
+    });
+    let mut json_chunk = serde_json::to_vec(&doc)?;
+    while !json_chunk.len().is_multiple_of(4) {
+        json_chunk.push(b' ');
+    }
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    let total = 12 + 8 + json_chunk.len() + 8 + bin.len();
+    let total = u32::try_from(total).context("the mesh exceeds glTF's 4 GiB limit")?;
+    let mut out = Vec::with_capacity(total as usize);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total.to_le_bytes());
+    for (kind, chunk) in [(*b"JSON", &json_chunk), (*b"BIN\0", &bin)] {
+        out.extend_from_slice(&(chunk.len() as u32).to_le_bytes());
+        out.extend_from_slice(&kind);
+        out.extend_from_slice(chunk);
+    }
+    Ok(out)
+}
+
+/// Per-kind figures of `mema export --json`.
+#[derive(Serialize, Default)]
+pub struct KindMesh {
+    pub entities: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+}
+
+/// `mema export --json`: `output`, `format`, `entities`, `vertices`, `triangles`, `bounds`
+/// (`min`, `max`, `source`: "cloud" or "map") and `kinds` (per kind: entities, vertices,
+/// triangles).
+#[derive(Serialize)]
+pub struct ExportReport {
+    pub output: String,
+    pub format: MeshFormat,
+    pub entities: usize,
+    pub vertices: usize,
+    pub triangles: usize,
+    pub bounds: Bounds,
+    pub bounds_source: &'static str,
+    pub kinds: std::collections::BTreeMap<&'static str, KindMesh>,
+}
+
+/// Tessellates `map` and writes it to `output` in the format of its extension, atomically.
+pub fn export(
+    map: &HostMap,
+    bounds: Bounds,
+    bounds_source: &'static str,
+    t: &Tessellation,
+    output: &Path,
+) -> Result<ExportReport> {
+    let format = MeshFormat::from_path(output)?;
+    let (vertices, _) = map.entities.iter().fold((0usize, 0usize), |(v, f), e| {
+        let (dv, df) = t.counts(e.entity.degenerated_axes());
+        (v + dv, f + df)
+    });
+    if vertices > u32::MAX as usize / 2 {
+        return Err(UsageError(format!(
+            "{vertices} vertices exceed 32-bit indices; consider fewer --segments or --rings"
+        ))
+        .into());
+    }
+    let meshes = tessellate(map, &bounds, t);
+    let bytes = match format {
+        MeshFormat::Ply => to_ply(map, &meshes),
+        MeshFormat::Obj => to_obj(map, &meshes),
+        MeshFormat::Glb => to_glb(map, &meshes)?,
+    };
+    crate::mapfile::write_atomically(output, &bytes)?;
+    let mut kinds = std::collections::BTreeMap::new();
+    for kind in EntityKind::ALL {
+        let entities = map.entities.iter().filter(|e| e.kind == kind).count();
+        let mesh = meshes.iter().find(|(k, _)| *k == kind).map(|(_, m)| m);
+        kinds.insert(
+            kind.name(),
+            KindMesh {
+                entities,
+                vertices: mesh.map_or(0, |m| m.positions.len()),
+                triangles: mesh.map_or(0, |m| m.triangles.len()),
+            },
+        );
+    }
+    Ok(ExportReport {
+        output: output.display().to_string(),
+        format,
+        entities: map.entities.len(),
+        vertices: meshes.iter().map(|(_, m)| m.positions.len()).sum(),
+        triangles: meshes.iter().map(|(_, m)| m.triangles.len()).sum(),
+        bounds,
+        bounds_source,
+        kinds,
+    })
+}

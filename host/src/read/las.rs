@@ -1,0 +1,200 @@
+//! LAS 1.0-1.4 and LAZ through the `las` crate (with its `laz` feature).
+//!
+//! LAS stores coordinates as i32 counts of the header's scale plus its offset; `las` applies
+//! that transform in f64, and the points stay f64 until `Points::finish` moves them to the
+//! bounding-box centre, so a UTM easting keeps its millimetres.
+//!
+//! Points are pulled in fixed batches rather than with `read_all`: `read_all` sizes its buffer
+//! from the header's point count, which a corrupt header could set to 2^64.
+
+use std::io::Cursor;
+
+use super::{At, Cloud, Ctx, Format, Points, ReadError};
+
+/// Points per batch: 64k records of at most a few dozen bytes each.
+const BATCH: u64 = 1 << 16;
+
+/// Every LAS and LAZ file starts with this signature.
+pub fn has_signature(bytes: &[u8]) -> bool {
+    bytes.starts_with(b"LASF")
+}
+
+pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
+    // `las` wants an owned, seekable source; one copy of the file is cheap next to decoding it.
+    let mut reader =
+        las::Reader::new(Cursor::new(bytes.to_vec())).map_err(|e| header_error(ctx, e))?;
+    let header = reader.header();
+    let declared = header.number_of_points();
+    let compressed = header.point_format().is_compressed;
+    let format = if compressed { Format::Laz } else { Format::Las };
+    let record_len = u64::from(header.point_format().len());
+    if !compressed {
+        // Uncompressed records can be counted before any is read.
+        let room = (bytes.len() as u64).saturating_sub(u64::from(header_offset(bytes)));
+        if declared.saturating_mul(record_len.max(1)) > room {
+            return Err(ctx.truncated(format!(
+                "the header declares {declared} points of {record_len} bytes, the file holds {}",
+                room / record_len.max(1)
+            )));
+        }
+    }
+    let capacity = usize::try_from(declared.min(bytes.len() as u64)).unwrap_or(0);
+    let mut points = Points::with_capacity(capacity);
+    let mut batch = las::PointDataBuilder::new()
+        .for_header(reader.header())
+        .build();
+    let mut read = 0u64;
+    while read < declared {
+        let want = BATCH.min(declared - read);
+        let got = reader
+            .fill_points(want, &mut batch)
+            .map_err(|e| data_error(ctx, read, e))?;
+        for ((x, y), z) in batch.x().zip(batch.y()).zip(batch.z()) {
+            points.push([x, y, z]);
+        }
+        read += got;
+        if got < want {
+            return Err(ctx.truncated(format!(
+                "the header declares {declared} points, the data ends after {read}"
+            )));
+        }
+    }
+    points.finish(ctx, format)
+}
+
+/// The header's offset to point data (bytes 96..100 in every LAS version).
+fn header_offset(bytes: &[u8]) -> u32 {
+    bytes
+        .get(96..100)
+        .and_then(|b| b.try_into().ok())
+        .map_or(0, u32::from_le_bytes)
+}
+
+fn header_error(ctx: Ctx, e: las::Error) -> ReadError {
+    match e {
+        las::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            ctx.truncated("the file ends inside the LAS header or its VLRs")
+        }
+        other => ctx.bad_header(At::Header, one_line(&other)),
+    }
+}
+
+fn data_error(ctx: Ctx, point: u64, e: las::Error) -> ReadError {
+    match e {
+        las::Error::Io(io) if io.kind() == std::io::ErrorKind::UnexpectedEof => {
+            ctx.truncated(format!("the point data ends after about {point} points"))
+        }
+        other => ctx.bad_value(At::Header, format!("point {point}: {}", one_line(&other))),
+    }
+}
+
+/// `las` and `laz` errors sometimes span lines; a mema error never does.
+fn one_line(e: &dyn std::error::Error) -> String {
+    e.to_string()
+        .split_whitespace()
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::read_cloud_bytes;
+    use super::super::testkit::{XorShift, shared};
+    use super::*;
+
+    fn u32_at(b: &[u8], at: usize) -> u32 {
+        u32::from_le_bytes(b[at..at + 4].try_into().unwrap())
+    }
+
+    fn f64_at(b: &[u8], at: usize) -> f64 {
+        f64::from_le_bytes(b[at..at + 8].try_into().unwrap())
+    }
+
+    /// The point count as the LAS specification lays the header out: the legacy u32 at 107, or
+    /// the u64 at 247 from version 1.4 on.
+    fn declared(b: &[u8]) -> u64 {
+        let legacy = u64::from(u32_at(b, 107));
+        if b[25] >= 4 && legacy == 0 {
+            u64::from_le_bytes(b[247..255].try_into().unwrap())
+        } else {
+            legacy
+        }
+    }
+
+    #[test]
+    fn shared_files_read_with_their_header_counts() {
+        for (name, format) in [
+            ("simple.las", Format::Las),
+            ("vegetation_1_3.las", Format::Las),
+            ("autzen_trim.laz", Format::Laz),
+        ] {
+            let bytes = shared(name);
+            let cloud = read_cloud_bytes(name, &bytes).unwrap();
+            assert_eq!(cloud.format, format, "{name}");
+            assert_eq!(cloud.slots as u64, declared(&bytes), "{name}");
+            assert_eq!(cloud.points.len(), cloud.slots, "{name}");
+        }
+    }
+
+    /// Each point against the raw i32 record scaled by hand: within half the file's scale (the
+    /// f32 local coordinate's own rounding is far below it at these extents).
+    #[test]
+    fn coordinates_round_trip_within_the_scale() {
+        for name in ["simple.las", "vegetation_1_3.las"] {
+            let b = shared(name);
+            let data_at = u32_at(&b, 96) as usize;
+            let record = usize::from(u16::from_le_bytes([b[105], b[106]]));
+            let scale = [131, 139, 147].map(|at| f64_at(&b, at));
+            let offset = [155, 163, 171].map(|at| f64_at(&b, at));
+            let cloud = read_cloud_bytes(name, &b).unwrap();
+            let records = b[data_at..].chunks_exact(record);
+            for (i, (r, p)) in records.zip(&cloud.points).enumerate() {
+                for j in 0..3 {
+                    let raw = i32::from_le_bytes(r[4 * j..4 * j + 4].try_into().unwrap());
+                    let want = f64::from(raw) * scale[j] + offset[j];
+                    let got = cloud.origin[j] + f64::from(p[j]);
+                    let err = (got - want).abs();
+                    assert!(
+                        err <= scale[j] / 2.0,
+                        "{name} point {i} axis {j}: {got} vs {want}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn cut_and_mutated_files_are_one_line_errors() {
+        let seeds = ["simple.las", "vegetation_1_3.las", "autzen_trim.laz"].map(shared);
+        for (bytes, cut) in seeds
+            .iter()
+            .flat_map(|b| [10, 200, 400, b.len() - 7].map(|c| (b, c)))
+        {
+            let e = read_cloud_bytes("cut.las", &bytes[..cut]).unwrap_err();
+            let msg = e.to_string();
+            assert!(msg.starts_with("cut.las: ") && !msg.contains('\n'), "{msg}");
+        }
+        let mut rng = XorShift(0x1a5);
+        for case in 0..300 {
+            let seed = &seeds[rng.below(seeds.len())];
+            let mut bytes = seed[..seed.len().min(40_000)].to_vec();
+            for _ in 0..1 + rng.below(4) {
+                let at = 4 + rng.below(bytes.len() - 4);
+                bytes[at] = rng.next() as u8;
+            }
+            let result = std::panic::catch_unwind(|| read_cloud_bytes("m.las", &bytes));
+            match result.unwrap_or_else(|_| panic!("case {case} panicked")) {
+                Ok(cloud) => assert!(cloud.points.iter().flatten().all(|c| c.is_finite())),
+                Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
+            }
+        }
+    }
+
+    #[test]
+    fn a_header_claiming_more_points_than_the_file_holds() {
+        let mut b = shared("simple.las");
+        b[107..111].copy_from_slice(&u32::MAX.to_le_bytes());
+        let e = read_cloud_bytes("big.las", &b).unwrap_err();
+        assert!(matches!(e, ReadError::Truncated { .. }), "{e:?}");
+    }
+}
