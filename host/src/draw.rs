@@ -213,15 +213,12 @@ impl Raster {
     }
 }
 
-/// Where a ray `p + t forward` is inside an entity (clipped to `clip` if degenerated): the entry
-/// depth and the surface normal there, or `None`.
-fn hit(
-    p: [f64; 3],
-    f: [f64; 3],
-    c: [f64; 3],
-    w: [f64; 3],
-    clip: &([f64; 3], [f64; 3]),
-) -> Option<(f64, [f64; 3])> {
+/// A box [min, max]; an entity is cut by it only along its infinite axes.
+pub type Clip = ([f64; 3], [f64; 3]);
+
+/// Where a ray `p + t forward` is inside an entity (its infinite axes cut by `clip`): the
+/// entry depth and the surface normal there, or `None`.
+fn hit(p: [f64; 3], f: [f64; 3], c: [f64; 3], w: [f64; 3], clip: &Clip) -> Option<(f64, [f64; 3])> {
     let o = [0, 1, 2].map(|j| p[j] - c[j]);
     let a: f64 = (0..3).map(|j| w[j] * f[j] * f[j]).sum();
     let b: f64 = (0..3).map(|j| w[j] * o[j] * f[j]).sum();
@@ -240,8 +237,8 @@ fn hit(
     };
     let quadric_entry = t0;
     let mut face = None;
-    if w.contains(&0.0) {
-        for j in 0..3 {
+    for j in 0..3 {
+        if w[j] == 0.0 {
             let (lo, hi) = (clip.0[j], clip.1[j]);
             if f[j].abs() < 1e-12 {
                 if p[j] < lo || p[j] > hi {
@@ -274,13 +271,13 @@ fn hit(
     Some((t0, normal))
 }
 
-/// Renders `map`'s entities (shaded, depth-tested) into `plot` of `raster`. `shift` takes the
-/// map's local frame to the panel frame's origin.
+/// Renders `map`'s entities into `plot` of `raster`; `clips[i]` bounds entity i's infinite
+/// axes (local to the frame's origin).
 pub fn draw_entities(
     raster: &mut Raster,
     frame: &Frame,
     map: &HostMap,
-    clip: &([f64; 3], [f64; 3]),
+    clips: &[Clip],
     plot: [u32; 4],
     style: Style,
 ) {
@@ -292,7 +289,7 @@ pub fn draw_entities(
         l.map(|v| v / n)
     };
     let [px, py, pw, ph] = plot.map(i64::from);
-    for e in &map.entities {
+    for (e, clip) in map.entities.iter().zip(clips) {
         let c = [0, 1, 2].map(|j| f64::from(e.entity.center.to_array()[j]) + shift[j]);
         let w = e.entity.weights.map(f64::from);
         let r = e.entity.semi_axes().map(f64::from);
@@ -460,8 +457,8 @@ pub fn draw_scale_bar(
 /// What one panel shows, apart from its map.
 pub struct PanelScene<'a> {
     pub frame: Frame,
-    /// The cloud's box, local to the frame's origin: degenerated entities end there.
-    pub clip: ([f64; 3], [f64; 3]),
+    /// Per entity: where its infinite axes end, local to the frame's origin.
+    pub clips: Vec<Clip>,
     pub plot: [u32; 4],
     pub style: Style,
     pub points: &'a [[f64; 3]],
@@ -473,12 +470,12 @@ pub fn draw_panel(raster: &mut Raster, scene: &PanelScene, map: &HostMap) {
     let s = scene;
     match s.style {
         Style::Shaded => {
-            draw_entities(raster, &s.frame, map, &s.clip, s.plot, Style::Shaded);
+            draw_entities(raster, &s.frame, map, &s.clips, s.plot, Style::Shaded);
             draw_points(raster, &s.frame, s.points, s.point_size, true);
         }
         Style::Outline => {
             draw_points(raster, &s.frame, s.points, s.point_size, false);
-            draw_entities(raster, &s.frame, map, &s.clip, s.plot, Style::Outline);
+            draw_entities(raster, &s.frame, map, &s.clips, s.plot, Style::Outline);
         }
     }
 }

@@ -194,10 +194,6 @@ pub fn render(
         .into());
     }
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| p.to_f64()).collect();
-    let clip = {
-        let b = Bounds::of_points([0.0; 3], &cloud.points);
-        (b.min, b.max)
-    };
     let point_size = if points.len() as u64 * 64 < u64::from(plot_w) * u64::from(plot_h) {
         2
     } else {
@@ -211,7 +207,7 @@ pub fn render(
         let frame = Frame::fit(cloud.origin, view.camera(), &points, plot);
         let scene = draw::PanelScene {
             frame,
-            clip,
+            clips: cluster_boxes(cloud, map),
             plot,
             style,
             points: &points,
@@ -274,6 +270,40 @@ pub fn render(
         panels,
     };
     Ok((raster, report))
+}
+
+/// Per entity, the box of the points nearest its centre (as `mema eval` assigns them), local
+/// to the cloud's origin: a degenerated entity is drawn over its own cluster's extent, not
+/// across the whole cloud. An entity no point is nearest to gets the cloud's box.
+pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
+    let shift = [0, 1, 2].map(|j| cloud.origin[j] - map.origin[j]);
+    let in_map: Vec<mema_core::Point3> = cloud
+        .points
+        .iter()
+        .map(|p| {
+            let q = p.to_f64();
+            let [x, y, z] = [0, 1, 2].map(|j| (q[j] + shift[j]) as f32);
+            mema_core::Point3::new(x, y, z)
+        })
+        .collect();
+    let centres: Vec<_> = map.entities.iter().map(|e| e.entity.center).collect();
+    let labels = crate::pipeline::nearest_centre_labels(&in_map, &centres);
+    let all = Bounds::of_points([0.0; 3], &cloud.points);
+    let mut boxes = vec![([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); centres.len()];
+    for (p, &l) in cloud.points.iter().zip(&labels) {
+        if let Some(b) = boxes.get_mut(l as usize) {
+            let q = p.to_f64();
+            for j in 0..3 {
+                b.0[j] = b.0[j].min(q[j]);
+                b.1[j] = b.1[j].max(q[j]);
+            }
+        }
+    }
+    let empty = |b: &draw::Clip| b.0[0] > b.1[0];
+    boxes
+        .into_iter()
+        .map(|b| if empty(&b) { (all.min, all.max) } else { b })
+        .collect()
 }
 
 pub fn draw(args: &DrawArgs) -> Result<()> {
