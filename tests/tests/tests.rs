@@ -11,6 +11,8 @@ mod closest_point;
 mod cli;
 // Fault injection on the wire: corrupted frames refused, clean frames used once.
 mod faults;
+// LAS/LAZ against their raw integer records, KITTI scans, --crop and --voxel.
+mod lidar;
 // The no_std, no-panic contract of core, checked on its source.
 mod core_contract;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
@@ -23,3 +25,6 @@ mod queries;
 mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
+// draw (pixels against projections computed here), export (re-read by gltf and ply-rs-bw),
+// completions and man.
+mod toolbox;
