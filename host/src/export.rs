@@ -478,3 +478,79 @@ pub fn export(
         kinds,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mema_core::{Entity, Point3};
+
+    fn entity(r: [f64; 3], kind: EntityKind) -> MapEntity {
+        let weights = r.map(|r| {
+            if r.is_finite() {
+                (1.0 / (r * r)) as f32
+            } else {
+                0.0
+            }
+        });
+        let entity = Entity {
+            center: Point3::new(0.5, -0.25, 1.0),
+            weights,
+        };
+        MapEntity { entity, kind }
+    }
+
+    /// Every entity's mesh is closed and consistently wound (each directed edge once, its
+    /// reverse once) except the two open rectangles of a plane pair, with the documented counts.
+    #[test]
+    fn meshes_are_closed_and_counted_as_documented() {
+        let inf = f64::INFINITY;
+        let cases = [
+            entity([0.3, 0.2, 0.1], EntityKind::Ellipsoid),
+            entity([inf, 0.2, 0.1], EntityKind::Pseudocylinder),
+            entity([0.3, inf, inf], EntityKind::PlanePair),
+        ];
+        let t = Tessellation::checked(7, 5).unwrap();
+        for e in cases {
+            let map = HostMap {
+                origin: [10.0, 20.0, 30.0],
+                entities: vec![e],
+            };
+            let bounds = Bounds::of_map(&map);
+            let meshes = tessellate(&map, &bounds, &t);
+            let (_, mesh) = &meshes[0];
+            let d = e.entity.degenerated_axes();
+            assert_eq!(
+                (mesh.positions.len(), mesh.triangles.len()),
+                t.counts(d),
+                "{e:?}"
+            );
+            let mut edges = std::collections::HashMap::new();
+            for tri in &mesh.triangles {
+                for k in 0..3 {
+                    *edges.entry((tri[k], tri[(k + 1) % 3])).or_insert(0) += 1;
+                }
+            }
+            let closed = edges
+                .iter()
+                .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1));
+            assert_eq!(closed, d < 2, "{e:?}");
+            // Outward winding: the signed volume is positive for the closed solids.
+            let volume: f64 = mesh
+                .triangles
+                .iter()
+                .map(|t| {
+                    let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                    let cross = [
+                        b[1] * c[2] - b[2] * c[1],
+                        b[2] * c[0] - b[0] * c[2],
+                        b[0] * c[1] - b[1] * c[0],
+                    ];
+                    (a[0] * cross[0] + a[1] * cross[1] + a[2] * cross[2]) / 6.0
+                })
+                .sum();
+            if d < 2 {
+                assert!(volume > 0.0, "{e:?}: {volume}");
+            }
+        }
+    }
+}

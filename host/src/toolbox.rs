@@ -292,10 +292,9 @@ pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
     let mut boxes = vec![([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); centres.len()];
     for (p, &l) in cloud.points.iter().zip(&labels) {
         if let Some(b) = boxes.get_mut(l as usize) {
-            let q = p.to_f64();
-            for j in 0..3 {
-                b.0[j] = b.0[j].min(q[j]);
-                b.1[j] = b.1[j].max(q[j]);
+            for (j, q) in p.to_f64().into_iter().enumerate() {
+                b.0[j] = b.0[j].min(q);
+                b.1[j] = b.1[j].max(q);
             }
         }
     }

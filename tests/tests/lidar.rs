@@ -167,7 +167,7 @@ fn crop_and_voxel_counts_match_an_independent_computation() {
         .copied()
         .filter(|p| (0..3).all(|j| min[j] <= p[j] && p[j] <= max[j]))
         .collect();
-    let size = 0.7071 * (hi[0] - lo[0]) / 50.0;
+    let size = 0.7013 * (hi[0] - lo[0]) / 50.0;
     let voxels: std::collections::HashSet<[i64; 3]> = inside
         .iter()
         .map(|p| p.map(|c| (c / size).floor() as i64))

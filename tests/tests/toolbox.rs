@@ -43,8 +43,11 @@ fn map_cloud(dir: &Dir, cloud: &str, k: &str, out: &str, extra: &[&str]) {
 /// the closed form of an axis-aligned quadric; `None` for the kind when it is too close to an
 /// edge (of a silhouette or a clip box) or a tie to call.
 struct TopView {
-    entities: Vec<([f64; 3], [f64; 3], EntityKind, ([f64; 3], [f64; 3]))>,
+    /// Centre, weights, kind, and the box cutting the infinite axes.
+    entities: Vec<([f64; 3], [f64; 3], EntityKind, Box3)>,
 }
+
+type Box3 = ([f64; 3], [f64; 3]);
 
 impl TopView {
     fn top(&self, x: f64, y: f64) -> Vec<(f64, EntityKind)> {
@@ -147,9 +150,9 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
         let d = |c: &[f64; 3]| (0..3).map(|j| (p[j] - c[j]).powi(2)).sum::<f64>();
         let nearest = (0..centres.len()).min_by(|&a, &b| d(&centres[a]).total_cmp(&d(&centres[b])));
         let b = &mut boxes[nearest.unwrap()];
-        for j in 0..3 {
-            b.0[j] = b.0[j].min(p[j]);
-            b.1[j] = b.1[j].max(p[j]);
+        for (j, &c) in p.iter().enumerate() {
+            b.0[j] = b.0[j].min(c);
+            b.1[j] = b.1[j].max(c);
         }
     }
     let view = TopView {
