@@ -76,7 +76,14 @@ impl TopView {
 #[test]
 fn draw_puts_entities_and_points_where_their_projections_fall() {
     let dir = Dir::new("draw");
-    map_cloud(&dir, "bun_zipper.ply", "100", "b.mema", &[]);
+    // The threshold search box lets axes degenerate, so every kind of solid is exercised.
+    map_cloud(
+        &dir,
+        "bun_zipper.ply",
+        "100",
+        "b.mema",
+        &["--bounds", "threshold"],
+    );
     let report = MemaCommand::new(&dir)
         .arg("draw")
         .arg(shared("bun_zipper.ply"))
@@ -134,6 +141,10 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
     }
     // The geometry, computed here from the map, the cloud and the reported projection.
     let map = HostMap::read(&dir.join("b.mema")).unwrap();
+    assert!(
+        map.entities.iter().any(|e| e.entity.degenerated_axes() > 0),
+        "want tubes too"
+    );
     let cloud = mema::read::read_cloud(&shared("bun_zipper.ply")).unwrap();
     let world: Vec<[f64; 3]> = cloud
         .points
@@ -339,7 +350,14 @@ fn expected_counts(map: &HostMap, segments: usize, rings: usize) -> (usize, usiz
 #[test]
 fn export_ply_glb_obj_reread_by_independent_parsers() {
     let dir = Dir::new("export");
-    map_cloud(&dir, "bun_zipper.ply", "100", "b.mema", &[]);
+    // The threshold search box lets axes degenerate, so every kind of solid is exercised.
+    map_cloud(
+        &dir,
+        "bun_zipper.ply",
+        "100",
+        "b.mema",
+        &["--bounds", "threshold"],
+    );
     let map = HostMap::read(&dir.join("b.mema")).unwrap();
     assert!(
         map.entities.iter().any(|e| e.entity.degenerated_axes() > 0),
