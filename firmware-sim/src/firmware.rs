@@ -1,0 +1,255 @@
+//! The firmware application: UART ring, frame decoder and streaming mapper in one struct, sized at
+//! compile time and meant to live in a `static` (see `image/` and the `run` command).
+//!
+//! The receive interrupt calls [`Firmware::on_receive`], which only copies bytes into the ring;
+//! the main loop calls [`Firmware::tick`], which decodes what the ring holds and maps the points
+//! of every accepted frame. Mapping never depends on how bytes were split between interrupts, so
+//! the map is a function of the accepted frames alone. On real hardware the ring would be split
+//! into an interrupt-side producer and a main-loop consumer (heapless' `spsc`); the simulator
+//! calls both from one thread, between ticks, which is the same ordering.
+//!
+//! **Snapshots.** [`Firmware::save`] copies the mapper (its whole state: clusters, centre grid,
+//! join radius, counters, so the refit schedule resumes exactly) into a [`Snapshot`], which stands
+//! for memory that survives a reset (retained RAM, or flash). After a reset,
+//! [`Firmware::restart_from`] restores the mapper and starts a fresh decoder, which resynchronises
+//! at the next delimiter. Frames accepted after the snapshot and before the reset are lost with
+//! the RAM; the final map equals that of an uninterrupted run over the frames the restored mapper
+//! holds plus those accepted after the restart.
+
+use mema_core::Point3;
+use mema_core::de::{DeParams, OutOfBounds};
+use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
+use mema_core::fitness::VolumeTerm;
+use mema_core::geometry::Degeneration;
+use mema_core::map::{EncodeError, MapEntity, encode};
+use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
+use mema_core::wire::{Decoded, Decoder, DecoderStats, MAX_FRAME_LEN};
+
+/// The receive ring: two of the largest frames, so one frame can be decoded while the next lands.
+pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
+
+/// One cluster refit per this many points: the host's `REFIT_INTERVAL`, so both map alike.
+pub const REFIT_INTERVAL: u32 = 1024;
+
+/// The host's default parameters as a constant expression, so a `static` can be initialised with
+/// them (`FitParams::default()` is not `const`). A test checks they equal the host's defaults.
+pub const fn stream_params(seed: u64, max_clusters: usize) -> StreamParams {
+    StreamParams {
+        fit: FitParams {
+            alpha: mema_core::fitness::PAPER_ALPHA,
+            volume: VolumeTerm::Exact,
+            de: DeParams {
+                mutation: 1.2,
+                crossover: 0.7,
+                generations: 50,
+            },
+            bounds: SemiAxisBounds::Spread {
+                lower: 0.05,
+                upper: 3.0,
+            },
+            out_of_bounds: OutOfBounds::Clamp,
+            initialisation: Initialisation::MomentSeeded,
+            degeneration: Degeneration {
+                threshold: 4.0,
+                sphere_tolerance: 0.01,
+            },
+        },
+        seed,
+        max_clusters,
+        refit_interval: REFIT_INTERVAL,
+        tolerance: 0.0,
+    }
+}
+
+/// What the firmware counts itself (the decoder and mapper keep their own counters).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FirmwareStats {
+    pub ticks: u64,
+    /// Frames whose points went into the mapper since boot (or restored with a snapshot).
+    pub frames: u64,
+    /// Bytes the ring had no room for.
+    pub ring_overruns: u64,
+    /// Most bytes the ring held at a tick.
+    pub ring_peak: usize,
+    pub restarts: u64,
+    pub end_of_stream: bool,
+}
+
+/// One accepted frame, as a tick reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AcceptedFrame {
+    pub sequence: u32,
+    pub points: u16,
+    pub end_of_stream: bool,
+}
+
+/// The application state. `K` clusters, `G` centre-hash buckets.
+#[derive(Debug)]
+pub struct Firmware<const K: usize, const G: usize> {
+    rx: heapless::Deque<u8, RX_CAPACITY>,
+    decoder: Decoder,
+    mapper: StreamMapper<K, G>,
+    stats: FirmwareStats,
+}
+
+/// The state that survives a reset.
+#[derive(Debug)]
+pub struct Snapshot<const K: usize, const G: usize> {
+    mapper: StreamMapper<K, G>,
+    frames: u64,
+    saved: bool,
+}
+
+impl<const K: usize, const G: usize> Snapshot<K, G> {
+    /// An empty snapshot: restarting from it is restarting from scratch.
+    pub const fn new(params: StreamParams) -> Self {
+        Self {
+            mapper: StreamMapper::new(params),
+            frames: 0,
+            saved: false,
+        }
+    }
+
+    /// Frames the saved mapper holds.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    pub fn is_saved(&self) -> bool {
+        self.saved
+    }
+}
+
+impl<const K: usize, const G: usize> Firmware<K, G> {
+    /// A `const fn`: the state can be a `static` initialiser.
+    pub const fn new(params: StreamParams) -> Self {
+        Self {
+            rx: heapless::Deque::new(),
+            decoder: Decoder::new(),
+            mapper: StreamMapper::new(params),
+            stats: FirmwareStats {
+                ticks: 0,
+                frames: 0,
+                ring_overruns: 0,
+                ring_peak: 0,
+                restarts: 0,
+                end_of_stream: false,
+            },
+        }
+    }
+
+    /// The receive interrupt: copies bytes into the ring; bytes past its capacity are dropped and
+    /// counted, as a UART overrun drops them. Returns the bytes kept.
+    pub fn on_receive(&mut self, bytes: &[u8]) -> usize {
+        let mut kept = 0;
+        for &b in bytes {
+            if self.rx.push_back(b).is_err() {
+                self.stats.ring_overruns += (bytes.len() - kept) as u64;
+                break;
+            }
+            kept += 1;
+        }
+        kept
+    }
+
+    /// One main-loop pass: the ring drained through the decoder, each accepted frame's points
+    /// into the mapper (the same conversion as the host's `Link`), `on_frame` told of each frame.
+    pub fn tick(&mut self, mut on_frame: impl FnMut(AcceptedFrame)) {
+        self.stats.ticks += 1;
+        self.stats.ring_peak = self.stats.ring_peak.max(self.rx.len());
+        let (front, back) = self.rx.as_slices();
+        for piece in [front, back] {
+            let mut window = piece;
+            loop {
+                match self.decoder.feed(window) {
+                    Decoded::Consumed => break,
+                    Decoded::Rejected { remaining, .. } => window = remaining,
+                    Decoded::Frame { frame, remaining } => {
+                        for p in frame.points_metres() {
+                            self.mapper
+                                .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+                        }
+                        self.stats.frames += 1;
+                        self.stats.end_of_stream |= frame.end_of_stream();
+                        on_frame(AcceptedFrame {
+                            sequence: frame.sequence(),
+                            points: frame.point_count(),
+                            end_of_stream: frame.end_of_stream(),
+                        });
+                        window = remaining;
+                    }
+                }
+            }
+        }
+        self.rx.clear();
+    }
+
+    /// Ends the stream: every cluster refitted from its final moments.
+    pub fn finish(&mut self) {
+        self.mapper.finish();
+    }
+
+    /// Writes the `.mema` bytes of the map as it stands (origin 0: the sensor frame, as the host's
+    /// `replay` writes it) and returns their length.
+    pub fn encode_map(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
+        // The entities are copied out once (K * 28 bytes of stack) because the codec takes a slice.
+        let mut entities: heapless::Vec<MapEntity, K> = heapless::Vec::new();
+        for e in self.mapper.entities() {
+            if entities.push(e).is_err() {
+                break; // cannot happen: the mapper holds at most K clusters
+            }
+        }
+        encode([0.0; 3], &entities, out)
+    }
+
+    /// Copies the mapper into `snapshot` (the memory that survives a reset).
+    pub fn save(&self, snapshot: &mut Snapshot<K, G>) {
+        snapshot.mapper.clone_from(&self.mapper);
+        snapshot.frames = self.stats.frames;
+        snapshot.saved = true;
+    }
+
+    /// After a reset: RAM is gone, so the ring and the decoder start empty and the mapper comes
+    /// back from `snapshot` (or starts empty if none was saved).
+    pub fn restart_from(&mut self, snapshot: &Snapshot<K, G>) {
+        self.rx.clear();
+        self.decoder = Decoder::new();
+        self.mapper.clone_from(&snapshot.mapper);
+        self.stats.frames = snapshot.frames;
+        self.stats.end_of_stream = false;
+        self.stats.restarts += 1;
+    }
+
+    pub fn mapper(&self) -> &StreamMapper<K, G> {
+        &self.mapper
+    }
+
+    pub fn mapper_stats(&self) -> &StreamStats {
+        self.mapper.stats()
+    }
+
+    pub fn decoder_stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+
+    pub fn stats(&self) -> &FirmwareStats {
+        &self.stats
+    }
+
+    /// Bytes waiting in the ring.
+    pub fn pending(&self) -> usize {
+        self.rx.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn const_parameters_are_the_host_defaults() {
+        let p = stream_params(7, 150);
+        assert_eq!(p.fit, FitParams::default());
+        assert_eq!((p.seed, p.max_clusters, p.tolerance), (7, 150, 0.0));
+    }
+}
