@@ -146,7 +146,7 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
         }
     }
     let axes = &mut axes[..count];
-    axes.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+    crate::num::insertion_sort_by(axes, |a, b| a.0 > b.0);
     match *axes {
         [(e0, y0), (e1, y1), (e2, y2)] => ellipsoid_distance([e0, e1, e2], [y0, y1, y2]),
         [(e0, y0), (e1, y1)] => ellipse_distance(e0, e1, y0, y1),

@@ -3,6 +3,7 @@
 //! The population lives on the stack (`POP` candidates of `D` coordinates, twice for the
 //! synchronous generation), so a fit needs no allocator and its memory is known at compile time.
 
+use crate::num::clamp;
 use crate::rng::{index_below, uniform};
 use rand_core::Rng;
 
@@ -58,7 +59,7 @@ fn repair<R: Rng + ?Sized>(value: f64, lo: f64, hi: f64, rule: OutOfBounds, rng:
         return value;
     }
     match rule {
-        OutOfBounds::Clamp => value.clamp(lo, hi),
+        OutOfBounds::Clamp => clamp(value, lo, hi),
         OutOfBounds::Reflect => {
             let width = hi - lo;
             let mirrored = if value < lo {
@@ -68,7 +69,7 @@ fn repair<R: Rng + ?Sized>(value: f64, lo: f64, hi: f64, rule: OutOfBounds, rng:
             };
             // A step larger than the box still lands inside after one mirror and a clamp.
             if width > 0.0 {
-                mirrored.clamp(lo, hi)
+                clamp(mirrored, lo, hi)
             } else {
                 lo
             }
@@ -118,7 +119,7 @@ where
             .iter_mut()
             .zip(seed.iter().zip(lower.iter().zip(upper.iter())))
         {
-            *x = if s.is_nan() { lo } else { s.clamp(lo, hi) };
+            *x = if s.is_nan() { lo } else { clamp(s, lo, hi) };
         }
         *first_score = objective(first);
         evaluations += 1;
@@ -131,10 +132,11 @@ where
             let (r1, r2, r3) = distinct_three::<POP, R>(i, rng);
             let forced = index_below(rng, D);
             let mut trial = population[i];
+            // r1, r2, r3 < POP by construction; `get` keeps a bounds-check panic out of the build.
+            let [x1, x2, x3] = [r1, r2, r3].map(|r| population.get(r).copied().unwrap_or(trial));
             for j in 0..D {
                 if j == forced || uniform(rng) <= params.crossover {
-                    let donor = population[r1][j]
-                        + params.mutation * (population[r2][j] - population[r3][j]);
+                    let donor = x1[j] + params.mutation * (x2[j] - x3[j]);
                     trial[j] = repair(donor, lower[j], upper[j], out_of_bounds, rng);
                 }
             }
@@ -179,13 +181,15 @@ fn distinct_three<const POP: usize, R: Rng + ?Sized>(
         for (slot, &t) in sorted.iter_mut().zip(taken.iter()) {
             *slot = t;
         }
-        sorted[..taken.len()].sort_unstable();
-        for &t in &sorted[..taken.len()] {
+        let sorted = sorted.get_mut(..taken.len()).unwrap_or(&mut []);
+        crate::num::insertion_sort_by(sorted, |a, b| a < b);
+        for &t in sorted.iter() {
             if k >= t {
                 k += 1;
             }
         }
-        k
+        // k < POP already; the min lets the compiler drop the population's bounds checks.
+        k.min(POP - 1)
     };
     let r1 = pick(rng, &[target]);
     let r2 = pick(rng, &[target, r1]);

@@ -4,6 +4,7 @@ use crate::de::{DeParams, OutOfBounds, PAPER_POPULATION, minimize};
 use crate::fitness::{FitnessTerms, PAPER_ALPHA, VolumeTerm};
 use crate::geometry::{Degeneration, Entity, Point3};
 use crate::moments::CentralMoments;
+use crate::num::clamp;
 use rand_core::Rng;
 
 /// The DE search box for the semi-axes. The paper gives none; both rules scale with the
@@ -201,7 +202,7 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
             fd = fitness_of_weight(d);
         }
     }
-    (1.0 / libm::sqrt(0.5 * (a + b))).clamp(lo, hi)
+    clamp(1.0 / libm::sqrt(0.5 * (a + b)), lo, hi)
 }
 
 /// Semi-axes minimising eq. 12's residual, `w = E[q q^T]^-1 E[q]`, each clamped into the box.
@@ -209,7 +210,7 @@ fn least_squares_semi_axes(moments: &CentralMoments, lo: f64, hi: f64) -> Option
     let w = solve3(moments.fourth, moments.second)?;
     Some(w.map(|w| {
         if w > 0.0 {
-            (1.0 / libm::sqrt(w)).clamp(lo, hi)
+            clamp(1.0 / libm::sqrt(w), lo, hi)
         } else {
             hi
         }
@@ -242,7 +243,7 @@ pub fn surface_error_estimate(moments: &CentralMoments, params: &FitParams) -> f
     let r = least_squares_semi_axes(moments, search.lo, search.hi).unwrap_or_else(|| {
         let first: f64 = moments.second.iter().sum();
         let second: f64 = moments.fourth.iter().flatten().sum();
-        [libm::sqrt(second / first).clamp(search.lo, search.hi); 3]
+        [clamp(libm::sqrt(second / first), search.lo, search.hi); 3]
     });
     let w = r.map(|r| 1.0 / (r * r));
     let residual = terms.residual_rms(&w);

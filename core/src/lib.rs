@@ -26,6 +26,7 @@ pub mod grid;
 pub mod kmeans;
 pub mod map;
 pub mod moments;
+mod num;
 pub mod query;
 pub mod rng;
 pub mod stream;

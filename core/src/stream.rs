@@ -108,7 +108,9 @@ impl ClosestPairs {
                 .get(at - 1)
                 .is_some_and(|prev| before(&item, prev))
         {
-            self.pairs.swap(at - 1, at);
+            if let Some([prev, cur]) = self.pairs.get_mut(at - 1..=at) {
+                core::mem::swap(prev, cur);
+            }
             at -= 1;
         }
         self.len = (self.len + 1).min(self.wanted);
@@ -322,9 +324,12 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         }
         // Remove from the highest index down, so swap_remove never moves a slot still to go.
         let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
-        absorbed.sort_unstable_by(|x, y| y.cmp(x));
+        crate::num::insertion_sort_by(absorbed, |x, y| x > y);
         for &b in absorbed.iter() {
-            self.clusters.swap_remove(b);
+            // In range by construction; the check keeps `swap_remove`'s panic out of the build.
+            if b < self.clusters.len() {
+                self.clusters.swap_remove(b);
+            }
         }
         self.stats.merges += count as u64;
         let cell = if self.radius * 2.0 > self.grid.cell() {

@@ -1,0 +1,59 @@
+//! Two standard-library operations without their panicking branches, so the release build of the
+//! core links with no panic path at all (the firmware image checks it with `panic-never`).
+
+/// `x.clamp(lo, hi)` as `f64::clamp` computes it, without its `assert!(lo <= hi)`: callers
+/// guarantee the order, and a NaN `x` passes through unchanged as it does there.
+#[inline]
+pub(crate) fn clamp(x: f64, lo: f64, hi: f64) -> f64 {
+    let mut x = x;
+    if x < lo {
+        x = lo;
+    }
+    if x > hi {
+        x = hi;
+    }
+    x
+}
+
+/// A stable insertion sort for the tiny slices the core sorts (3 axes, at most 32 indices).
+/// `sort_unstable_by` keeps a panic for inconsistent orderings; this keeps equal elements in
+/// their order, which is what the standard sort produced on these inputs.
+pub(crate) fn insertion_sort_by<T: Copy>(v: &mut [T], before: impl Fn(&T, &T) -> bool) {
+    for i in 1..v.len() {
+        let mut j = i;
+        while j > 0 {
+            let (Some(&prev), Some(&cur)) = (v.get(j - 1), v.get(j)) else {
+                break;
+            };
+            if !before(&cur, &prev) {
+                break;
+            }
+            if let Some(pair) = v.get_mut(j - 1..=j) {
+                pair.copy_from_slice(&[cur, prev]);
+            }
+            j -= 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clamp_matches_the_standard_one() {
+        for x in [-2.0, -0.0, 0.0, 0.5, 1.0, 3.0, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(clamp(x, 0.0, 1.0).to_bits(), x.clamp(0.0, 1.0).to_bits());
+        }
+        assert!(clamp(f64::NAN, 0.0, 1.0).is_nan());
+    }
+
+    #[test]
+    fn insertion_sort_is_stable_and_sorted() {
+        let mut v = [(3, 'a'), (1, 'b'), (3, 'c'), (2, 'd'), (1, 'e')];
+        insertion_sort_by(&mut v, |a, b| a.0 > b.0);
+        assert_eq!(v, [(3, 'a'), (3, 'c'), (2, 'd'), (1, 'b'), (1, 'e')]);
+        let mut w: [usize; 0] = [];
+        insertion_sort_by(&mut w, |a, b| a < b);
+    }
+}

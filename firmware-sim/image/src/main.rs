@@ -1,0 +1,184 @@
+//! The firmware image: `mema_firmware_sim::firmware::Firmware` on a Cortex-M4F.
+//!
+//! Under `qemu-system-arm -machine mps2-an386 -semihosting`, it reads `capture.bin` from QEMU's
+//! working directory through semihosting, in chunks of 1..=256 bytes as a UART interrupt would
+//! hand them over, ticks the firmware after each chunk, finishes the map with the same seed as
+//! the host, and writes the map's bytes to `map.mema` beside the capture. It then prints one
+//! line of measurements (`key=value`), which `mema-firmware-sim budget` reads:
+//! - `ingest_ticks` / `finish_ticks`: SysTick counts over the ingest loop and over `finish`.
+//!   Under `-icount shift=0` QEMU's clock advances one nanosecond per instruction, so with the
+//!   calibration loop (`calib_insns` instructions took `calib_ticks`) they convert to
+//!   instructions executed;
+//! - `stack_tick` / `stack_finish`: the stack's high-water mark in bytes during the ingest loop
+//!   and during `finish`, from a painted stack.
+//!
+//! No formatting machinery (`core::fmt`) is linked, and `panic-never` makes any surviving panic
+//! path a link error: that the image links at all shows the core's entry points it calls are
+//! panic-free in this release build.
+#![no_std]
+#![no_main]
+
+mod io;
+mod stack;
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m::peripheral::SYST;
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m_rt::{entry, exception};
+use mema_core::map::encoded_len;
+use mema_firmware_sim::firmware::{Firmware, stream_params};
+use mema_firmware_sim::source::{ByteSource, Delivery};
+use panic_never as _;
+use static_cell::StaticCell;
+
+/// Clusters and centre-hash buckets of the image (the host tests map with `-k 150`).
+const K: usize = 150;
+const G: usize = 512;
+const SEED: u64 = 0;
+
+/// The application state lives in .bss, built in place at boot (never on the stack).
+static FIRMWARE: StaticCell<Firmware<K, G>> = StaticCell::new();
+static MAP_OUT: StaticCell<[u8; encoded_len(K)]> = StaticCell::new();
+
+/// SysTick wraps (24-bit counter).
+static WRAPS: AtomicU32 = AtomicU32::new(0);
+const RELOAD: u32 = 0x00FF_FFFF;
+
+#[exception]
+fn SysTick() {
+    WRAPS.fetch_add(1, Ordering::Relaxed);
+}
+
+fn now() -> u64 {
+    loop {
+        let before = WRAPS.load(Ordering::Relaxed);
+        let current = SYST::get_current();
+        if WRAPS.load(Ordering::Relaxed) == before {
+            return u64::from(before) * u64::from(RELOAD + 1) + u64::from(RELOAD - current);
+        }
+    }
+}
+
+/// Runs `n` iterations of a two-instruction loop: the calibration of ticks to instructions.
+fn spin(n: u32) {
+    if n == 0 {
+        return;
+    }
+    // SAFETY: a register-only countdown loop; touches no memory and no flags outside it.
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "subs {0}, {0}, #1",
+            "bne 2b",
+            inout(reg) n => _,
+            options(nomem, nostack),
+        );
+    }
+}
+
+/// Builds the state in its static. Kept out of line so the compiler constructs the value in the
+/// slot itself rather than in a stack temporary (which would need as much stack as the state).
+#[inline(never)]
+fn boot(slot: &'static mut core::mem::MaybeUninit<Firmware<K, G>>) -> &'static mut Firmware<K, G> {
+    slot.write(Firmware::new(stream_params(SEED, K)))
+}
+
+#[entry]
+fn main() -> ! {
+    stack::paint();
+    let status = match run() {
+        Ok(()) => cortex_m_semihosting::debug::EXIT_SUCCESS,
+        Err(what) => {
+            io::print(&[b"mema-image: error: ", what.as_bytes(), b"\n"]);
+            cortex_m_semihosting::debug::EXIT_FAILURE
+        }
+    };
+    cortex_m_semihosting::debug::exit(status);
+    #[allow(clippy::empty_loop)]
+    loop {}
+}
+
+fn run() -> Result<(), &'static str> {
+    let Some(mut core) = cortex_m::Peripherals::take() else {
+        return Err("peripherals taken twice");
+    };
+    core.SYST.set_clock_source(SystClkSource::Core);
+    core.SYST.set_reload(RELOAD);
+    core.SYST.clear_current();
+    core.SYST.enable_interrupt();
+    core.SYST.enable_counter();
+
+    // The counter reads 0 until its first reload: let it start before taking times.
+    spin(1_000);
+    let calib_insns: u32 = 2_000_000;
+    let t0 = now();
+    spin(calib_insns / 2);
+    let calib_ticks = now() - t0;
+
+    // `try_init_with`, not `init_with`: a second initialisation is an error, not a panic.
+    let firmware = boot(FIRMWARE.try_uninit().ok_or("FIRMWARE initialised twice")?);
+    let map_out = MAP_OUT
+        .try_init_with(|| [0u8; encoded_len(K)])
+        .ok_or("MAP_OUT initialised twice")?;
+    let stack_boot = stack::high_water();
+    stack::paint();
+    let mut uart = io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
+
+    let mut chunk = [0u8; 256];
+    let t0 = now();
+    loop {
+        match uart.deliver(&mut chunk) {
+            Ok(Delivery::Bytes(n)) => {
+                firmware.on_receive(chunk.get(..n).unwrap_or(&[]));
+                firmware.tick(|_| {});
+                if firmware.stats().end_of_stream {
+                    break;
+                }
+            }
+            Ok(Delivery::End) | Ok(Delivery::Reset) => break,
+            Err(e) => match e {},
+        }
+    }
+    let ingest_ticks = now() - t0;
+    let stack_tick = stack::high_water();
+
+    stack::paint();
+    let t0 = now();
+    firmware.finish();
+    let len = firmware.encode_map(map_out).map_err(|_| "map buffer too small")?;
+    let finish_ticks = now() - t0;
+    let stack_finish = stack::high_water();
+
+    let map = map_out.get(..len).unwrap_or(&[]);
+    if !io::write_file(b"map.mema\0", map) {
+        return Err("cannot write map.mema");
+    }
+    let fw = firmware.stats();
+    let mapper = firmware.mapper_stats();
+    let decoder = firmware.decoder_stats();
+    let fields: [(&[u8], u64); 15] = [
+        (b"k", K as u64),
+        (b"points", mapper.points),
+        (b"frames", fw.frames),
+        (b"rejected", decoder.rejected),
+        (b"entities", firmware.mapper().clusters().len() as u64),
+        (b"map_bytes", len as u64),
+        (b"end_of_stream", u64::from(fw.end_of_stream)),
+        (b"ingest_ticks", ingest_ticks),
+        (b"finish_ticks", finish_ticks),
+        (b"calib_ticks", calib_ticks),
+        (b"calib_insns", u64::from(calib_insns)),
+        (b"stack_boot", stack_boot as u64),
+        (b"stack_tick", stack_tick as u64),
+        (b"stack_finish", stack_finish as u64),
+        (b"refits", mapper.refits),
+    ];
+    io::print(&[b"mema-image:"]);
+    for (key, value) in fields {
+        let mut digits = [0u8; 20];
+        io::print(&[b" ", key, b"=", io::decimal(value, &mut digits)]);
+    }
+    io::print(&[b"\n"]);
+    Ok(())
+}
