@@ -119,7 +119,8 @@ impl Board {
     pub fn observe(&self, pending_bytes: usize, clusters: usize) {
         self.peak_pending
             .set(self.peak_pending.get().max(pending_bytes));
-        self.peak_clusters.set(self.peak_clusters.get().max(clusters));
+        self.peak_clusters
+            .set(self.peak_clusters.get().max(clusters));
     }
 
     pub fn ticks(&self) -> u64 {

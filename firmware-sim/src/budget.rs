@@ -1,2 +1,270 @@
-pub fn report(_: Option<&std::path::Path>, _: Option<&std::path::Path>) -> Result<Report, String> { Err("todo".into()) }
-#[derive(Debug)] pub struct Report; impl Report { pub fn json(&self) -> String { String::new() } pub fn text(&self) -> String { String::new() } }
+//! The memory budget: static RAM of the firmware state at K = 150, 400 and 1000 (`size_of`, so
+//! exact for this build), the image's flash and RAM (`llvm-size`), and what the image measured
+//! under QEMU (stack high-water marks, instructions per ingested point).
+
+use std::path::Path;
+use std::process::Command;
+
+use mema_core::stream::{StreamCluster, StreamMapper};
+use mema_core::wire::Decoder;
+
+use crate::board::TARGET_BOARD;
+use crate::firmware::{Firmware, RX_CAPACITY, Snapshot};
+
+/// One capacity's static RAM.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct StaticRow {
+    pub k: usize,
+    pub buckets: usize,
+    pub mapper: usize,
+    pub decoder: usize,
+    pub ring: usize,
+    /// Mapper + decoder + ring: the RAM the firmware state needs.
+    pub firmware: usize,
+    /// The snapshot (retained RAM or flash) on top.
+    pub snapshot: usize,
+}
+
+fn row<const K: usize, const G: usize>() -> StaticRow {
+    StaticRow {
+        k: K,
+        buckets: G,
+        mapper: size_of::<StreamMapper<K, G>>(),
+        decoder: size_of::<Decoder>(),
+        ring: RX_CAPACITY,
+        firmware: size_of::<Firmware<K, G>>(),
+        snapshot: size_of::<Snapshot<K, G>>(),
+    }
+}
+
+/// `llvm-size` of the image: flash = text + data, RAM = data + bss (the stack comes on top).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageSize {
+    pub text: u64,
+    pub data: u64,
+    pub bss: u64,
+}
+
+/// The image's own report line (`mema-image: key=value ...`).
+#[derive(Clone, Debug, PartialEq, Eq, Default)]
+pub struct QemuReport {
+    pub fields: Vec<(String, u64)>,
+}
+
+impl QemuReport {
+    pub fn parse(text: &str) -> Option<Self> {
+        let line = text.lines().find(|l| l.starts_with("mema-image:"))?;
+        let fields = line
+            .split_whitespace()
+            .skip(1)
+            .filter_map(|kv| {
+                let (k, v) = kv.split_once('=')?;
+                Some((k.to_string(), v.parse().ok()?))
+            })
+            .collect();
+        Some(Self { fields })
+    }
+
+    pub fn get(&self, key: &str) -> Option<u64> {
+        self.fields.iter().find(|(k, _)| k == key).map(|&(_, v)| v)
+    }
+
+    /// Instructions per SysTick tick, from the calibration loop.
+    fn per_tick(&self) -> Option<f64> {
+        Some(self.get("calib_insns")? as f64 / self.get("calib_ticks")?.max(1) as f64)
+    }
+
+    /// Instructions per ingested point (decode + map, refits included).
+    pub fn instructions_per_point(&self) -> Option<f64> {
+        Some(
+            self.get("ingest_ticks")? as f64 * self.per_tick()? / self.get("points")?.max(1) as f64,
+        )
+    }
+
+    /// Instructions of `finish` (every cluster refitted) and the map's encoding.
+    pub fn finish_instructions(&self) -> Option<f64> {
+        Some(self.get("finish_ticks")? as f64 * self.per_tick()?)
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Report {
+    pub cluster_bytes: usize,
+    pub rows: Vec<StaticRow>,
+    pub image: Option<ImageSize>,
+    pub qemu: Option<QemuReport>,
+}
+
+#[derive(Debug)]
+pub enum BudgetError {
+    LlvmSize(String),
+    QemuReport(String),
+}
+
+impl std::fmt::Display for BudgetError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::LlvmSize(m) => write!(f, "llvm-size: {m}"),
+            Self::QemuReport(m) => write!(f, "QEMU report: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for BudgetError {}
+
+pub fn llvm_size(image: &Path) -> Result<ImageSize, BudgetError> {
+    let out = Command::new("llvm-size")
+        .arg(image)
+        .output()
+        .map_err(|e| BudgetError::LlvmSize(format!("cannot run it ({e}); install llvm")))?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let numbers: Vec<u64> = text
+        .lines()
+        .nth(1)
+        .unwrap_or("")
+        .split_whitespace()
+        .take(3)
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    match numbers[..] {
+        [text, data, bss] => Ok(ImageSize { text, data, bss }),
+        _ => Err(BudgetError::LlvmSize(format!(
+            "{}: unexpected output {text:?} {}",
+            image.display(),
+            String::from_utf8_lossy(&out.stderr)
+        ))),
+    }
+}
+
+pub fn report(image: Option<&Path>, qemu: Option<&Path>) -> Result<Report, BudgetError> {
+    let image = image.map(llvm_size).transpose()?;
+    let qemu = match qemu {
+        None => None,
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| BudgetError::QemuReport(format!("{}: {e}", path.display())))?;
+            Some(QemuReport::parse(&text).ok_or_else(|| {
+                BudgetError::QemuReport(format!("{}: no `mema-image:` line", path.display()))
+            })?)
+        }
+    };
+    Ok(Report {
+        cluster_bytes: size_of::<StreamCluster>(),
+        rows: vec![row::<150, 512>(), row::<400, 1024>(), row::<1000, 2048>()],
+        image,
+        qemu,
+    })
+}
+
+fn kib(b: u64) -> String {
+    format!("{:.1} KiB", b as f64 / 1024.0)
+}
+
+impl Report {
+    pub fn text(&self) -> String {
+        let target = TARGET_BOARD.ram_bytes as u64;
+        let mut s = format!(
+            "static RAM of the firmware state (size_of; a cluster is {} bytes: f64 moments, centre, entity)\n\
+             {:>5} {:>7} {:>12} {:>10} {:>8} {:>14} {:>12}  under 64 KiB?\n",
+            self.cluster_bytes, "K", "buckets", "mapper", "decoder", "ring", "firmware", "snapshot"
+        );
+        for r in &self.rows {
+            s += &format!(
+                "{:>5} {:>7} {:>12} {:>10} {:>8} {:>14} {:>12}  {}\n",
+                r.k,
+                r.buckets,
+                kib(r.mapper as u64),
+                kib(r.decoder as u64),
+                kib(r.ring as u64),
+                kib(r.firmware as u64),
+                kib(r.snapshot as u64),
+                if (r.firmware as u64) < target {
+                    "yes"
+                } else {
+                    "no"
+                }
+            );
+        }
+        let per_cluster = self
+            .rows
+            .first()
+            .map_or(0, |r| (r.firmware as f64 / r.k as f64).round() as usize);
+        s += &format!(
+            "  K that fits 64 KiB beside an 8 KiB stack at this layout: about {}\n",
+            (TARGET_BOARD.ram_bytes - TARGET_BOARD.stack_bytes - 2 * RX_CAPACITY)
+                / per_cluster.max(1)
+        );
+        if let Some(i) = self.image {
+            s += &format!(
+                "image (thumbv7em-none-eabihf, K = 150): flash {} (text {} + data {}), static RAM {} (data + bss {}); flash under 64 KiB: {}\n",
+                kib(i.text + i.data),
+                i.text,
+                i.data,
+                kib(i.data + i.bss),
+                i.data + i.bss,
+                if i.text + i.data < 64 * 1024 {
+                    "yes"
+                } else {
+                    "no"
+                }
+            );
+        }
+        if let Some(q) = &self.qemu {
+            let g = |k: &str| q.get(k).unwrap_or(0);
+            s += &format!(
+                "QEMU mps2-an386 (-icount shift=0): {} points, {} entities\n\
+                 \x20 stack high-water: boot {} B, ingest ticks {} B, finish {} B (painted stack)\n\
+                 \x20 instructions per ingested point: {:.0}; finish (all {} refits + encode): {:.3e} instructions\n\
+                 \x20 (QEMU counts instructions, not cycles: a Cortex-M4F takes about 1-1.5 cycles per\n\
+                 \x20 instruction on this integer and soft-float f64 code)\n",
+                g("points"),
+                g("entities"),
+                g("stack_boot"),
+                g("stack_tick"),
+                g("stack_finish"),
+                q.instructions_per_point().unwrap_or(0.0),
+                g("entities"),
+                q.finish_instructions().unwrap_or(0.0),
+            );
+        }
+        s
+    }
+
+    pub fn json(&self) -> String {
+        let rows: Vec<String> = self
+            .rows
+            .iter()
+            .map(|r| {
+                format!(
+                    "{{\"k\":{},\"buckets\":{},\"mapper\":{},\"decoder\":{},\"ring\":{},\"firmware\":{},\"snapshot\":{}}}",
+                    r.k, r.buckets, r.mapper, r.decoder, r.ring, r.firmware, r.snapshot
+                )
+            })
+            .collect();
+        let image = self.image.map_or("null".to_string(), |i| {
+            format!(
+                "{{\"text\":{},\"data\":{},\"bss\":{}}}",
+                i.text, i.data, i.bss
+            )
+        });
+        let qemu = self.qemu.as_ref().map_or("null".to_string(), |q| {
+            let fields: Vec<String> = q
+                .fields
+                .iter()
+                .map(|(k, v)| format!("\"{k}\":{v}"))
+                .collect();
+            format!(
+                "{{{},\"instructions_per_point\":{:.1}}}",
+                fields.join(","),
+                q.instructions_per_point().unwrap_or(0.0)
+            )
+        });
+        format!(
+            "{{\"cluster_bytes\":{},\"static\":[{}],\"image\":{},\"qemu\":{}}}",
+            self.cluster_bytes,
+            rows.join(","),
+            image,
+            qemu
+        )
+    }
+}

@@ -39,7 +39,10 @@ impl CliError {
 impl std::fmt::Display for CliError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::Usage(m) => write!(f, "{m}\nConsider `mema-firmware-sim run CAPTURE -k 150 -o MAP`, `budget` or `reference`."),
+            Self::Usage(m) => write!(
+                f,
+                "{m}\nConsider `mema-firmware-sim run CAPTURE -k 150 -o MAP`, `budget` or `reference`."
+            ),
             Self::Failed(m) => write!(f, "{m}"),
         }
     }
@@ -74,7 +77,9 @@ impl Args {
             if FLAGS.contains(&a.as_str()) {
                 out.flags.push(a.clone());
             } else if a.starts_with('-') && a.len() > 1 {
-                let v = it.next().ok_or_else(|| usage(format!("{a} needs a value")))?;
+                let v = it
+                    .next()
+                    .ok_or_else(|| usage(format!("{a} needs a value")))?;
                 out.pairs.push((a.clone(), v.clone()));
             } else {
                 out.positional.push(a.clone());
@@ -106,7 +111,11 @@ impl Args {
 
     /// Refuses options this command does not know, naming them.
     pub fn only(&self, known: &[&str]) -> Result<(), CliError> {
-        match self.pairs.iter().find(|(k, _)| !known.contains(&k.as_str())) {
+        match self
+            .pairs
+            .iter()
+            .find(|(k, _)| !known.contains(&k.as_str()))
+        {
             Some((k, _)) => Err(usage(format!("unknown option {k}"))),
             None => Ok(()),
         }
@@ -163,7 +172,9 @@ fn crate_reference(args: &Args) -> Result<(), CliError> {
     if summary.passed() {
         Ok(())
     } else {
-        Err(failed("the core and the f64 reference disagree beyond the tolerances (above)"))
+        Err(failed(
+            "the core and the f64 reference disagree beyond the tolerances (above)",
+        ))
     }
 }
 
@@ -189,7 +200,9 @@ fn run_command(args: &Args) -> Result<(), CliError> {
     };
     let k: usize = args.number(&["-k"], 150)?;
     if k == 0 || k > SIM_K {
-        return Err(usage(format!("-k {k}: must be 1..={SIM_K}, the simulator's capacity")));
+        return Err(usage(format!(
+            "-k {k}: must be 1..={SIM_K}, the simulator's capacity"
+        )));
     }
     let seed: u64 = args.number(&["--seed"], 0)?;
     let faults = FaultConfig {
@@ -203,8 +216,12 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         chunk_seed: args.number(&["--chunk-seed"], 0)?,
         max_chunk: args.number(&["--max-chunk"], 256)?,
         snapshot_every: args.number(&["--snapshot-every"], 16)?,
-        faults: (faults != FaultConfig { seed: faults.seed, ..FaultConfig::default() })
-            .then_some(faults),
+        faults: (faults
+            != FaultConfig {
+                seed: faults.seed,
+                ..FaultConfig::default()
+            })
+        .then_some(faults),
     };
     let bytes = std::fs::read(capture).map_err(|e| failed(format!("{capture}: {e}")))?;
 

@@ -78,7 +78,9 @@ impl Quantity {
     pub fn accepts(self, d: &Deviation) -> bool {
         let delta = (d.core - d.reference).abs();
         match self {
-            Self::FitnessAtCoreAxes => d.relative <= self.tolerance() || delta <= FITNESS_ABSOLUTE_FLOOR,
+            Self::FitnessAtCoreAxes => {
+                d.relative <= self.tolerance() || delta <= FITNESS_ABSOLUTE_FLOOR
+            }
             Self::SurfaceErrorSameEntity => {
                 d.relative <= self.tolerance() || delta <= SOLVER_ABSOLUTE_FLOOR
             }
@@ -165,7 +167,9 @@ pub fn compare_points(name: &str, points: &[Point3], k: usize, seed: u64) -> Clo
     for p in points.iter().filter(|p| p.is_finite()) {
         let v = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
         let nearest = (0..centres.len()).min_by(|&a, &b| {
-            (v - centres[a]).norm_squared().total_cmp(&(v - centres[b]).norm_squared())
+            (v - centres[a])
+                .norm_squared()
+                .total_cmp(&(v - centres[b]).norm_squared())
         });
         if let Some(i) = nearest {
             members[i].push(v);
@@ -187,23 +191,40 @@ pub fn compare_points(name: &str, points: &[Point3], k: usize, seed: u64) -> Clo
                 .copied()
         })
         .collect();
-    let over: Vec<Deviation> = all.iter().filter(|d| !d.quantity.accepts(d)).copied().collect();
+    let over: Vec<Deviation> = all
+        .iter()
+        .filter(|d| !d.quantity.accepts(d))
+        .copied()
+        .collect();
     let diff = over
         .iter()
-        .max_by(|a, b| (a.relative / a.quantity.tolerance()).total_cmp(&(b.relative / b.quantity.tolerance())))
+        .max_by(|a, b| {
+            (a.relative / a.quantity.tolerance()).total_cmp(&(b.relative / b.quantity.tolerance()))
+        })
         .copied()
-        .map(|worst| Diff { over: over.clone(), worst });
+        .map(|worst| Diff {
+            over: over.clone(),
+            worst,
+        });
     CloudComparison {
         cloud: name.to_string(),
         points: points.len(),
         clusters: members.iter().filter(|m| !m.is_empty()).count(),
-        small_clusters: members.iter().filter(|m| !m.is_empty() && m.len() < MIN_POINTS).count(),
+        small_clusters: members
+            .iter()
+            .filter(|m| !m.is_empty() && m.len() < MIN_POINTS)
+            .count(),
         worst,
         diff,
     }
 }
 
-fn compare_cluster(i: usize, points: &[Vector3<f64>], params: &FitParams, seed: u64) -> Vec<Deviation> {
+fn compare_cluster(
+    i: usize,
+    points: &[Vector3<f64>],
+    params: &FitParams,
+    seed: u64,
+) -> Vec<Deviation> {
     let dev = |quantity, core: f64, reference: f64| Deviation {
         quantity,
         entity: i,
@@ -220,7 +241,8 @@ fn compare_cluster(i: usize, points: &[Vector3<f64>], params: &FitParams, seed: 
         return Vec::new();
     };
     let core = fit_ellipsoid_paper(&central, params, &mut stream_rng(seed, i as u64));
-    let Some(reference) = reference::fit_cluster(points, params, &mut stream_rng(seed, i as u64)) else {
+    let Some(reference) = reference::fit_cluster(points, params, &mut stream_rng(seed, i as u64))
+    else {
         return Vec::new();
     };
     let Some(m) = reference::moments::direct_moments(points) else {
@@ -228,19 +250,42 @@ fn compare_cluster(i: usize, points: &[Vector3<f64>], params: &FitParams, seed: 
     };
     let direct = reference::fitness::DirectFitness::new(points, &m, params.alpha);
     let mut out = vec![
-        dev(Quantity::FitnessAtCoreAxes, core.fitness, direct.eval(&Vector3::from(core.semi_axes))),
+        dev(
+            Quantity::FitnessAtCoreAxes,
+            core.fitness,
+            direct.eval(&Vector3::from(core.semi_axes)),
+        ),
         dev(Quantity::FitnessOptimum, core.fitness, reference.fitness),
     ];
     // Semi-axes: the same degeneration kind, then each finite axis within tolerance.
     // The stored weights, as the core's eq. 13 reads them (f64 of the f32 `w`).
-    let core_axes = core.entity.weights.map(|w| if w > 0.0 { 1.0 / f64::from(w).sqrt() } else { f64::INFINITY });
+    let core_axes = core.entity.weights.map(|w| {
+        if w > 0.0 {
+            1.0 / f64::from(w).sqrt()
+        } else {
+            f64::INFINITY
+        }
+    });
     let kinds_agree = core.entity.degenerated_axes() == reference.degenerated_axes();
     let (worst_axis, c, r) = (0..3)
         .filter(|&j| reference.stored_axes[j].is_finite())
-        .map(|j| (relative(core.semi_axes[j], reference.semi_axes[j]), core.semi_axes[j], reference.semi_axes[j]))
+        .map(|j| {
+            (
+                relative(core.semi_axes[j], reference.semi_axes[j]),
+                core.semi_axes[j],
+                reference.semi_axes[j],
+            )
+        })
         .fold((0.0, 0.0, 0.0), |w, x| if x.0 > w.0 { x } else { w });
     out.push(if kinds_agree {
-        Deviation { quantity: Quantity::SemiAxes, entity: i, cluster_points: points.len(), core: c, reference: r, relative: worst_axis }
+        Deviation {
+            quantity: Quantity::SemiAxes,
+            entity: i,
+            cluster_points: points.len(),
+            core: c,
+            reference: r,
+            relative: worst_axis,
+        }
     } else {
         Deviation {
             quantity: Quantity::SemiAxes,
@@ -257,14 +302,28 @@ fn compare_cluster(i: usize, points: &[Vector3<f64>], params: &FitParams, seed: 
     let (mut ref_sum, mut same_sum) = (0.0, 0.0);
     for p in points {
         core_error.add(&core.entity, [p.x, p.y, p.z]);
-        let d = closest_point::distance(reference.stored_axes, [p.x - m.mean.x, p.y - m.mean.y, p.z - m.mean.z]);
+        let d = closest_point::distance(
+            reference.stored_axes,
+            [p.x - m.mean.x, p.y - m.mean.y, p.z - m.mean.z],
+        );
         ref_sum += d * d;
-        let e = closest_point::distance(core_axes, [p.x - centre[0], p.y - centre[1], p.z - centre[2]]);
+        let e = closest_point::distance(
+            core_axes,
+            [p.x - centre[0], p.y - centre[1], p.z - centre[2]],
+        );
         same_sum += e * e;
     }
     let n = points.len() as f64;
-    out.push(dev(Quantity::SurfaceError, core_error.rmse(), (ref_sum / n).sqrt()));
-    out.push(dev(Quantity::SurfaceErrorSameEntity, core_error.rmse(), (same_sum / n).sqrt()));
+    out.push(dev(
+        Quantity::SurfaceError,
+        core_error.rmse(),
+        (ref_sum / n).sqrt(),
+    ));
+    out.push(dev(
+        Quantity::SurfaceErrorSameEntity,
+        core_error.rmse(),
+        (same_sum / n).sqrt(),
+    ));
     out
 }
 
@@ -290,7 +349,10 @@ pub fn compare_clouds(paths: &[PathBuf], k: usize, seed: u64) -> Summary {
     let mut clouds = Vec::new();
     let mut unread = Vec::new();
     for path in paths {
-        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
         match mema::commands::load_cloud(path) {
             Ok(cloud) => clouds.push(compare_points(&name, &cloud.points, k, seed)),
             Err(e) => unread.push((name, format!("{e:#}"))),
@@ -319,16 +381,24 @@ impl Summary {
     }
 
     pub fn text(&self) -> String {
-        let mut s = String::from("core vs f64 reference (nalgebra), worst relative deviation per cloud\n");
+        let mut s =
+            String::from("core vs f64 reference (nalgebra), worst relative deviation per cloud\n");
         s += &format!("{:<22} {:>8} {:>5} {:>6}", "cloud", "points", "k", "small");
         for q in Quantity::ALL {
             s += &format!(" {:>26}", q.name());
         }
         s += "  verdict\n";
         for c in &self.clouds {
-            s += &format!("{:<22} {:>8} {:>5} {:>6}", c.cloud, c.points, c.clusters, c.small_clusters);
+            s += &format!(
+                "{:<22} {:>8} {:>5} {:>6}",
+                c.cloud, c.points, c.clusters, c.small_clusters
+            );
             for q in Quantity::ALL {
-                let w = c.worst.iter().find(|d| d.quantity == q).map_or(0.0, |d| d.relative);
+                let w = c
+                    .worst
+                    .iter()
+                    .find(|d| d.quantity == q)
+                    .map_or(0.0, |d| d.relative);
                 s += &format!(" {:>26.2e}", w);
             }
             s += match &c.diff {
@@ -358,7 +428,12 @@ impl Summary {
         );
         s += "\nworst overall:";
         for (cloud, d) in self.worst() {
-            s += &format!("\n  {:<26} {:.2e} ({cloud}, entity {})", d.quantity.name(), d.relative, d.entity);
+            s += &format!(
+                "\n  {:<26} {:.2e} ({cloud}, entity {})",
+                d.quantity.name(),
+                d.relative,
+                d.entity
+            );
         }
         s + "\n"
     }
@@ -384,8 +459,17 @@ impl Summary {
                 )
             })
             .collect();
-        let unread: Vec<String> = self.unread.iter().map(|(n, _)| format!("\"{n}\"")).collect();
-        format!("{{\"passed\":{},\"clouds\":[{}],\"unread\":[{}]}}", self.passed(), clouds.join(","), unread.join(","))
+        let unread: Vec<String> = self
+            .unread
+            .iter()
+            .map(|(n, _)| format!("\"{n}\""))
+            .collect();
+        format!(
+            "{{\"passed\":{},\"clouds\":[{}],\"unread\":[{}]}}",
+            self.passed(),
+            clouds.join(","),
+            unread.join(",")
+        )
     }
 }
 

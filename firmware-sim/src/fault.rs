@@ -89,7 +89,10 @@ impl<S: ByteSource> ByteSource for FaultInjector<S> {
         // Each input byte can become two (noise + byte), so ask for at most half the room.
         let ask = (buf.len() / 2).clamp(1, SCRATCH);
         let mut scratch = self.scratch;
-        let n = match self.inner.deliver(scratch.get_mut(..ask).unwrap_or(&mut []))? {
+        let n = match self
+            .inner
+            .deliver(scratch.get_mut(..ask).unwrap_or(&mut []))?
+        {
             Delivery::Bytes(n) => n,
             other => return Ok(other),
         };
@@ -185,8 +188,13 @@ mod tests {
     #[test]
     fn every_fault_kind_happens_and_is_accounted_for() {
         // Delimiters every 100 bytes, as frames would have them.
-        let capture: [u8; 20_000] =
-            core::array::from_fn(|i| if i % 100 == 99 { 0 } else { 1 + (i % 200) as u8 });
+        let capture: [u8; 20_000] = core::array::from_fn(|i| {
+            if i % 100 == 99 {
+                0
+            } else {
+                1 + (i % 200) as u8
+            }
+        });
         let config = FaultConfig {
             seed: 5,
             noise_ppm: 2_000,

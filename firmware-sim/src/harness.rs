@@ -89,7 +89,9 @@ pub fn run<const K: usize, const G: usize>(
 ) -> Result<RunReport, RunError> {
     let uart = UartSource::new(capture, config.chunk_seed, config.max_chunk);
     match config.faults {
-        None => drive(board, firmware, snapshot, uart, config, |_| FaultStats::default()),
+        None => drive(board, firmware, snapshot, uart, config, |_| {
+            FaultStats::default()
+        }),
         Some(faults) => drive(
             board,
             firmware,

@@ -15,6 +15,8 @@ mod faults;
 mod lidar;
 // The no_std, no-panic contract of core, checked on its source.
 mod core_contract;
+// The core as firmware runs it: chunking, faults, resets, replay, the f64 reference, fuzzing.
+mod firmware;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
 mod fitness;
 // The paper's tables on the shared clouds: ellipsoids beat spheres.

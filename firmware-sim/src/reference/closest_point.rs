@@ -75,7 +75,11 @@ pub fn distance(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
         let mut next = t - v / d;
         if !(next > lo && next < hi) {
             // A step out of the bracket: bisect (or double, while unbounded above).
-            next = if hi.is_finite() { 0.5 * (lo + hi) } else { lo + 2.0 * (lo - lower).max(1.0) };
+            next = if hi.is_finite() {
+                0.5 * (lo + hi)
+            } else {
+                lo + 2.0 * (lo - lower).max(1.0)
+            };
         }
         if (next - t).abs() <= 1e-16 * t.abs().max(a_min * a_min) {
             t = next;
@@ -114,7 +118,9 @@ mod tests {
     fn agrees_with_the_core_on_random_points() {
         let mut s = 1u64;
         let mut next = || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (s >> 11) as f64 / (1u64 << 53) as f64
         };
         let mut worst = 0.0f64;

@@ -78,7 +78,11 @@ pub fn minimize(
         score = next_score;
     }
     let best = (1..POP).fold(0, |b, i| {
-        if wins(score[i], score[b]) && score[i] != score[b] { i } else { b }
+        if wins(score[i], score[b]) && score[i] != score[b] {
+            i
+        } else {
+            b
+        }
     });
     (pop[best], score[best])
 }
@@ -87,11 +91,25 @@ pub fn minimize(
 /// by LU, and the best sphere, found by golden section over `r`.
 pub fn moment_candidate(m: &DirectMoments, f: &DirectFitness, lo: f64, hi: f64) -> Vector3<f64> {
     let sphere = Vector3::repeat(best_sphere(f, lo, hi));
-    let least_squares = m.fourth.lu().solve(&m.second).filter(|w| w.iter().all(|v| v.is_finite()));
+    let least_squares = m
+        .fourth
+        .lu()
+        .solve(&m.second)
+        .filter(|w| w.iter().all(|v| v.is_finite()));
     match least_squares {
         Some(w) => {
-            let e = w.map(|w| if w > 0.0 { (1.0 / w.sqrt()).max(lo).min(hi) } else { hi });
-            if f.eval(&e) <= f.eval(&sphere) { e } else { sphere }
+            let e = w.map(|w| {
+                if w > 0.0 {
+                    (1.0 / w.sqrt()).max(lo).min(hi)
+                } else {
+                    hi
+                }
+            });
+            if f.eval(&e) <= f.eval(&sphere) {
+                e
+            } else {
+                sphere
+            }
         }
         None => sphere,
     }

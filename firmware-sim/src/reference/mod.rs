@@ -36,7 +36,11 @@ impl ReferenceFit {
 }
 
 /// Fits one cluster's points as the core's `fit_ellipsoid_paper` does, by independent means.
-pub fn fit_cluster(points: &[Vector3<f64>], params: &FitParams, rng: &mut Pcg32) -> Option<ReferenceFit> {
+pub fn fit_cluster(
+    points: &[Vector3<f64>],
+    params: &FitParams,
+    rng: &mut Pcg32,
+) -> Option<ReferenceFit> {
     let m = moments::direct_moments(points)?;
     let f = fitness::DirectFitness::new(points, &m, params.alpha);
     let s = m.second.sum().sqrt();

@@ -1,0 +1,311 @@
+//! Issue 4: the core as firmware runs it. Same map whatever the chunking, equal to the host's
+//! `mema replay` (real binaries), faults and resets lose only what they must, the core within
+//! tolerance of the independent f64 reference on every shared cloud, and fuzzed readers.
+//! Debug vs release, `-C target-cpu=native` and the Cortex-M4F image under QEMU are compared by
+//! `firmware-sim/check.sh`, which `scripts/test.sh` runs (it builds those variants).
+
+use std::collections::HashMap;
+use std::process::Command;
+
+use mema::serial::frames::{encode_stream, quantise};
+use mema_core::Point3;
+use mema_firmware_sim::board::{Board, BoardSpec};
+use mema_firmware_sim::compare::{compare_clouds, shared_clouds};
+use mema_firmware_sim::fault::FaultConfig;
+use mema_firmware_sim::firmware::{Firmware, Snapshot, stream_params};
+use mema_firmware_sim::harness::{RunConfig, RunReport, frames_of, map_of_frames, run};
+
+use crate::util::{Dir, MemaCommand, mema_bin, shared};
+
+const K: usize = 256;
+const G: usize = 512;
+
+fn capture_of(cloud: &str) -> Vec<u8> {
+    let cloud = mema::commands::load_cloud(&shared(cloud)).expect("cloud reads");
+    let wire: Vec<[i32; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| quantise(*p).expect("fits"))
+        .collect();
+    encode_stream(&wire).expect("encodes")
+}
+
+fn play(capture: &[u8], k: usize, config: &RunConfig) -> RunReport {
+    let board = Board::new(BoardSpec {
+        ram_bytes: 4 << 20,
+        stack_bytes: 64 << 10,
+    });
+    let mut firmware: Box<Firmware<K, G>> = Box::new(Firmware::new(stream_params(0, k)));
+    let mut snapshot: Box<Snapshot<K, G>> = Box::new(Snapshot::new(stream_params(0, k)));
+    run(&board, &mut firmware, &mut snapshot, capture, config).expect("runs")
+}
+
+#[test]
+fn the_map_is_the_same_whatever_the_chunking() {
+    let capture = capture_of("car6.pcd");
+    let whole = play(
+        &capture,
+        150,
+        &RunConfig {
+            max_chunk: 1 << 20,
+            ..RunConfig::default()
+        },
+    );
+    assert!(whole.end_of_stream && whole.mapper.points == 10_031);
+    for (chunk_seed, max_chunk) in [(0, 1), (1, 2), (2, 7), (3, 256), (4, 1024)] {
+        let r = play(
+            &capture,
+            150,
+            &RunConfig {
+                chunk_seed,
+                max_chunk,
+                ..RunConfig::default()
+            },
+        );
+        assert_eq!(
+            r.map, whole.map,
+            "chunks of 1..={max_chunk}, seed {chunk_seed}"
+        );
+        assert!(r.deliveries > whole.deliveries);
+    }
+}
+
+#[test]
+fn firmware_sim_equals_mema_replay_of_the_same_capture() {
+    let dir = Dir::new("fw-replay");
+    let fw_bin =
+        mema_bin().with_file_name(format!("mema-firmware-sim{}", std::env::consts::EXE_SUFFIX));
+    for (cloud, k) in [("car6.pcd", "150"), ("bun_zipper.ply", "350")] {
+        let capture = dir.join("capture.bin");
+        MemaCommand::new(&dir)
+            .arg("scanner-sim")
+            .arg("--port")
+            .arg(&capture)
+            .arg(shared(cloud))
+            .run()
+            .assert_ok();
+        MemaCommand::new(&dir)
+            .args(["replay", "capture.bin", "-k", k, "-o", "replay.mema"])
+            .run()
+            .assert_ok();
+        let out = Command::new(&fw_bin)
+            .args([
+                "run",
+                "capture.bin",
+                "-k",
+                k,
+                "-o",
+                "fw.mema",
+                "--max-chunk",
+                "97",
+                "--json",
+            ])
+            .current_dir(&dir.path)
+            .output()
+            .expect("mema-firmware-sim runs");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let replay = std::fs::read(dir.join("replay.mema")).expect("replay map");
+        let fw = std::fs::read(dir.join("fw.mema")).expect("firmware map");
+        assert!(replay.len() > 40, "{cloud}: a map with entities");
+        assert_eq!(fw, replay, "{cloud}: firmware-sim and mema replay differ");
+    }
+}
+
+#[test]
+fn the_board_refuses_statics_over_its_ram() {
+    let dir = Dir::new("fw-board");
+    let fw_bin =
+        mema_bin().with_file_name(format!("mema-firmware-sim{}", std::env::consts::EXE_SUFFIX));
+    std::fs::write(dir.join("c.bin"), capture_of("car6.pcd")).expect("write");
+    let out = Command::new(&fw_bin)
+        .args(["run", "c.bin", "--ram", "131072"])
+        .current_dir(&dir.path)
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("board: static FIRMWARE") && err.contains("over the"),
+        "{err}"
+    );
+}
+
+/// Every accepted frame is a frame that was sent, and the map equals that of an uninterrupted
+/// mapper fed exactly the frames the firmware holds at the end.
+fn check_against_clean_frames(report: &RunReport, frames: &HashMap<u32, Vec<Point3>>, k: usize) {
+    let rebuilt = map_of_frames::<K, G>(stream_params(0, k), &report.accepted, frames)
+        .unwrap_or_else(|seq| panic!("frame {seq} was never sent"));
+    assert_eq!(
+        report.map, rebuilt,
+        "map differs from the map of its accepted frames"
+    );
+    let mut sorted = report.accepted.clone();
+    sorted.dedup();
+    assert_eq!(
+        sorted.len(),
+        report.accepted.len(),
+        "a frame was used twice"
+    );
+}
+
+#[test]
+fn byte_faults_lose_only_corrupted_frames() {
+    let capture = capture_of("car6.pcd");
+    let frames = frames_of(&capture);
+    for seed in 0..4 {
+        let faults = FaultConfig {
+            seed,
+            noise_ppm: 100,
+            overrun_ppm: 60,
+            truncate_ppm: 60,
+            reset_ppm: 0,
+        };
+        let r = play(
+            &capture,
+            150,
+            &RunConfig {
+                faults: Some(faults),
+                ..RunConfig::default()
+            },
+        );
+        let f = r.faults;
+        assert!(
+            f.noise_bytes > 0 && f.overruns > 0 && f.truncations > 0,
+            "{f:?}"
+        );
+        assert!(
+            r.decoder.rejected > 0 && r.accepted.len() < frames.len(),
+            "seed {seed}: {:?}",
+            r.decoder
+        );
+        // Each fault spoils at most the frame it hits and, by eating a delimiter, the next one.
+        let faults_injected = (f.noise_bytes + f.overruns + f.truncations) as usize;
+        assert!(
+            frames.len() - r.accepted.len() <= 2 * faults_injected,
+            "seed {seed}"
+        );
+        check_against_clean_frames(&r, &frames, 150);
+    }
+}
+
+#[test]
+fn after_a_reset_the_restored_mapper_continues_to_the_uninterrupted_map() {
+    let capture = capture_of("car6.pcd");
+    let frames = frames_of(&capture);
+    let mut resets_seen = 0;
+    for seed in 0..6 {
+        let faults = FaultConfig {
+            seed,
+            reset_ppm: 3_000,
+            ..FaultConfig::default()
+        };
+        let r = play(
+            &capture,
+            150,
+            &RunConfig {
+                snapshot_every: 8,
+                faults: Some(faults),
+                ..RunConfig::default()
+            },
+        );
+        resets_seen += r.faults.resets;
+        assert_eq!(r.firmware.restarts, r.faults.resets);
+        if r.faults.resets > 0 {
+            // Frames between the last snapshot and a reset are gone: the map holds fewer.
+            assert!(r.accepted.len() < frames.len(), "seed {seed}");
+            assert!(
+                r.accepted.len() >= 8,
+                "seed {seed}: the snapshot kept earlier frames"
+            );
+        }
+        check_against_clean_frames(&r, &frames, 150);
+    }
+    assert!(resets_seen >= 3, "only {resets_seen} resets over 6 seeds");
+}
+
+#[test]
+fn the_core_agrees_with_the_f64_reference_on_every_shared_cloud() {
+    let clouds = shared_clouds().expect("../shared/data lists");
+    let summary = compare_clouds(&clouds, 150, 0);
+    eprintln!("{}", summary.text());
+    assert!(
+        summary.clouds.len() >= 9,
+        "PLY and PCD clouds read: {}",
+        summary.clouds.len()
+    );
+    for c in &summary.clouds {
+        assert!(c.diff.is_none(), "{}: {:?}", c.cloud, c.diff);
+        assert!(c.clusters >= 140, "{}: {} clusters", c.cloud, c.clusters);
+    }
+    assert!(summary.passed());
+}
+
+/// Readers fuzzed from a seed corpus of the real files: truncations and byte mutations give an
+/// error or a cloud, never a panic.
+#[test]
+fn readers_never_panic_on_mutated_real_files() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    };
+    for name in ["car6.pcd", "milk.pcd", "bun_zipper.ply", "lamppost.pcd"] {
+        let original = std::fs::read(shared(name)).expect("reads");
+        for round in 0..150 {
+            let mut bytes = original.clone();
+            // Mutations concentrate on the first 2 KiB (headers), where the parsing decisions are.
+            let span = bytes.len().min(2048);
+            for _ in 0..1 + round % 8 {
+                let at = (next() as usize) % span;
+                bytes[at] = next() as u8;
+            }
+            if round % 3 == 0 {
+                bytes.truncate((next() as usize) % bytes.len());
+            }
+            let result = std::panic::catch_unwind(|| mema::read::read_cloud_bytes(name, &bytes));
+            assert!(result.is_ok(), "{name}, round {round}: the reader panicked");
+        }
+    }
+}
+
+/// The map-file reader: any byte sequence is either a valid map that re-encodes to itself, or
+/// an error.
+#[test]
+fn map_file_reader_never_panics_and_round_trips() {
+    let capture = capture_of("car6.pcd");
+    let map = play(&capture, 150, &RunConfig::default()).map;
+    let mut state = 7u64;
+    let mut next = move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        state >> 33
+    };
+    let mut valid = 0;
+    for round in 0..20_000 {
+        let mut bytes = map.clone();
+        for _ in 0..1 + round % 4 {
+            let at = next() as usize % bytes.len();
+            bytes[at] = next() as u8;
+        }
+        if round % 5 == 0 {
+            bytes.truncate(next() as usize % bytes.len());
+        }
+        if let Ok(file) = mema_core::map::MapFile::new_checked(&bytes) {
+            // A mutation may write the byte that was there: only changed bytes count.
+            valid += usize::from(bytes != map);
+            let entities: Vec<_> = file.entities().collect();
+            let mut again = vec![0u8; mema_core::map::encoded_len(entities.len())];
+            mema_core::map::encode(file.origin(), &entities, &mut again).expect("encodes");
+            assert_eq!(again, bytes);
+        }
+    }
+    // A CRC guards the file: random mutations essentially never pass.
+    assert!(valid <= 1, "{valid} changed maps passed the CRC");
+}
