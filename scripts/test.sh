@@ -15,6 +15,14 @@ if ! command -v socat >/dev/null 2>&1; then
   if [ "$(id -u)" = 0 ]; then apt-get update -qq && apt-get install -y -qq socat; else sudo apt-get update -qq && sudo apt-get install -y -qq socat; fi
 fi
 
+# The firmware check builds a Cortex-M4F image and runs it under QEMU (firmware-sim/check.sh).
+rustup target add thumbv7em-none-eabihf >/dev/null 2>&1 || true
+if ! command -v qemu-system-arm >/dev/null 2>&1 || ! command -v llvm-size >/dev/null 2>&1; then
+  echo "== installing qemu-system-arm and llvm"
+  sudo_=""; [ "$(id -u)" = 0 ] || sudo_=sudo
+  $sudo_ apt-get update -qq && $sudo_ apt-get install -y -qq --no-install-recommends qemu-system-arm llvm
+fi
+
 echo "== cargo fmt --check"
 cargo fmt --all --check
 echo "== cargo clippy"
@@ -23,3 +31,5 @@ echo "== core builds without std"
 cargo build -p mema-core --no-default-features
 echo "== tests (release profile: real clouds)"
 cargo test --workspace --release
+echo "== firmware: bit for bit across builds and targets, and the budget"
+firmware-sim/check.sh

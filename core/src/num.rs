@@ -42,7 +42,16 @@ mod tests {
 
     #[test]
     fn clamp_matches_the_standard_one() {
-        for x in [-2.0, -0.0, 0.0, 0.5, 1.0, 3.0, f64::INFINITY, f64::NEG_INFINITY] {
+        for x in [
+            -2.0,
+            -0.0,
+            0.0,
+            0.5,
+            1.0,
+            3.0,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ] {
             assert_eq!(clamp(x, 0.0, 1.0).to_bits(), x.clamp(0.0, 1.0).to_bits());
         }
         assert!(clamp(f64::NAN, 0.0, 1.0).is_nan());

@@ -123,7 +123,8 @@ fn run() -> Result<(), &'static str> {
         .ok_or("MAP_OUT initialised twice")?;
     let stack_boot = stack::high_water();
     stack::paint();
-    let mut uart = io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
+    let mut uart =
+        io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
 
     let mut chunk = [0u8; 256];
     let t0 = now();
@@ -146,7 +147,9 @@ fn run() -> Result<(), &'static str> {
     stack::paint();
     let t0 = now();
     firmware.finish();
-    let len = firmware.encode_map(map_out).map_err(|_| "map buffer too small")?;
+    let len = firmware
+        .encode_map(map_out)
+        .map_err(|_| "map buffer too small")?;
     let finish_ticks = now() - t0;
     let stack_finish = stack::high_water();
 

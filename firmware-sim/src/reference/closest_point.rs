@@ -1,12 +1,13 @@
 //! Distance to an axis-aligned ellipsoid's surface by Newton's method on the Lagrange condition.
 //!
-//! The closest point `x` to `y` on `sum_j x_j^2 / a_j^2 = 1` satisfies `x_j = a_j^2 y_j / (a_j^2
-//! + t)` for the multiplier `t`, the largest root of `F(t) = sum_j a_j^2 y_j^2 / (a_j^2 + t)^2
-//! - 1` on `(-a_min^2, inf)`, where `F` is convex and decreasing. Newton from the left of the
-//! root climbs to it monotonically; a bracket keeps every step inside. When the coordinate on
-//! the shortest axis is zero the root may not exist in that interval (the point is inside the
-//! evolute): then `t = -a_min^2` and the closest point leaves the coordinate plane. Infinite
-//! (degenerated) axes are dropped, so the same code does ellipses and plane pairs.
+//! The closest point `x` to `y` on `sum_j x_j^2 / a_j^2 = 1` satisfies
+//! `x_j = a_j^2 y_j / (a_j^2 + t)` for the multiplier `t`, the largest root of
+//! `F(t) = sum_j a_j^2 y_j^2 / (a_j^2 + t)^2 - 1` on `(-a_min^2, inf)`, where `F` is convex and
+//! decreasing. Newton from the left of the root climbs to it monotonically; a bracket keeps
+//! every step inside. When the coordinate on the shortest axis is zero the root may not exist in
+//! that interval (the point is inside the evolute): then `t = -a_min^2` and the closest point
+//! leaves the coordinate plane. Infinite (degenerated) axes are dropped, so the same code does
+//! ellipses and plane pairs.
 
 /// Distance from `offset` (point minus centre, axis frame) to the surface with `semi_axes`.
 pub fn distance(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Issue 4, bit for bit across builds and targets: the same capture mapped by
+#   - `mema replay` (host, release),
+#   - `mema-firmware-sim run` built in release, in debug, and in release with -C target-cpu=native
+#     (each with different UART chunkings), and
+#   - the Cortex-M4F image under qemu-system-arm (mps2-an386, semihosting),
+# must give identical map bytes. Everything is built and compared in this run; no stored hash.
+# Then `mema-firmware-sim budget` prints the memory and cycle figures from the image's run.
+# Needs: the thumbv7em-none-eabihf target, qemu-system-arm, llvm-size (scripts/test.sh installs).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+minimal=(--no-default-features --features std -p mema-firmware-sim)
+
+echo "== firmware: building release, debug, target-cpu=native and the thumbv7em image"
+cargo build -q --release -p mema -p mema-firmware-sim
+cargo build -q "${minimal[@]}" --target-dir target/fw-debug
+RUSTFLAGS="-C target-cpu=native" cargo build -q --release "${minimal[@]}" --target-dir target/fw-native
+(cd firmware-sim/image && cargo fmt --check && cargo clippy -q --release -- -D warnings && cargo build -q --release)
+image=firmware-sim/image/target/thumbv7em-none-eabihf/release/mema-firmware-image
+
+status=0
+for cloud in car6.pcd demo; do
+  dir="$work/$cloud"
+  mkdir -p "$dir"
+  if [ "$cloud" = demo ]; then
+    target/release/mema scanner-sim --port "$dir/capture.bin" 2>/dev/null
+  else
+    target/release/mema scanner-sim --port "$dir/capture.bin" "../shared/data/$cloud" 2>/dev/null
+  fi
+  target/release/mema replay "$dir/capture.bin" -k 150 -o "$dir/replay.mema" >/dev/null 2>&1
+  target/release/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/release.mema" 2>/dev/null
+  target/fw-debug/debug/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/debug.mema" \
+    --chunk-seed 7 --max-chunk 13 2>/dev/null
+  target/fw-native/release/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/native.mema" \
+    --chunk-seed 3 --max-chunk 1000 2>/dev/null
+  (cd "$dir" && timeout 600 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+    -monitor none -serial none -semihosting-config enable=on,target=native -icount shift=0 \
+    -kernel "$OLDPWD/$image" > qemu.txt) || { echo "firmware: QEMU run failed"; cat "$dir/qemu.txt"; exit 1; }
+  mv "$dir/map.mema" "$dir/qemu.mema"
+  for variant in release debug native qemu; do
+    if cmp -s "$dir/replay.mema" "$dir/$variant.mema"; then
+      echo "   $cloud: $variant = mema replay ($(stat -c %s "$dir/replay.mema") bytes)"
+    else
+      echo "firmware: $cloud: $variant differs from mema replay:"
+      cmp "$dir/replay.mema" "$dir/$variant.mema" || true
+      status=1
+    fi
+  done
+done
+echo "== firmware budget (image mapping car6, K = 150)"
+target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/qemu.txt"
+exit $status
