@@ -3,9 +3,21 @@
 //! Nothing is allocated: the caller hands in the points, `k` centres to fill, one label and one
 //! distance slot per point, and `k` centroid accumulators. Ties go to the lowest centre index and
 //! sums run in point order, so a seed fixes the result bit for bit.
+//!
+//! This file is the plain reference, O(nk) per draw and per iteration. [`accel`] gives the same
+//! labels and centre bits in far fewer distance evaluations (exact k-means++ over cluster lists,
+//! Hamerly's bounds with a kd-tree over the centres); the tests hold the two to each other.
+
+pub mod accel;
+mod margin;
+mod seed;
+pub mod tree;
+mod weights;
 
 use crate::geometry::Point3;
-use crate::rng::{index_below, stream_rng, uniform};
+use crate::rng::{index_below, stream_rng};
+pub use weights::{BLOCK, MAX_SQUARED, blocks_for};
+use weights::{WeightScale, draw_target};
 
 /// Why clustering could not start.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -20,6 +32,8 @@ pub enum KMeansError {
     NonFiniteCoordinate {
         index: usize,
     },
+    /// Squared distances would come near f32 overflow (coordinates around 1e18).
+    CoordinatesTooLarge,
     /// A caller-provided slice has the wrong length.
     SliceLength {
         what: &'static str,
@@ -42,6 +56,10 @@ impl core::fmt::Display for KMeansError {
             Self::NonFiniteCoordinate { index } => {
                 write!(f, "point {index} has a non-finite coordinate")
             }
+            Self::CoordinatesTooLarge => write!(
+                f,
+                "the cloud spans more than 1e18 units; squared distances would overflow f32"
+            ),
             Self::SliceLength {
                 what,
                 expected,
@@ -116,14 +134,13 @@ fn check_len(what: &'static str, expected: usize, got: usize) -> Result<(), KMea
     }
 }
 
-/// k-means++: the first centre uniformly, each next one with probability proportional to its
-/// squared distance from the centres so far. `distances` ends holding those squared distances.
-pub fn seed_plus_plus(
+/// Checks what every seeding needs and returns the first centre's index (drawn uniformly).
+fn seeding_start(
     points: &[Point3],
-    centres: &mut [Point3],
-    distances: &mut [f32],
-    seed: u64,
-) -> Result<(), KMeansError> {
+    centres: &[Point3],
+    distances: &[f32],
+    rng: &mut crate::rng::Pcg32,
+) -> Result<usize, KMeansError> {
     if points.is_empty() {
         return Err(KMeansError::EmptyInput);
     }
@@ -134,42 +151,63 @@ pub fn seed_plus_plus(
     if let Some(index) = points.iter().position(|p| !p.is_finite()) {
         return Err(KMeansError::NonFiniteCoordinate { index });
     }
+    Ok(index_below(rng, points.len()))
+}
+
+/// The integer weights of the draws, fixed by the distances to the first centre (the largest
+/// any point will have).
+fn seeding_scale(distances: &[f32], k: usize) -> Result<WeightScale, KMeansError> {
+    let max = distances.iter().fold(0.0f32, |m, &d| m.max(d));
+    if !(max <= MAX_SQUARED) {
+        return Err(KMeansError::CoordinatesTooLarge);
+    }
+    if !(max > 0.0) {
+        return Err(KMeansError::TooFewDistinctPoints { k, distinct: 1 });
+    }
+    Ok(WeightScale::new(max, distances.len()))
+}
+
+/// k-means++: the first centre uniformly, each next one with probability proportional to its
+/// squared distance from the centres so far (as integer weights, see `weights`). `distances`
+/// ends holding those squared distances.
+pub fn seed_plus_plus(
+    points: &[Point3],
+    centres: &mut [Point3],
+    distances: &mut [f32],
+    seed: u64,
+) -> Result<(), KMeansError> {
     let mut rng = stream_rng(seed, KMEANS_STREAM);
+    let first = seeding_start(points, centres, distances, &mut rng)?;
     let k = centres.len();
-    let mut chosen = points[index_below(&mut rng, points.len())];
+    let mut chosen = points.get(first).copied().unwrap_or_default();
     for (d, p) in distances.iter_mut().zip(points.iter()) {
         *d = p.distance_squared(chosen);
     }
+    let scale = if k > 1 {
+        Some(seeding_scale(distances, k)?)
+    } else {
+        None
+    };
     for (placed, centre) in centres.iter_mut().enumerate() {
-        if placed > 0 {
-            let total: f64 = distances.iter().map(|&d| d as f64).sum();
-            if !(total > 0.0) {
+        if let (true, Some(scale)) = (placed > 0, scale) {
+            let total: u128 = distances.iter().map(|&d| scale.weight(d)).sum();
+            if total == 0 {
                 return Err(KMeansError::TooFewDistinctPoints {
                     k,
                     distinct: placed,
                 });
             }
-            let target = uniform(&mut rng) * total;
-            let mut cumulative = 0.0;
-            let mut pick = None;
+            let target = draw_target(&mut rng, total);
+            let mut cumulative = 0u128;
+            let mut pick = 0;
             for (i, &d) in distances.iter().enumerate() {
-                if d > 0.0 {
-                    cumulative += d as f64;
-                    pick = Some(i);
-                    if cumulative > target {
-                        break;
-                    }
+                cumulative += scale.weight(d);
+                if cumulative > target {
+                    pick = i;
+                    break;
                 }
             }
-            // Rounding may leave the cumulative sum just short of the target: the last point with
-            // a positive distance is then the pick, never a point already chosen.
-            let Some(index) = pick else {
-                return Err(KMeansError::TooFewDistinctPoints {
-                    k,
-                    distinct: placed,
-                });
-            };
-            chosen = points[index];
+            chosen = points.get(pick).copied().unwrap_or_default();
             for (d, p) in distances.iter_mut().zip(points.iter()) {
                 *d = d.min(p.distance_squared(chosen));
             }
@@ -211,6 +249,12 @@ pub fn update_centres(
     centres: &mut [Point3],
     sums: &mut [CentroidSum],
 ) -> f64 {
+    accumulate(points, labels, sums);
+    move_centres(points, labels, distances, centres, sums)
+}
+
+/// The per-cluster sums of the update step, in point order.
+pub fn accumulate(points: &[Point3], labels: &[u32], sums: &mut [CentroidSum]) {
     for s in sums.iter_mut() {
         *s = CentroidSum::default();
     }
@@ -223,6 +267,18 @@ pub fn update_centres(
             s.count += 1;
         }
     }
+}
+
+/// The rest of the update step once `sums` are known. `distances` (squared distances to the
+/// assigned centres) is read, and one slot cleared per emptied cluster, only if a cluster is
+/// empty.
+pub fn move_centres(
+    points: &[Point3],
+    labels: &mut [u32],
+    distances: &mut [f32],
+    centres: &mut [Point3],
+    sums: &[CentroidSum],
+) -> f64 {
     let mut shift = 0.0;
     for (i, (centre, s)) in centres.iter_mut().zip(sums.iter()).enumerate() {
         let moved = if s.count > 0 {
@@ -273,6 +329,19 @@ pub fn kmeans(
     check_len("labels", points.len(), labels.len())?;
     check_len("centroid sums", centres.len(), sums.len())?;
     seed_plus_plus(points, centres, distances, params.seed)?;
+    Ok(lloyd(points, centres, labels, distances, sums, params))
+}
+
+/// Lloyd iterations from the given centres (slice lengths as for `kmeans`; `points` non-empty
+/// and finite). The plain reference: every iteration scans all centres for every point.
+pub fn lloyd(
+    points: &[Point3],
+    centres: &mut [Point3],
+    labels: &mut [u32],
+    distances: &mut [f32],
+    sums: &mut [CentroidSum],
+    params: &KMeansParams,
+) -> KMeansOutcome {
     let threshold = params.tolerance * mean_axis_variance(points);
     labels.fill(u32::MAX);
     let mut iterations = 0;
@@ -295,14 +364,15 @@ pub fn kmeans(
         assign(points, centres, labels, distances);
     }
     let inertia = distances.iter().map(|&d| d as f64).sum();
-    Ok(KMeansOutcome {
+    KMeansOutcome {
         iterations,
         converged,
         inertia,
-    })
+    }
 }
 
-fn mean_axis_variance(points: &[Point3]) -> f64 {
+/// The tolerance's scale: scikit-learn's mean per-axis variance.
+pub(crate) fn mean_axis_variance(points: &[Point3]) -> f64 {
     let n = points.len() as f64;
     let mut mean = [0.0f64; 3];
     for p in points {

@@ -3,6 +3,10 @@
 use anyhow::{Context, Result, bail};
 use mema_core::closest_point::SurfaceError;
 use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper, fit_sphere_paper};
+use mema_core::kmeans::accel::{
+    AssignStep, CentreState, Runner, Scratch, ScratchSizes, SeedList, kmeans_fast,
+};
+use mema_core::kmeans::tree::TreeNode;
 use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, kmeans};
 use mema_core::moments::{CentralMoments, Moments};
 use mema_core::rng::stream_rng;
@@ -40,8 +44,57 @@ pub struct Fitted {
     pub spheres: Vec<Fit>,
 }
 
-/// Runs k-means and gathers each cluster's moments.
-pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clusters> {
+/// Which k-means implementation runs; both give the same labels and centre bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum KMeansEngine {
+    /// The reference: every point against every centre, every iteration.
+    Plain,
+    /// Exact k-means++ over cluster lists, Hamerly's bounds, a kd-tree over the centres, and
+    /// the assignment on all threads.
+    Accelerated,
+}
+
+/// Points per parallel task. The result does not depend on the split; a fixed size keeps the
+/// work identical for any thread count anyway.
+const ASSIGN_CHUNK: usize = 4096;
+
+/// Runs the accelerated assignment on the rayon pool in fixed chunks.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct RayonRunner;
+
+impl Runner for RayonRunner {
+    fn assign(
+        &self,
+        step: &AssignStep<'_>,
+        points: &[Point3],
+        labels: &mut [u32],
+        upper_bounds: &mut [f32],
+        lower_bounds: &mut [f32],
+    ) -> usize {
+        points
+            .par_chunks(ASSIGN_CHUNK)
+            .zip(labels.par_chunks_mut(ASSIGN_CHUNK))
+            .zip(upper_bounds.par_chunks_mut(ASSIGN_CHUNK))
+            .zip(lower_bounds.par_chunks_mut(ASSIGN_CHUNK))
+            .map(|(((p, l), u), lo)| step.run(p, l, u, lo))
+            .sum()
+    }
+}
+
+/// k-means result: centres, one label per point, and how Lloyd ended.
+pub struct KMeansRun {
+    pub centres: Vec<Point3>,
+    pub labels: Vec<u32>,
+    pub outcome: KMeansOutcome,
+}
+
+/// k-means with either engine, its working memory allocated here and freed on return.
+pub fn run_kmeans(
+    points: &[Point3],
+    k: usize,
+    params: &KMeansParams,
+    engine: KMeansEngine,
+) -> Result<KMeansRun> {
     if k == 0 {
         bail!("k must be at least 1");
     }
@@ -52,20 +105,85 @@ pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clu
             (points.len() / 100).max(1)
         );
     }
+    let n = points.len();
     let mut centres = vec![Point3::default(); k];
-    let mut labels = vec![0u32; points.len()];
-    let mut distances = vec![0f32; points.len()];
+    let mut labels = vec![0u32; n];
+    let mut distances = vec![0f32; n];
     let mut sums = vec![CentroidSum::default(); k];
-    let outcome = kmeans(
-        points,
-        &mut centres,
-        &mut labels,
-        &mut distances,
-        &mut sums,
-        params,
-    )
+    let outcome = match engine {
+        KMeansEngine::Plain => kmeans(
+            points,
+            &mut centres,
+            &mut labels,
+            &mut distances,
+            &mut sums,
+            params,
+        ),
+        KMeansEngine::Accelerated => {
+            let size = ScratchSizes::new(n, k);
+            let mut lower = vec![0f32; size.points];
+            let mut blocks = vec![0u128; size.blocks];
+            let mut lists = vec![SeedList::default(); size.centres];
+            let mut state = vec![CentreState::default(); size.centres];
+            let mut order = vec![0u32; size.centres];
+            let mut sorted = vec![Point3::default(); size.centres];
+            let mut nodes = vec![TreeNode::default(); size.nodes];
+            let scratch = Scratch {
+                lower: &mut lower,
+                blocks: &mut blocks,
+                lists: &mut lists,
+                centres: &mut state,
+                order: &mut order,
+                sorted: &mut sorted,
+                nodes: &mut nodes,
+            };
+            kmeans_fast(
+                points,
+                &mut centres,
+                &mut labels,
+                &mut distances,
+                &mut sums,
+                scratch,
+                params,
+                &RayonRunner,
+            )
+        }
+    }
     .map_err(anyhow::Error::from)
     .context("k-means")?;
+    Ok(KMeansRun {
+        centres,
+        labels,
+        outcome,
+    })
+}
+
+/// Runs k-means and gathers each cluster's moments.
+pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clusters> {
+    cluster_with(points, k, params, KMeansEngine::Accelerated)
+}
+
+pub fn cluster_with(
+    points: &[Point3],
+    k: usize,
+    params: &KMeansParams,
+    engine: KMeansEngine,
+) -> Result<Clusters> {
+    let run = run_kmeans(points, k, params, engine)?;
+    let moments = cluster_moments(points, &run.labels, &run.centres)?;
+    Ok(Clusters {
+        labels: run.labels,
+        moments,
+        outcome: run.outcome,
+    })
+}
+
+/// Each cluster's central moments, its points added in point order.
+pub fn cluster_moments(
+    points: &[Point3],
+    labels: &[u32],
+    centres: &[Point3],
+) -> Result<Vec<CentralMoments>> {
     // Shifting each cluster's sums by its centroid keeps the moment conversion well conditioned.
     let mut moments: Vec<Moments> = centres
         .iter()
@@ -76,19 +194,14 @@ pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clu
             m.add(*p);
         }
     }
-    let moments = moments
+    moments
         .iter()
         .enumerate()
         .map(|(i, m)| {
             m.central()
                 .with_context(|| format!("cluster {i} is empty after k-means"))
         })
-        .collect::<Result<Vec<_>>>()?;
-    Ok(Clusters {
-        labels,
-        moments,
-        outcome,
-    })
+        .collect()
 }
 
 /// Fits an ellipsoid and a sphere to every cluster, in parallel. Each cluster draws from its

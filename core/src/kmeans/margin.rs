@@ -1,0 +1,129 @@
+//! Rigorous bounds on distances despite f32 rounding, so pruning never changes an answer.
+//!
+//! The plain search compares `fl(D^2)`, the f32 value of `dx*dx + dy*dy + dz*dz` with
+//! `dx = fl(x - c_x)` (no fused multiply-add: Rust never contracts). Each of its five roundings
+//! is relative (`u = 2^-24`) except where a square underflows, so for the true distance `d`:
+//!
+//! `(1 - EPS) d^2 - ETA <= fl(D^2) <= (1 + EPS) d^2 + ETA`, with `EPS = 6u` and `ETA = 2^-140`.
+//!
+//! The accelerated searches keep bounds on *true* distances (the triangle inequality holds for
+//! those, not for rounded values) and convert with the helpers below, each of which leaves a
+//! margin of `2^-20`, sixteen times the rounding it must cover. A pruning decision is taken only
+//! when it holds with that margin; anything closer falls back to the exact scan.
+
+use crate::geometry::Point3;
+
+/// `1 + 2^-20` and `1 - 2^-20`, exact in f32.
+const UP: f32 = 1.0 + 1.0 / 1_048_576.0;
+const DOWN: f32 = 1.0 - 1.0 / 1_048_576.0;
+/// Absolute slack for distances so small that the squares underflow (`2^-60`, `2^-50`).
+const TINY: f32 = f32::from_bits((127 - 60) << 23);
+const SEPARABLE: f32 = f32::from_bits((127 - 50) << 23);
+
+/// The squared distance exactly as the plain search computes it.
+#[inline]
+pub fn squared(p: Point3, c: Point3) -> f32 {
+    p.distance_squared(c)
+}
+
+/// An upper bound on the true distance of a pair whose computed `fl(D^2)` is `sq`.
+#[inline]
+pub fn upper(sq: f32) -> f32 {
+    libm::sqrtf(sq) * UP + TINY
+}
+
+/// A lower bound on the true distance of a pair whose computed `fl(D^2)` is `sq` (0 at worst).
+#[inline]
+pub fn lower(sq: f32) -> f32 {
+    (libm::sqrtf(sq) * DOWN - TINY).max(0.0)
+}
+
+/// An upper bound on `a + b` for non-negative bounds `a`, `b`.
+#[inline]
+pub fn add_up(a: f32, b: f32) -> f32 {
+    (a + b) * UP
+}
+
+/// A lower bound on `a - b`, clamped at 0 (a distance is never negative).
+#[inline]
+pub fn sub_down(a: f32, b: f32) -> f32 {
+    ((a - b) * DOWN).max(0.0)
+}
+
+/// True when any pair no farther than `near` (true distance) is sure to get a strictly smaller
+/// `fl(D^2)` than any pair at least `far` away, so the plain search could not have preferred
+/// the far one, even on a tie.
+#[inline]
+pub fn surely_nearer(near: f32, far: f32) -> bool {
+    near * UP < far * DOWN && far > SEPARABLE
+}
+
+/// True when every centre whose true squared distance is at least that of a box with computed
+/// squared distance `box_sq` gets a computed `fl(D^2)` strictly above `sq`.
+#[inline]
+pub fn box_beyond(box_sq: f32, sq: f32) -> bool {
+    box_sq * (DOWN * DOWN) > sq * (UP * UP) + SEPARABLE * SEPARABLE
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn constants_are_the_powers_of_two_they_claim() {
+        assert_eq!(UP, 1.0 + 2f32.powi(-20));
+        assert_eq!(DOWN, 1.0 - 2f32.powi(-20));
+        assert_eq!(TINY, 2f32.powi(-60));
+        assert_eq!(SEPARABLE, 2f32.powi(-50));
+    }
+
+    /// An f64 check of the error model: the bounds must enclose the exact distance of many
+    /// f32 pairs, including nearly equal and subnormal-scale ones.
+    #[test]
+    fn bounds_enclose_the_exact_distance() {
+        let mut s = 7u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((s >> 11) as f64 / (1u64 << 53) as f64) - 0.5
+        };
+        for scale in [1e-30f64, 1e-12, 1e-3, 1.0, 1e4, 1e12] {
+            for _ in 0..20_000 {
+                let p = Point3::new(
+                    (next() * scale) as f32,
+                    (next() * scale) as f32,
+                    (next() * scale) as f32,
+                );
+                let q = Point3::new(
+                    p.x + (next() * scale * 1e-3) as f32,
+                    (next() * scale) as f32,
+                    p.z,
+                );
+                let exact = {
+                    let (a, b) = (p.to_f64(), q.to_f64());
+                    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+                };
+                let sq = squared(p, q);
+                assert!(upper(sq) as f64 >= exact, "{p:?} {q:?}");
+                assert!(lower(sq) as f64 <= exact, "{p:?} {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn decisions_need_a_margin() {
+        assert!(surely_nearer(1.0, 1.001));
+        assert!(!surely_nearer(1.0, 1.0));
+        assert!(!surely_nearer(1.0, 1.0 + 1e-7));
+        assert!(!surely_nearer(0.0, 0.0));
+        assert!(surely_nearer(1.0, f32::INFINITY));
+        assert!(!surely_nearer(f32::INFINITY, f32::INFINITY));
+        assert!(box_beyond(1.001, 1.0));
+        assert!(!box_beyond(1.0, 1.0));
+        assert!(!box_beyond(0.0, 0.0));
+        assert!(add_up(1.0, 2.0) > 3.0);
+        assert!(sub_down(3.0, 1.0) < 2.0);
+        assert_eq!(sub_down(1.0, 3.0), 0.0);
+    }
+}
