@@ -11,6 +11,7 @@
 pub mod accel;
 mod margin;
 mod seed;
+mod step;
 pub mod tree;
 mod weights;
 
@@ -255,17 +256,45 @@ pub fn update_centres(
 
 /// The per-cluster sums of the update step, in point order.
 pub fn accumulate(points: &[Point3], labels: &[u32], sums: &mut [CentroidSum]) {
+    accumulate_range(points, labels, 0, sums);
+}
+
+/// `accumulate` for the clusters `first..first + sums.len()` only: each cluster's sum still runs
+/// over its points in point order, so splitting the clusters between threads changes no bit.
+pub fn accumulate_range(points: &[Point3], labels: &[u32], first: u32, sums: &mut [CentroidSum]) {
     for s in sums.iter_mut() {
         *s = CentroidSum::default();
     }
+    // Runs of one label (the norm in a scan) add into a local copy: the same additions in the
+    // same order, without a store-to-load round trip per point.
+    let mut run: Option<(usize, CentroidSum)> = None;
     for (p, &label) in points.iter().zip(labels.iter()) {
-        if let Some(s) = sums.get_mut(label as usize) {
-            let q = p.to_f64();
-            s.sum[0] += q[0];
-            s.sum[1] += q[1];
-            s.sum[2] += q[2];
-            s.count += 1;
+        let slot = label.wrapping_sub(first) as usize;
+        if slot >= sums.len() {
+            continue;
         }
+        let acc = match &mut run {
+            Some((current, acc)) if *current == slot => acc,
+            _ => {
+                if let Some((done, acc)) = run
+                    && let Some(s) = sums.get_mut(done)
+                {
+                    *s = acc;
+                }
+                let start = sums.get(slot).copied().unwrap_or_default();
+                &mut run.insert((slot, start)).1
+            }
+        };
+        let q = p.to_f64();
+        acc.sum[0] += q[0];
+        acc.sum[1] += q[1];
+        acc.sum[2] += q[2];
+        acc.count += 1;
+    }
+    if let Some((done, acc)) = run
+        && let Some(s) = sums.get_mut(done)
+    {
+        *s = acc;
     }
 }
 

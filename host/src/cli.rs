@@ -54,6 +54,8 @@ pub enum Command {
     Completions(crate::toolbox::CompletionsArgs),
     /// Print the man page (roff) generated from these definitions.
     Man,
+    /// Time the pipeline on the shared clouds against in-process baselines (README "Performance").
+    Bench(crate::bench::BenchArgs),
 }
 
 #[derive(Args, Debug)]

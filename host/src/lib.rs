@@ -1,6 +1,7 @@
 //! The `mema` host library: readers for real point clouds, the batch pipeline, map files,
 //! evaluation and the command line.
 pub mod ablation;
+pub mod bench;
 pub mod cli;
 pub mod commands;
 pub mod draw;

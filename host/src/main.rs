@@ -27,6 +27,7 @@ fn main() -> ExitCode {
         Command::Export(a) => mema::toolbox::export(a),
         Command::Completions(a) => mema::toolbox::completions(a),
         Command::Man => mema::toolbox::man(),
+        Command::Bench(a) => mema::bench::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

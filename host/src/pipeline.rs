@@ -4,10 +4,11 @@ use anyhow::{Context, Result, bail};
 use mema_core::closest_point::SurfaceError;
 use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper, fit_sphere_paper};
 use mema_core::kmeans::accel::{
-    AssignStep, CentreState, Runner, Scratch, ScratchSizes, SeedList, kmeans_fast,
+    AssignStep, CentreState, FastOutcome, PassCounts, Runner, Scratch, ScratchSizes, SeedList,
+    kmeans_fast,
 };
-use mema_core::kmeans::tree::TreeNode;
-use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, kmeans};
+use mema_core::kmeans::tree::{TreeCentre, TreeNode};
+use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, accumulate_range, kmeans};
 use mema_core::moments::{CentralMoments, Moments};
 use mema_core::rng::stream_rng;
 use mema_core::{Entity, MapEntity, Point3};
@@ -68,16 +69,25 @@ impl Runner for RayonRunner {
         step: &AssignStep<'_>,
         points: &[Point3],
         labels: &mut [u32],
-        upper_bounds: &mut [f32],
-        lower_bounds: &mut [f32],
-    ) -> usize {
+        bounds: &mut [f32],
+        seconds: &mut [u32],
+    ) -> PassCounts {
         points
             .par_chunks(ASSIGN_CHUNK)
             .zip(labels.par_chunks_mut(ASSIGN_CHUNK))
-            .zip(upper_bounds.par_chunks_mut(ASSIGN_CHUNK))
-            .zip(lower_bounds.par_chunks_mut(ASSIGN_CHUNK))
+            .zip(bounds.par_chunks_mut(ASSIGN_CHUNK))
+            .zip(seconds.par_chunks_mut(ASSIGN_CHUNK))
             .map(|(((p, l), u), lo)| step.run(p, l, u, lo))
             .sum()
+    }
+
+    fn accumulate(&self, points: &[Point3], labels: &[u32], sums: &mut [CentroidSum]) {
+        // Each task reads every label but sums only its own clusters, in point order.
+        let tasks = rayon::current_num_threads().max(1);
+        let per_task = sums.len().div_ceil(tasks).max(1);
+        sums.par_chunks_mut(per_task)
+            .enumerate()
+            .for_each(|(t, part)| accumulate_range(points, labels, (t * per_task) as u32, part));
     }
 }
 
@@ -86,6 +96,9 @@ pub struct KMeansRun {
     pub centres: Vec<Point3>,
     pub labels: Vec<u32>,
     pub outcome: KMeansOutcome,
+    /// Accelerated only: point visits of the assignment passes and kd-tree searches among them.
+    pub visits: u64,
+    pub searches: u64,
 }
 
 /// k-means with either engine, its working memory allocated here and freed on return.
@@ -118,18 +131,23 @@ pub fn run_kmeans(
             &mut distances,
             &mut sums,
             params,
-        ),
+        )
+        .map(|outcome| FastOutcome {
+            outcome,
+            visits: 0,
+            searches: 0,
+        }),
         KMeansEngine::Accelerated => {
             let size = ScratchSizes::new(n, k);
-            let mut lower = vec![0f32; size.points];
+            let mut seconds = vec![0u32; size.points];
             let mut blocks = vec![0u128; size.blocks];
             let mut lists = vec![SeedList::default(); size.centres];
             let mut state = vec![CentreState::default(); size.centres];
             let mut order = vec![0u32; size.centres];
-            let mut sorted = vec![Point3::default(); size.centres];
+            let mut sorted = vec![TreeCentre::default(); size.centres];
             let mut nodes = vec![TreeNode::default(); size.nodes];
             let scratch = Scratch {
-                lower: &mut lower,
+                seconds: &mut seconds,
                 blocks: &mut blocks,
                 lists: &mut lists,
                 centres: &mut state,
@@ -154,7 +172,9 @@ pub fn run_kmeans(
     Ok(KMeansRun {
         centres,
         labels,
-        outcome,
+        outcome: outcome.outcome,
+        visits: outcome.visits,
+        searches: outcome.searches,
     })
 }
 
@@ -225,28 +245,38 @@ pub fn fit_all(moments: &[CentralMoments], seed: u64, params: &FitParams) -> Fit
 
 /// Eq. 13 for every cluster: RMS distance of its points to its entity's surface.
 pub fn cluster_errors(points: &[Point3], labels: &[u32], entities: &[Entity]) -> Vec<f64> {
-    // Fixed-size chunks merged in order: the sums do not depend on the thread count.
-    const CHUNK: usize = 8192;
-    let partials: Vec<Vec<SurfaceError>> = points
-        .par_chunks(CHUNK)
-        .zip(labels.par_chunks(CHUNK))
-        .map(|(pts, lbl)| {
-            let mut acc = vec![SurfaceError::default(); entities.len()];
-            for (p, &l) in pts.iter().zip(lbl.iter()) {
-                if let (Some(a), Some(e)) = (acc.get_mut(l as usize), entities.get(l as usize)) {
-                    a.add(e, p.to_f64());
-                }
-            }
-            acc
-        })
-        .collect();
-    let mut total = vec![SurfaceError::default(); entities.len()];
-    for part in &partials {
-        for (t, p) in total.iter_mut().zip(part.iter()) {
-            t.merge(p);
+    // Points grouped by cluster (a counting sort, point order kept inside each cluster), then
+    // each cluster summed on its own: the sums never depend on the thread count, and the
+    // working memory is 4 bytes a point rather than a k-sized partial per chunk of points.
+    let k = entities.len();
+    let mut start = vec![0u32; k + 1];
+    for &l in labels {
+        if let Some(s) = start.get_mut(l as usize + 1) {
+            *s += 1;
         }
     }
-    total.iter().map(SurfaceError::rmse).collect()
+    for i in 0..k {
+        start[i + 1] += start[i];
+    }
+    let mut next = start.clone();
+    let mut order = vec![0u32; start[k] as usize];
+    for (i, &l) in labels.iter().enumerate() {
+        if let Some(n) = next.get_mut(l as usize) {
+            order[*n as usize] = i as u32;
+            *n += 1;
+        }
+    }
+    entities
+        .par_iter()
+        .enumerate()
+        .map(|(c, e)| {
+            let mut acc = SurfaceError::default();
+            for &i in &order[start[c] as usize..start[c + 1] as usize] {
+                acc.add(e, points[i as usize].to_f64());
+            }
+            acc.rmse()
+        })
+        .collect()
 }
 
 /// Labels each point with its nearest entity centre (ties: lowest index), as `mema eval` does.

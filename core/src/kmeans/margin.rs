@@ -38,12 +38,6 @@ pub fn lower(sq: f32) -> f32 {
     (libm::sqrtf(sq) * DOWN - TINY).max(0.0)
 }
 
-/// An upper bound on `a + b` for non-negative bounds `a`, `b`.
-#[inline]
-pub fn add_up(a: f32, b: f32) -> f32 {
-    (a + b) * UP
-}
-
 /// A lower bound on `a - b`, clamped at 0 (a distance is never negative).
 #[inline]
 pub fn sub_down(a: f32, b: f32) -> f32 {
@@ -122,7 +116,6 @@ mod tests {
         assert!(box_beyond(1.001, 1.0));
         assert!(!box_beyond(1.0, 1.0));
         assert!(!box_beyond(0.0, 0.0));
-        assert!(add_up(1.0, 2.0) > 3.0);
         assert!(sub_down(3.0, 1.0) < 2.0);
         assert_eq!(sub_down(1.0, 3.0), 0.0);
     }

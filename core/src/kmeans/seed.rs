@@ -224,7 +224,10 @@ mod tests {
             )
             .or_fail("fast")?;
             for (a, b) in plain_c[..k].iter().zip(fast_c[..k].iter()) {
-                assert_eq!(a.to_array().map(f32::to_bits), b.to_array().map(f32::to_bits));
+                assert_eq!(
+                    a.to_array().map(f32::to_bits),
+                    b.to_array().map(f32::to_bits)
+                );
             }
             for (a, b) in plain_d.iter().zip(fast_d.iter()) {
                 assert_eq!(a.to_bits(), b.to_bits());
@@ -249,7 +252,15 @@ mod tests {
         let mut labels = [0u32; 3];
         let mut blocks = [0u128; 1];
         let mut lists = [SeedList::default(); 3];
-        let fast = seed_plus_plus_fast(&pts, &mut c, &mut d, &mut labels, &mut blocks, &mut lists, 0);
+        let fast = seed_plus_plus_fast(
+            &pts,
+            &mut c,
+            &mut d,
+            &mut labels,
+            &mut blocks,
+            &mut lists,
+            0,
+        );
         assert_eq!(plain, fast);
         assert_eq!(
             fast,

@@ -287,9 +287,16 @@ impl Scalar {
     }
 }
 
-/// Collects f64 points, counting slots and dropping non-finite ones, then centres them.
+/// Collects points, counting slots and dropping non-finite ones, then centres them.
+///
+/// While every coordinate is exactly an f32 (binary float clouds, the common case) the points
+/// are held as f32, 12 bytes each, and centred in place: the cloud then exists once, not as an
+/// f64 staging copy (24 bytes a point) plus the f32 result. The first coordinate that is not an
+/// exact f32 (text, doubles) moves them to f64 for the rest. Centring computes
+/// `(p - origin) as f32` from the same f64 value either way, so the bits do not depend on it.
 pub(crate) struct Points {
-    xyz: Vec<[f64; 3]>,
+    narrow: Vec<[f32; 3]>,
+    wide: Vec<[f64; 3]>,
     lo: [f64; 3],
     hi: [f64; 3],
     slots: usize,
@@ -300,7 +307,8 @@ impl Points {
     /// `capacity` must already be bounded by what the file's bytes could hold.
     pub fn with_capacity(capacity: usize) -> Self {
         Points {
-            xyz: Vec::with_capacity(capacity),
+            narrow: Vec::with_capacity(capacity),
+            wide: Vec::new(),
             lo: [f64::INFINITY; 3],
             hi: [f64::NEG_INFINITY; 3],
             slots: 0,
@@ -316,14 +324,25 @@ impl Points {
                 *lo = lo.min(c);
                 *hi = hi.max(c);
             }
-            self.xyz.push(p);
+            let narrow = p.map(|c| c as f32);
+            if self.wide.is_empty() && narrow.iter().zip(p).all(|(&n, c)| n as f64 == c) {
+                self.narrow.push(narrow);
+            } else {
+                if self.wide.is_empty() {
+                    let mut wide = Vec::with_capacity(self.narrow.capacity());
+                    wide.extend(self.narrow.iter().map(|q| q.map(f64::from)));
+                    self.wide = wide;
+                    self.narrow = Vec::new();
+                }
+                self.wide.push(p);
+            }
         } else {
             self.dropped += 1;
         }
     }
 
     pub fn finish(self, ctx: Ctx, format: Format) -> Result<Cloud, ReadError> {
-        if self.xyz.is_empty() {
+        if self.wide.is_empty() && self.narrow.is_empty() {
             let (name, slots) = (ctx.name(), self.slots);
             return Err(ReadError::NoFinitePoints { name, slots });
         }
@@ -337,8 +356,16 @@ impl Points {
                 )));
             }
         }
-        let local = |p: &[f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
-        let points = self.xyz.iter().map(local).collect();
+        let local = |p: [f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
+        let points = if self.wide.is_empty() {
+            let mut points = self.narrow;
+            for p in points.iter_mut() {
+                *p = local(p.map(f64::from));
+            }
+            points
+        } else {
+            self.wide.iter().map(|p| local(*p)).collect()
+        };
         Ok(Cloud {
             origin,
             points,

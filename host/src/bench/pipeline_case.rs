@@ -1,0 +1,167 @@
+//! One timed run of the whole pipeline, stage by stage, with its peak memory.
+
+use anyhow::Result;
+use std::hash::{Hash, Hasher};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+use super::{load, memory, ms};
+use crate::cli::FitArgs;
+use crate::pipeline;
+
+pub struct Case<'a> {
+    pub data: &'a Path,
+    pub name: &'a str,
+    pub k: usize,
+}
+
+/// The fastest of the repeated runs, and the process's peak memory over all of them.
+#[derive(serde::Serialize, serde::Deserialize)]
+pub struct PipelineRow {
+    pub name: String,
+    pub points: usize,
+    pub k: usize,
+    pub read: Duration,
+    pub kmeans: Duration,
+    pub fit: Duration,
+    pub eval: Duration,
+    pub wall: Duration,
+    /// Peak resident bytes during the run, and resident bytes just before it.
+    pub peak: Option<u64>,
+    pub before: Option<u64>,
+    /// Hash of the labels and both maps' bits: equal runs, equal fingerprints.
+    pub fingerprint: u64,
+}
+
+impl PipelineRow {
+    pub fn format(&self, threads: usize, same: bool) -> String {
+        let share = |d: Duration| 100.0 * d.as_secs_f64() / self.wall.as_secs_f64();
+        let cloud = (self.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
+        let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.1}", b as f64 / 1e6));
+        let ratio = self
+            .peak
+            .map_or("-".to_string(), |p| format!("{:.2}", p as f64 / cloud));
+        format!(
+            "{:<16} {:>8} {:>5} {:>3} {:>9.1} {:>5.0}% {:>5.0}% {:>5.0}% {:>5.0}% {:>9} {:>9.1} {:>6} {:>5}",
+            self.name,
+            self.points,
+            self.k,
+            threads,
+            ms(self.wall),
+            share(self.read),
+            share(self.kmeans),
+            share(self.fit),
+            share(self.eval),
+            mb(self.peak),
+            cloud / 1e6,
+            ratio,
+            if same { "yes" } else { "NO" }
+        )
+    }
+}
+
+/// The fit options exactly as `mema map` defaults them.
+fn default_fit_args() -> Result<FitArgs> {
+    #[derive(clap::Parser)]
+    struct Defaults {
+        #[command(flatten)]
+        fit: FitArgs,
+    }
+    Ok(<Defaults as clap::Parser>::try_parse_from(["mema"])?.fit)
+}
+
+/// Read, cluster, fit both entity kinds, evaluate both maps: `mema map`'s work, timed.
+pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
+    let config = default_fit_args()?.config(case.k)?;
+    let mut best: Option<PipelineRow> = None;
+    for _ in 0..repeat.max(1) {
+        let before = memory::current();
+        let start = Instant::now();
+        let points = load(case.data, case.name)?;
+        let read = start.elapsed();
+        let t = Instant::now();
+        let clusters = pipeline::cluster(&points, case.k, &config.kmeans)?;
+        let kmeans = t.elapsed();
+        let t = Instant::now();
+        let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
+        let fit = t.elapsed();
+        let t = Instant::now();
+        let mut hasher = std::collections::hash_map::DefaultHasher::new();
+        clusters.labels.hash(&mut hasher);
+        for fits in [&fitted.ellipsoids, &fitted.spheres] {
+            let entities: Vec<_> = fits.iter().map(|f| f.entity).collect();
+            let errors = pipeline::cluster_errors(&points, &clusters.labels, &entities);
+            for (e, err) in entities.iter().zip(errors) {
+                e.center.to_array().map(f32::to_bits).hash(&mut hasher);
+                e.weights.map(f32::to_bits).hash(&mut hasher);
+                err.to_bits().hash(&mut hasher);
+            }
+        }
+        let eval = t.elapsed();
+        let wall = start.elapsed();
+        let row = PipelineRow {
+            name: case.name.to_string(),
+            points: points.len(),
+            k: case.k,
+            read,
+            kmeans,
+            fit,
+            eval,
+            wall,
+            peak: memory::peak(),
+            before,
+            fingerprint: hasher.finish(),
+        };
+        best = Some(match best {
+            Some(b) if b.wall <= row.wall => PipelineRow {
+                peak: b.peak.max(row.peak),
+                ..b
+            },
+            Some(b) => PipelineRow {
+                peak: b.peak.max(row.peak),
+                ..row
+            },
+            None => row,
+        });
+    }
+    best.ok_or_else(|| anyhow::anyhow!("no run"))
+}
+
+/// `mema bench --case NAME:K:THREADS`: one case in this fresh process, printed as JSON.
+pub fn child(args: &super::BenchArgs, spec: &str) -> Result<()> {
+    let mut parts = spec.rsplitn(3, ':');
+    let (Some(threads), Some(k), Some(name)) = (parts.next(), parts.next(), parts.next()) else {
+        anyhow::bail!("--case wants NAME:K:THREADS, got {spec}");
+    };
+    let case = Case {
+        data: &args.data,
+        name,
+        k: k.parse()?,
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.parse()?)
+        .build()?;
+    let row = pool.install(|| run_case(&case, args.repeat))?;
+    println!("{}", serde_json::to_string(&row)?);
+    Ok(())
+}
+
+/// Runs one case in a child `mema bench` process and reads its row back.
+pub fn spawn(args: &super::BenchArgs, name: &str, k: usize, threads: usize) -> Result<PipelineRow> {
+    let out = std::process::Command::new(std::env::current_exe()?)
+        .arg("bench")
+        .arg("--data")
+        .arg(&args.data)
+        .arg("--repeat")
+        .arg(args.repeat.to_string())
+        .arg("--case")
+        .arg(format!("{name}:{k}:{threads}"))
+        .output()?;
+    if !out.status.success() {
+        anyhow::bail!(
+            "bench case {name} k={k}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    Ok(serde_json::from_slice(&out.stdout)?)
+}
