@@ -19,6 +19,8 @@ mod core_contract;
 mod firmware;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
 mod fitness;
+// Accelerated k-means against the plain reference on real clouds, on 1 and 2 threads.
+mod kmeans;
 // The paper's tables on the shared clouds: ellipsoids beat spheres.
 mod paper_tables;
 // Map queries (distance, occupancy, rays) through the index vs brute force; rigid transforms.
