@@ -4,8 +4,8 @@ use anyhow::{Context, Result, bail};
 use mema_core::closest_point::SurfaceError;
 use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper, fit_sphere_paper};
 use mema_core::kmeans::accel::{
-    AssignStep, CentreState, FastOutcome, PassCounts, Runner, Scratch, ScratchSizes, SeedList,
-    kmeans_fast,
+    AssignStep, CentreState, CentreStep, FastOutcome, PassCounts, Runner, Scratch, ScratchSizes,
+    SeedList, kmeans_fast,
 };
 use mema_core::kmeans::tree::{TreeCentre, TreeNode};
 use mema_core::kmeans::{CentroidSum, KMeansOutcome, KMeansParams, accumulate_range, kmeans};
@@ -88,6 +88,14 @@ impl Runner for RayonRunner {
         sums.par_chunks_mut(per_task)
             .enumerate()
             .for_each(|(t, part)| accumulate_range(points, labels, (t * per_task) as u32, part));
+    }
+
+    fn centres(&self, step: &CentreStep<'_>, state: &mut [CentreState]) {
+        const CHUNK: usize = 256;
+        state
+            .par_chunks_mut(CHUNK)
+            .enumerate()
+            .for_each(|(i, part)| step.run(i * CHUNK, part));
     }
 }
 

@@ -12,7 +12,7 @@ use super::margin::{lower, squared, upper};
 pub use super::seed::{SeedList, seed_plus_plus_fast};
 pub use super::step::{AssignStep, CentreState, PassCounts};
 use super::step::{Mode, UNKNOWN};
-use super::tree::{CentreTree, TreeCentre, TreeNode, nodes_for};
+use super::tree::{CentreTree, TreeCentre, TreeNode, TreeView, nodes_for};
 use super::weights::blocks_for;
 use super::{
     CentroidSum, KMeansError, KMeansOutcome, KMeansParams, accumulate, check_len,
@@ -101,6 +101,43 @@ pub trait Runner {
     fn accumulate(&self, points: &[Point3], labels: &[u32], sums: &mut [CentroidSum]) {
         accumulate(points, labels, sums);
     }
+
+    /// Applies `step.run` to all centre states, in one call or in chunks.
+    fn centres(&self, step: &CentreStep<'_>, state: &mut [CentreState]) {
+        step.run(0, state);
+    }
+}
+
+/// The per-centre part of a refresh: each centre's separation, reach and near drift, from the
+/// tree over the centres. Like `AssignStep`, shared read-only and split freely.
+#[derive(Clone, Copy, Debug)]
+pub struct CentreStep<'a> {
+    centres: &'a [Point3],
+    tree: TreeView<'a>,
+}
+
+impl CentreStep<'_> {
+    /// Refreshes `state`, the states of centres `first..first + state.len()`.
+    pub fn run(&self, first: usize, state: &mut [CentreState]) {
+        // The drift of a centre that did not move.
+        let still = upper(0.0);
+        for (a, s) in (first..).zip(state.iter_mut()) {
+            let Some(&c) = self.centres.get(a) else {
+                continue;
+            };
+            let hint = [(a as u32, 0.0), (u32::MAX, f32::INFINITY)];
+            let nearest_other = self.tree.nearest(c, hint).map_or(f32::INFINITY, |t| {
+                if t.index as usize == a {
+                    t.second_squared
+                } else {
+                    t.squared
+                }
+            });
+            s.separation = lower(nearest_other);
+            s.reach = s.separation * REACH;
+            s.near_drift = self.tree.max_drift_near(a as u32, c, s.reach, still);
+        }
+    }
 }
 
 /// One pass, one thread.
@@ -129,7 +166,12 @@ struct Centres<'a> {
 }
 
 impl<'a> Centres<'a> {
-    fn new(scratch_state: &'a mut [CentreState], tree: CentreTree<'a>, centres: &[Point3]) -> Self {
+    fn new<R: Runner + ?Sized>(
+        scratch_state: &'a mut [CentreState],
+        tree: CentreTree<'a>,
+        centres: &[Point3],
+        runner: &R,
+    ) -> Self {
         for (s, &c) in scratch_state.iter_mut().zip(centres.iter()) {
             s.previous = c;
         }
@@ -139,11 +181,11 @@ impl<'a> Centres<'a> {
             largest_drift: (usize::MAX, 0.0),
             second_drift: 0.0,
         };
-        this.refresh(centres);
+        this.refresh(centres, runner);
         this
     }
 
-    fn refresh(&mut self, centres: &[Point3]) {
+    fn refresh<R: Runner + ?Sized>(&mut self, centres: &[Point3], runner: &R) {
         self.largest_drift = (usize::MAX, 0.0);
         self.second_drift = 0.0;
         for (a, (s, &c)) in self.state.iter_mut().zip(centres.iter()).enumerate() {
@@ -159,21 +201,11 @@ impl<'a> Centres<'a> {
         let state = &*self.state;
         self.tree
             .build(centres, |i| state.get(i).map_or(0.0, |s| s.drift));
-        let view = self.tree.view();
-        for (a, (s, &c)) in self.state.iter_mut().zip(centres.iter()).enumerate() {
-            let nearest_other = view
-                .nearest(c, [(a as u32, 0.0), (u32::MAX, f32::INFINITY)])
-                .map_or(f32::INFINITY, |t| {
-                    if t.index as usize == a {
-                        t.second_squared
-                    } else {
-                        t.squared
-                    }
-                });
-            s.separation = lower(nearest_other);
-            s.reach = s.separation * REACH;
-            s.near_drift = view.max_drift_near(a as u32, c, s.reach);
-        }
+        let step = CentreStep {
+            centres,
+            tree: self.tree.view(),
+        };
+        runner.centres(&step, self.state);
     }
 
     fn step<'b>(&'b self, centres: &'b [Point3], mode: Mode) -> AssignStep<'b> {
@@ -220,6 +252,7 @@ pub fn kmeans_fast<R: Runner + ?Sized>(
         scratch.sorted,
         scratch.nodes,
         centres,
+        runner,
     )?;
     Ok(lloyd.run(
         points, centres, labels, distances, sums, params, runner, true,
@@ -250,6 +283,7 @@ pub fn lloyd_fast<R: Runner + ?Sized>(
         scratch.sorted,
         scratch.nodes,
         centres,
+        runner,
     )?;
     Ok(lloyd.run(
         points, centres, labels, distances, sums, params, runner, false,
@@ -281,13 +315,14 @@ struct Lloyd<'a> {
 }
 
 impl<'a> Lloyd<'a> {
-    fn new(
+    fn new<R: Runner + ?Sized>(
         seconds: &'a mut [u32],
         state: &'a mut [CentreState],
         order: &'a mut [u32],
         sorted: &'a mut [TreeCentre],
         nodes: &'a mut [TreeNode],
         centres: &[Point3],
+        runner: &R,
     ) -> Result<Self, KMeansError> {
         let k = centres.len();
         let tree = CentreTree::new(order, sorted, nodes).ok_or(KMeansError::SliceLength {
@@ -297,7 +332,7 @@ impl<'a> Lloyd<'a> {
         })?;
         Ok(Self {
             seconds,
-            centres: Centres::new(state, tree, centres),
+            centres: Centres::new(state, tree, centres, runner),
         })
     }
 
@@ -356,7 +391,7 @@ impl<'a> Lloyd<'a> {
             } else {
                 move_centres(points, labels, distances, centres, sums)
             };
-            self.centres.refresh(centres);
+            self.centres.refresh(centres, runner);
             if shift <= threshold {
                 converged = true;
                 break;

@@ -52,6 +52,23 @@ pub fn surely_nearer(near: f32, far: f32) -> bool {
     near * UP < far * DOWN && far > SEPARABLE
 }
 
+/// A squared centre distance from which a cluster of true radius `radius` is surely out of
+/// reach: for `fl(D^2(c_j, c)) >= skip_squared(r_j)`, every point within `r_j` of `c_j` is surely
+/// nearer to `c_j` than to `c` (`surely_nearer(r, lower(sq) - r)`, checked at the returned value;
+/// it is monotone in `sq`, so it holds above). Saves a square root per centre pair in seeding.
+pub fn skip_squared(radius: f32) -> f32 {
+    let holds = |sq: f32| surely_nearer(radius, sub_down(lower(sq), radius));
+    let guess = 2.0001 * radius;
+    let mut sq = (guess * guess).max(16.0 * SEPARABLE * SEPARABLE);
+    for _ in 0..8 {
+        if holds(sq) {
+            return sq;
+        }
+        sq *= 2.0;
+    }
+    f32::INFINITY
+}
+
 /// True when every centre whose true squared distance is at least that of a box with computed
 /// squared distance `box_sq` gets a computed `fl(D^2)` strictly above `sq`.
 #[inline]
@@ -101,6 +118,20 @@ mod tests {
                 let sq = squared(p, q);
                 assert!(upper(sq) as f64 >= exact, "{p:?} {q:?}");
                 assert!(lower(sq) as f64 <= exact, "{p:?} {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn skip_thresholds_are_proved_and_tight() {
+        for r in [0.0f32, TINY, 1e-20, 1e-6, 0.01, 1.0, 37.5, 1e15] {
+            let t = skip_squared(r);
+            for sq in [t, t * 1.5, t * 1e6] {
+                assert!(surely_nearer(r, sub_down(lower(sq), r)), "r {r}, sq {sq}");
+            }
+            // Within 1% of the exact (2r)^2 beyond the underflow range.
+            if r >= 1e-6 {
+                assert!(t <= 4.0 * r * r * 1.01, "r {r}: {t}");
             }
         }
     }

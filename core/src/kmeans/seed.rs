@@ -4,12 +4,12 @@
 //! index among the nearest, since a point moves only on a strict decrease), and each list keeps
 //! a radius bounding the true distance of its points. A new centre `c` can only lower the
 //! distances of list `j` if `|c - c_j| < 2 r_j`; every other list is skipped whole, which the
-//! triangle inequality and `margin::surely_nearer` prove cannot change a single distance. The
+//! triangle inequality and `margin::skip_squared` prove cannot change a single distance. The
 //! draw walks exact integer block sums (`weights`), so it picks the same point as the plain
 //! full scan. On return the lists are the labels of the nearest seed, which is Lloyd's first
 //! assignment.
 
-use super::margin::{lower, squared, sub_down, surely_nearer, upper};
+use super::margin::{skip_squared, squared, upper};
 use super::weights::{BLOCK, blocks_for, draw_target};
 use super::{KMEANS_STREAM, KMeansError, check_len, seeding_scale, seeding_start};
 use crate::geometry::Point3;
@@ -18,18 +18,25 @@ use crate::rng::stream_rng;
 /// End of a list.
 const NIL: u32 = u32::MAX;
 
-/// One seeding list: its first point and the bound on its points' true distance to the centre.
+/// One seeding list: its first point, and the squared centre distance beyond which a new
+/// centre cannot touch it (from the bound on its points' true distance to the centre).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SeedList {
     head: u32,
-    radius: f32,
+    skip: f32,
 }
 
 impl Default for SeedList {
     fn default() -> Self {
+        Self::new(NIL, 0.0)
+    }
+}
+
+impl SeedList {
+    fn new(head: u32, max_squared: f32) -> Self {
         Self {
-            head: NIL,
-            radius: 0.0,
+            head,
+            skip: skip_squared(upper(max_squared)),
         }
     }
 }
@@ -81,10 +88,7 @@ pub fn seed_plus_plus_fast(
     }
     if let (Some(c), Some(l)) = (centres.first_mut(), lists.first_mut()) {
         *c = chosen;
-        *l = SeedList {
-            head: 0,
-            radius: upper(max),
-        };
+        *l = SeedList::new(0, max);
     }
     if k > 1 {
         let scale = seeding_scale(distances, k)?;
@@ -124,7 +128,7 @@ pub fn seed_plus_plus_fast(
             let mut new_max = 0.0f32;
             for (list, &cj) in lists.iter_mut().zip(centres.iter()).take(m) {
                 // Points of list j are within r_j of c_j, so at least |c - c_j| - r_j from c.
-                if surely_nearer(list.radius, sub_down(lower(squared(cj, c)), list.radius)) {
+                if squared(cj, c) >= list.skip {
                     continue;
                 }
                 let mut prev = NIL;
@@ -160,13 +164,10 @@ pub fn seed_plus_plus_fast(
                     }
                     p = next;
                 }
-                list.radius = upper(kept_max);
+                *list = SeedList::new(list.head, kept_max);
             }
             if let Some(l) = lists.get_mut(m) {
-                *l = SeedList {
-                    head: new_head,
-                    radius: upper(new_max),
-                };
+                *l = SeedList::new(new_head, new_max);
             }
         }
     }

@@ -303,9 +303,11 @@ impl TreeView<'_> {
 
 impl TreeView<'_> {
     /// The largest drift among the centres other than `own` that may lie closer than `reach`
-    /// to `c` (true distance): centres left out are surely at least `reach` away.
-    pub fn max_drift_near(&self, own: u32, c: Point3, reach: f32) -> f32 {
-        let mut found = 0.0f32;
+    /// to `c` (true distance), or `floor` if larger: centres left out are surely at least
+    /// `reach` away. A floor equal to the drift of a centre that did not move skips whole
+    /// subtrees of still centres, the common case late in a run.
+    pub fn max_drift_near(&self, own: u32, c: Point3, reach: f32, floor: f32) -> f32 {
+        let mut found = floor;
         let mut stack = [(0usize, 0usize, 0usize, 0u32); MAX_DEPTH as usize + 2];
         stack[0] = (0, 0, self.order.len(), 0);
         let mut top = 1;
@@ -431,7 +433,7 @@ mod tests {
                 );
                 // Drifts are i as f32: the largest index among centres that may be near.
                 let reach = 1.5;
-                let near = view.max_drift_near(want.0 as u32, p, reach);
+                let near = view.max_drift_near(want.0 as u32, p, reach, 0.0);
                 let mut lo = 0.0f32;
                 let mut hi = 0.0f32;
                 for (i, c) in centres.iter().enumerate() {
