@@ -230,7 +230,7 @@ fn kmeans(args: &BenchArgs) -> Result<()> {
     println!();
     println!("2. k-means: accelerated vs plain (same seed; labels and centre bits compared)");
     println!(
-        "{:<16} {:>8} {:>5} {:>5} {:>10} {:>10} {:>10} {:>7} {:>7} {:>8} {:>5}",
+        "{:<20} {:>8} {:>5} {:>5} {:>10} {:>10} {:>10} {:>7} {:>7} {:>8} {:>5}",
         "cloud",
         "n",
         "k",
@@ -277,7 +277,7 @@ fn kmeans(args: &BenchArgs) -> Result<()> {
             None => name.to_string(),
         };
         println!(
-            "{:<16} {:>8} {:>5} {:>5} {:>10.1} {:>10.1} {:>10.1} {:>6.0}x {:>6.0}x {:>7.1}% {:>5}",
+            "{:<20} {:>8} {:>5} {:>5} {:>10.1} {:>10.1} {:>10.1} {:>6.0}x {:>6.0}x {:>7.1}% {:>5}",
             label,
             points.len(),
             k,
@@ -306,7 +306,7 @@ fn kmeans(args: &BenchArgs) -> Result<()> {
                 })
             })?;
             println!(
-                "{:<16} {:>8} {:>5} {:>5} {:>10} {:>10.1} {:>10.1} {:>7} {:>7} {:>7.1}%",
+                "{:<20} {:>8} {:>5} {:>5} {:>10} {:>10.1} {:>10.1} {:>7} {:>7} {:>7.1}%",
                 format!("{name} (full)"),
                 points.len(),
                 k,
@@ -356,10 +356,14 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
         let two = pipeline_case::spawn(args, name, k, 2)?;
         println!("{}", two.format(2, two.fingerprint == one.fingerprint));
         println!(
-            "{:<16} 2 threads: {:.2}x faster than 1; resident before reading: {:.1} MB",
+            "{:<16} 2 threads: {:.2}x faster than 1; resident before reading: {:.1} MB, peak above it {:.2}x the cloud",
             "",
             one.wall.as_secs_f64() / two.wall.as_secs_f64(),
-            two.before.unwrap_or(0) as f64 / 1e6
+            two.before.unwrap_or(0) as f64 / 1e6,
+            (two.peak
+                .unwrap_or(0)
+                .saturating_sub(two.before.unwrap_or(0))) as f64
+                / (two.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64
         );
     }
     println!(
@@ -427,13 +431,15 @@ fn python(args: &BenchArgs) -> Result<()> {
         let get = |key: &str| py.get(key).and_then(|v| v.as_f64()).unwrap_or(f64::NAN);
         let ours = (row.read + row.kmeans + row.fit).as_secs_f64();
         println!(
-            "{:<16} {:>8} {:>5} {:>11.2} {:>10.2} {:>9.2} {:>10.3} {:>10.3} {:>9.3} {:>6.0}x",
+            "{:<16} {:>8} {:>5} {:>8} {:>11.2} {:>10.2} {:>9.2} {:>8} {:>10.3} {:>10.3} {:>9.3} {:>6.0}x",
             name,
             row.points,
             k,
+            get("iterations"),
             get("kmeans_s"),
             get("fit_s"),
             get("total_s"),
+            row.iterations,
             row.kmeans.as_secs_f64(),
             row.fit.as_secs_f64(),
             ours,

@@ -206,30 +206,60 @@ pub fn cluster_with(
     })
 }
 
-/// Each cluster's central moments, its points added in point order.
+/// Each cluster's central moments, its points added in point order (so in parallel over
+/// clusters the bits are those of one pass over the points).
 pub fn cluster_moments(
     points: &[Point3],
     labels: &[u32],
     centres: &[Point3],
 ) -> Result<Vec<CentralMoments>> {
-    // Shifting each cluster's sums by its centroid keeps the moment conversion well conditioned.
-    let mut moments: Vec<Moments> = centres
-        .iter()
-        .map(|c| Moments::with_shift(c.to_f64()))
-        .collect();
-    for (p, &l) in points.iter().zip(labels.iter()) {
-        if let Some(m) = moments.get_mut(l as usize) {
-            m.add(*p);
-        }
-    }
-    moments
-        .iter()
+    let members = Members::of(labels, centres.len());
+    centres
+        .par_iter()
         .enumerate()
-        .map(|(i, m)| {
+        .map(|(i, c)| {
+            // Shifting by the centroid keeps the moment conversion well conditioned.
+            let mut m = Moments::with_shift(c.to_f64());
+            for &p in members.of_cluster(i) {
+                m.add(points[p as usize]);
+            }
             m.central()
                 .with_context(|| format!("cluster {i} is empty after k-means"))
         })
         .collect()
+}
+
+/// The points of each cluster in point order: a counting sort of the labels, 4 bytes a point.
+struct Members {
+    start: Vec<u32>,
+    order: Vec<u32>,
+}
+
+impl Members {
+    fn of(labels: &[u32], k: usize) -> Self {
+        let mut start = vec![0u32; k + 1];
+        for &l in labels {
+            if let Some(s) = start.get_mut(l as usize + 1) {
+                *s += 1;
+            }
+        }
+        for i in 0..k {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut order = vec![0u32; start[k] as usize];
+        for (i, &l) in labels.iter().enumerate() {
+            if let Some(n) = next.get_mut(l as usize) {
+                order[*n as usize] = i as u32;
+                *n += 1;
+            }
+        }
+        Self { start, order }
+    }
+
+    fn of_cluster(&self, c: usize) -> &[u32] {
+        &self.order[self.start[c] as usize..self.start[c + 1] as usize]
+    }
 }
 
 /// Fits an ellipsoid and a sphere to every cluster, in parallel. Each cluster draws from its
@@ -253,33 +283,16 @@ pub fn fit_all(moments: &[CentralMoments], seed: u64, params: &FitParams) -> Fit
 
 /// Eq. 13 for every cluster: RMS distance of its points to its entity's surface.
 pub fn cluster_errors(points: &[Point3], labels: &[u32], entities: &[Entity]) -> Vec<f64> {
-    // Points grouped by cluster (a counting sort, point order kept inside each cluster), then
-    // each cluster summed on its own: the sums never depend on the thread count, and the
-    // working memory is 4 bytes a point rather than a k-sized partial per chunk of points.
-    let k = entities.len();
-    let mut start = vec![0u32; k + 1];
-    for &l in labels {
-        if let Some(s) = start.get_mut(l as usize + 1) {
-            *s += 1;
-        }
-    }
-    for i in 0..k {
-        start[i + 1] += start[i];
-    }
-    let mut next = start.clone();
-    let mut order = vec![0u32; start[k] as usize];
-    for (i, &l) in labels.iter().enumerate() {
-        if let Some(n) = next.get_mut(l as usize) {
-            order[*n as usize] = i as u32;
-            *n += 1;
-        }
-    }
+    // Each cluster summed on its own, its points in point order: the sums never depend on the
+    // thread count, and the working memory is 4 bytes a point rather than a k-sized partial per
+    // chunk of points.
+    let members = Members::of(labels, entities.len());
     entities
         .par_iter()
         .enumerate()
         .map(|(c, e)| {
             let mut acc = SurfaceError::default();
-            for &i in &order[start[c] as usize..start[c + 1] as usize] {
+            for &i in members.of_cluster(c) {
                 acc.add(e, points[i as usize].to_f64());
             }
             acc.rmse()

@@ -124,7 +124,10 @@ pub fn seed_plus_plus_fast(
             if let Some(slot) = centres.get_mut(m) {
                 *slot = c;
             }
+            // Moved points are appended, so every list stays in increasing point order and its
+            // walk runs forward through memory.
             let mut new_head = NIL;
+            let mut new_tail = NIL;
             let mut new_max = 0.0f32;
             for (list, &cj) in lists.iter_mut().zip(centres.iter()).take(m) {
                 // Points of list j are within r_j of c_j, so at least |c - c_j| - r_j from c.
@@ -155,9 +158,13 @@ pub fn seed_plus_plus_fast(
                             None => list.head = next,
                         }
                         if let Some(l) = labels.get_mut(p as usize) {
-                            *l = new_head;
+                            *l = NIL;
                         }
-                        new_head = p;
+                        match labels.get_mut(new_tail as usize) {
+                            Some(l) => *l = p,
+                            None => new_head = p,
+                        }
+                        new_tail = p;
                     } else {
                         kept_max = kept_max.max(d);
                         prev = p;

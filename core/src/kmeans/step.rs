@@ -124,7 +124,8 @@ impl AssignStep<'_> {
         } else {
             (a, b, sq_a)
         };
-        if surely_nearer(upper(sq_w), rest) {
+        let to_winner = if winner == a { to_a } else { upper(sq_w) };
+        if surely_nearer(to_winner, rest) {
             Ok(Kept {
                 winner,
                 runner_up,

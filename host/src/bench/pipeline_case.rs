@@ -15,18 +15,21 @@ pub struct Case<'a> {
     pub k: usize,
 }
 
-/// The fastest of the repeated runs, and the process's peak memory over all of them.
+/// The fastest of the repeated runs; memory from the first, in a process that has done nothing
+/// else yet (later runs reuse the allocator's freed pages, which would blur the peak).
 #[derive(serde::Serialize, serde::Deserialize)]
 pub struct PipelineRow {
     pub name: String,
     pub points: usize,
     pub k: usize,
+    pub iterations: u32,
     pub read: Duration,
     pub kmeans: Duration,
     pub fit: Duration,
     pub eval: Duration,
     pub wall: Duration,
-    /// Peak resident bytes during the run, and resident bytes just before it.
+    /// Peak resident bytes of the process by the end of the first run, and resident bytes just
+    /// before it read anything.
     pub peak: Option<u64>,
     pub before: Option<u64>,
     /// Hash of the labels and both maps' bits: equal runs, equal fingerprints.
@@ -103,6 +106,7 @@ pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
             name: case.name.to_string(),
             points: points.len(),
             k: case.k,
+            iterations: clusters.outcome.iterations,
             read,
             kmeans,
             fit,
@@ -113,12 +117,10 @@ pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
             fingerprint: hasher.finish(),
         };
         best = Some(match best {
-            Some(b) if b.wall <= row.wall => PipelineRow {
-                peak: b.peak.max(row.peak),
-                ..b
-            },
+            Some(b) if b.wall <= row.wall => b,
             Some(b) => PipelineRow {
-                peak: b.peak.max(row.peak),
+                peak: b.peak,
+                before: b.before,
                 ..row
             },
             None => row,
