@@ -388,13 +388,15 @@ fn python(args: &BenchArgs) -> Result<()> {
         "4. python: numpy + scikit-learn KMeans + numpy DE (both fits) vs mema's read + k-means + fit"
     );
     println!(
-        "{:<16} {:>8} {:>5} {:>11} {:>10} {:>9} {:>10} {:>10} {:>9} {:>7}",
+        "{:<16} {:>8} {:>5} {:>8} {:>11} {:>10} {:>9} {:>8} {:>10} {:>10} {:>9} {:>7}",
         "cloud",
         "n",
         "k",
+        "py iters",
         "py kmeans s",
         "py fit s",
         "py tot s",
+        "iters",
         "mema km s",
         "mema fit s",
         "mema s",

@@ -40,36 +40,36 @@ pub struct Scene {
 }
 
 /// Reads the members from `dir` and lays them out.
+///
+/// Each member is read twice: once for its extent, then straight into the scene at its place.
+/// Holding every member while the scene is built would double the peak memory of the largest
+/// case, and the allocator rarely hands freed pages back, so the second read is the cheaper way.
 pub fn environment(dir: &Path) -> Result<Scene> {
-    let mut clouds = Vec::with_capacity(MEMBERS.len());
-    for name in MEMBERS {
+    let read = |name: &str| {
         let path = dir.join(name);
-        let cloud = crate::commands::load_cloud(&path)
-            .with_context(|| format!("environment scene: {}", path.display()))?;
-        clouds.push((name, cloud.points));
-    }
-    let extent = |pts: &[Point3]| {
+        crate::commands::load_cloud(&path)
+            .map(|c| c.points)
+            .with_context(|| format!("environment scene: {}", path.display()))
+    };
+    let mut cursor = 0.0;
+    let mut placed = Vec::with_capacity(MEMBERS.len());
+    let mut total = 0;
+    for name in MEMBERS {
+        let pts = read(name)?;
         let (lo, hi) = pts
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
                 (lo.min(p.x as f64), hi.max(p.x as f64))
             });
-        (lo, hi)
-    };
-    let mut cursor = 0.0;
-    let mut placed = Vec::with_capacity(clouds.len());
-    for (_, pts) in &clouds {
-        let (lo, hi) = extent(pts);
         placed.push(cursor - lo);
         cursor += (hi - lo) + GAP;
+        total += pts.len();
     }
     let centre = (cursor - GAP) / 2.0;
-    let total: usize = clouds.iter().map(|(_, p)| p.len()).sum();
-    // Pages of the scene become resident only as they are written, and each member is freed
-    // once copied, so assembling never holds much more than one copy of the scene.
     let mut points = Vec::with_capacity(total);
-    let mut members = Vec::with_capacity(clouds.len());
-    for ((name, pts), start) in clouds.into_iter().zip(placed) {
+    let mut members = Vec::with_capacity(MEMBERS.len());
+    for (name, start) in MEMBERS.into_iter().zip(placed) {
+        let pts = read(name)?;
         let offset_x = start - centre;
         points.extend(
             pts.iter()
