@@ -392,14 +392,7 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 
 pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    if args.k > crate::serial::link::MAX_CLUSTERS {
-        return Err(crate::cli::UsageError(format!(
-            "-k {} is over the streaming mapper's capacity of {}",
-            args.k,
-            crate::serial::link::MAX_CLUSTERS
-        ))
-        .into());
-    }
+    crate::serial::commands::check_k(args.k)?;
     let cloud = load_cloud(&args.input)?;
     let r = crate::stream_bench::run(
         &cloud,

@@ -99,7 +99,8 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     Ok(())
 }
 
-fn check_k(k: usize) -> Result<(), UsageError> {
+/// `-k` within the host mapper's fixed capacity.
+pub fn check_k(k: usize) -> Result<(), UsageError> {
     if k > MAX_CLUSTERS {
         return Err(UsageError(format!(
             "-k {k} is over the streaming mapper's capacity of {MAX_CLUSTERS}"
