@@ -154,6 +154,26 @@ impl Moments {
         out
     }
 
+    /// The sums each kept to `bits` significant bits (clamped to 1..=53), rounded to nearest:
+    /// what a store narrower than f64 would hold. Applied after every update, it prices a
+    /// compact cluster in agreement with direct sums before anyone builds one.
+    pub fn with_significand_bits(mut self, bits: u32) -> Self {
+        let dropped = 53 - bits.clamp(1, 53);
+        if dropped == 0 {
+            return self;
+        }
+        // On the bit pattern: the carry of the rounding runs into the exponent, as it should.
+        let half = 1u64 << (dropped - 1);
+        let round = |v: &mut f64| {
+            if v.is_finite() {
+                *v = f64::from_bits(((v.to_bits() + half) >> dropped) << dropped);
+            }
+        };
+        self.axis.iter_mut().flatten().for_each(round);
+        self.pair.iter_mut().flatten().for_each(round);
+        self
+    }
+
     /// Merges another cluster's moments into this one; exact up to rounding.
     pub fn merge(&mut self, other: &Moments) {
         if other.count == 0 {
@@ -316,6 +336,22 @@ mod tests {
         }
         let got = m.central().or_fail("non-empty")?;
         assert_close(&got, &direct(&pts[..n]), 1e-9);
+        Ok(())
+    }
+
+    #[test]
+    fn significand_bits_round_to_nearest_and_53_keeps_every_bit() -> TestResult {
+        let mut m = Moments::with_shift([0.0; 3]);
+        m.add_f64([1.0 + 5.0 / 1024.0, -0.1, 1e-3]);
+        if m.with_significand_bits(53) != m || m.with_significand_bits(99) != m {
+            return Err("53 bits or more must keep the f64 sums as they are");
+        }
+        let narrow = m.with_significand_bits(8);
+        let x = narrow.central().or_fail("one point")?.mean[0];
+        // 1 + 5/1024 has 11 significant bits; to 8 (steps of 8/1024) the nearest is 1 + 8/1024.
+        if x != 1.0 + 8.0 / 1024.0 {
+            return Err("1 + 5/1024 to 8 bits must round to the nearest, 1 + 8/1024");
+        }
         Ok(())
     }
 

@@ -194,6 +194,12 @@ impl Report {
             (TARGET_BOARD.ram_bytes - TARGET_BOARD.stack_bytes - 2 * RX_CAPACITY)
                 / per_cluster.max(1)
         );
+        // The floor under any layout that keeps the agreement: the 24 sums (u..u^4 per axis;
+        // uv, u^2 v, u v^2, u^2 v^2 per pair) at f64, since 48 bits already fail the reference.
+        s += &format!(
+            "  the f64 moment sums alone, at K = 400: {} (24 x 8 bytes a cluster); narrower sums: `reference --sum-bits N`\n",
+            kib(400 * 24 * size_of::<f64>() as u64)
+        );
         if let Some(i) = self.image {
             s += &format!(
                 "image (thumbv7em-none-eabihf, K = 150): flash {} (text {} + data {}), static RAM {} (data + bss {}); flash under 64 KiB: {}\n",

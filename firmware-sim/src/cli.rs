@@ -155,15 +155,22 @@ fn crate_budget(args: &Args) -> Result<(), CliError> {
 
 #[cfg(feature = "reference")]
 fn crate_reference(args: &Args) -> Result<(), CliError> {
-    args.only(&["-k", "--seed"])?;
+    args.only(&["-k", "--seed", "--sum-bits"])?;
     let k: usize = args.number(&["-k"], 150)?;
     let seed: u64 = args.number(&["--seed"], 0)?;
+    let setup = mema_firmware_sim::compare::Setup {
+        sum_bits: args.number(
+            &["--sum-bits"],
+            mema_firmware_sim::compare::Setup::F64_SUM_BITS,
+        )?,
+        ..mema_firmware_sim::compare::Setup::new(k, seed)
+    };
     let clouds: Vec<PathBuf> = if args.positional.is_empty() {
         mema_firmware_sim::compare::shared_clouds().map_err(|e| failed(e.to_string()))?
     } else {
         args.positional.iter().map(PathBuf::from).collect()
     };
-    let summary = mema_firmware_sim::compare::compare_clouds(&clouds, k, seed);
+    let summary = mema_firmware_sim::compare::compare_clouds(&clouds, &setup);
     if args.flag("--json") {
         println!("{}", summary.json());
     } else {

@@ -147,8 +147,32 @@ fn relative(core: f64, reference: f64) -> f64 {
     }
 }
 
+/// What a comparison runs: the streaming map's `k`, the seed, and how many significant bits the
+/// core's moment sums keep between updates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Setup {
+    pub k: usize,
+    pub seed: u64,
+    /// 53 is the f64 the core stores. Fewer rounds the sums after every point, as a narrower
+    /// store would: the price of a compact cluster in agreement, measured before building one.
+    pub sum_bits: u32,
+}
+
+impl Setup {
+    pub const F64_SUM_BITS: u32 = 53;
+
+    pub fn new(k: usize, seed: u64) -> Self {
+        Self {
+            k,
+            seed,
+            sum_bits: Self::F64_SUM_BITS,
+        }
+    }
+}
+
 /// Compares every cluster of `points` (local-frame f32, as mapped).
-pub fn compare_points(name: &str, points: &[Point3], k: usize, seed: u64) -> CloudComparison {
+pub fn compare_points(name: &str, points: &[Point3], setup: &Setup) -> CloudComparison {
+    let Setup { k, seed, .. } = *setup;
     let params = FitParams::default();
     let mut mapper: Box<StreamMapper<1024, 2048>> = Box::new(StreamMapper::new(StreamParams {
         fit: params,
@@ -179,7 +203,7 @@ pub fn compare_points(name: &str, points: &[Point3], k: usize, seed: u64) -> Clo
         .par_iter()
         .enumerate()
         .filter(|(_, m)| !m.is_empty())
-        .map(|(i, m)| compare_cluster(i, m, &params, seed))
+        .map(|(i, m)| compare_cluster(i, m, &params, setup))
         .collect();
     let all: Vec<Deviation> = deviations.into_iter().flatten().collect();
     let worst: Vec<Deviation> = Quantity::ALL
@@ -223,8 +247,9 @@ fn compare_cluster(
     i: usize,
     points: &[Vector3<f64>],
     params: &FitParams,
-    seed: u64,
+    setup: &Setup,
 ) -> Vec<Deviation> {
+    let seed = setup.seed;
     let dev = |quantity, core: f64, reference: f64| Deviation {
         quantity,
         entity: i,
@@ -236,6 +261,7 @@ fn compare_cluster(
     let mut moments = Moments::new();
     for p in points {
         moments.add_f64([p.x, p.y, p.z]);
+        moments = moments.with_significand_bits(setup.sum_bits);
     }
     let Some(central) = moments.central() else {
         return Vec::new();
@@ -341,11 +367,12 @@ pub fn shared_clouds() -> std::io::Result<Vec<PathBuf>> {
 /// All clouds: those read, and those the host's readers do not read (with the reason).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
+    pub setup: Setup,
     pub clouds: Vec<CloudComparison>,
     pub unread: Vec<(String, String)>,
 }
 
-pub fn compare_clouds(paths: &[PathBuf], k: usize, seed: u64) -> Summary {
+pub fn compare_clouds(paths: &[PathBuf], setup: &Setup) -> Summary {
     let mut clouds = Vec::new();
     let mut unread = Vec::new();
     for path in paths {
@@ -354,11 +381,15 @@ pub fn compare_clouds(paths: &[PathBuf], k: usize, seed: u64) -> Summary {
             |n| n.to_string_lossy().into_owned(),
         );
         match mema::commands::load_cloud(path) {
-            Ok(cloud) => clouds.push(compare_points(&name, &cloud.points, k, seed)),
+            Ok(cloud) => clouds.push(compare_points(&name, &cloud.points, setup)),
             Err(e) => unread.push((name, format!("{e:#}"))),
         }
     }
-    Summary { clouds, unread }
+    Summary {
+        setup: *setup,
+        clouds,
+        unread,
+    }
 }
 
 impl Summary {
@@ -383,6 +414,12 @@ impl Summary {
     pub fn text(&self) -> String {
         let mut s =
             String::from("core vs f64 reference (nalgebra), worst relative deviation per cloud\n");
+        if self.setup.sum_bits < Setup::F64_SUM_BITS {
+            s += &format!(
+                "(the core's moment sums kept to {} significant bits after every point; f64 keeps 53)\n",
+                self.setup.sum_bits
+            );
+        }
         s += &format!("{:<22} {:>8} {:>5} {:>6}", "cloud", "points", "k", "small");
         for q in Quantity::ALL {
             s += &format!(" {:>26}", q.name());
@@ -465,8 +502,9 @@ impl Summary {
             .map(|(n, _)| format!("\"{n}\""))
             .collect();
         format!(
-            "{{\"passed\":{},\"clouds\":[{}],\"unread\":[{}]}}",
+            "{{\"passed\":{},\"sum_bits\":{},\"clouds\":[{}],\"unread\":[{}]}}",
             self.passed(),
+            self.setup.sum_bits,
             clouds.join(","),
             unread.join(",")
         )
