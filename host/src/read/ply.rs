@@ -6,7 +6,8 @@
 //! `vertex` are never read: the points are complete by then, and a damaged face list should
 //! not cost the user a cloud.
 
-use super::xyz::{Line, Lines, parse_f64, parse_usize, quote, tokens};
+use super::stream::{Input, Line};
+use super::xyz::{parse_f64, parse_usize, quote, tokens};
 use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar};
 
 #[derive(Clone, Copy)]
@@ -49,8 +50,9 @@ impl Element {
     }
 }
 
-pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
-    let (encoding, mut elements, body) = parse_header(ctx, bytes)?;
+pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
+    let ctx = input.ctx();
+    let (encoding, mut elements) = parse_header(input)?;
     let Some(vertex_at) = elements.iter().position(|e| e.name == "vertex") else {
         let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
         let what = format!("no vertex element (elements: {})", names.join(" "));
@@ -77,8 +79,8 @@ pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
         Some(Endian::Big) => Format::PlyBinaryBigEndian,
     };
     let points = match encoding {
-        None => ascii(ctx, body, &elements)?,
-        Some(endian) => binary(ctx, bytes, body.pos(), endian, &elements)?,
+        None => ascii(input, &elements)?,
+        Some(endian) => binary(input, endian, &elements)?,
     };
     points.finish(ctx, format)
 }
@@ -100,20 +102,16 @@ fn scalar(name: &[u8]) -> Option<Scalar> {
     })
 }
 
-/// The encoding (`None` for ascii), the elements, and the lines positioned at the body.
-fn parse_header<'a>(
-    ctx: Ctx,
-    bytes: &'a [u8],
-) -> Result<(Option<Endian>, Vec<Element>, Lines<'a>), ReadError> {
-    let mut lines = Lines::new(bytes);
-    lines.next(); // the `ply` magic line, already checked by the caller
+/// The encoding (`None` for ascii) and the elements; leaves `input` at the body.
+fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), ReadError> {
+    let (ctx, len) = (input.ctx(), input.len());
+    input.next_line()?; // the `ply` magic line, already checked by the caller
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
     loop {
         // A header line without its newline is a cut file, whatever the line says.
-        let Some(line) = lines.next().filter(|l| l.terminated) else {
-            let at = bytes.len();
-            return Err(ctx.truncated(format!("PLY header ends at byte {at} before end_header")));
+        let Some(line) = input.next_line()?.filter(|l| l.terminated) else {
+            return Err(ctx.truncated(format!("PLY header ends at byte {len} before end_header")));
         };
         let at = At::Line(line.number);
         let bad = |what: String| ctx.bad_header(at, what);
@@ -178,11 +176,12 @@ fn parse_header<'a>(
         }
     }
     let encoding = encoding.ok_or_else(|| ctx.bad_header(At::Header, "no format line"))?;
-    Ok((encoding, elements, lines))
+    Ok((encoding, elements))
 }
 
 /// Reads `elements` (the last is the vertex) one line per instance.
-fn ascii(ctx: Ctx, mut lines: Lines, elements: &[Element]) -> Result<Points, ReadError> {
+fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
     let mut points = Points::with_capacity(0);
     for (i, el) in elements.iter().enumerate() {
         // An instance without properties has no text, and would otherwise loop `count` times.
@@ -192,11 +191,12 @@ fn ascii(ctx: Ctx, mut lines: Lines, elements: &[Element]) -> Result<Points, Rea
         let is_vertex = i + 1 == elements.len();
         if is_vertex {
             // Each value takes at least a character and a separator.
-            let capacity = el.count.min(lines.remaining() / (2 * el.props.len()));
-            points = Points::with_capacity(capacity);
+            let room = input.remaining() / (2 * el.props.len() as u64);
+            points =
+                Points::with_capacity(usize::try_from(room).map_or(el.count, |r| r.min(el.count)));
         }
         for done in 0..el.count {
-            let Some(line) = lines.next_non_blank() else {
+            let Some(line) = input.next_non_blank()? else {
                 let (name, count) = (&el.name, el.count);
                 let what = format!("element {name} ends after {done} of its {count} lines");
                 return Err(ctx.truncated(what));
@@ -248,20 +248,15 @@ fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], Rea
     Ok(p)
 }
 
-/// Reads `elements` (the last is the vertex) from `pos`.
-fn binary(
-    ctx: Ctx,
-    bytes: &[u8],
-    mut pos: usize,
-    endian: Endian,
-    elements: &[Element],
-) -> Result<Points, ReadError> {
+/// Reads `elements` (the last is the vertex) from the body.
+fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
     let mut points = Points::with_capacity(0);
     for (i, el) in elements.iter().enumerate() {
         // Checked up front so that an absurd count fails at once, naming the sizes involved.
         let need = el.count as u128 * el.min_stride() as u128;
-        let have = bytes.len().saturating_sub(pos);
-        if need > have as u128 {
+        let (pos, have) = (input.pos(), input.remaining());
+        if need > u128::from(have) {
             let (name, count, stride) = (&el.name, el.count, el.min_stride());
             return Err(ctx.truncated(format!(
                 "element {name} needs at least {count} × {stride} = {need} bytes from offset {pos}, file has {have}"
@@ -270,15 +265,19 @@ fn binary(
         let is_vertex = i + 1 == elements.len();
         if is_vertex {
             points = Points::with_capacity(el.count);
-        } else if !el.has_lists() {
-            pos += need as usize;
+        }
+        if !el.has_lists() {
+            if is_vertex {
+                fixed_vertices(input, endian, el, &mut points)?;
+            } else if input.skip(need as u64)? < need as u64 {
+                return Err(ends(input, el, 0));
+            }
             continue;
         }
         // Each instance takes at least one byte (the vertex has x, y, z; the others a list
         // count), so this loop ends with the file whatever `count` claims.
         for index in 0..el.count {
-            let (next, p) = walk(ctx, bytes, pos, endian, el, index)?;
-            pos = next;
+            let p = walk(input, endian, el, index)?;
             if is_vertex {
                 points.push(p);
             }
@@ -287,51 +286,94 @@ fn binary(
     Ok(points)
 }
 
-/// Reads one instance; returns the offset after it and its x, y, z if it has them.
+/// The error for an instance that the end of the file cuts short.
+fn ends(input: &Input, el: &Element, index: usize) -> ReadError {
+    let (name, pos, len) = (&el.name, input.pos(), input.len());
+    input.ctx().truncated(format!(
+        "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
+    ))
+}
+
+/// Vertices without lists: records of one size, taken as many at a time as are buffered.
+fn fixed_vertices(
+    input: &mut Input,
+    endian: Endian,
+    vertex: &Element,
+    points: &mut Points,
+) -> Result<(), ReadError> {
+    let stride = vertex.min_stride();
+    // (byte offset in the record, type) of x, y and z.
+    let mut at = [(0, Scalar::F32); 3];
+    let mut offset = 0;
+    for prop in &vertex.props {
+        if let (Kind::Scalar(s), Some(axis)) = (prop.kind, prop.axis.and_then(|a| at.get_mut(a))) {
+            *axis = (offset, s);
+        }
+        offset += match prop.kind {
+            Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+        };
+    }
+    let mut done = 0;
+    while done < vertex.count {
+        let records = input.peek(stride)?;
+        let whole = (records.len() / stride.max(1)).min(vertex.count - done);
+        if whole == 0 {
+            return Err(ends(input, vertex, done));
+        }
+        for record in records.chunks_exact(stride.max(1)).take(whole) {
+            let value = |(offset, s): (usize, Scalar)| {
+                let v = record.get(offset..).and_then(|b| s.read(b, endian));
+                // Offsets inside a record sized from the same properties; NaN is unreachable.
+                v.unwrap_or(f64::NAN)
+            };
+            points.push(at.map(value));
+        }
+        input.consume(whole * stride);
+        done += whole;
+    }
+    Ok(())
+}
+
+/// Reads one instance; returns its x, y, z if it has them.
 fn walk(
-    ctx: Ctx,
-    bytes: &[u8],
-    mut pos: usize,
+    input: &mut Input,
     endian: Endian,
     el: &Element,
     index: usize,
-) -> Result<(usize, [f64; 3]), ReadError> {
-    let ends = |pos: usize| {
-        let (name, len) = (&el.name, bytes.len());
-        ctx.truncated(format!(
-            "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
-        ))
-    };
+) -> Result<[f64; 3], ReadError> {
     let mut p = [f64::NAN; 3];
     for prop in &el.props {
-        let rest = bytes.get(pos..).unwrap_or_default();
         match prop.kind {
             Kind::Scalar(s) => {
-                let v = s.read(rest, endian).ok_or_else(|| ends(pos))?;
+                let v = s.read(input.peek(s.size())?, endian);
+                let v = v.ok_or_else(|| ends(input, el, index))?;
                 if let Some(c) = prop.axis.and_then(|a| p.get_mut(a)) {
                     *c = v;
                 }
-                pos += s.size();
+                input.consume(s.size());
             }
             Kind::List { count, item } => {
-                let n = count.read(rest, endian).ok_or_else(|| ends(pos))?;
+                let n = count.read(input.peek(count.size())?, endian);
+                let n = n.ok_or_else(|| ends(input, el, index))?;
                 if n < 0.0 {
                     let what = format!(
                         "negative count {n} for list {} of element {}",
                         prop.name, el.name
                     );
-                    return Err(ctx.bad_value(At::Offset(pos), what));
+                    return Err(input.ctx().bad_value(At::Offset(input.pos()), what));
                 }
-                pos += count.size();
+                input.consume(count.size());
                 let len = n as u128 * item.size() as u128;
-                if len > bytes.len().saturating_sub(pos) as u128 {
-                    return Err(ends(pos));
+                if len > u128::from(input.remaining()) {
+                    return Err(ends(input, el, index));
                 }
-                pos += len as usize;
+                if input.skip(len as u64)? < len as u64 {
+                    return Err(ends(input, el, index));
+                }
             }
         }
     }
-    Ok((pos, p))
+    Ok(p)
 }
 
 #[cfg(test)]
