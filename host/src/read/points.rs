@@ -66,16 +66,50 @@ impl Scalar {
     }
 }
 
+/// A point's f64 coordinates kept as the bits of each in two 4-byte words: 24 bytes with the
+/// alignment of `[f32; 3]`. Mapping a Vec of these to `[f32; 3]` is then collected into the
+/// same allocation (std reuses it when the alignments match and the new item is no larger), so
+/// the f32 cloud never sits next to its f64 staging.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Wide([u32; 6]);
+
+impl Wide {
+    pub fn new(p: [f64; 3]) -> Self {
+        let mut w = Wide::default();
+        for (axis, c) in p.into_iter().enumerate() {
+            w.set(axis, c);
+        }
+        w
+    }
+
+    /// Sets coordinate `axis` (0, 1 or 2).
+    #[inline]
+    pub fn set(&mut self, axis: usize, c: f64) {
+        let bits = c.to_bits();
+        if let Some(pair) = self.0.get_mut(2 * axis..2 * axis + 2) {
+            pair.copy_from_slice(&[bits as u32, (bits >> 32) as u32]);
+        }
+    }
+
+    #[inline]
+    pub fn get(self) -> [f64; 3] {
+        let [x0, x1, y0, y1, z0, z1] = self.0;
+        let f = |lo: u32, hi: u32| f64::from_bits(u64::from(lo) | u64::from(hi) << 32);
+        [f(x0, x1), f(y0, y1), f(z0, z1)]
+    }
+}
+
 /// Collects points, counting slots and dropping non-finite ones, then centres them.
 ///
 /// While every coordinate is exactly an f32 (binary float clouds, the common case) the points
-/// are held as f32, 12 bytes each, and centred in place: the cloud then exists once, not as an
-/// f64 staging copy (24 bytes a point) plus the f32 result. The first coordinate that is not an
-/// exact f32 (text, doubles) moves them to f64 for the rest. Centring computes
-/// `(p - origin) as f32` from the same f64 value either way, so the bits do not depend on it.
+/// are held as f32, 12 bytes each, and centred in place. The first coordinate that is not an
+/// exact f32 (text, doubles) moves them to f64 for the rest, as [`Wide`], which is centred into
+/// f32 in the same allocation. Either way the cloud exists once, never as an f64 staging copy
+/// beside the f32 result. Centring computes `(p - origin) as f32` from the same f64 value
+/// either way, so the bits do not depend on it.
 pub(crate) struct Points {
     narrow: Vec<[f32; 3]>,
-    wide: Vec<[f64; 3]>,
+    wide: Vec<Wide>,
     lo: [f64; 3],
     hi: [f64; 3],
     slots: usize,
@@ -108,12 +142,21 @@ impl Points {
                 self.narrow.push(narrow);
             } else {
                 if self.wide.is_empty() {
-                    let mut wide = Vec::with_capacity(self.narrow.capacity());
-                    wide.extend(self.narrow.iter().map(|q| q.map(f64::from)));
-                    self.wide = wide;
-                    self.narrow = Vec::new();
+                    let narrow = std::mem::take(&mut self.narrow);
+                    let capacity = narrow.capacity();
+                    // Text turns wide at its first point: with nothing to carry over, the f32
+                    // buffer goes before the f64 one comes, so the two never coexist.
+                    let carried: Vec<Wide> = if narrow.is_empty() {
+                        drop(narrow);
+                        Vec::with_capacity(capacity)
+                    } else {
+                        let mut wide = Vec::with_capacity(capacity);
+                        wide.extend(narrow.iter().map(|q| Wide::new(q.map(f64::from))));
+                        wide
+                    };
+                    self.wide = carried;
                 }
-                self.wide.push(p);
+                self.wide.push(Wide::new(p));
             }
         } else {
             self.dropped += 1;
@@ -132,9 +175,9 @@ impl Points {
     }
 
     /// The same for coordinates that need f64.
-    pub fn from_slots_wide(mut slots: Vec<[f64; 3]>) -> Self {
+    pub fn from_slots_wide(mut slots: Vec<Wide>) -> Self {
         let mut points = Points::with_capacity(0);
-        let kept = points.compact(&mut slots, |p| p);
+        let kept = points.compact(&mut slots, Wide::get);
         slots.truncate(kept);
         points.wide = slots;
         points
@@ -179,19 +222,19 @@ impl Points {
             }
         }
         let local = |p: [f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
-        let points = if self.wide.is_empty() {
+        let mut points = if self.wide.is_empty() {
             let mut points = self.narrow;
             for p in points.iter_mut() {
                 *p = local(p.map(f64::from));
             }
-            // An organized cloud was allocated for all its slots, NaN ones included; handing
-            // the rest back keeps the cloud at 12 bytes a point for the whole pipeline (a shrinking
-            // realloc, which glibc does in place).
-            points.shrink_to_fit();
             points
         } else {
-            self.wide.iter().map(|p| local(*p)).collect()
+            self.wide.into_iter().map(|p| local(p.get())).collect()
         };
+        // An organized cloud was allocated for all its slots, NaN ones included, and f64
+        // staging for twice the f32 points; handing the rest back keeps the cloud at 12 bytes
+        // a point for the whole pipeline (a shrinking realloc, which glibc does in place).
+        points.shrink_to_fit();
         Ok(Cloud {
             origin,
             points,

@@ -8,6 +8,7 @@
 //! one slot per point and ignores every other field. The slots are the points, NaN ones
 //! included, and are compacted in place at the end.
 
+use super::super::points::Wide;
 use super::super::stream::{Input, Line};
 use super::super::xyz::{parse_f64, quote, tokens};
 use super::super::{At, Endian, Points, ReadError, Scalar, lzf};
@@ -155,7 +156,7 @@ pub(super) fn compressed(
         )
     });
     if narrow {
-        let mut columns = Columns::<f32>::new(coords, slots);
+        let mut columns = Columns::<[f32; 3]>::new(coords, slots);
         decode(input, &mut decoder, packed, &mut |at, bytes| {
             columns.take(at, bytes)
         })?;
@@ -164,7 +165,7 @@ pub(super) fn compressed(
             .map_err(lzf_error)?;
         Ok(Points::from_slots_narrow(columns.slots))
     } else {
-        let mut columns = Columns::<f64>::new(coords, slots);
+        let mut columns = Columns::<Wide>::new(coords, slots);
         decode(input, &mut decoder, packed, &mut |at, bytes| {
             columns.take(at, bytes)
         })?;
@@ -206,22 +207,24 @@ fn decode(
     }
 }
 
-/// A coordinate type the slots are held in.
-trait Coordinate: Copy + Default {
-    fn from_f64(v: f64) -> Self;
+/// A slot the coordinates are written into, one axis at a time.
+trait Slot: Copy + Default {
+    fn set(&mut self, axis: usize, c: f64);
 }
 
-impl Coordinate for f32 {
+impl Slot for [f32; 3] {
     #[inline]
-    fn from_f64(v: f64) -> Self {
-        v as f32
+    fn set(&mut self, axis: usize, c: f64) {
+        if let Some(to) = self.get_mut(axis) {
+            *to = c as f32;
+        }
     }
 }
 
-impl Coordinate for f64 {
+impl Slot for Wide {
     #[inline]
-    fn from_f64(v: f64) -> Self {
-        v
+    fn set(&mut self, axis: usize, c: f64) {
+        Wide::set(self, axis, c);
     }
 }
 
@@ -235,12 +238,12 @@ struct Column {
 }
 
 /// Writes the x, y and z columns of the field-major output into one slot per point.
-struct Columns<T> {
+struct Columns<S> {
     axes: [Column; 3],
-    slots: Vec<[T; 3]>,
+    slots: Vec<S>,
 }
 
-impl<T: Coordinate> Columns<T> {
+impl<S: Slot> Columns<S> {
     fn new(coords: [Coord; 3], slots: usize) -> Self {
         // A column starts at `column × slots`: inside the output, whose size was checked to be
         // `slots × record`.
@@ -252,7 +255,7 @@ impl<T: Coordinate> Columns<T> {
         });
         Columns {
             axes,
-            slots: vec![[T::default(); 3]; slots],
+            slots: vec![S::default(); slots],
         }
     }
 
@@ -284,7 +287,7 @@ impl<T: Coordinate> Columns<T> {
                     continue;
                 }
                 if let Some(slot) = self.slots.get_mut(index) {
-                    slot[axis] = T::from_f64(read_at(&col.carry, 0, col.scalar));
+                    slot.set(axis, read_at(&col.carry, 0, col.scalar));
                 }
                 col.held = 0;
                 index += 1;
@@ -292,7 +295,7 @@ impl<T: Coordinate> Columns<T> {
             let mut values = part.chunks_exact(size);
             let slots = self.slots.get_mut(index..).unwrap_or_default();
             for (value, slot) in values.by_ref().zip(slots) {
-                slot[axis] = T::from_f64(read_at(value, 0, col.scalar));
+                slot.set(axis, read_at(value, 0, col.scalar));
             }
             let rest = values.remainder();
             if let Some(room) = col.carry.get_mut(..rest.len()) {
