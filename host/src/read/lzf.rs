@@ -271,6 +271,75 @@ pub(crate) mod tests {
         );
     }
 
+    /// The format as its documentation states it, with the whole output in memory and one
+    /// byte copied at a time: the reference the windowed decoder is checked against.
+    fn naive(input: &[u8]) -> Vec<u8> {
+        let (mut out, mut ip) = (Vec::new(), 0);
+        while ip < input.len() {
+            let ctrl = usize::from(input[ip]);
+            if ctrl < 32 {
+                out.extend_from_slice(&input[ip + 1..ip + 2 + ctrl]);
+                ip += 2 + ctrl;
+            } else {
+                let (mut len, mut at) = (ctrl >> 5, ip + 1);
+                if len == 7 {
+                    len += usize::from(input[at]);
+                    at += 1;
+                }
+                let from = out.len() - (((ctrl & 0x1f) << 8 | usize::from(input[at])) + 1);
+                (0..len + 2).for_each(|i| out.push(out[from + i]));
+                ip = at + 1;
+            }
+        }
+        out
+    }
+
+    /// The LZF stream of a shared binary_compressed PCD and its declared output size.
+    fn real_stream(name: &str) -> (Vec<u8>, usize) {
+        let bytes = super::super::testkit::shared(name);
+        let tag = b"binary_compressed\n";
+        let body = bytes.windows(tag.len()).position(|w| w == tag).unwrap() + tag.len();
+        let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+        let (packed, unpacked) = (word(body), word(body + 4));
+        (bytes[body + 8..body + 8 + packed].to_vec(), unpacked)
+    }
+
+    /// Real streams whose output is far longer than the window (back references then reach
+    /// into history that has slid), fed in seeded random pieces from 1 byte to 64 KiB: the same
+    /// bytes as the reference, handed over in order.
+    #[test]
+    fn windowed_decoding_in_any_pieces_equals_the_reference() {
+        let mut rng = super::super::testkit::XorShift(0x5eed);
+        for name in ["five_people.pcd", "cturtle.pcd", "car6.pcd"] {
+            let (stream, expected) = real_stream(name);
+            let want = naive(&stream);
+            assert_eq!(want.len(), expected, "{name}");
+            assert!(expected > 4 * WINDOW || name == "car6.pcd", "{name}");
+            assert_eq!(decompress(&stream, expected).unwrap(), want, "{name} whole");
+            for round in 0..3 {
+                let mut out = Vec::new();
+                let mut sink = |at: usize, bytes: &[u8]| {
+                    assert_eq!(at, out.len());
+                    out.extend_from_slice(bytes);
+                };
+                let mut decoder = Decoder::new(stream.len(), expected).unwrap();
+                let (mut pending, mut fed) = (Vec::new(), 0);
+                while fed < stream.len() {
+                    let size = 1 + rng.below(if round == 0 { 40 } else { 1 << 16 });
+                    let end = (fed + size).min(stream.len());
+                    pending.extend_from_slice(&stream[fed..end]);
+                    fed = end;
+                    let last = fed == stream.len();
+                    let used = decoder.feed(&pending, last, &mut sink).unwrap();
+                    pending.drain(..used);
+                }
+                assert!(pending.is_empty(), "{name}");
+                decoder.finish(&mut sink).unwrap();
+                assert!(out == want, "{name} round {round}");
+            }
+        }
+    }
+
     #[test]
     fn literal_run() {
         assert_eq!(decompress(&[2, b'a', b'b', b'c'], 3).unwrap(), b"abc");

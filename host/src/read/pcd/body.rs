@@ -143,10 +143,6 @@ pub(super) fn compressed(
         );
         return Err(ctx.bad_value(At::Offset(body + 4), what));
     }
-    let stream = body + 8;
-    let lzf_error =
-        |e: lzf::LzfError| ctx.bad_value(At::Offset(stream + e.at() as u64), e.to_string());
-    let mut decoder = lzf::Decoder::new(packed, unpacked).map_err(lzf_error)?;
     // Slots of f32 when every coordinate type converts to f32 exactly (floats, small integers),
     // else of f64, so that no coordinate is rounded before it is moved to the local origin.
     let narrow = coords.iter().all(|c| {
@@ -156,35 +152,28 @@ pub(super) fn compressed(
         )
     });
     if narrow {
-        let mut columns = Columns::<[f32; 3]>::new(coords, slots);
-        decode(input, &mut decoder, packed, &mut |at, bytes| {
-            columns.take(at, bytes)
-        })?;
-        decoder
-            .finish(&mut |at, bytes| columns.take(at, bytes))
-            .map_err(lzf_error)?;
-        Ok(Points::from_slots_narrow(columns.slots))
+        scatter::<[f32; 3]>(input, packed, unpacked, coords, slots).map(Points::from_slots_narrow)
     } else {
-        let mut columns = Columns::<Wide>::new(coords, slots);
-        decode(input, &mut decoder, packed, &mut |at, bytes| {
-            columns.take(at, bytes)
-        })?;
-        decoder
-            .finish(&mut |at, bytes| columns.take(at, bytes))
-            .map_err(lzf_error)?;
-        Ok(Points::from_slots_wide(columns.slots))
+        scatter::<Wide>(input, packed, unpacked, coords, slots).map(Points::from_slots_wide)
     }
 }
 
-/// Feeds the `packed` bytes of the LZF stream from the input to the decoder.
-fn decode(
+/// Decodes the `packed` bytes of LZF at the input into one slot per point.
+fn scatter<S: Slot>(
     input: &mut Input,
-    decoder: &mut lzf::Decoder,
     packed: usize,
-    sink: &mut impl FnMut(usize, &[u8]),
-) -> Result<(), ReadError> {
-    let ctx = input.ctx();
-    let stream = input.pos();
+    unpacked: usize,
+    coords: [Coord; 3],
+    slots: usize,
+) -> Result<Vec<S>, ReadError> {
+    let (ctx, stream) = (input.ctx(), input.pos());
+    let lzf_error =
+        |e: lzf::LzfError| ctx.bad_value(At::Offset(stream + e.at() as u64), e.to_string());
+    // Before the slots are allocated: `unpacked` (slots × record) must be within what `packed`
+    // bytes, which the file holds, can expand to.
+    let mut decoder = lzf::Decoder::new(packed, unpacked).map_err(lzf_error)?;
+    let mut columns = Columns::<S>::new(coords, slots);
+    let mut sink = |at: usize, bytes: &[u8]| columns.take(at, bytes);
     let mut left = packed;
     loop {
         let buffered = input.peek(lzf::MAX_CHUNK)?;
@@ -194,17 +183,15 @@ fn decode(
         if !last && piece.len() < lzf::MAX_CHUNK {
             return Err(ended(input, "binary_compressed"));
         }
-        let used = decoder
-            .feed(piece, last, sink)
-            .map_err(|e| ctx.bad_value(At::Offset(stream + e.at() as u64), e.to_string()));
-        // `decoder.at` offsets are from the stream's start; `e.at()` already includes them.
-        let used = used?;
+        let used = decoder.feed(piece, last, &mut sink).map_err(lzf_error)?;
         input.consume(used);
         left -= used;
         if last {
-            return Ok(());
+            break;
         }
     }
+    decoder.finish(&mut sink).map_err(lzf_error)?;
+    Ok(columns.slots)
 }
 
 /// A slot the coordinates are written into, one axis at a time.
@@ -294,8 +281,16 @@ impl<S: Slot> Columns<S> {
             }
             let mut values = part.chunks_exact(size);
             let slots = self.slots.get_mut(index..).unwrap_or_default();
-            for (value, slot) in values.by_ref().zip(slots) {
-                slot.set(axis, read_at(value, 0, col.scalar));
+            if col.scalar == Scalar::F32 {
+                // Nearly every cloud: the generic read's dispatch per value is worth skipping.
+                for (value, slot) in values.by_ref().zip(slots) {
+                    let raw = value.first_chunk().copied().unwrap_or_default();
+                    slot.set(axis, f64::from(f32::from_le_bytes(raw)));
+                }
+            } else {
+                for (value, slot) in values.by_ref().zip(slots) {
+                    slot.set(axis, read_at(value, 0, col.scalar));
+                }
             }
             let rest = values.remainder();
             if let Some(room) = col.carry.get_mut(..rest.len()) {
