@@ -201,12 +201,22 @@ enum Kind {
     Stream(fn(&mut Input) -> Result<Cloud, ReadError>),
 }
 
-/// Bytes of the file's start that detection looks at: a PCD header's leading comments must
-/// fit in them.
-const HEAD: usize = 16 * 1024;
+/// Bytes of the file's start that detection looks at; more only while leading comment lines
+/// leave it open whether a PCD header follows them.
+const HEAD: usize = 4096;
 
 fn detect(input: &mut Input) -> Result<Kind, ReadError> {
     let ctx = input.ctx();
+    let (mut want, len) = (HEAD, input.remaining());
+    let is_pcd = loop {
+        let head = input.peek(want)?;
+        // Fewer bytes than asked for: the input ended (early, if it shrank since it was opened).
+        let whole = head.len() as u64 >= len || head.len() < want;
+        match pcd::has_header(head, whole) {
+            Some(is_pcd) => break is_pcd,
+            None => want = head.len().saturating_mul(2),
+        }
+    };
     let head = input.peek(HEAD)?;
     if head.is_empty() {
         let name = ctx.name();
@@ -215,7 +225,7 @@ fn detect(input: &mut Input) -> Result<Kind, ReadError> {
     Ok(
         if head.starts_with(b"ply\n") || head.starts_with(b"ply\r\n") {
             Kind::Stream(ply::read)
-        } else if pcd::has_header(head) {
+        } else if is_pcd {
             Kind::Stream(pcd::read)
         } else if las::has_signature(head) {
             Kind::Las
@@ -364,6 +374,14 @@ mod tests {
         assert_eq!((bunny.format, bunny.slots), (Format::PlyAscii, 35_947));
         let text = read_cloud_bytes("a.pcd", b"# comment\n1 2 3\n").unwrap();
         assert_eq!(text.format, Format::Xyz);
+        // Leading comments longer than the first look, before a PCD header or text points.
+        let comments = "# a scanner's banner, repeated\n".repeat(2000);
+        let pcd = [comments.as_bytes(), &shared("lamppost.pcd")].concat();
+        let lamppost = read_cloud_bytes("x", &pcd).unwrap();
+        assert_eq!((lamppost.format, lamppost.slots), (Format::PcdAscii, 1_771));
+        let text = format!("{comments}1 2 3\n4 5 6\n");
+        let xyz = read_cloud_bytes("x", text.as_bytes()).unwrap();
+        assert_eq!((xyz.format, xyz.slots), (Format::Xyz, 2));
         let disk = read_cloud(Path::new(&format!("{}/milk.pcd", testkit::DATA))).unwrap();
         let memory = read_cloud_bytes("milk.pcd", &shared("milk.pcd")).unwrap();
         assert_eq!(disk, memory);

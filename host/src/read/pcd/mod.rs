@@ -13,20 +13,25 @@ use super::stream::Input;
 use super::xyz::{parse_usize, quote, tokens};
 use super::{At, Cloud, Ctx, Format, Points, ReadError, Scalar};
 
-/// True if the first line that is not a comment starts a PCD header; `head` is the start of
-/// the file.
-pub(super) fn has_header(head: &[u8]) -> bool {
-    for line in head.split(|&b| b == b'\n') {
+/// Whether the first line that is not a comment starts a PCD header; `None` if `head`, the
+/// start of the file, ends before such a line and `whole` says there is more of it.
+pub(super) fn has_header(head: &[u8], whole: bool) -> Option<bool> {
+    let mut lines = head.split(|&b| b == b'\n').peekable();
+    while let Some(line) = lines.next() {
+        // The last piece of a partial head may be the start of a longer line.
+        if lines.peek().is_none() && !whole {
+            return None;
+        }
         let text = line.trim_ascii_start();
         if text.starts_with(b"# .PCD") {
-            return true;
+            return Some(true);
         }
         if !text.is_empty() && !text.starts_with(b"#") {
             let keyword = tokens(text).next();
-            return matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS"));
+            return Some(matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS")));
         }
     }
-    false
+    Some(false)
 }
 
 /// A header line: its keyword, line number and values.
