@@ -330,7 +330,7 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
     println!();
     println!("3. pipeline: read + k-means + fit (ellipsoid and sphere) + eval (eq. 13, both maps)");
     println!(
-        "{:<16} {:>8} {:>5} {:>3} {:>9} {:>6} {:>6} {:>6} {:>6} {:>9} {:>9} {:>6} {:>5}",
+        "{:<16} {:>8} {:>5} {:>3} {:>9} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6} {:>8} {:>6} {:>6} {:>5}",
         "cloud",
         "n",
         "k",
@@ -340,9 +340,12 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
         "kmeans",
         "fit",
         "eval",
-        "peak MB",
         "cloud MB",
-        "peak/c",
+        "heap MB",
+        "heap/c",
+        "VmHWM MB",
+        "hwm/c",
+        "above",
         "same"
     );
     for (name, k) in [
@@ -355,24 +358,38 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
         println!("{}", one.format(1, true));
         let two = pipeline_case::spawn(args, name, k, 2)?;
         println!("{}", two.format(2, two.fingerprint == one.fingerprint));
+        let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / 1e6));
         println!(
-            "{:<16} 2 threads: {:.2}x faster than 1; resident before reading: {:.1} MB, peak above it {:.2}x the cloud",
+            "{:<16} 2 threads: {:.2}x faster than 1; before reading: {} MB resident, {} MB of heap live",
             "",
             one.wall.as_secs_f64() / two.wall.as_secs_f64(),
-            two.before.unwrap_or(0) as f64 / 1e6,
-            (two.peak
-                .unwrap_or(0)
-                .saturating_sub(two.before.unwrap_or(0))) as f64
-                / (two.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64
+            mb(two.before),
+            mb(two.heap_before),
         );
+        if let Some(stages) = two.heap_stages {
+            let cloud = (two.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
+            let [read, kmeans, fit, eval] = stages.map(|b| b as f64 / cloud);
+            println!(
+                "{:<16} heap peak by stage (x cloud, 2 threads): read {read:.2}, k-means {kmeans:.2}, fit {fit:.2}, eval {eval:.2}",
+                ""
+            );
+        }
     }
     println!(
-        "(each row a fresh `mema bench --case` process; stage columns: share of wall time; peak: its"
+        "(each row a fresh `mema bench --case` process; stage columns: share of wall time; cloud MB:"
     );
     println!(
-        " VmHWM, whole process; cloud MB: 12 bytes per point, the paper's count; same: map bits equal"
+        " 12 bytes per point, the paper's count; heap: the most heap bytes live at once during a run,"
     );
-    println!(" to the 1-thread run)");
+    println!(
+        " above those live before it read anything (counting allocator), largest of the runs; VmHWM:"
+    );
+    println!(
+        " the process's peak resident size, binary and threads included, first run; above: VmHWM minus"
+    );
+    println!(
+        " the resident size before reading, over the cloud; same: map bits equal to the 1-thread run)"
+    );
     Ok(())
 }
 

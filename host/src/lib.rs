@@ -7,6 +7,7 @@ pub mod commands;
 pub mod draw;
 pub mod export;
 pub mod filter;
+pub mod heap;
 pub mod mapfile;
 pub mod pipeline;
 pub mod progress;

@@ -7,6 +7,10 @@ use mema::cli::{Cli, Command, UsageError};
 use mema::serial::commands::LinkLost;
 use std::process::ExitCode;
 
+// Counts live and peak heap bytes, which `mema bench` reports (see `mema::heap`).
+#[global_allocator]
+static HEAP: mema::heap::Counting = mema::heap::Counting;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use super::{load, memory, ms};
 use crate::cli::FitArgs;
+use crate::heap;
 use crate::pipeline;
 
 pub struct Case<'a> {
@@ -15,8 +16,9 @@ pub struct Case<'a> {
     pub k: usize,
 }
 
-/// The fastest of the repeated runs; memory from the first, in a process that has done nothing
-/// else yet (later runs reuse the allocator's freed pages, which would blur the peak).
+/// The fastest of the repeated runs. The resident peak is the first run's, in a process that has
+/// done nothing else yet (later runs reuse the allocator's freed pages, which would blur it);
+/// the heap peak is the largest of all runs (each starts a new one).
 #[derive(serde::Serialize, serde::Deserialize)]
 pub struct PipelineRow {
     pub name: String,
@@ -28,10 +30,16 @@ pub struct PipelineRow {
     pub fit: Duration,
     pub eval: Duration,
     pub wall: Duration,
-    /// Peak resident bytes of the process by the end of the first run, and resident bytes just
-    /// before it read anything.
+    /// Peak resident bytes (VmHWM) of the process by the end of the first run, and resident
+    /// bytes just before it read anything.
     pub peak: Option<u64>,
     pub before: Option<u64>,
+    /// Most heap bytes live at once during a run, above those live before it read anything
+    /// (counted by `mema::heap`), and those live before.
+    pub heap_peak: Option<u64>,
+    pub heap_before: Option<u64>,
+    /// The same peak within each stage: read, k-means (with the clusters' moments), fit, eval.
+    pub heap_stages: Option<[u64; 4]>,
     /// Hash of the labels and both maps' bits: equal runs, equal fingerprints.
     pub fingerprint: u64,
 }
@@ -40,12 +48,12 @@ impl PipelineRow {
     pub fn format(&self, threads: usize, same: bool) -> String {
         let share = |d: Duration| 100.0 * d.as_secs_f64() / self.wall.as_secs_f64();
         let cloud = (self.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
-        let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.1}", b as f64 / 1e6));
-        let ratio = self
-            .peak
-            .map_or("-".to_string(), |p| format!("{:.2}", p as f64 / cloud));
+        let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / 1e6));
+        let ratio =
+            |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / cloud));
+        let above = self.peak.zip(self.before).map(|(p, b)| p.saturating_sub(b));
         format!(
-            "{:<16} {:>8} {:>5} {:>3} {:>9.1} {:>5.0}% {:>5.0}% {:>5.0}% {:>5.0}% {:>9} {:>9.1} {:>6} {:>5}",
+            "{:<16} {:>8} {:>5} {:>3} {:>9.1} {:>5.0}% {:>5.0}% {:>5.0}% {:>5.0}% {:>8.2} {:>8} {:>6} {:>8} {:>6} {:>6} {:>5}",
             self.name,
             self.points,
             self.k,
@@ -55,9 +63,12 @@ impl PipelineRow {
             share(self.kmeans),
             share(self.fit),
             share(self.eval),
-            mb(self.peak),
             cloud / 1e6,
-            ratio,
+            mb(self.heap_peak),
+            ratio(self.heap_peak),
+            mb(self.peak),
+            ratio(self.peak),
+            ratio(above),
             if same { "yes" } else { "NO" }
         )
     }
@@ -77,17 +88,28 @@ fn default_fit_args() -> Result<FitArgs> {
 pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
     let config = default_fit_args()?.config(case.k)?;
     let mut best: Option<PipelineRow> = None;
+    let counting = heap::counting();
     for _ in 0..repeat.max(1) {
         let before = memory::current();
+        let heap_before = heap::reset_peak();
+        // Each stage's heap peak, starting a new one for the next; the run's is the largest.
+        let mut heap_stages = [0u64; 4];
+        let mut stage_done = |stage: usize| {
+            heap_stages[stage] = heap::peak().saturating_sub(heap_before) as u64;
+            heap::reset_peak();
+        };
         let start = Instant::now();
         let points = load(case.data, case.name)?;
         let read = start.elapsed();
+        stage_done(0);
         let t = Instant::now();
         let clusters = pipeline::cluster(&points, case.k, &config.kmeans)?;
         let kmeans = t.elapsed();
+        stage_done(1);
         let t = Instant::now();
         let fitted = pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
         let fit = t.elapsed();
+        stage_done(2);
         let t = Instant::now();
         let mut hasher = std::collections::hash_map::DefaultHasher::new();
         clusters.labels.hash(&mut hasher);
@@ -102,6 +124,8 @@ pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
         }
         let eval = t.elapsed();
         let wall = start.elapsed();
+        stage_done(3);
+        let heap_stages = counting.then_some(heap_stages);
         let row = PipelineRow {
             name: case.name.to_string(),
             points: points.len(),
@@ -114,15 +138,24 @@ pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
             wall,
             peak: memory::peak(),
             before,
+            heap_peak: heap_stages.and_then(|s| s.into_iter().max()),
+            heap_before: counting.then_some(heap_before as u64),
+            heap_stages,
             fingerprint: hasher.finish(),
         };
         best = Some(match best {
-            Some(b) if b.wall <= row.wall => b,
-            Some(b) => PipelineRow {
-                peak: b.peak,
-                before: b.before,
-                ..row
-            },
+            Some(b) => {
+                let heap_peak = b.heap_peak.max(row.heap_peak);
+                let heap_stages = b
+                    .heap_stages
+                    .zip(row.heap_stages)
+                    .map(|(b, r)| std::array::from_fn(|i| b[i].max(r[i])));
+                let first = (b.peak, b.before, b.heap_before);
+                let mut best = if b.wall <= row.wall { b } else { row };
+                (best.peak, best.before, best.heap_before) = first;
+                (best.heap_peak, best.heap_stages) = (heap_peak, heap_stages);
+                best
+            }
             None => row,
         });
     }

@@ -3,7 +3,8 @@
 //! With no magic bytes to look for, the `.bin` extension is what selects this reader, and only
 //! after every format with a signature has declined the bytes.
 
-use super::{Cloud, Ctx, Format, Points, ReadError};
+use super::stream::Input;
+use super::{Cloud, Format, Points, ReadError};
 
 const RECORD: usize = 16;
 
@@ -13,21 +14,36 @@ pub fn is_named_bin(name: &str) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("bin"))
 }
 
-pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
-    if !bytes.len().is_multiple_of(RECORD) {
+pub fn read(input: &mut Input) -> Result<Cloud, ReadError> {
+    let (ctx, len) = (input.ctx(), input.len());
+    if !len.is_multiple_of(RECORD as u64) {
         return Err(ctx.truncated(format!(
-            "{} bytes is not a whole number of 16-byte KITTI records (x, y, z, reflectance as f32)",
-            bytes.len()
+            "{len} bytes is not a whole number of 16-byte KITTI records (x, y, z, reflectance as f32)"
         )));
     }
-    let mut points = Points::with_capacity(bytes.len() / RECORD);
-    for record in bytes.chunks_exact(RECORD) {
-        let mut xyz = [0.0f64; 3];
-        for (c, raw) in xyz.iter_mut().zip(record.chunks_exact(4)) {
-            let raw: [u8; 4] = raw.try_into().unwrap_or_default();
-            *c = f64::from(f32::from_le_bytes(raw));
+    let records = usize::try_from(len / RECORD as u64).unwrap_or(usize::MAX);
+    let mut points = Points::with_capacity(records);
+    loop {
+        let buffered = input.peek(RECORD)?;
+        let whole = buffered.len() / RECORD;
+        if whole == 0 {
+            break;
         }
-        points.push(xyz);
+        for record in buffered.chunks_exact(RECORD).take(whole) {
+            let mut xyz = [0.0f64; 3];
+            for (c, raw) in xyz.iter_mut().zip(record.chunks_exact(4)) {
+                let raw: [u8; 4] = raw.try_into().unwrap_or_default();
+                *c = f64::from(f32::from_le_bytes(raw));
+            }
+            points.push(xyz);
+        }
+        input.consume(whole * RECORD);
+    }
+    if input.pos() < len {
+        let at = input.pos();
+        return Err(ctx.truncated(format!(
+            "the scan ends at byte {at}, before the {len} bytes the file had when opened"
+        )));
     }
     points.finish(ctx, Format::KittiBin)
 }

@@ -7,7 +7,7 @@
 //! Points are pulled in fixed batches rather than with `read_all`: `read_all` sizes its buffer
 //! from the header's point count, which a corrupt header could set to 2^64.
 
-use std::io::Cursor;
+use std::io::{Read, Seek};
 
 use super::{At, Cloud, Ctx, Format, Points, ReadError};
 
@@ -19,10 +19,13 @@ pub fn has_signature(bytes: &[u8]) -> bool {
     bytes.starts_with(b"LASF")
 }
 
-pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
-    // `las` wants an owned, seekable source; one copy of the file is cheap next to decoding it.
-    let mut reader =
-        las::Reader::new(Cursor::new(bytes.to_vec())).map_err(|e| header_error(ctx, e))?;
+/// Reads the `len` bytes of `source`, positioned anywhere; `las` wants it owned and seekable.
+pub fn read<R>(ctx: Ctx, mut source: R, len: u64) -> Result<Cloud, ReadError>
+where
+    R: Read + Seek + Send + Sync + 'static,
+{
+    let data_at = data_offset(ctx, &mut source)?;
+    let mut reader = las::Reader::new(source).map_err(|e| header_error(ctx, e))?;
     let header = reader.header();
     let declared = header.number_of_points();
     let compressed = header.point_format().is_compressed;
@@ -30,7 +33,7 @@ pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
     let record_len = u64::from(header.point_format().len());
     if !compressed {
         // Uncompressed records can be counted before any is read.
-        let room = (bytes.len() as u64).saturating_sub(u64::from(header_offset(bytes)));
+        let room = len.saturating_sub(u64::from(data_at));
         if declared.saturating_mul(record_len.max(1)) > room {
             return Err(ctx.truncated(format!(
                 "the header declares {declared} points of {record_len} bytes, the file holds {}",
@@ -38,7 +41,7 @@ pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
             )));
         }
     }
-    let capacity = usize::try_from(declared.min(bytes.len() as u64)).unwrap_or(0);
+    let capacity = usize::try_from(declared.min(len)).unwrap_or(0);
     let mut points = Points::with_capacity(capacity);
     let mut batch = las::PointDataBuilder::new()
         .for_header(reader.header())
@@ -62,12 +65,23 @@ pub fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
     points.finish(ctx, format)
 }
 
-/// The header's offset to point data (bytes 96..100 in every LAS version).
-fn header_offset(bytes: &[u8]) -> u32 {
-    bytes
-        .get(96..100)
-        .and_then(|b| b.try_into().ok())
-        .map_or(0, u32::from_le_bytes)
+/// The header's offset to point data (bytes 96..100 in every LAS version; 0 if the file is
+/// shorter, which `las` then reports), leaving `source` at its start.
+fn data_offset(ctx: Ctx, source: &mut (impl Read + Seek)) -> Result<u32, ReadError> {
+    let io = |cause| ReadError::Io {
+        path: ctx.name().into(),
+        cause,
+    };
+    source.rewind().map_err(io)?;
+    let mut head = Vec::with_capacity(100);
+    source
+        .by_ref()
+        .take(100)
+        .read_to_end(&mut head)
+        .map_err(io)?;
+    source.rewind().map_err(io)?;
+    let offset = head.get(96..100).and_then(|b| b.try_into().ok());
+    Ok(offset.map_or(0, u32::from_le_bytes))
 }
 
 fn header_error(ctx: Ctx, e: las::Error) -> ReadError {

@@ -15,6 +15,19 @@ use std::fmt;
 /// The most output one input byte can produce: a 3-byte back reference copies up to 264 bytes.
 const MAX_EXPANSION: usize = 88;
 
+/// The farthest back a reference reaches: 13 bits of distance, plus one.
+const MAX_DISTANCE: usize = 1 << 13;
+
+/// The longest chunk in the input: a control byte and a 32-byte literal run.
+pub(crate) const MAX_CHUNK: usize = 33;
+
+/// The most output one chunk produces: a back reference of 7 + 255 + 2 bytes.
+const MAX_CHUNK_OUT: usize = 264;
+
+/// The output held at a time: the history a back reference may reach, plus the new output
+/// between two hand-overs to the sink (24 KiB of it here; smaller means more sliding).
+const WINDOW: usize = 32 * 1024;
+
 /// Why an LZF stream could not be decompressed; `at` is the offset in the compressed input.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub(crate) enum LzfError {
@@ -80,67 +93,161 @@ impl fmt::Display for LzfError {
     }
 }
 
-/// Decompresses `input`, which must produce exactly `expected` bytes.
-pub(crate) fn decompress(input: &[u8], expected: usize) -> Result<Vec<u8>, LzfError> {
-    if expected > input.len().saturating_mul(MAX_EXPANSION) {
-        return Err(LzfError::CannotExpand {
-            input: input.len(),
+/// Decompresses a stream fed in pieces of any size, handing the output to a sink in order and
+/// holding only the last [`WINDOW`] bytes of it: no back reference reaches farther than
+/// 8 KiB, so the whole output never needs to exist at once.
+pub(crate) struct Decoder {
+    /// The tail of the output: at least the last `MAX_DISTANCE` bytes produced (or all of them).
+    window: Vec<u8>,
+    /// Output offset of `window[0]`.
+    base: usize,
+    /// `window[..sent]` has been handed to the sink.
+    sent: usize,
+    expected: usize,
+    /// Compressed bytes decoded so far.
+    at: usize,
+}
+
+impl Decoder {
+    /// A decoder for `packed` compressed bytes that must produce exactly `expected` bytes.
+    pub fn new(packed: usize, expected: usize) -> Result<Self, LzfError> {
+        if expected > packed.saturating_mul(MAX_EXPANSION) {
+            return Err(LzfError::CannotExpand {
+                input: packed,
+                expected,
+            });
+        }
+        Ok(Decoder {
+            window: Vec::with_capacity(expected.min(WINDOW)),
+            base: 0,
+            sent: 0,
             expected,
-        });
+            at: 0,
+        })
     }
-    let mut out = Vec::with_capacity(expected);
-    let mut ip = 0;
-    while let Some(&ctrl) = input.get(ip) {
-        let at = ip;
-        let ctrl = usize::from(ctrl);
-        ip += 1;
-        if ctrl < 32 {
-            let run = input
-                .get(ip..ip + ctrl + 1)
-                .ok_or(LzfError::InputEnds { at })?;
-            if out.len() + run.len() > expected {
-                return Err(LzfError::TooLong { at, expected });
+
+    fn produced(&self) -> usize {
+        self.base + self.window.len()
+    }
+
+    /// Hands the new output to `sink` (with its output offset) and slides the window.
+    fn flush(&mut self, sink: &mut impl FnMut(usize, &[u8])) {
+        let fresh = self.window.get(self.sent..).unwrap_or_default();
+        if !fresh.is_empty() {
+            sink(self.base + self.sent, fresh);
+        }
+        let keep = self.window.len().min(MAX_DISTANCE);
+        let drop = self.window.len() - keep;
+        self.window.copy_within(drop.., 0);
+        self.window.truncate(keep);
+        self.base += drop;
+        self.sent = keep;
+    }
+
+    /// Decodes the whole chunks at the start of `input` and returns how many bytes they took.
+    /// With `last`, `input` is the rest of the stream and a chunk it cuts short is an error;
+    /// otherwise the cut chunk is left for the next call, which must start with it.
+    pub fn feed(
+        &mut self,
+        input: &[u8],
+        last: bool,
+        sink: &mut impl FnMut(usize, &[u8]),
+    ) -> Result<usize, LzfError> {
+        let mut ip = 0;
+        while let Some(&ctrl) = input.get(ip) {
+            let at = self.at + ip;
+            let ctrl = usize::from(ctrl);
+            // A chunk cut by the end of `input` waits for the next piece, unless there is none.
+            let cut = || {
+                if last {
+                    Err(LzfError::InputEnds { at })
+                } else {
+                    Ok(())
+                }
+            };
+            if self.window.len() + MAX_CHUNK_OUT > WINDOW {
+                self.flush(sink);
             }
-            out.extend_from_slice(run);
-            ip += run.len();
-        } else {
-            let mut len = ctrl >> 5;
-            if len == 7 {
-                len += usize::from(*input.get(ip).ok_or(LzfError::InputEnds { at })?);
-                ip += 1;
-            }
-            let lo = usize::from(*input.get(ip).ok_or(LzfError::InputEnds { at })?);
-            ip += 1;
-            let len = len + 2;
-            let distance = ((ctrl & 0x1f) << 8 | lo) + 1;
-            let produced = out.len();
-            let start = produced
-                .checked_sub(distance)
-                .ok_or(LzfError::BeforeStart {
-                    at,
-                    distance,
-                    produced,
-                })?;
-            if produced + len > expected {
-                return Err(LzfError::TooLong { at, expected });
-            }
-            // Copy in pieces no longer than what already exists past `start`: for an
-            // overlapping reference this repeats the pattern exactly as a byte-by-byte copy
-            // would, and every range stays inside `out`.
-            let mut left = len;
-            while left > 0 {
-                let piece = left.min(out.len() - start);
-                out.extend_from_within(start..start + piece);
-                left -= piece;
+            let expected = self.expected;
+            if ctrl < 32 {
+                let Some(run) = input.get(ip + 1..ip + 2 + ctrl) else {
+                    cut()?;
+                    break;
+                };
+                if self.produced() + run.len() > expected {
+                    return Err(LzfError::TooLong { at, expected });
+                }
+                self.window.extend_from_slice(run);
+                ip += 2 + ctrl;
+            } else {
+                let long = ctrl >> 5 == 7;
+                let size = if long { 3 } else { 2 };
+                let Some(chunk) = input.get(ip..ip + size) else {
+                    cut()?;
+                    break;
+                };
+                let (extra, lo) = match chunk {
+                    [_, e, lo] => (usize::from(*e), usize::from(*lo)),
+                    [_, lo] => (0, usize::from(*lo)),
+                    _ => return Err(LzfError::InputEnds { at }),
+                };
+                let len = (ctrl >> 5) + extra + 2;
+                let distance = ((ctrl & 0x1f) << 8 | lo) + 1;
+                let produced = self.produced();
+                // The window holds min(produced, MAX_DISTANCE) bytes or more, and a distance
+                // is at most MAX_DISTANCE: reaching before the window means before the start.
+                let start =
+                    self.window
+                        .len()
+                        .checked_sub(distance)
+                        .ok_or(LzfError::BeforeStart {
+                            at,
+                            distance,
+                            produced,
+                        })?;
+                if produced + len > expected {
+                    return Err(LzfError::TooLong { at, expected });
+                }
+                // Copy in pieces no longer than what already exists past `start`: for an
+                // overlapping reference this repeats the pattern exactly as a byte-by-byte
+                // copy would, and every range stays inside the window.
+                let mut left = len;
+                while left > 0 {
+                    let piece = left.min(self.window.len() - start);
+                    self.window.extend_from_within(start..start + piece);
+                    left -= piece;
+                }
+                ip += size;
             }
         }
+        self.at += ip;
+        Ok(ip)
     }
-    if out.len() != expected {
-        return Err(LzfError::TooShort {
-            produced: out.len(),
-            expected,
-        });
+
+    /// Hands the rest of the output to `sink`; the stream must have produced all of it.
+    pub fn finish(mut self, sink: &mut impl FnMut(usize, &[u8])) -> Result<(), LzfError> {
+        if self.produced() != self.expected {
+            return Err(LzfError::TooShort {
+                produced: self.produced(),
+                expected: self.expected,
+            });
+        }
+        self.flush(sink);
+        Ok(())
     }
+}
+
+/// Decompresses a whole stream held in memory.
+#[cfg(test)]
+pub(crate) fn decompress(input: &[u8], expected: usize) -> Result<Vec<u8>, LzfError> {
+    let mut out = Vec::new();
+    let mut sink = |at: usize, bytes: &[u8]| {
+        assert_eq!(at, out.len(), "the sink gets the output in order");
+        out.extend_from_slice(bytes);
+    };
+    let mut decoder = Decoder::new(input.len(), expected)?;
+    decoder.feed(input, true, &mut sink)?;
+    decoder.finish(&mut sink)?;
     Ok(out)
 }
 
@@ -162,6 +269,75 @@ pub(crate) mod tests {
             decompress(&literal_stream(&data), data.len()).unwrap(),
             data
         );
+    }
+
+    /// The format as its documentation states it, with the whole output in memory and one
+    /// byte copied at a time: the reference the windowed decoder is checked against.
+    fn naive(input: &[u8]) -> Vec<u8> {
+        let (mut out, mut ip) = (Vec::new(), 0);
+        while ip < input.len() {
+            let ctrl = usize::from(input[ip]);
+            if ctrl < 32 {
+                out.extend_from_slice(&input[ip + 1..ip + 2 + ctrl]);
+                ip += 2 + ctrl;
+            } else {
+                let (mut len, mut at) = (ctrl >> 5, ip + 1);
+                if len == 7 {
+                    len += usize::from(input[at]);
+                    at += 1;
+                }
+                let from = out.len() - (((ctrl & 0x1f) << 8 | usize::from(input[at])) + 1);
+                (0..len + 2).for_each(|i| out.push(out[from + i]));
+                ip = at + 1;
+            }
+        }
+        out
+    }
+
+    /// The LZF stream of a shared binary_compressed PCD and its declared output size.
+    fn real_stream(name: &str) -> (Vec<u8>, usize) {
+        let bytes = super::super::testkit::shared(name);
+        let tag = b"binary_compressed\n";
+        let body = bytes.windows(tag.len()).position(|w| w == tag).unwrap() + tag.len();
+        let word = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+        let (packed, unpacked) = (word(body), word(body + 4));
+        (bytes[body + 8..body + 8 + packed].to_vec(), unpacked)
+    }
+
+    /// Real streams whose output is far longer than the window (back references then reach
+    /// into history that has slid), fed in seeded random pieces from 1 byte to 64 KiB: the same
+    /// bytes as the reference, handed over in order.
+    #[test]
+    fn windowed_decoding_in_any_pieces_equals_the_reference() {
+        let mut rng = super::super::testkit::XorShift(0x5eed);
+        for name in ["five_people.pcd", "cturtle.pcd", "car6.pcd"] {
+            let (stream, expected) = real_stream(name);
+            let want = naive(&stream);
+            assert_eq!(want.len(), expected, "{name}");
+            assert!(expected > 4 * WINDOW || name == "car6.pcd", "{name}");
+            assert_eq!(decompress(&stream, expected).unwrap(), want, "{name} whole");
+            for round in 0..3 {
+                let mut out = Vec::new();
+                let mut sink = |at: usize, bytes: &[u8]| {
+                    assert_eq!(at, out.len());
+                    out.extend_from_slice(bytes);
+                };
+                let mut decoder = Decoder::new(stream.len(), expected).unwrap();
+                let (mut pending, mut fed) = (Vec::new(), 0);
+                while fed < stream.len() {
+                    let size = 1 + rng.below(if round == 0 { 40 } else { 1 << 16 });
+                    let end = (fed + size).min(stream.len());
+                    pending.extend_from_slice(&stream[fed..end]);
+                    fed = end;
+                    let last = fed == stream.len();
+                    let used = decoder.feed(&pending, last, &mut sink).unwrap();
+                    pending.drain(..used);
+                }
+                assert!(pending.is_empty(), "{name}");
+                decoder.finish(&mut sink).unwrap();
+                assert!(out == want, "{name} round {round}");
+            }
+        }
     }
 
     #[test]
@@ -276,7 +452,7 @@ pub(crate) mod tests {
         bad[stream] = 0xff; // a back reference before anything was decompressed
         let e = read(&bad).unwrap_err();
         assert!(
-            matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == stream),
+            matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == stream as u64),
             "{e}"
         );
         let mut bad = good.clone();
@@ -286,7 +462,7 @@ pub(crate) mod tests {
         let mut bad = good.clone();
         bad[body + 4..body + 8].copy_from_slice(&u32::MAX.to_le_bytes()); // not POINTS × 12
         assert!(
-            matches!(read(&bad), Err(ReadError::BadValue { at: At::Offset(o), .. }) if o == body + 4)
+            matches!(read(&bad), Err(ReadError::BadValue { at: At::Offset(o), .. }) if o == body as u64 + 4)
         );
         bad.truncate(body + 8 + 100); // the stream is shorter than its declared size
         assert!(matches!(read(&bad), Err(ReadError::Truncated { .. })));

@@ -2,16 +2,19 @@
 //! (KITTI, having no header, by its extension).
 //!
 //! The contract every reader keeps:
-//! - the file is read once into memory and parsed from that slice;
+//! - the file is streamed through a small buffer ([`stream::Input`]), so the cloud is held
+//!   once, as the points returned (an organized cloud's NaN slots until they are compacted in
+//!   place), never next to a copy of the file or of a decompressed body;
 //! - no input makes a reader panic: bytes are reached through `get`, `chunks_exact` and
 //!   iterators, never through indexing that the file controls;
-//! - a size taken from a header is checked against the bytes actually present before it is
-//!   allocated or looped over, so a header claiming 10^18 points is an error, not an allocation;
+//! - a size taken from a header is checked against the bytes actually present (the file's
+//!   length) before it is allocated or looped over, so a header claiming 10^18 points is an
+//!   error, not an allocation;
 //! - coordinates are parsed as f64 and only cast to f32 after moving to the bounding-box centre,
 //!   because real captures (airborne lidar in UTM metres, say) sit far from zero and would lose
 //!   centimetres in f32.
 //!
-//! Format detection looks at the bytes first (`ply` magic line, a PCD header, the `LASF`
+//! Format detection looks at the first bytes (`ply` magic line, a PCD header, the `LASF`
 //! signature, then text with a line of at least three numbers); the file extension only sharpens
 //! the error message, except for headerless KITTI `.bin` scans, which it selects.
 
@@ -20,12 +23,17 @@ mod las;
 mod lzf;
 mod pcd;
 mod ply;
+mod points;
+mod stream;
 mod xyz;
 
 use std::fmt;
+use std::fs::File;
+use std::io::{Read, Seek};
 use std::path::{Path, PathBuf};
 
-use xyz::Line;
+pub(crate) use points::{Endian, Points, Scalar};
+use stream::{Input, Line};
 
 /// A cloud read from a file: coordinates moved to a local origin so they survive the trip to f32.
 #[derive(Debug, Clone, PartialEq)]
@@ -82,7 +90,7 @@ pub enum At {
     /// A 1-based line of a text header or text body.
     Line(usize),
     /// A byte offset from the start of the file.
-    Offset(usize),
+    Offset(u64),
 }
 
 impl fmt::Display for At {
@@ -139,36 +147,96 @@ fn no_finite_points(slots: &usize) -> String {
 
 /// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
-    let bytes = std::fs::read(path).map_err(|cause| ReadError::Io {
+    let io = |cause| ReadError::Io {
         path: path.to_owned(),
         cause,
-    })?;
-    read_cloud_bytes(&path.display().to_string(), &bytes)
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    let name = path.display().to_string();
+    if !meta.is_file() {
+        // A pipe or a device has no length to check a header's sizes against: read it whole.
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes).map_err(io)?;
+        return read_cloud_bytes(&name, &bytes);
+    }
+    let ctx = Ctx(&name);
+    let kind = {
+        let mut input = Input::new(ctx, &mut file, meta.len());
+        match detect(&mut input)? {
+            Kind::Las => None,
+            Kind::Stream(read) => Some(read(&mut input)?),
+        }
+    };
+    match kind {
+        Some(cloud) => Ok(cloud),
+        None => {
+            // `las` wants an owned, seekable source: the file itself, from its start.
+            file.rewind().map_err(io)?;
+            las::read(ctx, std::io::BufReader::new(file), meta.len())
+        }
+    }
 }
 
 /// Same from bytes already in memory; `name` is used in error messages.
 pub fn read_cloud_bytes(name: &str, bytes: &[u8]) -> Result<Cloud, ReadError> {
     let ctx = Ctx(name);
-    if bytes.is_empty() {
-        let name = name.to_owned();
+    let mut source = bytes;
+    let mut input = Input::new(ctx, &mut source, bytes.len() as u64);
+    match detect(&mut input)? {
+        // `las` wants an owned source; one copy is cheap next to decoding the points.
+        Kind::Las => las::read(
+            ctx,
+            std::io::Cursor::new(bytes.to_vec()),
+            bytes.len() as u64,
+        ),
+        Kind::Stream(read) => read(&mut input),
+    }
+}
+
+/// What the first bytes of a file say it is: LAS/LAZ, which the `las` crate reads from a
+/// seekable source, or a format with a reader over the stream.
+enum Kind {
+    Las,
+    Stream(fn(&mut Input) -> Result<Cloud, ReadError>),
+}
+
+/// Bytes of the file's start that detection looks at; more only while leading comment lines
+/// leave it open whether a PCD header follows them.
+const HEAD: usize = 4096;
+
+fn detect(input: &mut Input) -> Result<Kind, ReadError> {
+    let ctx = input.ctx();
+    let (mut want, len) = (HEAD, input.remaining());
+    let is_pcd = loop {
+        let head = input.peek(want)?;
+        // Fewer bytes than asked for: the input ended (early, if it shrank since it was opened).
+        let whole = head.len() as u64 >= len || head.len() < want;
+        match pcd::has_header(head, whole) {
+            Some(is_pcd) => break is_pcd,
+            None => want = head.len().saturating_mul(2),
+        }
+    };
+    let head = input.peek(HEAD)?;
+    if head.is_empty() {
+        let name = ctx.name();
         return Err(ReadError::Empty { name });
     }
-    if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
-        return ply::read(ctx, bytes);
-    }
-    if pcd::has_header(bytes) {
-        return pcd::read(ctx, bytes);
-    }
-    if las::has_signature(bytes) {
-        return las::read(ctx, bytes);
-    }
-    if kitti::is_named_bin(name) {
-        return kitti::read(ctx, bytes);
-    }
-    if xyz::looks_like_text(bytes) {
-        return xyz::read(ctx, bytes);
-    }
-    Err(ctx.not_a_cloud("no PLY/PCD/LAS header, and not XYZ/CSV text"))
+    Ok(
+        if head.starts_with(b"ply\n") || head.starts_with(b"ply\r\n") {
+            Kind::Stream(ply::read)
+        } else if is_pcd {
+            Kind::Stream(pcd::read)
+        } else if las::has_signature(head) {
+            Kind::Las
+        } else if kitti::is_named_bin(ctx.0) {
+            Kind::Stream(kitti::read)
+        } else if xyz::looks_like_text(head) {
+            Kind::Stream(xyz::read)
+        } else {
+            return Err(ctx.not_a_cloud("no PLY/PCD/LAS header, and not XYZ/CSV text"));
+        },
+    )
 }
 
 /// The file name, carried by every reader to build its errors.
@@ -221,158 +289,6 @@ impl Ctx<'_> {
         };
         let name = self.name();
         ReadError::NotAPointCloud { name, why }
-    }
-}
-
-/// A binary number type, as PLY and PCD declare them.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Scalar {
-    I8,
-    U8,
-    I16,
-    U16,
-    I32,
-    U32,
-    I64,
-    U64,
-    F32,
-    F64,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Endian {
-    Little,
-    Big,
-}
-
-impl Scalar {
-    pub fn size(self) -> usize {
-        match self {
-            Scalar::I8 | Scalar::U8 => 1,
-            Scalar::I16 | Scalar::U16 => 2,
-            Scalar::I32 | Scalar::U32 | Scalar::F32 => 4,
-            Scalar::I64 | Scalar::U64 | Scalar::F64 => 8,
-        }
-    }
-
-    pub fn is_integer(self) -> bool {
-        !matches!(self, Scalar::F32 | Scalar::F64)
-    }
-
-    /// The value at the start of `bytes`, or `None` if `bytes` is too short. 64-bit integers
-    /// round to the nearest f64; a count too large to be exact is too large for any file.
-    #[inline]
-    pub fn read(self, bytes: &[u8], endian: Endian) -> Option<f64> {
-        macro_rules! get {
-            ($t:ty) => {{
-                let raw = *bytes.first_chunk::<{ size_of::<$t>() }>()?;
-                (match endian {
-                    Endian::Little => <$t>::from_le_bytes(raw),
-                    Endian::Big => <$t>::from_be_bytes(raw),
-                }) as f64
-            }};
-        }
-        Some(match self {
-            Scalar::I8 => get!(i8),
-            Scalar::U8 => get!(u8),
-            Scalar::I16 => get!(i16),
-            Scalar::U16 => get!(u16),
-            Scalar::I32 => get!(i32),
-            Scalar::U32 => get!(u32),
-            Scalar::I64 => get!(i64),
-            Scalar::U64 => get!(u64),
-            Scalar::F32 => get!(f32),
-            Scalar::F64 => get!(f64),
-        })
-    }
-}
-
-/// Collects points, counting slots and dropping non-finite ones, then centres them.
-///
-/// While every coordinate is exactly an f32 (binary float clouds, the common case) the points
-/// are held as f32, 12 bytes each, and centred in place: the cloud then exists once, not as an
-/// f64 staging copy (24 bytes a point) plus the f32 result. The first coordinate that is not an
-/// exact f32 (text, doubles) moves them to f64 for the rest. Centring computes
-/// `(p - origin) as f32` from the same f64 value either way, so the bits do not depend on it.
-pub(crate) struct Points {
-    narrow: Vec<[f32; 3]>,
-    wide: Vec<[f64; 3]>,
-    lo: [f64; 3],
-    hi: [f64; 3],
-    slots: usize,
-    dropped: usize,
-}
-
-impl Points {
-    /// `capacity` must already be bounded by what the file's bytes could hold.
-    pub fn with_capacity(capacity: usize) -> Self {
-        Points {
-            narrow: Vec::with_capacity(capacity),
-            wide: Vec::new(),
-            lo: [f64::INFINITY; 3],
-            hi: [f64::NEG_INFINITY; 3],
-            slots: 0,
-            dropped: 0,
-        }
-    }
-
-    #[inline]
-    pub fn push(&mut self, p: [f64; 3]) {
-        self.slots += 1;
-        if p.iter().all(|c| c.is_finite()) {
-            for ((lo, hi), c) in self.lo.iter_mut().zip(&mut self.hi).zip(p) {
-                *lo = lo.min(c);
-                *hi = hi.max(c);
-            }
-            let narrow = p.map(|c| c as f32);
-            if self.wide.is_empty() && narrow.iter().zip(p).all(|(&n, c)| n as f64 == c) {
-                self.narrow.push(narrow);
-            } else {
-                if self.wide.is_empty() {
-                    let mut wide = Vec::with_capacity(self.narrow.capacity());
-                    wide.extend(self.narrow.iter().map(|q| q.map(f64::from)));
-                    self.wide = wide;
-                    self.narrow = Vec::new();
-                }
-                self.wide.push(p);
-            }
-        } else {
-            self.dropped += 1;
-        }
-    }
-
-    pub fn finish(self, ctx: Ctx, format: Format) -> Result<Cloud, ReadError> {
-        if self.wide.is_empty() && self.narrow.is_empty() {
-            let (name, slots) = (ctx.name(), self.slots);
-            return Err(ReadError::NoFinitePoints { name, slots });
-        }
-        // Halving before adding keeps the centre and the half-extent finite even for
-        // coordinates near f64::MAX.
-        let origin: [f64; 3] = std::array::from_fn(|i| self.lo[i] / 2.0 + self.hi[i] / 2.0);
-        for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(self.lo.iter().zip(&self.hi)) {
-            if hi / 2.0 - lo / 2.0 > f64::from(f32::MAX) {
-                return Err(ctx.unsupported(format!(
-                    "{axis} spans {lo:e} to {hi:e}, beyond f32 even after centring"
-                )));
-            }
-        }
-        let local = |p: [f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
-        let points = if self.wide.is_empty() {
-            let mut points = self.narrow;
-            for p in points.iter_mut() {
-                *p = local(p.map(f64::from));
-            }
-            points
-        } else {
-            self.wide.iter().map(|p| local(*p)).collect()
-        };
-        Ok(Cloud {
-            origin,
-            points,
-            slots: self.slots,
-            dropped_non_finite: self.dropped,
-            format,
-        })
     }
 }
 
@@ -458,6 +374,14 @@ mod tests {
         assert_eq!((bunny.format, bunny.slots), (Format::PlyAscii, 35_947));
         let text = read_cloud_bytes("a.pcd", b"# comment\n1 2 3\n").unwrap();
         assert_eq!(text.format, Format::Xyz);
+        // Leading comments longer than the first look, before a PCD header or text points.
+        let comments = "# a scanner's banner, repeated\n".repeat(2000);
+        let pcd = [comments.as_bytes(), &shared("lamppost.pcd")].concat();
+        let lamppost = read_cloud_bytes("x", &pcd).unwrap();
+        assert_eq!((lamppost.format, lamppost.slots), (Format::PcdAscii, 1_771));
+        let text = format!("{comments}1 2 3\n4 5 6\n");
+        let xyz = read_cloud_bytes("x", text.as_bytes()).unwrap();
+        assert_eq!((xyz.format, xyz.slots), (Format::Xyz, 2));
         let disk = read_cloud(Path::new(&format!("{}/milk.pcd", testkit::DATA))).unwrap();
         let memory = read_cloud_bytes("milk.pcd", &shared("milk.pcd")).unwrap();
         assert_eq!(disk, memory);

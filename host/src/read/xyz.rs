@@ -6,7 +6,8 @@
 //! silently skipping it would hide a damaged file. Blank lines and `#` comments are skipped
 //! anywhere; columns after z are not parsed.
 
-use super::{At, Cloud, Ctx, Format, Points, ReadError};
+use super::stream::Input;
+use super::{At, Cloud, Format, Points, ReadError};
 
 /// Text is anything without control bytes other than whitespace in its first few KiB; bytes
 /// >= 0x80 pass so that Latin-1 or UTF-8 header comments do not disqualify a file.
@@ -40,81 +41,23 @@ pub(crate) fn tokens(line: &[u8]) -> impl Iterator<Item = &[u8]> {
         .filter(|t| !t.is_empty())
 }
 
-/// One line of a byte slice: its 1-based number, its text without the line ending, and
-/// whether a newline ended it (the last line of a cut file has none).
-pub(crate) struct Line<'a> {
-    pub number: usize,
-    pub text: &'a [u8],
-    pub terminated: bool,
-}
-
-/// Lines of a byte slice, `\n` or `\r\n` terminated; keeps counting across a header and a body.
-#[derive(Clone)]
-pub(crate) struct Lines<'a> {
-    bytes: &'a [u8],
-    pos: usize,
-    number: usize,
-}
-
-impl<'a> Lines<'a> {
-    pub fn new(bytes: &'a [u8]) -> Self {
-        Lines {
-            bytes,
-            pos: 0,
-            number: 0,
-        }
-    }
-
-    /// Offset of the first byte not yet returned: after a header's last line, where a binary
-    /// body starts.
-    pub fn pos(&self) -> usize {
-        self.pos
-    }
-
-    /// Bytes not yet returned.
-    pub fn remaining(&self) -> usize {
-        self.bytes.len().saturating_sub(self.pos)
-    }
-
-    /// The next line that has something other than whitespace in it.
-    pub fn next_non_blank(&mut self) -> Option<Line<'a>> {
-        self.find(|l| !l.text.iter().all(u8::is_ascii_whitespace))
-    }
-}
-
-impl<'a> Iterator for Lines<'a> {
-    type Item = Line<'a>;
-
-    fn next(&mut self) -> Option<Line<'a>> {
-        let rest = self.bytes.get(self.pos..).filter(|r| !r.is_empty())?;
-        let (text, len, terminated) = match rest.iter().position(|&b| b == b'\n') {
-            Some(i) => (rest.get(..i).unwrap_or_default(), i + 1, true),
-            None => (rest, rest.len(), false),
-        };
-        let text = text.strip_suffix(b"\r").unwrap_or(text);
-        self.pos += len;
-        self.number += 1;
-        Some(Line {
-            number: self.number,
-            text,
-            terminated,
-        })
-    }
-}
-
 /// Why a line is not a data line.
 enum NotData<'a> {
     NotANumber(&'a [u8]),
     TooFew(usize),
 }
 
-pub(super) fn read(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
+pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
+    let ctx = input.ctx();
     // Spreadsheet exports start with a byte-order mark, which would turn the first data line
     // into a "header" and silently lose its point.
-    let bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+    let bom = "\u{feff}".as_bytes();
+    if input.peek(bom.len())?.starts_with(bom) {
+        input.consume(bom.len());
+    }
     let mut points = Points::with_capacity(0);
     let mut started = false;
-    for line in Lines::new(bytes) {
+    while let Some(line) = input.next_line()? {
         let text = line.text.trim_ascii();
         if text.is_empty() || text.starts_with(b"#") {
             continue;

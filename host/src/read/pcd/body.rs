@@ -1,0 +1,302 @@
+//! The three PCD bodies, each read from the stream as it arrives.
+//!
+//! `binary_compressed` is the one that needs care: its LZF output is field-major, so no point
+//! is complete before the z column arrives near the end. Decompressing it whole (307,200 slots
+//! of 16 bytes for an organized 640 × 480 frame) and then picking the coordinates out would
+//! hold the file, the output and the points at once; instead the decoder keeps a sliding
+//! window and hands each piece of output to [`Columns`], which writes x, y and z straight into
+//! one slot per point and ignores every other field. The slots are the points, NaN ones
+//! included, and are compacted in place at the end.
+
+use super::super::points::Wide;
+use super::super::stream::{Input, Line};
+use super::super::xyz::{parse_f64, quote, tokens};
+use super::super::{At, Endian, Points, ReadError, Scalar, lzf};
+use super::{Coord, Field, record_size};
+
+pub(super) fn ascii(
+    input: &mut Input,
+    fields: &[Field],
+    slots: usize,
+    coords: [Coord; 3],
+) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
+    let values = fields
+        .iter()
+        .try_fold(0usize, |sum, f| sum.checked_add(f.count));
+    let values = values.ok_or_else(|| ctx.bad_header(At::Header, "too many values per point"))?;
+    // Each value takes at least a character and a separator; `values` >= 3 (x, y, z).
+    let room = input.remaining() / (values as u64).saturating_mul(2).max(1);
+    let mut points = Points::with_capacity(usize::try_from(room).map_or(slots, |r| r.min(slots)));
+    for done in 0..slots {
+        let Some(line) = input.next_non_blank()? else {
+            let what = format!("DATA ascii ends after {done} of {slots} points");
+            return Err(ctx.truncated(what));
+        };
+        let p = ascii_point(ctx, &line, values, coords);
+        points.push(p.map_err(|e| ctx.cut_short(&line, e))?);
+    }
+    Ok(points)
+}
+
+fn ascii_point(
+    ctx: super::super::Ctx,
+    line: &Line,
+    values: usize,
+    coords: [Coord; 3],
+) -> Result<[f64; 3], ReadError> {
+    let at = At::Line(line.number);
+    let mut p = [f64::NAN; 3];
+    let mut found = 0;
+    for (i, tok) in tokens(line.text).enumerate() {
+        found += 1;
+        for ((c, coord), axis) in p.iter_mut().zip(coords).zip(["x", "y", "z"]) {
+            if coord.value == i {
+                let what = || format!("{} is not a number; expected {axis}", quote(tok));
+                *c = parse_f64(tok).ok_or_else(|| ctx.bad_value(at, what()))?;
+            }
+        }
+    }
+    if found != values {
+        return Err(ctx.bad_value(at, format!("{found} values; the fields need {values}")));
+    }
+    Ok(p)
+}
+
+/// Checks that the file holds `need` bytes from `body` (where the data section starts), or
+/// names what is missing.
+fn need(input: &Input, body: u64, what: &str, need: u128) -> Result<(), ReadError> {
+    let have = input.len().saturating_sub(body);
+    if need > u128::from(have) {
+        return Err(input.ctx().truncated(format!(
+            "DATA {what} needs {need} bytes after the header at offset {body}, file has {have}"
+        )));
+    }
+    Ok(())
+}
+
+/// The input ended before bytes its length promised: the file shrank while being read.
+fn ended(input: &Input, what: &str) -> ReadError {
+    let (pos, len) = (input.pos(), input.len());
+    input.ctx().truncated(format!(
+        "DATA {what} ends at offset {pos}, before the {len} bytes the file had when opened"
+    ))
+}
+
+#[inline]
+fn read_at(bytes: &[u8], at: usize, scalar: Scalar) -> f64 {
+    // Callers pass offsets inside records they sized from the same fields; NaN is unreachable.
+    let value = bytes.get(at..).and_then(|b| scalar.read(b, Endian::Little));
+    value.unwrap_or(f64::NAN)
+}
+
+pub(super) fn binary(
+    input: &mut Input,
+    fields: &[Field],
+    slots: usize,
+    coords: [Coord; 3],
+) -> Result<Points, ReadError> {
+    // `stride` >= 3: x, y and z each take at least a byte.
+    let stride = record_size(input.ctx(), fields, |_| true)?.max(1);
+    need(input, input.pos(), "binary", slots as u128 * stride as u128)?;
+    let mut points = Points::with_capacity(slots);
+    let mut left = slots;
+    while left > 0 {
+        let records = input.peek(stride)?;
+        let whole = (records.len() / stride).min(left);
+        if whole == 0 {
+            return Err(ended(input, "binary"));
+        }
+        for record in records.chunks_exact(stride).take(whole) {
+            points.push(coords.map(|c| read_at(record, c.offset, c.scalar)));
+        }
+        input.consume(whole * stride);
+        left -= whole;
+    }
+    Ok(points)
+}
+
+pub(super) fn compressed(
+    input: &mut Input,
+    fields: &[Field],
+    slots: usize,
+    coords: [Coord; 3],
+) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
+    let body = input.pos();
+    need(input, body, "binary_compressed", 8)?;
+    let sizes = input.peek(8)?;
+    let word = |i: usize| {
+        sizes
+            .get(i..)
+            .and_then(|w| w.first_chunk())
+            .map(|w| u32::from_le_bytes(*w))
+    };
+    let (packed, unpacked) = (word(0).unwrap_or(0) as usize, word(4).unwrap_or(0) as usize);
+    need(input, body, "binary_compressed", 8 + packed as u128)?;
+    input.consume(8);
+    let record = record_size(ctx, fields, |f| f.name != b"_")?;
+    let expected = slots as u128 * record as u128;
+    if unpacked as u128 != expected {
+        let what = format!(
+            "uncompressed size {unpacked}, but POINTS {slots} × {record} bytes = {expected}"
+        );
+        return Err(ctx.bad_value(At::Offset(body + 4), what));
+    }
+    // Slots of f32 when every coordinate type converts to f32 exactly (floats, small integers),
+    // else of f64, so that no coordinate is rounded before it is moved to the local origin.
+    let narrow = coords.iter().all(|c| {
+        matches!(
+            c.scalar,
+            Scalar::F32 | Scalar::I8 | Scalar::U8 | Scalar::I16 | Scalar::U16
+        )
+    });
+    if narrow {
+        scatter::<[f32; 3]>(input, packed, unpacked, coords, slots).map(Points::from_slots_narrow)
+    } else {
+        scatter::<Wide>(input, packed, unpacked, coords, slots).map(Points::from_slots_wide)
+    }
+}
+
+/// Decodes the `packed` bytes of LZF at the input into one slot per point.
+fn scatter<S: Slot>(
+    input: &mut Input,
+    packed: usize,
+    unpacked: usize,
+    coords: [Coord; 3],
+    slots: usize,
+) -> Result<Vec<S>, ReadError> {
+    let (ctx, stream) = (input.ctx(), input.pos());
+    let lzf_error =
+        |e: lzf::LzfError| ctx.bad_value(At::Offset(stream + e.at() as u64), e.to_string());
+    // Before the slots are allocated: `unpacked` (slots × record) must be within what `packed`
+    // bytes, which the file holds, can expand to.
+    let mut decoder = lzf::Decoder::new(packed, unpacked).map_err(lzf_error)?;
+    let mut columns = Columns::<S>::new(coords, slots);
+    let mut sink = |at: usize, bytes: &[u8]| columns.take(at, bytes);
+    let mut left = packed;
+    loop {
+        let buffered = input.peek(lzf::MAX_CHUNK)?;
+        let piece = buffered.get(..left).unwrap_or(buffered);
+        let last = piece.len() == left;
+        // `peek` returns at least a whole chunk unless the file ended.
+        if !last && piece.len() < lzf::MAX_CHUNK {
+            return Err(ended(input, "binary_compressed"));
+        }
+        let used = decoder.feed(piece, last, &mut sink).map_err(lzf_error)?;
+        input.consume(used);
+        left -= used;
+        if last {
+            break;
+        }
+    }
+    decoder.finish(&mut sink).map_err(lzf_error)?;
+    Ok(columns.slots)
+}
+
+/// A slot the coordinates are written into, one axis at a time.
+trait Slot: Copy + Default {
+    fn set(&mut self, axis: usize, c: f64);
+}
+
+impl Slot for [f32; 3] {
+    #[inline]
+    fn set(&mut self, axis: usize, c: f64) {
+        if let Some(to) = self.get_mut(axis) {
+            *to = c as f32;
+        }
+    }
+}
+
+impl Slot for Wide {
+    #[inline]
+    fn set(&mut self, axis: usize, c: f64) {
+        Wide::set(self, axis, c);
+    }
+}
+
+/// Where one coordinate's column sits in the decompressed output.
+struct Column {
+    start: usize,
+    scalar: Scalar,
+    /// The first bytes of a value that a piece of output cut in two.
+    carry: [u8; 8],
+    held: usize,
+}
+
+/// Writes the x, y and z columns of the field-major output into one slot per point.
+struct Columns<S> {
+    axes: [Column; 3],
+    slots: Vec<S>,
+}
+
+impl<S: Slot> Columns<S> {
+    fn new(coords: [Coord; 3], slots: usize) -> Self {
+        // A column starts at `column × slots`: inside the output, whose size was checked to be
+        // `slots × record`.
+        let axes = coords.map(|c| Column {
+            start: c.column.saturating_mul(slots),
+            scalar: c.scalar,
+            carry: [0; 8],
+            held: 0,
+        });
+        Columns {
+            axes,
+            slots: vec![S::default(); slots],
+        }
+    }
+
+    /// Takes the output bytes at offset `at`: the parts of them that fall in a coordinate's
+    /// column become that coordinate of their slots.
+    fn take(&mut self, at: usize, bytes: &[u8]) {
+        let n = self.slots.len();
+        for (axis, col) in self.axes.iter_mut().enumerate() {
+            let size = col.scalar.size();
+            let end = col.start.saturating_add(n.saturating_mul(size));
+            let (lo, hi) = (at.max(col.start), at.saturating_add(bytes.len()).min(end));
+            let Some(mut part) = bytes.get(lo.saturating_sub(at)..hi.saturating_sub(at)) else {
+                continue;
+            };
+            if part.is_empty() {
+                continue;
+            }
+            // A value cut by the previous piece starts this one (the pieces arrive in order).
+            let mut index = (lo - col.start) / size;
+            if col.held > 0 {
+                let missing = (size - col.held).min(part.len());
+                let (head, rest) = part.split_at(missing);
+                if let Some(room) = col.carry.get_mut(col.held..col.held + missing) {
+                    room.copy_from_slice(head);
+                }
+                col.held += missing;
+                part = rest;
+                if col.held < size {
+                    continue;
+                }
+                if let Some(slot) = self.slots.get_mut(index) {
+                    slot.set(axis, read_at(&col.carry, 0, col.scalar));
+                }
+                col.held = 0;
+                index += 1;
+            }
+            let mut values = part.chunks_exact(size);
+            let slots = self.slots.get_mut(index..).unwrap_or_default();
+            if col.scalar == Scalar::F32 {
+                // Nearly every cloud: the generic read's dispatch per value is worth skipping.
+                for (value, slot) in values.by_ref().zip(slots) {
+                    let raw = value.first_chunk().copied().unwrap_or_default();
+                    slot.set(axis, f64::from(f32::from_le_bytes(raw)));
+                }
+            } else {
+                for (value, slot) in values.by_ref().zip(slots) {
+                    slot.set(axis, read_at(value, 0, col.scalar));
+                }
+            }
+            let rest = values.remainder();
+            if let Some(room) = col.carry.get_mut(..rest.len()) {
+                room.copy_from_slice(rest);
+                col.held = rest.len();
+            }
+        }
+    }
+}

@@ -1,0 +1,254 @@
+//! PCD reader: v0.7 headers, and the older ones PCL still reads (no VERSION line; `COLUMNS`
+//! for FIELDS; SIZE and TYPE missing, meaning 4-byte floats).
+//!
+//! `DATA ascii` is one point per line; `DATA binary` is row-major, one little-endian record per
+//! point; `DATA binary_compressed` is a u32 compressed size, a u32 uncompressed size, then LZF
+//! data that decompresses field-major (every point's first field, then every point's second,
+//! ...), with padding fields named `_` left out as PCL's writer does. Organized clouds keep
+//! invalid pixels as NaN slots; they are counted and dropped.
+
+mod body;
+
+use super::stream::Input;
+use super::xyz::{parse_usize, quote, tokens};
+use super::{At, Cloud, Ctx, Format, Points, ReadError, Scalar};
+
+/// Whether the first line that is not a comment starts a PCD header; `None` if `head`, the
+/// start of the file, ends before such a line and `whole` says there is more of it.
+pub(super) fn has_header(head: &[u8], whole: bool) -> Option<bool> {
+    let mut lines = head.split(|&b| b == b'\n').peekable();
+    while let Some(line) = lines.next() {
+        // The last piece of a partial head may be the start of a longer line.
+        if lines.peek().is_none() && !whole {
+            return None;
+        }
+        let text = line.trim_ascii_start();
+        if text.starts_with(b"# .PCD") {
+            return Some(true);
+        }
+        if !text.is_empty() && !text.starts_with(b"#") {
+            let keyword = tokens(text).next();
+            return Some(matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS")));
+        }
+    }
+    Some(false)
+}
+
+/// A header line: its keyword, line number and values.
+struct Entry {
+    key: Vec<u8>,
+    line: usize,
+    values: Vec<Vec<u8>>,
+}
+
+struct Field {
+    name: Vec<u8>,
+    size: usize,
+    ty: u8,
+    count: usize,
+}
+
+/// Where one coordinate sits in each of the three layouts.
+#[derive(Clone, Copy)]
+struct Coord {
+    scalar: Scalar,
+    /// Index among the values of an ascii line.
+    value: usize,
+    /// Byte offset inside a row-major record.
+    offset: usize,
+    /// Bytes per point of the columns before it in the field-major layout.
+    column: usize,
+}
+
+/// The header lines up to DATA, and the kind of data that follows.
+fn header_lines(input: &mut Input) -> Result<(Vec<Entry>, Format), ReadError> {
+    let (ctx, len) = (input.ctx(), input.len());
+    let mut header = Vec::new();
+    loop {
+        // A header line without its newline is a cut file, whatever the line says.
+        let Some(line) = input.next_line()?.filter(|l| l.terminated) else {
+            return Err(ctx.truncated(format!(
+                "PCD header ends at byte {len} before its DATA line"
+            )));
+        };
+        let mut toks = tokens(line.text);
+        let format = match toks.next() {
+            None => continue,
+            Some(key) if key.starts_with(b"#") => continue,
+            Some(b"DATA") => match toks.next() {
+                Some(b"ascii") => Format::PcdAscii,
+                Some(b"binary") => Format::PcdBinary,
+                Some(b"binary_compressed") => Format::PcdBinaryCompressed,
+                Some(other) => return Err(ctx.unsupported(format!("DATA {}", quote(other)))),
+                None => return Err(ctx.bad_header(At::Line(line.number), "DATA without a kind")),
+            },
+            Some(
+                key @ (b"VERSION" | b"FIELDS" | b"COLUMNS" | b"SIZE" | b"TYPE" | b"COUNT"
+                | b"WIDTH" | b"HEIGHT" | b"VIEWPOINT" | b"POINTS"),
+            ) => {
+                header.push(Entry {
+                    key: key.to_vec(),
+                    line: line.number,
+                    values: toks.map(<[u8]>::to_vec).collect(),
+                });
+                continue;
+            }
+            Some(other) => {
+                let what = format!("unknown header keyword {}", quote(other));
+                return Err(ctx.bad_header(At::Line(line.number), what));
+            }
+        };
+        return Ok((header, format));
+    }
+}
+
+pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
+    let ctx = input.ctx();
+    let (header, format) = header_lines(input)?;
+    let find = |keys: &[&[u8]]| {
+        let wanted = |e: &&Entry| keys.contains(&e.key.as_slice());
+        header.iter().rev().find(wanted)
+    };
+    let Some(names) = find(&[b"FIELDS", b"COLUMNS"]).filter(|e| !e.values.is_empty()) else {
+        return Err(ctx.bad_header(At::Header, "no FIELDS line naming the fields"));
+    };
+    let n = names.values.len();
+    // Old headers without SIZE/TYPE/COUNT mean one 4-byte float per field, as in PCL.
+    let sizes = per_field(ctx, find(&[b"SIZE"]), n, 4, parse_usize)?;
+    let counts = per_field(ctx, find(&[b"COUNT"]), n, 1, parse_usize)?;
+    let types = per_field(ctx, find(&[b"TYPE"]), n, b'F', |t| match t {
+        [ty @ (b'F' | b'I' | b'U')] => Some(*ty),
+        _ => None,
+    })?;
+    let fields: Vec<Field> = (names.values.iter().zip(sizes).zip(types).zip(counts))
+        .map(|(((name, size), ty), count)| Field {
+            name: name.clone(),
+            size,
+            ty,
+            count,
+        })
+        .collect();
+    let one = |key: &[u8]| match find(&[key]) {
+        None => Ok(None),
+        Some(e) => e
+            .values
+            .first()
+            .and_then(|t| parse_usize(t))
+            .map(Some)
+            .ok_or_else(|| {
+                let what = format!("{} needs a count", quote(key));
+                ctx.bad_header(At::Line(e.line), what)
+            }),
+    };
+    let slots = slots(ctx, one(b"WIDTH")?, one(b"HEIGHT")?, one(b"POINTS")?)?;
+    let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
+    let coords = [x?, y?, z?];
+    let points = match format {
+        _ if slots == 0 => Points::with_capacity(0),
+        Format::PcdAscii => body::ascii(input, &fields, slots, coords)?,
+        Format::PcdBinary => body::binary(input, &fields, slots, coords)?,
+        _ => body::compressed(input, &fields, slots, coords)?,
+    };
+    points.finish(ctx, format)
+}
+
+/// One value per field from a SIZE, TYPE or COUNT line, or `default` for each if it is absent.
+fn per_field<T: Clone>(
+    ctx: Ctx,
+    entry: Option<&Entry>,
+    n: usize,
+    default: T,
+    parse: impl Fn(&[u8]) -> Option<T>,
+) -> Result<Vec<T>, ReadError> {
+    let Some(e) = entry else {
+        return Ok(vec![default; n]);
+    };
+    let (at, key) = (At::Line(e.line), String::from_utf8_lossy(&e.key));
+    if e.values.len() != n {
+        let what = format!("{key} has {} entries, FIELDS has {n}", e.values.len());
+        return Err(ctx.bad_header(at, what));
+    }
+    let what = |t: &[u8]| format!("{} is not a valid {key} entry", quote(t));
+    let value = |t: &Vec<u8>| parse(t).ok_or_else(|| ctx.bad_header(at, what(t)));
+    e.values.iter().map(value).collect()
+}
+
+fn slots(
+    ctx: Ctx,
+    width: Option<usize>,
+    height: Option<usize>,
+    points: Option<usize>,
+) -> Result<usize, ReadError> {
+    let bad = |what: String| Err(ctx.bad_header(At::Header, what));
+    match (width, height, points) {
+        (Some(w), h, p) => {
+            let h = h.unwrap_or(1);
+            match (w.checked_mul(h), p) {
+                (None, _) => bad(format!("WIDTH {w} × HEIGHT {h} overflows")),
+                (Some(wh), Some(p)) if p != wh => {
+                    bad(format!("POINTS {p}, but WIDTH {w} × HEIGHT {h} = {wh}"))
+                }
+                (Some(wh), _) => Ok(wh),
+            }
+        }
+        (None, None, Some(p)) => Ok(p),
+        (None, Some(h), _) => bad(format!("HEIGHT {h} without WIDTH")),
+        (None, None, None) => bad("no WIDTH or POINTS line".into()),
+    }
+}
+
+fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
+    let overflow = || ctx.bad_header(At::Header, "the point size overflows");
+    let (mut value, mut offset, mut column) = (0usize, 0usize, 0usize);
+    for f in fields {
+        if f.name.as_slice() == axis.as_bytes() {
+            let scalar = match (f.ty, f.size) {
+                (b'F', 4) => Scalar::F32,
+                (b'F', 8) => Scalar::F64,
+                (b'I', 1) => Scalar::I8,
+                (b'I', 2) => Scalar::I16,
+                (b'I', 4) => Scalar::I32,
+                (b'I', 8) => Scalar::I64,
+                (b'U', 1) => Scalar::U8,
+                (b'U', 2) => Scalar::U16,
+                (b'U', 4) => Scalar::U32,
+                (b'U', 8) => Scalar::U64,
+                (ty, size) => {
+                    let ty = char::from(ty);
+                    return Err(ctx.unsupported(format!("field {axis} is TYPE {ty} SIZE {size}")));
+                }
+            };
+            if f.count != 1 {
+                return Err(ctx.unsupported(format!("field {axis} has COUNT {}", f.count)));
+            }
+            return Ok(Coord {
+                scalar,
+                value,
+                offset,
+                column,
+            });
+        }
+        let bytes = f.size.checked_mul(f.count).ok_or_else(overflow)?;
+        value = value.checked_add(f.count).ok_or_else(overflow)?;
+        offset = offset.checked_add(bytes).ok_or_else(overflow)?;
+        if f.name != b"_" {
+            column = column.checked_add(bytes).ok_or_else(overflow)?;
+        }
+    }
+    let names: Vec<_> = fields
+        .iter()
+        .map(|f| String::from_utf8_lossy(&f.name))
+        .collect();
+    let what = format!("no field {axis} (FIELDS {})", names.join(" "));
+    Err(ctx.bad_header(At::Header, what))
+}
+
+/// Sum of `size × count` over the fields `keep` selects, checked.
+fn record_size(ctx: Ctx, fields: &[Field], keep: fn(&Field) -> bool) -> Result<usize, ReadError> {
+    let add = |sum: usize, f: &Field| f.size.checked_mul(f.count).and_then(|b| sum.checked_add(b));
+    let size = fields.iter().filter(|f| keep(f)).try_fold(0, add);
+    size.ok_or_else(|| ctx.bad_header(At::Header, "the point size overflows"))
+}
+
+#[cfg(test)]
+pub(crate) mod tests;

@@ -1,0 +1,189 @@
+use super::super::lzf::tests::literal_stream;
+use super::super::testkit::{DATA, assert_same, expect_err, header_count, shared};
+use super::super::{Format, read_cloud_bytes};
+
+/// (name, TYPE, SIZE, COUNT) of a field to write.
+type Field<'a> = (&'a str, char, usize, usize);
+
+/// Writes a PCD; each row holds every value of a point, in field order.
+pub fn write_pcd(data: &str, fields: &[Field], width: usize, rows: &[Vec<f64>]) -> Vec<u8> {
+    let list = |f: fn(&Field) -> String| fields.iter().map(f).collect::<Vec<_>>().join(" ");
+    let (height, points) = (rows.len() / width, rows.len());
+    let mut out = format!(
+        "# .PCD v0.7 - written by the tests\nVERSION 0.7\nFIELDS {}\nSIZE {}\nTYPE {}\nCOUNT {}\n\
+         WIDTH {width}\nHEIGHT {height}\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {points}\nDATA {data}\n",
+        list(|f| f.0.into()),
+        list(|f| f.2.to_string()),
+        list(|f| f.1.into()),
+        list(|f| f.3.to_string()),
+    )
+    .into_bytes();
+    let put = |out: &mut Vec<u8>, f: &Field, v: f64| match (f.1, f.2) {
+        _ if data == "ascii" => out.extend_from_slice(format!("{} ", v as f32).as_bytes()),
+        ('F', 4) => out.extend_from_slice(&(v as f32).to_le_bytes()),
+        ('F', 8) => out.extend_from_slice(&v.to_le_bytes()),
+        ('U', 1) => out.push(v as u8),
+        ('U', 4) => out.extend_from_slice(&(v as u32).to_le_bytes()),
+        ('I', 2) => out.extend_from_slice(&(v as i16).to_le_bytes()),
+        other => panic!("{other:?}"),
+    };
+    // (field, index of its first value in a row)
+    let starts = fields
+        .iter()
+        .scan(0, |n, f| Some((f, std::mem::replace(n, *n + f.3))));
+    if data == "binary_compressed" {
+        // Field-major, without the padding fields, as PCL writes it.
+        let mut columns = Vec::new();
+        for (f, start) in starts.filter(|(f, _)| f.0 != "_") {
+            rows.iter()
+                .for_each(|r| (0..f.3).for_each(|c| put(&mut columns, f, r[start + c])));
+        }
+        let stream = literal_stream(&columns);
+        out.extend_from_slice(&(stream.len() as u32).to_le_bytes());
+        out.extend_from_slice(&(columns.len() as u32).to_le_bytes());
+        return [out, stream].concat();
+    }
+    let starts: Vec<_> = starts.collect();
+    for row in rows {
+        for &(f, start) in &starts {
+            (0..f.3).for_each(|c| put(&mut out, f, row[start + c]));
+        }
+        if data == "ascii" {
+            out.push(b'\n');
+        }
+    }
+    out
+}
+
+/// All slots of a shared PCD as the independent pcd-rs crate reads them.
+fn pcd_rs(name: &str) -> Vec<[f64; 3]> {
+    let reader = pcd_rs::DynReader::open(format!("{DATA}/{name}")).unwrap();
+    let defs = &reader.meta().field_defs;
+    let index = ["x", "y", "z"].map(|a| defs.iter().position(|f| f.name == a).unwrap());
+    let value = |f: &pcd_rs::Field| match f {
+        pcd_rs::Field::F32(v) => f64::from(v[0]),
+        other => panic!("{other:?}"),
+    };
+    let records: Vec<pcd_rs::DynRecord> = reader.collect::<Result<_, _>>().unwrap();
+    let point = |r: &pcd_rs::DynRecord| index.map(|i| value(&r.0[i]));
+    records.iter().map(point).collect()
+}
+
+fn finite(points: impl IntoIterator<Item = [f64; 3]>) -> Vec<[f64; 3]> {
+    let ok = |p: &[f64; 3]| p.iter().all(|c| c.is_finite());
+    points.into_iter().filter(ok).collect()
+}
+
+#[test]
+fn shared_pcds_match_pcd_rs() {
+    use Format::{PcdAscii as Ascii, PcdBinaryCompressed as Lzf};
+    for (name, slots, kept, format) in [
+        ("car6.pcd", 10_031, 10_031, Lzf),
+        ("milk.pcd", 13_704, 13_704, Lzf),
+        ("lamppost.pcd", 1_771, 1_771, Ascii),
+        ("rops_cloud.pcd", 32_087, 32_087, Ascii),
+        ("cturtle.pcd", 167_198, 167_198, Lzf),
+        ("five_people.pcd", 307_200, 239_075, Lzf),
+        ("office1.pcd", 307_200, 254_456, Lzf),
+    ] {
+        let bytes = shared(name);
+        let cloud = read_cloud_bytes(name, &bytes).unwrap();
+        assert_eq!(cloud.slots, header_count(&bytes, "POINTS"), "{name}");
+        let counts = (cloud.slots, cloud.points.len(), cloud.dropped_non_finite);
+        assert_eq!(counts, (slots, kept, slots - kept), "{name}");
+        assert_eq!(cloud.format, format, "{name}");
+        assert_same(&cloud, &finite(pcd_rs(name)), name);
+    }
+}
+
+/// car6's points with a NaN hole every tenth slot, as an organized 5015 × 2 cloud with
+/// fields around x y z (padding among them).
+pub fn car6_as(data: &str, coord_size: usize) -> Vec<u8> {
+    let fields = [
+        ("intensity", 'F', 4, 1),
+        ("x", 'F', coord_size, 1),
+        ("_", 'U', 1, 4),
+        ("ring", 'I', 2, 1),
+        ("y", 'F', coord_size, 1),
+        ("normal", 'F', 4, 3),
+        ("z", 'F', coord_size, 1),
+        ("label", 'U', 4, 1),
+    ];
+    let hole = |i: usize, c: f64| if i % 10 == 3 { f64::NAN } else { c };
+    let rows: Vec<Vec<f64>> = (pcd_rs("car6.pcd")[..10_030].iter().enumerate())
+        .map(|(i, p)| {
+            let mut row = vec![i as f64, hole(i, p[0]), 0.0, 1.0, 2.0, 3.0, 7.0];
+            row.extend([p[1], 0.5, 0.2, 0.1, p[2], 255.0]);
+            row
+        })
+        .collect();
+    write_pcd(data, &fields, 5015, &rows)
+}
+
+#[test]
+fn car6_in_every_encoding_and_coordinate_type() {
+    let car6 = pcd_rs("car6.pcd");
+    let holes = car6[..10_030].iter().enumerate();
+    let want = finite(holes.map(|(i, p)| if i % 10 == 3 { [f64::NAN; 3] } else { *p }));
+    use Format::{PcdAscii, PcdBinary, PcdBinaryCompressed};
+    for (data, format) in [
+        ("ascii", PcdAscii),
+        ("binary", PcdBinary),
+        ("binary_compressed", PcdBinaryCompressed),
+    ] {
+        for size in [4, 8] {
+            let cloud = read_cloud_bytes("car6.pcd", &car6_as(data, size)).unwrap();
+            let got = (cloud.format, cloud.slots, cloud.dropped_non_finite);
+            assert_eq!(got, (format, 10_030, 1003), "{data} F{size}");
+            assert_same(&cloud, &want, &format!("{data} F{size}"));
+        }
+    }
+}
+
+#[test]
+fn old_headers_bad_headers_and_lying_counts() {
+    // v0.5/0.6 style: no VERSION, COLUMNS, no SIZE/TYPE (4-byte floats), no WIDTH.
+    let old = b"COLUMNS x y z\nPOINTS 2\nDATA ascii\n1 2 3\n4 5 nan\n";
+    let cloud = read_cloud_bytes("old.pcd", old).unwrap();
+    assert_eq!((cloud.slots, cloud.points.len()), (2, 1));
+    assert_eq!(cloud.origin, [1.0, 2.0, 3.0]);
+    // XYZ stands for the field lines of x y z as 4-byte floats.
+    let check = |header: &str, data: &str, body: &[u8], variant: &str| {
+        let fields = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1";
+        let head = format!("VERSION 0.7\n{header}\nDATA {data}\n").replace("XYZ", fields);
+        expect_err("bad.pcd", &[head.as_bytes(), body].concat(), variant)
+    };
+    let e = check("XYZ\nWIDTH 3", "ascii", b"1 2 3\n4 5\n6 7 8\n", "BadValue");
+    assert_eq!(
+        e.to_string(),
+        "bad.pcd: line 9: 2 values; the fields need 3"
+    );
+    let huge = "XYZ\nWIDTH 1000000000000000000\nHEIGHT 1\nPOINTS 1000000000000000000";
+    check(huge, "binary", &[0; 100], "Truncated");
+    check(huge, "ascii", b"1 2 3\n", "Truncated");
+    check("XYZ\nWIDTH 1", "lzma", b"", "Unsupported");
+    check(
+        "XYZ\nWIDTH 2",
+        "ascii",
+        b"nan nan nan\nnan 1 1\n",
+        "NoFinitePoints",
+    );
+    let count = "FIELDS x y z w\nCOUNT 1 1 1 1000000000000000000000\nWIDTH 1";
+    let size = "FIELDS x y z w\nSIZE 4 4 4 1000000000000\nCOUNT 1 1 1 1000000000\nWIDTH 1";
+    for (header, variant) in [
+        ("XYZ\nWIDTH 4294967296\nHEIGHT 4294967296", "BadHeader"),
+        ("XYZ\nWIDTH 3\nPOINTS 4", "BadHeader"),
+        ("XYZ\nHEIGHT 3", "BadHeader"),
+        ("XYZ\nWIDTH 0", "NoFinitePoints"),
+        ("XYZ\nWIDTH 1\nFOO 3", "BadHeader"),
+        ("FIELDS x y q\nWIDTH 1", "BadHeader"),
+        ("FIELDS x y z\nSIZE 4 4\nWIDTH 1", "BadHeader"),
+        ("FIELDS x y z\nTYPE F F Q\nWIDTH 1", "BadHeader"),
+        ("FIELDS x y z\nSIZE 2 4 4\nWIDTH 1", "Unsupported"),
+        ("FIELDS x y z\nCOUNT 2 1 1\nWIDTH 1", "Unsupported"),
+        (count, "BadHeader"),
+        (size, "BadHeader"),
+    ] {
+        check(header, "binary", b"", variant);
+    }
+}

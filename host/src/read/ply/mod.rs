@@ -1,0 +1,380 @@
+//! PLY reader: `ascii`, `binary_little_endian` and `binary_big_endian`, format 1.0.
+//!
+//! Only the `vertex` element's x, y, z are kept, whatever their type and position among the
+//! other properties. Elements before `vertex` are skipped: a fixed-size element in one step,
+//! one with list properties instance by instance, reading each list's count. Elements after
+//! `vertex` are never read: the points are complete by then, and a damaged face list should
+//! not cost the user a cloud.
+
+use super::stream::{Input, Line};
+use super::xyz::{parse_f64, parse_usize, quote, tokens};
+use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar};
+
+#[derive(Clone, Copy)]
+enum Kind {
+    Scalar(Scalar),
+    List { count: Scalar, item: Scalar },
+}
+
+struct Property {
+    name: String,
+    kind: Kind,
+    /// 0, 1, 2 for the vertex's x, y, z; `None` for everything that is skipped.
+    axis: Option<usize>,
+}
+
+struct Element {
+    name: String,
+    count: usize,
+    props: Vec<Property>,
+}
+
+impl Element {
+    /// Bytes per instance if every list is empty: the least each instance takes.
+    fn min_stride(&self) -> usize {
+        let size = |p: &Property| match p.kind {
+            Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+        };
+        self.props.iter().map(size).sum()
+    }
+
+    fn has_lists(&self) -> bool {
+        self.props
+            .iter()
+            .any(|p| matches!(p.kind, Kind::List { .. }))
+    }
+
+    fn prop_names(&self) -> String {
+        let names: Vec<&str> = self.props.iter().map(|p| p.name.as_str()).collect();
+        names.join(" ")
+    }
+}
+
+pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
+    let ctx = input.ctx();
+    let (encoding, mut elements) = parse_header(input)?;
+    let Some(vertex_at) = elements.iter().position(|e| e.name == "vertex") else {
+        let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
+        let what = format!("no vertex element (elements: {})", names.join(" "));
+        return Err(ctx.bad_header(At::Header, what));
+    };
+    elements.truncate(vertex_at + 1);
+    let Some(vertex) = elements.last_mut() else {
+        return Err(ctx.bad_header(At::Header, "no vertex element"));
+    };
+    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
+        let names = vertex.prop_names();
+        let Some(prop) = vertex.props.iter_mut().find(|p| p.name == name) else {
+            let what = format!("element vertex has no property {name} (it has: {names})");
+            return Err(ctx.bad_header(At::Header, what));
+        };
+        if let Kind::List { .. } = prop.kind {
+            return Err(ctx.unsupported(format!("vertex property {name} is a list")));
+        }
+        prop.axis = Some(axis);
+    }
+    let format = match encoding {
+        None => Format::PlyAscii,
+        Some(Endian::Little) => Format::PlyBinaryLittleEndian,
+        Some(Endian::Big) => Format::PlyBinaryBigEndian,
+    };
+    let points = match encoding {
+        None => ascii(input, &elements)?,
+        Some(endian) => binary(input, endian, &elements)?,
+    };
+    points.finish(ctx, format)
+}
+
+fn scalar(name: &[u8]) -> Option<Scalar> {
+    Some(match name {
+        b"char" | b"int8" => Scalar::I8,
+        b"uchar" | b"uint8" => Scalar::U8,
+        b"short" | b"int16" => Scalar::I16,
+        b"ushort" | b"uint16" => Scalar::U16,
+        b"int" | b"int32" => Scalar::I32,
+        b"uint" | b"uint32" => Scalar::U32,
+        b"float" | b"float32" => Scalar::F32,
+        b"double" | b"float64" => Scalar::F64,
+        // Not in the 1.0 spec, but written by some tools; accepting them costs nothing.
+        b"int64" => Scalar::I64,
+        b"uint64" => Scalar::U64,
+        _ => return None,
+    })
+}
+
+/// The encoding (`None` for ascii) and the elements; leaves `input` at the body.
+fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), ReadError> {
+    let (ctx, len) = (input.ctx(), input.len());
+    input.next_line()?; // the `ply` magic line, already checked by the caller
+    let mut encoding = None;
+    let mut elements: Vec<Element> = Vec::new();
+    loop {
+        // A header line without its newline is a cut file, whatever the line says.
+        let Some(line) = input.next_line()?.filter(|l| l.terminated) else {
+            return Err(ctx.truncated(format!("PLY header ends at byte {len} before end_header")));
+        };
+        let at = At::Line(line.number);
+        let bad = |what: String| ctx.bad_header(at, what);
+        let mut toks = tokens(line.text);
+        let Some(keyword) = toks.next() else { continue };
+        let mut next = |what: &str| {
+            toks.next()
+                .ok_or_else(|| bad(format!("{} line without {what}", quote(keyword))))
+        };
+        let ty = |t: &[u8]| scalar(t).ok_or_else(|| bad(format!("unknown type {}", quote(t))));
+        match keyword {
+            b"comment" | b"obj_info" => {}
+            b"format" if encoding.is_some() => return Err(bad("a second format line".into())),
+            b"format" => {
+                encoding = Some(match next("an encoding")? {
+                    b"ascii" => None,
+                    b"binary_little_endian" => Some(Endian::Little),
+                    b"binary_big_endian" => Some(Endian::Big),
+                    other => return Err(bad(format!("unknown format {}", quote(other)))),
+                });
+                let version = next("a version")?;
+                if parse_f64(version) != Some(1.0) {
+                    let v = quote(version);
+                    return Err(ctx.unsupported(format!("PLY version {v}; only 1.0 is defined")));
+                }
+            }
+            b"element" => {
+                let name = String::from_utf8_lossy(next("a name")?).into_owned();
+                let count = next("a count")?;
+                let count = parse_usize(count)
+                    .ok_or_else(|| bad(format!("{} is not an element count", quote(count))))?;
+                elements.push(Element {
+                    name,
+                    count,
+                    props: Vec::new(),
+                });
+            }
+            b"property" => {
+                let kind = match next("a type")? {
+                    b"list" => {
+                        let count = ty(next("a list count type")?)?;
+                        let item = ty(next("a list item type")?)?;
+                        if !count.is_integer() {
+                            return Err(bad("a list count type must be an integer".into()));
+                        }
+                        Kind::List { count, item }
+                    }
+                    t => Kind::Scalar(ty(t)?),
+                };
+                let name = String::from_utf8_lossy(next("a name")?).into_owned();
+                let Some(element) = elements.last_mut() else {
+                    return Err(bad("property before any element line".into()));
+                };
+                element.props.push(Property {
+                    name,
+                    kind,
+                    axis: None,
+                });
+            }
+            b"end_header" => break,
+            other => return Err(bad(format!("unknown header keyword {}", quote(other)))),
+        }
+    }
+    let encoding = encoding.ok_or_else(|| ctx.bad_header(At::Header, "no format line"))?;
+    Ok((encoding, elements))
+}
+
+/// Reads `elements` (the last is the vertex) one line per instance.
+fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
+    let mut points = Points::with_capacity(0);
+    for (i, el) in elements.iter().enumerate() {
+        // An instance without properties has no text, and would otherwise loop `count` times.
+        if el.props.is_empty() {
+            continue;
+        }
+        let is_vertex = i + 1 == elements.len();
+        if is_vertex {
+            // Each value takes at least a character and a separator.
+            let room = input.remaining() / (2 * el.props.len() as u64);
+            points =
+                Points::with_capacity(usize::try_from(room).map_or(el.count, |r| r.min(el.count)));
+        }
+        for done in 0..el.count {
+            let Some(line) = input.next_non_blank()? else {
+                let (name, count) = (&el.name, el.count);
+                let what = format!("element {name} ends after {done} of its {count} lines");
+                return Err(ctx.truncated(what));
+            };
+            if is_vertex {
+                let p = ascii_vertex(ctx, &line, el).map_err(|e| ctx.cut_short(&line, e))?;
+                points.push(p);
+            }
+        }
+    }
+    Ok(points)
+}
+
+fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], ReadError> {
+    let at = At::Line(line.number);
+    let mut toks = tokens(line.text);
+    let names = || vertex.prop_names();
+    let too_few = || ctx.bad_value(at, format!("too few values for properties {}", names()));
+    let mut p = [f64::NAN; 3];
+    for prop in &vertex.props {
+        let tok = toks.next().ok_or_else(too_few)?;
+        match (prop.kind, prop.axis.and_then(|a| p.get_mut(a))) {
+            (Kind::List { .. }, _) => {
+                let n = parse_usize(tok).ok_or_else(|| {
+                    let what = format!("{} is not a count for list {}", quote(tok), prop.name);
+                    ctx.bad_value(at, what)
+                })?;
+                // Bounded by the tokens on this line, whatever `n` claims.
+                for _ in 0..n {
+                    toks.next().ok_or_else(too_few)?;
+                }
+            }
+            (Kind::Scalar(_), None) => {}
+            (Kind::Scalar(_), Some(c)) => {
+                *c = parse_f64(tok).ok_or_else(|| {
+                    let what = format!(
+                        "{} is not a number; expected vertex {}",
+                        quote(tok),
+                        prop.name
+                    );
+                    ctx.bad_value(at, what)
+                })?;
+            }
+        }
+    }
+    if toks.next().is_some() {
+        return Err(ctx.bad_value(at, format!("more values than the properties {}", names())));
+    }
+    Ok(p)
+}
+
+/// Reads `elements` (the last is the vertex) from the body.
+fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Points, ReadError> {
+    let ctx = input.ctx();
+    let mut points = Points::with_capacity(0);
+    for (i, el) in elements.iter().enumerate() {
+        // Checked up front so that an absurd count fails at once, naming the sizes involved.
+        let need = el.count as u128 * el.min_stride() as u128;
+        let (pos, have) = (input.pos(), input.remaining());
+        if need > u128::from(have) {
+            let (name, count, stride) = (&el.name, el.count, el.min_stride());
+            return Err(ctx.truncated(format!(
+                "element {name} needs at least {count} × {stride} = {need} bytes from offset {pos}, file has {have}"
+            )));
+        }
+        let is_vertex = i + 1 == elements.len();
+        if is_vertex {
+            points = Points::with_capacity(el.count);
+        }
+        if !el.has_lists() {
+            if is_vertex {
+                fixed_vertices(input, endian, el, &mut points)?;
+            } else if input.skip(need as u64)? < need as u64 {
+                return Err(ends(input, el, 0));
+            }
+            continue;
+        }
+        // Each instance takes at least one byte (the vertex has x, y, z; the others a list
+        // count), so this loop ends with the file whatever `count` claims.
+        for index in 0..el.count {
+            let p = walk(input, endian, el, index)?;
+            if is_vertex {
+                points.push(p);
+            }
+        }
+    }
+    Ok(points)
+}
+
+/// The error for an instance that the end of the file cuts short.
+fn ends(input: &Input, el: &Element, index: usize) -> ReadError {
+    let (name, pos, len) = (&el.name, input.pos(), input.len());
+    input.ctx().truncated(format!(
+        "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
+    ))
+}
+
+/// Vertices without lists: records of one size, taken as many at a time as are buffered.
+fn fixed_vertices(
+    input: &mut Input,
+    endian: Endian,
+    vertex: &Element,
+    points: &mut Points,
+) -> Result<(), ReadError> {
+    let stride = vertex.min_stride();
+    // (byte offset in the record, type) of x, y and z.
+    let mut at = [(0, Scalar::F32); 3];
+    let mut offset = 0;
+    for prop in &vertex.props {
+        if let (Kind::Scalar(s), Some(axis)) = (prop.kind, prop.axis.and_then(|a| at.get_mut(a))) {
+            *axis = (offset, s);
+        }
+        offset += match prop.kind {
+            Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
+        };
+    }
+    let mut done = 0;
+    while done < vertex.count {
+        let records = input.peek(stride)?;
+        let whole = (records.len() / stride.max(1)).min(vertex.count - done);
+        if whole == 0 {
+            return Err(ends(input, vertex, done));
+        }
+        for record in records.chunks_exact(stride.max(1)).take(whole) {
+            let value = |(offset, s): (usize, Scalar)| {
+                let v = record.get(offset..).and_then(|b| s.read(b, endian));
+                // Offsets inside a record sized from the same properties; NaN is unreachable.
+                v.unwrap_or(f64::NAN)
+            };
+            points.push(at.map(value));
+        }
+        input.consume(whole * stride);
+        done += whole;
+    }
+    Ok(())
+}
+
+/// Reads one instance; returns its x, y, z if it has them.
+fn walk(
+    input: &mut Input,
+    endian: Endian,
+    el: &Element,
+    index: usize,
+) -> Result<[f64; 3], ReadError> {
+    let mut p = [f64::NAN; 3];
+    for prop in &el.props {
+        match prop.kind {
+            Kind::Scalar(s) => {
+                let v = s.read(input.peek(s.size())?, endian);
+                let v = v.ok_or_else(|| ends(input, el, index))?;
+                if let Some(c) = prop.axis.and_then(|a| p.get_mut(a)) {
+                    *c = v;
+                }
+                input.consume(s.size());
+            }
+            Kind::List { count, item } => {
+                let n = count.read(input.peek(count.size())?, endian);
+                let n = n.ok_or_else(|| ends(input, el, index))?;
+                if n < 0.0 {
+                    let what = format!(
+                        "negative count {n} for list {} of element {}",
+                        prop.name, el.name
+                    );
+                    return Err(input.ctx().bad_value(At::Offset(input.pos()), what));
+                }
+                input.consume(count.size());
+                let len = n as u128 * item.size() as u128;
+                if len > u128::from(input.remaining()) {
+                    return Err(ends(input, el, index));
+                }
+                if input.skip(len as u64)? < len as u64 {
+                    return Err(ends(input, el, index));
+                }
+            }
+        }
+    }
+    Ok(p)
+}
+
+#[cfg(test)]
+pub(crate) mod tests;

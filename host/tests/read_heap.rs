@@ -1,0 +1,61 @@
+//! The readers hold a cloud once: reading a file costs its points (an organized cloud's slots,
+//! NaN ones included, until they are compacted) and fixed-size buffers, never a copy of the
+//! file or of a decompressed body.
+//!
+//! A test binary of its own: the counting allocator is global to a process and counts every
+//! thread's allocations, so this binary runs one test and nothing else allocates meanwhile.
+
+use mema::heap::{self, Counting};
+use mema::read::read_cloud;
+use std::path::Path;
+
+#[global_allocator]
+static HEAP: Counting = Counting;
+
+/// The stream's buffer and the LZF window are 32 KiB each; the header and the rest of the
+/// reader's bookkeeping take a few KiB.
+const FIXED: usize = 96 * 1024;
+
+#[test]
+fn reading_holds_the_cloud_once() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    // Bytes a slot takes while the file is read: f32 coordinates are kept as they are; text
+    // and LAS's scaled integers are held as f64 until they are centred, in the same allocation.
+    let (f32s, f64s) = (size_of::<[f32; 3]>(), size_of::<[f64; 3]>());
+    for (name, per_slot) in [
+        // binary_compressed: two organized depth frames, three unorganized scans
+        ("five_people.pcd", f32s),
+        ("office1.pcd", f32s),
+        ("cturtle.pcd", f32s),
+        ("car6.pcd", f32s),
+        ("milk.pcd", f32s),
+        // ascii PLY and PCD
+        ("bun_zipper.ply", f64s),
+        ("bun000.ply", f64s),
+        ("rops_cloud.pcd", f64s),
+        ("lamppost.pcd", f64s),
+    ] {
+        let path = data.join(name);
+        let file = std::fs::metadata(&path).expect(name).len() as usize;
+        let before = heap::reset_peak();
+        let cloud = read_cloud(&path).expect(name);
+        let peak = heap::peak() - before;
+        let points = cloud.points.len() * size_of::<[f32; 3]>();
+        let slots = cloud.slots * per_slot;
+        eprintln!(
+            "{name}: heap peak {peak} bytes for {points} bytes of points ({slots} of slots), file {file} bytes"
+        );
+        assert!(heap::counting(), "the counting allocator is installed");
+        assert!(
+            peak <= slots + FIXED,
+            "{name}: reading peaked at {peak} heap bytes, more than its {slots} bytes of slots + {FIXED}"
+        );
+        // What the pipeline goes on with is exactly the points: the NaN slots were handed back.
+        assert_eq!(cloud.points.capacity(), cloud.points.len(), "{name}");
+        let after = heap::live() - before;
+        assert!(
+            after <= points + 1024,
+            "{name}: {after} heap bytes still live for {points} bytes of points"
+        );
+    }
+}
