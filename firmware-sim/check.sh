@@ -18,7 +18,8 @@ echo "== firmware: building release, debug, target-cpu=native and the thumbv7em 
 cargo build -q --release -p mema -p mema-firmware-sim
 cargo build -q "${minimal[@]}" --target-dir target/fw-debug
 RUSTFLAGS="-C target-cpu=native" cargo build -q --release "${minimal[@]}" --target-dir target/fw-native
-(cd firmware-sim/image && cargo fmt --check && cargo clippy -q --release -- -D warnings && cargo build -q --release)
+# The image is its own workspace: its target dir is pinned so a caller's CARGO_TARGET_DIR cannot move it.
+(cd firmware-sim/image && cargo fmt --check && cargo clippy -q --release --target-dir target -- -D warnings && cargo build -q --release --target-dir target)
 image=firmware-sim/image/target/thumbv7em-none-eabihf/release/mema-firmware-image
 
 status=0
