@@ -91,12 +91,15 @@ impl<'a> Input<'a> {
                 self.end -= self.start;
                 self.start = 0;
             }
-            if self.end == self.buf.len() {
-                let grown = self.buf.len().saturating_mul(2).max(want).max(64);
-                self.buf.resize(grown, 0);
-            }
             // The input is the `len` bytes the file had when opened, even if it grows.
             let left = self.len.saturating_sub(self.offset + self.end as u64);
+            if self.end == self.buf.len() {
+                // Doubling keeps a long line's reads few; the cap keeps the buffer within the
+                // file, since no byte past `left` will ever be read into it.
+                let most = usize::try_from(left).map_or(usize::MAX, |l| self.end.saturating_add(l));
+                let grown = self.buf.len().saturating_mul(2).max(want).max(64);
+                self.buf.resize(grown.min(most).max(self.end), 0);
+            }
             let room = self.buf.len() - self.end;
             let room = usize::try_from(left).map_or(room, |left| left.min(room));
             if room == 0 {
@@ -242,6 +245,25 @@ mod tests {
         for step in [1, 7, 4096] {
             assert_eq!(lines_of(text.as_bytes(), step), want, "step {step}");
         }
+    }
+
+    /// Growing for a long peek or line stops at the bytes the input has left.
+    #[test]
+    fn the_buffer_never_outgrows_the_input() {
+        let bytes = vec![b'x'; 50_000];
+        let mut source = Dribble(&bytes, 999);
+        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        assert!(input.peek(40_000).unwrap().len() >= 40_000);
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+        assert_eq!(input.skip(45_000).unwrap(), 45_000);
+        assert_eq!(input.peek(1 << 20).unwrap().len(), 5_000);
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+        // A line as long as the input, read through a buffer that has to grow for it.
+        let mut source = Dribble(&bytes, 4096);
+        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let line = input.next_line().unwrap().unwrap();
+        assert_eq!((line.text.len(), line.terminated), (50_000, false));
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
     }
 
     #[test]
