@@ -6,7 +6,7 @@
 //! thread's allocations, so this binary runs one test and nothing else allocates meanwhile.
 
 use mema::heap::{self, Counting};
-use mema::read::read_cloud;
+use mema::read::{ReadError, read_cloud, read_cloud_bytes};
 use std::path::Path;
 
 #[global_allocator]
@@ -15,6 +15,10 @@ static HEAP: Counting = Counting;
 /// The stream's buffer and the LZF window are 32 KiB each; the header and the rest of the
 /// reader's bookkeeping take a few KiB.
 const FIXED: usize = 96 * 1024;
+
+/// The slot bytes a binary_compressed PCD reserves before its data backs them (`UPFRONT` in
+/// `read/pcd/body.rs`).
+const UPFRONT: usize = 16 << 20;
 
 #[test]
 fn reading_holds_the_cloud_once() {
@@ -60,4 +64,37 @@ fn reading_holds_the_cloud_once() {
             "{name}: {after} heap bytes still live for {points} bytes of points"
         );
     }
+
+    // A header's claim is not an allocation: 4 million points of `TYPE I I I` (96 MB of f64
+    // slots) over compressed bytes that decode to 273 KB reserve `UPFRONT` bytes, no more.
+    let bogus = claim_beyond_its_data();
+    let before = heap::reset_peak();
+    let e = read_cloud_bytes("claim.pcd", &bogus).expect_err("the data ends early");
+    assert!(matches!(e, ReadError::BadValue { .. }), "{e:?}");
+    let peak = heap::peak().saturating_sub(before);
+    eprintln!(
+        "claim.pcd: heap peak {peak} bytes, file {} bytes",
+        bogus.len()
+    );
+    assert!(
+        peak <= UPFRONT + FIXED,
+        "claim.pcd: reading peaked at {peak} heap bytes for a {} byte file",
+        bogus.len()
+    );
+}
+
+/// A binary_compressed PCD claiming 4 million points with the fewest compressed bytes LZF's
+/// 88× bound allows, all of them one-byte literal runs.
+fn claim_beyond_its_data() -> Vec<u8> {
+    let (points, record) = (4_000_000usize, 12);
+    let unpacked = points * record;
+    let packed = unpacked.div_ceil(88).next_multiple_of(2);
+    let header = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE I I I\nCOUNT 1 1 1\nWIDTH {points}\n\
+         HEIGHT 1\nPOINTS {points}\nDATA binary_compressed\n"
+    );
+    let sizes = [packed as u32, unpacked as u32]
+        .map(u32::to_le_bytes)
+        .concat();
+    [header.into_bytes(), sizes, vec![0; packed]].concat()
 }

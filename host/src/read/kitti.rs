@@ -22,7 +22,7 @@ pub fn read(input: &mut Input) -> Result<Cloud, ReadError> {
         )));
     }
     let records = usize::try_from(len / RECORD as u64).unwrap_or(usize::MAX);
-    let mut points = Points::with_capacity(records);
+    let mut points = Points::with_capacity(ctx, records)?;
     loop {
         let buffered = input.peek(RECORD)?;
         let whole = buffered.len() / RECORD;

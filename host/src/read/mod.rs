@@ -9,7 +9,9 @@
 //!   iterators, never through indexing that the file controls;
 //! - a size taken from a header is checked against the bytes actually present (the file's
 //!   length) before it is allocated or looped over, so a header claiming 10^18 points is an
-//!   error, not an allocation;
+//!   error, not an allocation; where the length cannot settle it (LZF may expand 88×), memory
+//!   comes as the data is decoded; and an allocation the machine refuses is
+//!   [`ReadError::OutOfMemory`], not an abort;
 //! - coordinates are parsed as f64 and only cast to f32 after moving to the bounding-box centre,
 //!   because real captures (airborne lidar in UTM metres, say) sit far from zero and would lose
 //!   centimetres in f32.
@@ -136,6 +138,9 @@ pub enum ReadError {
     /// A valid file that uses something these readers do not handle.
     #[error("{name}: unsupported: {what}")]
     Unsupported { name: String, what: String },
+    /// The memory for the points the file declares could not be had.
+    #[error("{name}: out of memory: {what}")]
+    OutOfMemory { name: String, what: String },
 }
 
 fn no_finite_points(slots: &usize) -> String {
@@ -266,6 +271,11 @@ impl Ctx<'_> {
     fn unsupported(self, what: impl Into<String>) -> ReadError {
         let (name, what) = (self.name(), what.into());
         ReadError::Unsupported { name, what }
+    }
+
+    fn out_of_memory(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::OutOfMemory { name, what }
     }
 
     /// A bad value on the last line of a file that lacks its newline is a cut file, and saying

@@ -144,7 +144,7 @@ pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
     let coords = [x?, y?, z?];
     let points = match format {
-        _ if slots == 0 => Points::with_capacity(0),
+        _ if slots == 0 => Points::new(),
         Format::PcdAscii => body::ascii(input, &fields, slots, coords)?,
         Format::PcdBinary => body::binary(input, &fields, slots, coords)?,
         _ => body::compressed(input, &fields, slots, coords)?,

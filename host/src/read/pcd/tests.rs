@@ -1,6 +1,9 @@
 use super::super::lzf::tests::literal_stream;
+use super::super::points::Wide;
 use super::super::testkit::{DATA, assert_same, expect_err, header_count, shared};
-use super::super::{Format, read_cloud_bytes};
+use super::super::{Ctx, Format, Points, ReadError, read_cloud_bytes};
+use super::body::{Columns, UPFRONT};
+use super::{Coord, coord};
 
 /// (name, TYPE, SIZE, COUNT) of a field to write.
 type Field<'a> = (&'a str, char, usize, usize);
@@ -186,4 +189,74 @@ fn old_headers_bad_headers_and_lying_counts() {
     ] {
         check(header, "binary", b"", variant);
     }
+}
+
+/// Fields as the header parser makes them, from (name, TYPE, SIZE, COUNT).
+fn header_fields(fields: &[Field]) -> Vec<super::Field> {
+    let field = |&(name, ty, size, count): &Field| super::Field {
+        name: name.as_bytes().to_vec(),
+        size,
+        ty: ty as u8,
+        count,
+    };
+    fields.iter().map(field).collect()
+}
+
+fn coords(fields: &[super::Field]) -> [Coord; 3] {
+    ["x", "y", "z"].map(|axis| coord(Ctx("t"), fields, axis).unwrap())
+}
+
+/// LZF's 88× bound lets 49 MB of data claim 358 million points of f64 slots: before the data
+/// backs a claim, at most `UPFRONT` bytes of slots are reserved, and each value of the first
+/// coordinate column brings its slot.
+#[test]
+fn claimed_slots_come_with_the_data() {
+    let fields = header_fields(&[("x", 'I', 4, 1), ("y", 'I', 4, 1), ("z", 'I', 4, 1)]);
+    let n = 357_913_941;
+    let columns = Columns::<Wide>::new(coords(&fields), n, UPFRONT).unwrap();
+    assert!(columns.slots.is_empty());
+    assert!(columns.slots.capacity() * size_of::<Wide>() <= UPFRONT);
+    let xs: Vec<u8> = (0..1000i32).flat_map(|i| (i - 500).to_le_bytes()).collect();
+    // Past the first reservation (none here) the slots double, never beyond the values seen.
+    let mut columns = Columns::<Wide>::new(coords(&fields), n, 0).unwrap();
+    for (i, piece) in xs.chunks(7).enumerate() {
+        columns.take(7 * i, piece);
+        columns.grown().unwrap();
+        let (len, capacity) = (columns.slots.len(), columns.slots.capacity());
+        assert_eq!(len, (7 * i + piece.len()) / 4);
+        assert!(
+            capacity <= 2 * len.max(2),
+            "{capacity} slots for {len} values"
+        );
+    }
+    let x = |s: &Wide| s.get()[0];
+    assert!((columns.slots.iter().map(x)).eq((0..1000).map(|i| f64::from(i - 500))));
+    // A reservation the machine cannot make is an error, not an abort.
+    assert!(Columns::<Wide>::new(coords(&fields), usize::MAX / 8, usize::MAX).is_err());
+    let e = Points::with_capacity(Ctx("big.pcd"), usize::MAX / 8)
+        .err()
+        .unwrap();
+    assert!(matches!(e, ReadError::OutOfMemory { .. }), "{e:?}");
+    assert!(e.to_string().starts_with("big.pcd: out of memory: "), "{e}");
+    // The whole file: a claim past `UPFRONT` with data that decodes to far less.
+    let bogus = claim_beyond_its_data();
+    let e = expect_err("claim.pcd", &bogus, "BadValue");
+    assert!(e.to_string().contains("LZF data decompresses to"), "{e}");
+}
+
+/// A binary_compressed PCD of `TYPE I I I` claiming 4 million points (96 MB of f64 slots)
+/// with the fewest compressed bytes LZF's bound allows, all of them one-byte literal runs
+/// that decode to 273 KB.
+fn claim_beyond_its_data() -> Vec<u8> {
+    let (points, record) = (4_000_000usize, 12);
+    let unpacked = points * record;
+    let packed = unpacked.div_ceil(88).next_multiple_of(2);
+    let header = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE I I I\nCOUNT 1 1 1\nWIDTH {points}\n\
+         HEIGHT 1\nPOINTS {points}\nDATA binary_compressed\n"
+    );
+    let sizes = [packed as u32, unpacked as u32]
+        .map(u32::to_le_bytes)
+        .concat();
+    [header.into_bytes(), sizes, vec![0; packed]].concat()
 }

@@ -182,7 +182,7 @@ fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), Rea
 /// Reads `elements` (the last is the vertex) one line per instance.
 fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
     let ctx = input.ctx();
-    let mut points = Points::with_capacity(0);
+    let mut points = Points::new();
     for (i, el) in elements.iter().enumerate() {
         // An instance without properties has no text, and would otherwise loop `count` times.
         if el.props.is_empty() {
@@ -192,8 +192,8 @@ fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
         if is_vertex {
             // Each value takes at least a character and a separator.
             let room = input.remaining() / (2 * el.props.len() as u64);
-            points =
-                Points::with_capacity(usize::try_from(room).map_or(el.count, |r| r.min(el.count)));
+            let capacity = usize::try_from(room).map_or(el.count, |r| r.min(el.count));
+            points = Points::with_capacity(ctx, capacity)?;
         }
         for done in 0..el.count {
             let Some(line) = input.next_non_blank()? else {
@@ -251,7 +251,7 @@ fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], Rea
 /// Reads `elements` (the last is the vertex) from the body.
 fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Points, ReadError> {
     let ctx = input.ctx();
-    let mut points = Points::with_capacity(0);
+    let mut points = Points::new();
     for (i, el) in elements.iter().enumerate() {
         // Checked up front so that an absurd count fails at once, naming the sizes involved.
         let need = el.count as u128 * el.min_stride() as u128;
@@ -264,7 +264,7 @@ fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Poi
         }
         let is_vertex = i + 1 == elements.len();
         if is_vertex {
-            points = Points::with_capacity(el.count);
+            points = Points::with_capacity(ctx, el.count)?;
         }
         if !el.has_lists() {
             if is_vertex {
