@@ -1,7 +1,7 @@
 use super::super::lzf::tests::literal_stream;
 use super::super::points::Wide;
-use super::super::testkit::{DATA, assert_same, expect_err, header_count, shared};
-use super::super::{Ctx, Format, Points, ReadError, read_cloud_bytes};
+use super::super::testkit::{DATA, XorShift, assert_same, expect_err, header_count, shared};
+use super::super::{Ctx, Format, Points, ReadError, Scalar, read_cloud_bytes};
 use super::body::{Columns, UPFRONT};
 use super::{Coord, coord};
 
@@ -259,4 +259,98 @@ fn claim_beyond_its_data() -> Vec<u8> {
         .map(u32::to_le_bytes)
         .concat();
     [header.into_bytes(), sizes, vec![0; packed]].concat()
+}
+
+/// Every coordinate type, in fields among padding and extra ones and in any axis order, from
+/// field-major output fed one byte at a time: the slots hold exactly the values written, as
+/// f64 and, where every axis fits, as f32.
+#[test]
+fn columns_take_every_coordinate_type_from_single_bytes() {
+    use Scalar::{F32, F64, I8, I16, I32, I64, U8, U16, U32, U64};
+    let mut rng = XorShift(0xc0ff_ee11);
+    // A value exact in the type (and in f64), and its little-endian bytes.
+    let value = |s: Scalar, r: u64| -> (f64, Vec<u8>) {
+        match s {
+            I8 => (f64::from(r as i8), (r as i8).to_le_bytes().to_vec()),
+            U8 => (f64::from(r as u8), vec![r as u8]),
+            I16 => (f64::from(r as i16), (r as i16).to_le_bytes().to_vec()),
+            U16 => (f64::from(r as u16), (r as u16).to_le_bytes().to_vec()),
+            I32 => (f64::from(r as i32), (r as i32).to_le_bytes().to_vec()),
+            U32 => (f64::from(r as u32), (r as u32).to_le_bytes().to_vec()),
+            I64 => (
+                (r as i64 >> 11) as f64,
+                (r as i64 >> 11).to_le_bytes().to_vec(),
+            ),
+            U64 => ((r >> 11) as f64, (r >> 11).to_le_bytes().to_vec()),
+            F32 => {
+                let v = r as i32 as f32 / 64.0;
+                (f64::from(v), v.to_le_bytes().to_vec())
+            }
+            F64 => {
+                let v = (r as i64 >> 11) as f64 / 1024.0;
+                (v, v.to_le_bytes().to_vec())
+            }
+        }
+    };
+    let spec = |s: Scalar| match s {
+        F32 | F64 => ('F', s.size()),
+        I8 | I16 | I32 | I64 => ('I', s.size()),
+        U8 | U16 | U32 | U64 => ('U', s.size()),
+    };
+    let n = 37;
+    for (types, names) in [
+        ([I8, U8, I16], ["x", "y", "z"]),
+        ([U16, F32, I8], ["z", "x", "y"]),
+        ([I32, U32, F64], ["y", "z", "x"]),
+        ([F64, F32, U8], ["x", "z", "y"]),
+        ([I64, U64, U16], ["z", "y", "x"]),
+    ] {
+        let [a, b, c] = [0, 1, 2].map(|k| {
+            let (ty, size) = spec(types[k]);
+            (names[k], ty, size, 1)
+        });
+        let fields = [
+            ("_", 'U', 1, 3),
+            a,
+            ("extra", 'F', 4, 2),
+            b,
+            ("_", 'I', 2, 1),
+            c,
+            ("label", 'U', 4, 1),
+        ];
+        // The output as PCL writes it: each field's column in turn, padding left out.
+        let (mut out, mut want) = (Vec::new(), vec![[f64::NAN; 3]; n]);
+        for &(name, _, size, count) in fields.iter().filter(|f| f.0 != "_") {
+            let axis = ["x", "y", "z"].iter().position(|&a| a == name);
+            let scalar = names.iter().position(|&a| a == name).map(|k| types[k]);
+            for p in want.iter_mut() {
+                match (axis, scalar) {
+                    (Some(axis), Some(s)) => {
+                        let (v, bytes) = value(s, rng.next());
+                        p[axis] = v;
+                        out.extend(bytes);
+                    }
+                    _ => out.extend((0..size * count).map(|_| rng.next() as u8)),
+                }
+            }
+        }
+        let what = format!("{types:?} as {names:?}");
+        let coords = coords(&header_fields(&fields));
+        // Single bytes cut every value; the whole output in one piece is the direct decode.
+        for (piece, upfront) in [(1, 0), (1, UPFRONT), (out.len(), UPFRONT)] {
+            let how = format!("{what}, pieces of {piece}, upfront {upfront}");
+            let mut wide = Columns::<Wide>::new(coords, n, upfront).unwrap();
+            (out.chunks(piece).enumerate()).for_each(|(i, b)| wide.take(i * piece, b));
+            wide.grown().unwrap();
+            let got: Vec<[f64; 3]> = wide.slots.iter().map(|s| s.get()).collect();
+            assert_eq!(got, want, "{how}, f64 slots");
+            if types.iter().all(|s| s.size() <= 2 || *s == F32) {
+                let mut narrow = Columns::<[f32; 3]>::new(coords, n, upfront).unwrap();
+                (out.chunks(piece).enumerate()).for_each(|(i, b)| narrow.take(i * piece, b));
+                narrow.grown().unwrap();
+                let got: Vec<[f64; 3]> = narrow.slots.iter().map(|p| p.map(f64::from)).collect();
+                assert_eq!(got, want, "{how}, f32 slots");
+            }
+        }
+    }
 }
