@@ -210,18 +210,29 @@ enum Kind {
 /// leave it open whether a PCD header follows them.
 const HEAD: usize = 4096;
 
-fn detect(input: &mut Input) -> Result<Kind, ReadError> {
-    let ctx = input.ctx();
+/// The most detection reads past [`HEAD`] for leading comments: 16 times the longest banner
+/// seen before a real PCD header (62 KB). Comments running on past it make the file not a PCD,
+/// as if it ended there; otherwise a gigabyte with no newline would be read whole to find the
+/// end of its first line.
+const HEAD_LIMIT: usize = 1 << 20;
+
+/// Whether a PCD header starts the input, after any comment lines.
+fn starts_pcd(input: &mut Input) -> Result<bool, ReadError> {
     let (mut want, len) = (HEAD, input.remaining());
-    let is_pcd = loop {
+    loop {
         let head = input.peek(want)?;
         // Fewer bytes than asked for: the input ended (early, if it shrank since it was opened).
-        let whole = head.len() as u64 >= len || head.len() < want;
+        let whole = head.len() as u64 >= len || head.len() < want || head.len() >= HEAD_LIMIT;
         match pcd::has_header(head, whole) {
-            Some(is_pcd) => break is_pcd,
-            None => want = head.len().saturating_mul(2),
+            Some(is_pcd) => return Ok(is_pcd),
+            None => want = head.len().saturating_mul(2).min(HEAD_LIMIT),
         }
-    };
+    }
+}
+
+fn detect(input: &mut Input) -> Result<Kind, ReadError> {
+    let ctx = input.ctx();
+    let is_pcd = starts_pcd(input)?;
     let head = input.peek(HEAD)?;
     if head.is_empty() {
         let name = ctx.name();
@@ -395,6 +406,59 @@ mod tests {
         let disk = read_cloud(Path::new(&format!("{}/milk.pcd", testkit::DATA))).unwrap();
         let memory = read_cloud_bytes("milk.pcd", &shared("milk.pcd")).unwrap();
         assert_eq!(disk, memory);
+    }
+
+    /// A source that counts what is read from it, delivered a page at a time as a slow pipe
+    /// might, so that the first look ends where the test puts it.
+    struct Counted<R> {
+        inner: R,
+        read: usize,
+    }
+
+    impl<R: Read> Read for Counted<R> {
+        fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
+            let page = out.len().min(HEAD);
+            let n = self.inner.read(out.get_mut(..page).unwrap_or_default())?;
+            self.read += n;
+            Ok(n)
+        }
+    }
+
+    /// Bytes detection reads from a `len`-byte file of `start` followed by `fill` bytes, and
+    /// whether it takes the file for a PCD.
+    fn detection_reads(start: &[u8], fill: u8, len: u64) -> (usize, bool) {
+        let inner = start.chain(std::io::repeat(fill));
+        let mut source = Counted { inner, read: 0 };
+        let mut input = Input::new(Ctx("x.dat"), &mut source, len);
+        let pcd = starts_pcd(&mut input).unwrap();
+        (source.read, pcd)
+    }
+
+    /// Detection reads on past the first 4 KiB only while the line cut there is a comment (or
+    /// blank, or a word that may become a PCD keyword), and never past 1 MiB.
+    #[test]
+    fn detection_reads_a_bounded_head() {
+        let (gib, most) = (1 << 30, HEAD_LIMIT + 64 * 1024);
+        // No newline at all: binary zeros, a text line, an endless comment, endless blanks.
+        for (start, fill, bound) in [
+            (&b""[..], 0, 64 * 1024),
+            (b"1 2 3", b' ', 64 * 1024),
+            (b"# an endless banner ", b'=', most),
+            (b"", b' ', most),
+        ] {
+            let (read, pcd) = detection_reads(start, fill, gib);
+            assert!(read <= bound, "{start:?} + {fill}: {read} bytes read");
+            assert!(!pcd);
+        }
+        // A keyword cut by the first look is read whole.
+        let mut start = vec![b'#'; HEAD - 3];
+        start.extend_from_slice(b"\nVERSION 0.7\n");
+        let (read, pcd) = detection_reads(&start, b'\n', 1 << 20);
+        assert!(pcd && read < 3 * HEAD, "{read} bytes read");
+        // Comments longer than the limit: not a PCD, whatever follows.
+        let banner = "# a scanner's banner, repeated\n".repeat(HEAD_LIMIT / 31 + 1);
+        let pcd = [banner.as_bytes(), b"VERSION 0.7\n"].concat();
+        assert!(!detection_reads(&pcd, b'\n', 4 << 20).1);
     }
 
     #[test]

@@ -13,23 +13,35 @@ use super::stream::Input;
 use super::xyz::{parse_usize, quote, tokens};
 use super::{At, Cloud, Ctx, Format, Points, ReadError, Scalar};
 
+/// The keywords a PCD header may start with (after comments).
+const FIRST_KEYWORDS: [&[u8]; 3] = [b"VERSION", b"FIELDS", b"COLUMNS"];
+
 /// Whether the first line that is not a comment starts a PCD header; `None` if `head`, the
-/// start of the file, ends before such a line and `whole` says there is more of it.
+/// start of the file, ends inside a line that could still decide it and `whole` says there is
+/// more of the file.
 pub(super) fn has_header(head: &[u8], whole: bool) -> Option<bool> {
     let mut lines = head.split(|&b| b == b'\n').peekable();
     while let Some(line) = lines.next() {
-        // The last piece of a partial head may be the start of a longer line.
-        if lines.peek().is_none() && !whole {
-            return None;
-        }
+        // The last piece of a partial head may be the start of a longer line. Only a blank
+        // line or a comment (`# .PCD` may yet follow, or a header after it) is worth reading
+        // on for, and a first word that may still grow into a keyword: any other line
+        // decides now, so a file without newlines is not read whole to find its first line.
+        let cut = lines.peek().is_none() && !whole;
         let text = line.trim_ascii_start();
         if text.starts_with(b"# .PCD") {
             return Some(true);
         }
-        if !text.is_empty() && !text.starts_with(b"#") {
-            let keyword = tokens(text).next();
-            return Some(matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS")));
+        if text.is_empty() || text.starts_with(b"#") {
+            if cut {
+                return None;
+            }
+            continue;
         }
+        let word = tokens(text).next().unwrap_or_default();
+        if cut && word.len() == text.len() && FIRST_KEYWORDS.iter().any(|k| k.starts_with(word)) {
+            return None;
+        }
+        return Some(FIRST_KEYWORDS.contains(&word));
     }
     Some(false)
 }
