@@ -141,6 +141,9 @@ pub enum ReadError {
     /// The memory for the points the file declares could not be had.
     #[error("{name}: out of memory: {what}")]
     OutOfMemory { name: String, what: String },
+    /// The input is past a limit these readers set (a pipe's bytes, a header's size).
+    #[error("{name}: too large: {what}")]
+    TooLarge { name: String, what: String },
 }
 
 fn no_finite_points(slots: &usize) -> String {
@@ -149,6 +152,12 @@ fn no_finite_points(slots: &usize) -> String {
         n => format!("no finite points ({n} slots, all NaN or infinite)"),
     }
 }
+
+/// The most bytes read from a pipe or a device. Such an input is held whole, since a header's
+/// sizes can only be checked against a known length; 4 GiB is far more than any cloud these
+/// readers are used on (the largest shared one is 3 MB), and past it the input is an error,
+/// where `/dev/zero` would otherwise be read until memory ran out.
+pub const UNSIZED_LIMIT: u64 = 4 << 30;
 
 /// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
@@ -160,10 +169,7 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
     let meta = file.metadata().map_err(io)?;
     let name = path.display().to_string();
     if !meta.is_file() {
-        // A pipe or a device has no length to check a header's sizes against: read it whole.
-        let mut bytes = Vec::new();
-        file.read_to_end(&mut bytes).map_err(io)?;
-        return read_cloud_bytes(&name, &bytes);
+        return read_unsized(path, file, UNSIZED_LIMIT);
     }
     let ctx = Ctx(&name);
     let kind = {
@@ -181,6 +187,25 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
             las::read(ctx, std::io::BufReader::new(file), meta.len())
         }
     }
+}
+
+/// Reads a source without a length (a pipe, a device) whole, up to `limit` bytes.
+fn read_unsized(path: &Path, source: impl Read, limit: u64) -> Result<Cloud, ReadError> {
+    let name = path.display().to_string();
+    let mut bytes = Vec::new();
+    // One byte past the limit tells an input of exactly `limit` bytes from a longer one.
+    let read = source.take(limit.saturating_add(1)).read_to_end(&mut bytes);
+    read.map_err(|cause| ReadError::Io {
+        path: path.to_owned(),
+        cause,
+    })?;
+    if bytes.len() as u64 > limit {
+        let what = format!(
+            "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
+        );
+        return Err(ReadError::TooLarge { name, what });
+    }
+    read_cloud_bytes(&name, &bytes)
 }
 
 /// Same from bytes already in memory; `name` is used in error messages.

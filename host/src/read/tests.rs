@@ -76,6 +76,36 @@ fn detection_reads_a_bounded_head() {
     assert!(!detection_reads(&pcd, b'\n', 4 << 20).1);
 }
 
+/// A pipe is read whole, and only up to a limit: `/dev/zero` is an error, not all of memory.
+#[test]
+fn pipes_are_read_up_to_a_limit() {
+    let text = b"1 2 3\n4 5 6\n";
+    let at_limit = read_unsized(Path::new("pipe"), &text[..], text.len() as u64).unwrap();
+    assert_eq!((at_limit.format, at_limit.slots), (Format::Xyz, 2));
+    let zeros = std::io::repeat(0);
+    let e = read_unsized(Path::new("/dev/zero"), zeros, 1 << 20).unwrap_err();
+    assert!(matches!(e, ReadError::TooLarge { .. }), "{e:?}");
+    let want = "/dev/zero: too large: a pipe or device giving more than 1048576 bytes";
+    assert!(e.to_string().starts_with(want), "{e}");
+    // A named pipe, through `read_cloud`: a cloud written into it reads as from the file.
+    let dir = std::env::temp_dir().join(format!("mema-fifo-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("cloud.xyz");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if made.as_ref().is_ok_and(|s| s.success()) {
+        let writer = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::write(fifo, b"1 2 3\n4 5 6\n"))
+        };
+        let cloud = read_cloud(&fifo).unwrap();
+        writer.join().unwrap().unwrap();
+        assert_eq!(cloud, at_limit);
+    } else {
+        eprintln!("mkfifo failed ({made:?}): the named pipe case is skipped");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn empty_random_and_missing_files() {
     expect_err("empty.ply", b"", "Empty");
