@@ -81,6 +81,22 @@ fn reading_holds_the_cloud_once() {
         "claim.pcd: reading peaked at {peak} heap bytes for a {} byte file",
         bogus.len()
     );
+
+    // Nor is a header's length: a keyword given 100,000 times is kept once.
+    let header = "VIEWPOINT 0 0 0 1 0 0 0\n".repeat(100_000);
+    let pcd = format!("FIELDS x y z\n{header}WIDTH 1\nDATA ascii\n1 2 3\n");
+    let before = heap::reset_peak();
+    let cloud = read_cloud_bytes("long_header.pcd", pcd.as_bytes()).expect("one point");
+    assert_eq!(cloud.format, mema::read::Format::PcdAscii);
+    let peak = heap::peak().saturating_sub(before);
+    eprintln!(
+        "long_header.pcd: heap peak {peak} bytes, file {} bytes",
+        pcd.len()
+    );
+    assert!(
+        peak <= FIXED,
+        "long_header.pcd: reading peaked at {peak} heap bytes"
+    );
 }
 
 /// A binary_compressed PCD claiming 4 million points with the fewest compressed bytes LZF's

@@ -309,6 +309,11 @@ impl Ctx<'_> {
         ReadError::Unsupported { name, what }
     }
 
+    fn too_large(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::TooLarge { name, what }
+    }
+
     fn out_of_memory(self, what: impl Into<String>) -> ReadError {
         let (name, what) = (self.name(), what.into());
         ReadError::OutOfMemory { name, what }

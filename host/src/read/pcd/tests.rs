@@ -192,9 +192,9 @@ fn old_headers_bad_headers_and_lying_counts() {
 }
 
 /// Fields as the header parser makes them, from (name, TYPE, SIZE, COUNT).
-fn header_fields(fields: &[Field]) -> Vec<super::Field> {
-    let field = |&(name, ty, size, count): &Field| super::Field {
-        name: name.as_bytes().to_vec(),
+fn header_fields<'a>(fields: &[Field<'a>]) -> Vec<super::Field<'a>> {
+    let field = |&(name, ty, size, count): &Field<'a>| super::Field {
+        name: name.as_bytes(),
         size,
         ty: ty as u8,
         count,
@@ -353,4 +353,39 @@ fn columns_take_every_coordinate_type_from_single_bytes() {
             }
         }
     }
+}
+
+/// A header costs memory for what it says, not for each token it has: past 65,536 fields or a
+/// 1 MiB line it is too large, and a missing axis lists a few of the names, not all of them.
+#[test]
+fn header_lines_are_bounded() {
+    let names = |n: usize| {
+        (0..n)
+            .map(|i| format!("f{i}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    let pcd = |fields: &str, extra: &str, values: usize| {
+        let head = format!("VERSION 0.7\nFIELDS {fields}\n{extra}WIDTH 1\nDATA ascii\n");
+        [head, "1 ".repeat(values), "\n".into()]
+            .concat()
+            .into_bytes()
+    };
+    let fields = format!("{} x y z", names(99_997));
+    let e = expect_err("wide.pcd", &pcd(&fields, "", 100_000), "TooLarge");
+    let want = "wide.pcd: too large: FIELDS on line 2 names 100000 fields; at most 65536 are read";
+    assert_eq!(e.to_string(), want);
+    let viewpoint = format!("VIEWPOINT{}\n", " 0".repeat(600_000));
+    let e = expect_err("long.pcd", &pcd("x y z", &viewpoint, 3), "TooLarge");
+    assert!(e.to_string().contains("line 3 is 1200000 bytes"), "{e}");
+    // Just under both limits, and the later of COLUMNS and FIELDS is the one read.
+    let fields = format!("{} x y z", names(65_533));
+    let cloud = read_cloud_bytes("ok.pcd", &pcd(&fields, "", 65_536)).unwrap();
+    assert_eq!(cloud.slots, 1);
+    let old = pcd("a b c", "COLUMNS x y z\n", 3);
+    assert_eq!(read_cloud_bytes("old.pcd", &old).unwrap().origin, [1.0; 3]);
+    let e = expect_err("noz.pcd", &pcd(&names(1000), "", 1000), "BadHeader");
+    let want =
+        "noz.pcd: header: no field x (FIELDS f0 f1 f2 f3 f4 f5 f6 f7 ... 1000 fields in all)";
+    assert_eq!(e.to_string(), want);
 }
