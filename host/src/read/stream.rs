@@ -135,6 +135,40 @@ impl<'a> Input<'a> {
         self.start += n.min(self.end - self.start);
     }
 
+    /// Hands up to `count` records of `stride` bytes to `each`, in order and as many at a time
+    /// as are buffered; returns how many there were, fewer than `count` only if the input ends.
+    pub fn records(
+        &mut self,
+        stride: usize,
+        count: usize,
+        mut each: impl FnMut(&[u8]),
+    ) -> Result<usize, ReadError> {
+        let stride = stride.max(1);
+        let mut done = 0;
+        while done < count {
+            let buffered = self.peek(stride)?;
+            let whole = (buffered.len() / stride).min(count - done);
+            if whole == 0 {
+                break;
+            }
+            buffered
+                .chunks_exact(stride)
+                .take(whole)
+                .for_each(&mut each);
+            self.consume(whole * stride);
+            done += whole;
+        }
+        Ok(done)
+    }
+
+    /// The error for an input that ends inside `what`: the file is shorter than its header
+    /// says, or shrank after it was opened and its length checked.
+    pub fn ended(&self, what: &str) -> ReadError {
+        let (pos, len) = (self.pos(), self.len);
+        let what = format!("{what} runs past the end of the file at offset {pos} of {len}");
+        self.ctx.truncated(what)
+    }
+
     /// Consumes `n` bytes without looking at them; returns how many there were, fewer than
     /// `n` if the input ends first.
     pub fn skip(&mut self, n: u64) -> Result<u64, ReadError> {
@@ -264,6 +298,26 @@ mod tests {
         let line = input.next_line().unwrap().unwrap();
         assert_eq!((line.text.len(), line.terminated), (50_000, false));
         assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+    }
+
+    /// Records come whole, in order and however the reads cut them; a partial one at the end
+    /// is left, and counted out.
+    #[test]
+    fn records_in_any_reads() {
+        let bytes: Vec<u8> = (0..1003u32).map(|i| i as u8).collect();
+        for step in [1, 7, 5000] {
+            let mut source = Dribble(&bytes, step);
+            let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+            let mut seen = Vec::new();
+            assert_eq!(
+                input.records(10, 50, |r| seen.push(r.to_vec())).unwrap(),
+                50
+            );
+            let rest = input.records(10, usize::MAX, |r| seen.push(r.to_vec()));
+            assert_eq!(rest.unwrap(), 50, "step {step}");
+            assert_eq!(seen.concat(), bytes[..1000], "step {step}");
+            assert_eq!(input.remaining(), 3);
+        }
     }
 
     #[test]

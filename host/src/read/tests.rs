@@ -106,6 +106,54 @@ fn pipes_are_read_up_to_a_limit() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Reads `bytes` as a file that had `extra` more bytes when its length was taken, as if it
+/// shrank while being read.
+fn read_shrunk(name: &str, bytes: &[u8], extra: u64) -> Result<Cloud, ReadError> {
+    let mut source = bytes;
+    let mut input = Input::new(Ctx(name), &mut source, bytes.len() as u64 + extra);
+    match detect(&mut input)? {
+        Kind::Stream(read) => read(&mut input),
+        Kind::Las => las::read(Ctx(name), std::io::Cursor::new(bytes.to_vec()), 0),
+    }
+}
+
+/// Every reader of fixed-size records, and the LZF stream, says the same when the bytes stop
+/// before the length the file had when it was opened: where, and inside what.
+#[test]
+fn files_that_shrink_while_read() {
+    let kitti: Vec<u8> = (0..4000u32)
+        .flat_map(|i| (i as f32).to_le_bytes())
+        .collect();
+    for (name, bytes, inside) in [
+        ("b.pcd", pcd::tests::car6_as("binary", 4), "DATA binary"),
+        (
+            "c.pcd",
+            pcd::tests::car6_as("binary_compressed", 8),
+            "DATA binary_compressed",
+        ),
+        (
+            "b.ply",
+            ply::tests::bunny_binary(Endian::Little),
+            "element vertex instance",
+        ),
+        ("k.bin", kitti, "KITTI record"),
+    ] {
+        let kept = bytes.len() / 4;
+        let e = read_shrunk(name, &bytes[..kept], (bytes.len() - kept) as u64).unwrap_err();
+        assert!(matches!(e, ReadError::Truncated { .. }), "{e:?}");
+        let msg = e.to_string();
+        let want = format!("{name}: truncated: {inside}");
+        assert!(msg.starts_with(&want), "{msg}");
+        // The offset is that of the last whole record or chunk before the cut.
+        let end = format!(" of {}", bytes.len());
+        assert!(
+            msg.contains(" runs past the end of the file at offset "),
+            "{msg}"
+        );
+        assert!(msg.ends_with(&end), "{msg}");
+    }
+}
+
 #[test]
 fn empty_random_and_missing_files() {
     expect_err("empty.ply", b"", "Empty");

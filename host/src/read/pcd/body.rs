@@ -84,14 +84,6 @@ fn need(input: &Input, body: u64, what: &str, need: u128) -> Result<(), ReadErro
     Ok(())
 }
 
-/// The input ended before bytes its length promised: the file shrank while being read.
-fn ended(input: &Input, what: &str) -> ReadError {
-    let (pos, len) = (input.pos(), input.len());
-    input.ctx().truncated(format!(
-        "DATA {what} ends at offset {pos}, before the {len} bytes the file had when opened"
-    ))
-}
-
 #[inline]
 fn read_at(bytes: &[u8], at: usize, scalar: Scalar) -> f64 {
     // Callers pass offsets inside records they sized from the same fields; NaN is unreachable.
@@ -109,18 +101,10 @@ pub(super) fn binary(
     let stride = record_size(input.ctx(), fields, |_| true)?.max(1);
     need(input, input.pos(), "binary", slots as u128 * stride as u128)?;
     let mut points = Points::with_capacity(input.ctx(), slots)?;
-    let mut left = slots;
-    while left > 0 {
-        let records = input.peek(stride)?;
-        let whole = (records.len() / stride).min(left);
-        if whole == 0 {
-            return Err(ended(input, "binary"));
-        }
-        for record in records.chunks_exact(stride).take(whole) {
-            points.push(coords.map(|c| read_at(record, c.offset, c.scalar)));
-        }
-        input.consume(whole * stride);
-        left -= whole;
+    let point = |record: &[u8]| coords.map(|c| read_at(record, c.offset, c.scalar));
+    // Fewer only if the file shrank after its length was checked.
+    if input.records(stride, slots, |record| points.push(point(record)))? < slots {
+        return Err(input.ended("DATA binary"));
     }
     Ok(points)
 }
@@ -190,7 +174,7 @@ fn scatter<S: Slot>(
         let last = piece.len() == left;
         // `peek` returns at least a whole chunk unless the file ended.
         if !last && piece.len() < lzf::MAX_CHUNK {
-            return Err(ended(input, "binary_compressed"));
+            return Err(input.ended("DATA binary_compressed"));
         }
         let mut sink = |at: usize, bytes: &[u8]| columns.take(at, bytes);
         let used = decoder.feed(piece, last, &mut sink).map_err(lzf_error)?;

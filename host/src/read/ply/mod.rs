@@ -288,10 +288,7 @@ fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Poi
 
 /// The error for an instance that the end of the file cuts short.
 fn ends(input: &Input, el: &Element, index: usize) -> ReadError {
-    let (name, pos, len) = (&el.name, input.pos(), input.len());
-    input.ctx().truncated(format!(
-        "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
-    ))
+    input.ended(&format!("element {} instance {index}", el.name))
 }
 
 /// Vertices without lists: records of one size, taken as many at a time as are buffered.
@@ -313,23 +310,16 @@ fn fixed_vertices(
             Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
         };
     }
-    let mut done = 0;
-    while done < vertex.count {
-        let records = input.peek(stride)?;
-        let whole = (records.len() / stride.max(1)).min(vertex.count - done);
-        if whole == 0 {
-            return Err(ends(input, vertex, done));
-        }
-        for record in records.chunks_exact(stride.max(1)).take(whole) {
-            let value = |(offset, s): (usize, Scalar)| {
-                let v = record.get(offset..).and_then(|b| s.read(b, endian));
-                // Offsets inside a record sized from the same properties; NaN is unreachable.
-                v.unwrap_or(f64::NAN)
-            };
-            points.push(at.map(value));
-        }
-        input.consume(whole * stride);
-        done += whole;
+    let point = |record: &[u8]| {
+        at.map(|(offset, s): (usize, Scalar)| {
+            let v = record.get(offset..).and_then(|b| s.read(b, endian));
+            // Offsets inside a record sized from the same properties; NaN is unreachable.
+            v.unwrap_or(f64::NAN)
+        })
+    };
+    let done = input.records(stride, vertex.count, |record| points.push(point(record)))?;
+    if done < vertex.count {
+        return Err(ends(input, vertex, done));
     }
     Ok(())
 }
