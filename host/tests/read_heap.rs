@@ -6,7 +6,7 @@
 //! thread's allocations, so this binary runs one test and nothing else allocates meanwhile.
 
 use mema::heap::{self, Counting};
-use mema::read::read_cloud;
+use mema::read::{ReadError, read_cloud, read_cloud_bytes};
 use std::path::Path;
 
 #[global_allocator]
@@ -15,6 +15,10 @@ static HEAP: Counting = Counting;
 /// The stream's buffer and the LZF window are 32 KiB each; the header and the rest of the
 /// reader's bookkeeping take a few KiB.
 const FIXED: usize = 96 * 1024;
+
+/// The slot bytes a binary_compressed PCD reserves before its data backs them (`UPFRONT` in
+/// `read/pcd/body.rs`).
+const UPFRONT: usize = 16 << 20;
 
 #[test]
 fn reading_holds_the_cloud_once() {
@@ -39,7 +43,7 @@ fn reading_holds_the_cloud_once() {
         let file = std::fs::metadata(&path).expect(name).len() as usize;
         let before = heap::reset_peak();
         let cloud = read_cloud(&path).expect(name);
-        let peak = heap::peak() - before;
+        let peak = heap::peak().saturating_sub(before);
         let points = cloud.points.len() * size_of::<[f32; 3]>();
         let slots = cloud.slots * per_slot;
         eprintln!(
@@ -52,10 +56,61 @@ fn reading_holds_the_cloud_once() {
         );
         // What the pipeline goes on with is exactly the points: the NaN slots were handed back.
         assert_eq!(cloud.points.capacity(), cloud.points.len(), "{name}");
-        let after = heap::live() - before;
+        // Reading may free something allocated before it (a buffer the test harness grew), so
+        // the live bytes can end below where they started: that is none left, not a wrap.
+        let after = heap::live().saturating_sub(before);
         assert!(
             after <= points + 1024,
             "{name}: {after} heap bytes still live for {points} bytes of points"
         );
     }
+
+    // A header's claim is not an allocation: 4 million points of `TYPE I I I` (96 MB of f64
+    // slots) over compressed bytes that decode to 273 KB reserve `UPFRONT` bytes, no more.
+    let bogus = claim_beyond_its_data();
+    let before = heap::reset_peak();
+    let e = read_cloud_bytes("claim.pcd", &bogus).expect_err("the data ends early");
+    assert!(matches!(e, ReadError::BadValue { .. }), "{e:?}");
+    let peak = heap::peak().saturating_sub(before);
+    eprintln!(
+        "claim.pcd: heap peak {peak} bytes, file {} bytes",
+        bogus.len()
+    );
+    assert!(
+        peak <= UPFRONT + FIXED,
+        "claim.pcd: reading peaked at {peak} heap bytes for a {} byte file",
+        bogus.len()
+    );
+
+    // Nor is a header's length: a keyword given 100,000 times is kept once.
+    let header = "VIEWPOINT 0 0 0 1 0 0 0\n".repeat(100_000);
+    let pcd = format!("FIELDS x y z\n{header}WIDTH 1\nDATA ascii\n1 2 3\n");
+    let before = heap::reset_peak();
+    let cloud = read_cloud_bytes("long_header.pcd", pcd.as_bytes()).expect("one point");
+    assert_eq!(cloud.format, mema::read::Format::PcdAscii);
+    let peak = heap::peak().saturating_sub(before);
+    eprintln!(
+        "long_header.pcd: heap peak {peak} bytes, file {} bytes",
+        pcd.len()
+    );
+    assert!(
+        peak <= FIXED,
+        "long_header.pcd: reading peaked at {peak} heap bytes"
+    );
+}
+
+/// A binary_compressed PCD claiming 4 million points with the fewest compressed bytes LZF's
+/// 88× bound allows, all of them one-byte literal runs.
+fn claim_beyond_its_data() -> Vec<u8> {
+    let (points, record) = (4_000_000usize, 12);
+    let unpacked = points * record;
+    let packed = unpacked.div_ceil(88).next_multiple_of(2);
+    let header = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE I I I\nCOUNT 1 1 1\nWIDTH {points}\n\
+         HEIGHT 1\nPOINTS {points}\nDATA binary_compressed\n"
+    );
+    let sizes = [packed as u32, unpacked as u32]
+        .map(u32::to_le_bytes)
+        .concat();
+    [header.into_bytes(), sizes, vec![0; packed]].concat()
 }

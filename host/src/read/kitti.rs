@@ -22,28 +22,18 @@ pub fn read(input: &mut Input) -> Result<Cloud, ReadError> {
         )));
     }
     let records = usize::try_from(len / RECORD as u64).unwrap_or(usize::MAX);
-    let mut points = Points::with_capacity(records);
-    loop {
-        let buffered = input.peek(RECORD)?;
-        let whole = buffered.len() / RECORD;
-        if whole == 0 {
-            break;
+    let mut points = Points::with_capacity(ctx, records)?;
+    let point = |record: &[u8]| {
+        let mut xyz = [0.0f64; 3];
+        for (c, raw) in xyz.iter_mut().zip(record.chunks_exact(4)) {
+            let raw: [u8; 4] = raw.try_into().unwrap_or_default();
+            *c = f64::from(f32::from_le_bytes(raw));
         }
-        for record in buffered.chunks_exact(RECORD).take(whole) {
-            let mut xyz = [0.0f64; 3];
-            for (c, raw) in xyz.iter_mut().zip(record.chunks_exact(4)) {
-                let raw: [u8; 4] = raw.try_into().unwrap_or_default();
-                *c = f64::from(f32::from_le_bytes(raw));
-            }
-            points.push(xyz);
-        }
-        input.consume(whole * RECORD);
-    }
-    if input.pos() < len {
-        let at = input.pos();
-        return Err(ctx.truncated(format!(
-            "the scan ends at byte {at}, before the {len} bytes the file had when opened"
-        )));
+        xyz
+    };
+    // Fewer only if the file shrank after its length was checked.
+    if input.records(RECORD, records, |record| points.push(point(record)))? < records {
+        return Err(input.ended(&format!("KITTI record {}", input.pos() / RECORD as u64)));
     }
     points.finish(ctx, Format::KittiBin)
 }

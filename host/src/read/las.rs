@@ -42,7 +42,7 @@ where
         }
     }
     let capacity = usize::try_from(declared.min(len)).unwrap_or(0);
-    let mut points = Points::with_capacity(capacity);
+    let mut points = Points::with_capacity(ctx, capacity)?;
     let mut batch = las::PointDataBuilder::new()
         .for_header(reader.header())
         .build();

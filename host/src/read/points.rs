@@ -116,17 +116,31 @@ pub(crate) struct Points {
     dropped: usize,
 }
 
+/// Reserves room for exactly `n` more items: a refusal is an error naming what was wanted, not
+/// an abort, since `n` comes from a header (bounded by the file's bytes, but a large file may
+/// still declare more than the machine has).
+fn reserve<T>(ctx: Ctx, v: &mut Vec<T>, n: usize, what: &str) -> Result<(), ReadError> {
+    v.try_reserve_exact(n)
+        .map_err(|_| ctx.out_of_memory(format!("{n} {what} of {} bytes", size_of::<T>())))
+}
+
 impl Points {
-    /// `capacity` must already be bounded by what the file's bytes could hold.
-    pub fn with_capacity(capacity: usize) -> Self {
+    pub fn new() -> Self {
         Points {
-            narrow: Vec::with_capacity(capacity),
+            narrow: Vec::new(),
             wide: Vec::new(),
             lo: [f64::INFINITY; 3],
             hi: [f64::NEG_INFINITY; 3],
             slots: 0,
             dropped: 0,
         }
+    }
+
+    /// `capacity` must already be bounded by what the file's bytes could hold.
+    pub fn with_capacity(ctx: Ctx, capacity: usize) -> Result<Self, ReadError> {
+        let mut points = Points::new();
+        reserve(ctx, &mut points.narrow, capacity, "points")?;
+        Ok(points)
     }
 
     #[inline]
@@ -167,7 +181,7 @@ impl Points {
     /// finite ones are moved to the front of the same allocation, in slot order, exactly as
     /// pushing each slot would keep them. The coordinates must be exact f32 values.
     pub fn from_slots_narrow(mut slots: Vec<[f32; 3]>) -> Self {
-        let mut points = Points::with_capacity(0);
+        let mut points = Points::new();
         let kept = points.compact(&mut slots, |p| p.map(f64::from));
         slots.truncate(kept);
         points.narrow = slots;
@@ -176,7 +190,7 @@ impl Points {
 
     /// The same for coordinates that need f64.
     pub fn from_slots_wide(mut slots: Vec<Wide>) -> Self {
-        let mut points = Points::with_capacity(0);
+        let mut points = Points::new();
         let kept = points.compact(&mut slots, Wide::get);
         slots.truncate(kept);
         points.wide = slots;

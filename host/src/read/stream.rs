@@ -91,12 +91,15 @@ impl<'a> Input<'a> {
                 self.end -= self.start;
                 self.start = 0;
             }
-            if self.end == self.buf.len() {
-                let grown = self.buf.len().saturating_mul(2).max(want).max(64);
-                self.buf.resize(grown, 0);
-            }
             // The input is the `len` bytes the file had when opened, even if it grows.
             let left = self.len.saturating_sub(self.offset + self.end as u64);
+            if self.end == self.buf.len() {
+                // Doubling keeps a long line's reads few; the cap keeps the buffer within the
+                // file, since no byte past `left` will ever be read into it.
+                let most = usize::try_from(left).map_or(usize::MAX, |l| self.end.saturating_add(l));
+                let grown = self.buf.len().saturating_mul(2).max(want).max(64);
+                self.buf.resize(grown.min(most).max(self.end), 0);
+            }
             let room = self.buf.len() - self.end;
             let room = usize::try_from(left).map_or(room, |left| left.min(room));
             if room == 0 {
@@ -130,6 +133,40 @@ impl<'a> Input<'a> {
     /// Marks `n` bytes (at most those buffered) as read.
     pub fn consume(&mut self, n: usize) {
         self.start += n.min(self.end - self.start);
+    }
+
+    /// Hands up to `count` records of `stride` bytes to `each`, in order and as many at a time
+    /// as are buffered; returns how many there were, fewer than `count` only if the input ends.
+    pub fn records(
+        &mut self,
+        stride: usize,
+        count: usize,
+        mut each: impl FnMut(&[u8]),
+    ) -> Result<usize, ReadError> {
+        let stride = stride.max(1);
+        let mut done = 0;
+        while done < count {
+            let buffered = self.peek(stride)?;
+            let whole = (buffered.len() / stride).min(count - done);
+            if whole == 0 {
+                break;
+            }
+            buffered
+                .chunks_exact(stride)
+                .take(whole)
+                .for_each(&mut each);
+            self.consume(whole * stride);
+            done += whole;
+        }
+        Ok(done)
+    }
+
+    /// The error for an input that ends inside `what`: the file is shorter than its header
+    /// says, or shrank after it was opened and its length checked.
+    pub fn ended(&self, what: &str) -> ReadError {
+        let (pos, len) = (self.pos(), self.len);
+        let what = format!("{what} runs past the end of the file at offset {pos} of {len}");
+        self.ctx.truncated(what)
     }
 
     /// Consumes `n` bytes without looking at them; returns how many there were, fewer than
@@ -241,6 +278,45 @@ mod tests {
         assert_eq!(want[3], (4, b"last".to_vec(), false));
         for step in [1, 7, 4096] {
             assert_eq!(lines_of(text.as_bytes(), step), want, "step {step}");
+        }
+    }
+
+    /// Growing for a long peek or line stops at the bytes the input has left.
+    #[test]
+    fn the_buffer_never_outgrows_the_input() {
+        let bytes = vec![b'x'; 50_000];
+        let mut source = Dribble(&bytes, 999);
+        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        assert!(input.peek(40_000).unwrap().len() >= 40_000);
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+        assert_eq!(input.skip(45_000).unwrap(), 45_000);
+        assert_eq!(input.peek(1 << 20).unwrap().len(), 5_000);
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+        // A line as long as the input, read through a buffer that has to grow for it.
+        let mut source = Dribble(&bytes, 4096);
+        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let line = input.next_line().unwrap().unwrap();
+        assert_eq!((line.text.len(), line.terminated), (50_000, false));
+        assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
+    }
+
+    /// Records come whole, in order and however the reads cut them; a partial one at the end
+    /// is left, and counted out.
+    #[test]
+    fn records_in_any_reads() {
+        let bytes: Vec<u8> = (0..1003u32).map(|i| i as u8).collect();
+        for step in [1, 7, 5000] {
+            let mut source = Dribble(&bytes, step);
+            let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+            let mut seen = Vec::new();
+            assert_eq!(
+                input.records(10, 50, |r| seen.push(r.to_vec())).unwrap(),
+                50
+            );
+            let rest = input.records(10, usize::MAX, |r| seen.push(r.to_vec()));
+            assert_eq!(rest.unwrap(), 50, "step {step}");
+            assert_eq!(seen.concat(), bytes[..1000], "step {step}");
+            assert_eq!(input.remaining(), 3);
         }
     }
 

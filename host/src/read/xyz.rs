@@ -55,7 +55,7 @@ pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     if input.peek(bom.len())?.starts_with(bom) {
         input.consume(bom.len());
     }
-    let mut points = Points::with_capacity(0);
+    let mut points = Points::new();
     let mut started = false;
     while let Some(line) = input.next_line()? {
         let text = line.text.trim_ascii();

@@ -7,6 +7,14 @@
 //! window and hands each piece of output to [`Columns`], which writes x, y and z straight into
 //! one slot per point and ignores every other field. The slots are the points, NaN ones
 //! included, and are compacted in place at the end.
+//!
+//! The slot count comes from the header, and the only check before decoding is that the
+//! compressed bytes could expand to it (LZF's 88×): 49 MB may claim 358 million points. So the
+//! slots are made as the first coordinate column's values are decoded, past [`UPFRONT`] bytes
+//! reserved at the start, and every reservation is fallible: a claim costs memory only as far
+//! as the data backs it, and memory the machine refuses is an error, not an abort.
+
+use std::collections::TryReserveError;
 
 use super::super::points::Wide;
 use super::super::stream::{Input, Line};
@@ -27,7 +35,8 @@ pub(super) fn ascii(
     let values = values.ok_or_else(|| ctx.bad_header(At::Header, "too many values per point"))?;
     // Each value takes at least a character and a separator; `values` >= 3 (x, y, z).
     let room = input.remaining() / (values as u64).saturating_mul(2).max(1);
-    let mut points = Points::with_capacity(usize::try_from(room).map_or(slots, |r| r.min(slots)));
+    let capacity = usize::try_from(room).map_or(slots, |r| r.min(slots));
+    let mut points = Points::with_capacity(ctx, capacity)?;
     for done in 0..slots {
         let Some(line) = input.next_non_blank()? else {
             let what = format!("DATA ascii ends after {done} of {slots} points");
@@ -75,14 +84,6 @@ fn need(input: &Input, body: u64, what: &str, need: u128) -> Result<(), ReadErro
     Ok(())
 }
 
-/// The input ended before bytes its length promised: the file shrank while being read.
-fn ended(input: &Input, what: &str) -> ReadError {
-    let (pos, len) = (input.pos(), input.len());
-    input.ctx().truncated(format!(
-        "DATA {what} ends at offset {pos}, before the {len} bytes the file had when opened"
-    ))
-}
-
 #[inline]
 fn read_at(bytes: &[u8], at: usize, scalar: Scalar) -> f64 {
     // Callers pass offsets inside records they sized from the same fields; NaN is unreachable.
@@ -99,19 +100,11 @@ pub(super) fn binary(
     // `stride` >= 3: x, y and z each take at least a byte.
     let stride = record_size(input.ctx(), fields, |_| true)?.max(1);
     need(input, input.pos(), "binary", slots as u128 * stride as u128)?;
-    let mut points = Points::with_capacity(slots);
-    let mut left = slots;
-    while left > 0 {
-        let records = input.peek(stride)?;
-        let whole = (records.len() / stride).min(left);
-        if whole == 0 {
-            return Err(ended(input, "binary"));
-        }
-        for record in records.chunks_exact(stride).take(whole) {
-            points.push(coords.map(|c| read_at(record, c.offset, c.scalar)));
-        }
-        input.consume(whole * stride);
-        left -= whole;
+    let mut points = Points::with_capacity(input.ctx(), slots)?;
+    let point = |record: &[u8]| coords.map(|c| read_at(record, c.offset, c.scalar));
+    // Fewer only if the file shrank after its length was checked.
+    if input.records(stride, slots, |record| points.push(point(record)))? < slots {
+        return Err(input.ended("DATA binary"));
     }
     Ok(points)
 }
@@ -169,11 +162,11 @@ fn scatter<S: Slot>(
     let (ctx, stream) = (input.ctx(), input.pos());
     let lzf_error =
         |e: lzf::LzfError| ctx.bad_value(At::Offset(stream + e.at() as u64), e.to_string());
-    // Before the slots are allocated: `unpacked` (slots × record) must be within what `packed`
+    let oom = |_| ctx.out_of_memory(format!("{slots} point slots of {} bytes", size_of::<S>()));
+    // Before any slot is reserved: `unpacked` (slots × record) must be within what `packed`
     // bytes, which the file holds, can expand to.
     let mut decoder = lzf::Decoder::new(packed, unpacked).map_err(lzf_error)?;
-    let mut columns = Columns::<S>::new(coords, slots);
-    let mut sink = |at: usize, bytes: &[u8]| columns.take(at, bytes);
+    let mut columns = Columns::<S>::new(coords, slots, UPFRONT).map_err(oom)?;
     let mut left = packed;
     loop {
         let buffered = input.peek(lzf::MAX_CHUNK)?;
@@ -181,21 +174,36 @@ fn scatter<S: Slot>(
         let last = piece.len() == left;
         // `peek` returns at least a whole chunk unless the file ended.
         if !last && piece.len() < lzf::MAX_CHUNK {
-            return Err(ended(input, "binary_compressed"));
+            return Err(input.ended("DATA binary_compressed"));
         }
+        let mut sink = |at: usize, bytes: &[u8]| columns.take(at, bytes);
         let used = decoder.feed(piece, last, &mut sink).map_err(lzf_error)?;
+        columns.grown().map_err(oom)?;
         input.consume(used);
         left -= used;
         if last {
             break;
         }
     }
-    decoder.finish(&mut sink).map_err(lzf_error)?;
+    decoder
+        .finish(&mut |at: usize, bytes: &[u8]| columns.take(at, bytes))
+        .map_err(lzf_error)?;
+    columns.grown().map_err(oom)?;
+    // The decoder produced exactly `unpacked` bytes, so the first column reached every slot.
+    if columns.slots.len() != slots {
+        let what = format!("{} of {slots} point slots decoded", columns.slots.len());
+        return Err(ctx.bad_value(At::Offset(stream), what));
+    }
     Ok(columns.slots)
 }
 
+/// Bytes of slots reserved before any output is decoded. Common clouds fit (a 640 × 480 frame's
+/// slots take 3.7 MB as f32, 7.4 MB as f64), so theirs are one allocation of the exact size, as
+/// the heap test checks; a larger claim gets its slots only as the data arrives, by doubling.
+pub(super) const UPFRONT: usize = 16 << 20;
+
 /// A slot the coordinates are written into, one axis at a time.
-trait Slot: Copy + Default {
+pub(super) trait Slot: Copy + Default {
     fn set(&mut self, axis: usize, c: f64);
 }
 
@@ -225,31 +233,73 @@ struct Column {
 }
 
 /// Writes the x, y and z columns of the field-major output into one slot per point.
-struct Columns<S> {
+pub(super) struct Columns<S> {
     axes: [Column; 3],
-    slots: Vec<S>,
+    /// The slots the header declares; `slots` reaches this many with the first column's end.
+    n: usize,
+    pub(super) slots: Vec<S>,
+    /// A reservation the machine refused; `take` does nothing more once it is set.
+    refused: Option<TryReserveError>,
 }
 
 impl<S: Slot> Columns<S> {
-    fn new(coords: [Coord; 3], slots: usize) -> Self {
-        // A column starts at `column × slots`: inside the output, whose size was checked to be
-        // `slots × record`.
+    /// Columns for `n` slots, with room for as many of them as `upfront` bytes hold.
+    pub(super) fn new(
+        coords: [Coord; 3],
+        n: usize,
+        upfront: usize,
+    ) -> Result<Self, TryReserveError> {
+        // A column starts at `column × n`: inside the output, whose size was checked to be
+        // `n × record`.
         let axes = coords.map(|c| Column {
-            start: c.column.saturating_mul(slots),
+            start: c.column.saturating_mul(n),
             scalar: c.scalar,
             carry: [0; 8],
             held: 0,
         });
-        Columns {
+        let mut slots = Vec::new();
+        slots.try_reserve_exact(n.min(upfront / size_of::<S>().max(1)))?;
+        Ok(Columns {
             axes,
-            slots: vec![S::default(); slots],
+            n,
+            slots,
+            refused: None,
+        })
+    }
+
+    /// Whether every slot the output has reached so far could be made.
+    pub(super) fn grown(&mut self) -> Result<(), TryReserveError> {
+        self.refused.take().map_or(Ok(()), Err)
+    }
+
+    /// Makes `slots[..upto]` exist (`upto` at most `n`). Only the first column in the output
+    /// ever adds any: a later column starts where the earlier ones end, `n` values each.
+    fn grow(slots: &mut Vec<S>, n: usize, upto: usize) -> Result<(), TryReserveError> {
+        let (len, upto) = (slots.len(), upto.min(n));
+        if upto <= len {
+            return Ok(());
         }
+        if upto > slots.capacity() {
+            // Doubling keeps the copies few; the declared count bounds it.
+            let target = upto.max(len.saturating_mul(2)).min(n);
+            slots.try_reserve_exact(target - len)?;
+        }
+        slots.resize(upto, S::default());
+        Ok(())
     }
 
     /// Takes the output bytes at offset `at`: the parts of them that fall in a coordinate's
     /// column become that coordinate of their slots.
-    fn take(&mut self, at: usize, bytes: &[u8]) {
-        let n = self.slots.len();
+    pub(super) fn take(&mut self, at: usize, bytes: &[u8]) {
+        if self.refused.is_none()
+            && let Err(e) = self.try_take(at, bytes)
+        {
+            self.refused = Some(e);
+        }
+    }
+
+    fn try_take(&mut self, at: usize, bytes: &[u8]) -> Result<(), TryReserveError> {
+        let n = self.n;
         for (axis, col) in self.axes.iter_mut().enumerate() {
             let size = col.scalar.size();
             let end = col.start.saturating_add(n.saturating_mul(size));
@@ -260,6 +310,8 @@ impl<S: Slot> Columns<S> {
             if part.is_empty() {
                 continue;
             }
+            // The values this piece completes need their slots.
+            Self::grow(&mut self.slots, n, (hi - col.start) / size)?;
             // A value cut by the previous piece starts this one (the pieces arrive in order).
             let mut index = (lo - col.start) / size;
             if col.held > 0 {
@@ -298,5 +350,6 @@ impl<S: Slot> Columns<S> {
                 col.held = rest.len();
             }
         }
+        Ok(())
     }
 }

@@ -13,36 +13,84 @@ use super::stream::Input;
 use super::xyz::{parse_usize, quote, tokens};
 use super::{At, Cloud, Ctx, Format, Points, ReadError, Scalar};
 
+/// The keywords a PCD header may start with (after comments).
+const FIRST_KEYWORDS: [&[u8]; 3] = [b"VERSION", b"FIELDS", b"COLUMNS"];
+
 /// Whether the first line that is not a comment starts a PCD header; `None` if `head`, the
-/// start of the file, ends before such a line and `whole` says there is more of it.
+/// start of the file, ends inside a line that could still decide it and `whole` says there is
+/// more of the file.
 pub(super) fn has_header(head: &[u8], whole: bool) -> Option<bool> {
     let mut lines = head.split(|&b| b == b'\n').peekable();
     while let Some(line) = lines.next() {
-        // The last piece of a partial head may be the start of a longer line.
-        if lines.peek().is_none() && !whole {
-            return None;
-        }
+        // The last piece of a partial head may be the start of a longer line. Only a blank
+        // line or a comment (`# .PCD` may yet follow, or a header after it) is worth reading
+        // on for, and a first word that may still grow into a keyword: any other line
+        // decides now, so a file without newlines is not read whole to find its first line.
+        let cut = lines.peek().is_none() && !whole;
         let text = line.trim_ascii_start();
         if text.starts_with(b"# .PCD") {
             return Some(true);
         }
-        if !text.is_empty() && !text.starts_with(b"#") {
-            let keyword = tokens(text).next();
-            return Some(matches!(keyword, Some(b"VERSION" | b"FIELDS" | b"COLUMNS")));
+        if text.is_empty() || text.starts_with(b"#") {
+            if cut {
+                return None;
+            }
+            continue;
         }
+        let word = tokens(text).next().unwrap_or_default();
+        if cut && word.len() == text.len() && FIRST_KEYWORDS.iter().any(|k| k.starts_with(word)) {
+            return None;
+        }
+        return Some(FIRST_KEYWORDS.contains(&word));
     }
     Some(false)
 }
 
-/// A header line: its keyword, line number and values.
+/// The header keywords other than DATA. `COLUMNS`, the old name of `FIELDS`, shares its place,
+/// so that the later of the two is the one read, as with a keyword given twice.
+const KEYWORDS: [&[u8]; 9] = [
+    b"VERSION",
+    b"FIELDS",
+    b"SIZE",
+    b"TYPE",
+    b"COUNT",
+    b"WIDTH",
+    b"HEIGHT",
+    b"VIEWPOINT",
+    b"POINTS",
+];
+
+/// The longest header line kept (a keyword line; comments are skipped). A FIELDS line of
+/// [`MAX_FIELDS`] names of ten letters is 720 KB; real ones are under a hundred bytes.
+const MAX_LINE: usize = 1 << 20;
+
+/// The most fields a header may name. Real clouds have a few dozen at most (a descriptor is one
+/// field with a large COUNT); each takes some 60 bytes of bookkeeping.
+const MAX_FIELDS: usize = 1 << 16;
+
+/// How many field names an error message lists.
+const LISTED: usize = 8;
+
+/// A header line: its keyword as written, its number, and its text after the keyword, whose
+/// whitespace-separated tokens are the values. One allocation per line, whatever it holds.
 struct Entry {
-    key: Vec<u8>,
+    key: &'static str,
     line: usize,
-    values: Vec<Vec<u8>>,
+    text: Vec<u8>,
 }
 
-struct Field {
-    name: Vec<u8>,
+impl Entry {
+    fn values(&self) -> impl Iterator<Item = &[u8]> {
+        tokens(&self.text)
+    }
+}
+
+/// The last line given for each of [`KEYWORDS`].
+type Header = [Option<Entry>; KEYWORDS.len()];
+
+struct Field<'h> {
+    /// Borrowed from the FIELDS line.
+    name: &'h [u8],
     size: usize,
     ty: u8,
     count: usize,
@@ -61,9 +109,9 @@ struct Coord {
 }
 
 /// The header lines up to DATA, and the kind of data that follows.
-fn header_lines(input: &mut Input) -> Result<(Vec<Entry>, Format), ReadError> {
+fn header_lines(input: &mut Input) -> Result<(Header, Format), ReadError> {
     let (ctx, len) = (input.ctx(), input.len());
-    let mut header = Vec::new();
+    let mut header: Header = Default::default();
     loop {
         // A header line without its newline is a cut file, whatever the line says.
         let Some(line) = input.next_line()?.filter(|l| l.terminated) else {
@@ -82,15 +130,29 @@ fn header_lines(input: &mut Input) -> Result<(Vec<Entry>, Format), ReadError> {
                 Some(other) => return Err(ctx.unsupported(format!("DATA {}", quote(other)))),
                 None => return Err(ctx.bad_header(At::Line(line.number), "DATA without a kind")),
             },
-            Some(
-                key @ (b"VERSION" | b"FIELDS" | b"COLUMNS" | b"SIZE" | b"TYPE" | b"COUNT"
-                | b"WIDTH" | b"HEIGHT" | b"VIEWPOINT" | b"POINTS"),
-            ) => {
-                header.push(Entry {
-                    key: key.to_vec(),
+            Some(key) if let Some(at) = place(key) => {
+                // The keyword is the line's first token, so the values follow it.
+                let text = line.text.trim_ascii_start().get(key.len()..);
+                let text = text.unwrap_or_default();
+                if text.len() > MAX_LINE {
+                    let (n, bytes) = (line.number, text.len());
+                    return Err(ctx.too_large(format!(
+                        "PCD header line {n} is {bytes} bytes; header lines are read up to {MAX_LINE}"
+                    )));
+                }
+                let key = if key == b"COLUMNS" {
+                    "COLUMNS"
+                } else {
+                    name(at)
+                };
+                let entry = Entry {
+                    key,
                     line: line.number,
-                    values: toks.map(<[u8]>::to_vec).collect(),
-                });
+                    text: text.to_vec(),
+                };
+                if let Some(slot) = header.get_mut(at) {
+                    *slot = Some(entry);
+                }
                 continue;
             }
             Some(other) => {
@@ -102,38 +164,57 @@ fn header_lines(input: &mut Input) -> Result<(Vec<Entry>, Format), ReadError> {
     }
 }
 
+/// Where a keyword's line is kept in a [`Header`].
+fn place(key: &[u8]) -> Option<usize> {
+    let key = if key == b"COLUMNS" { b"FIELDS" } else { key };
+    KEYWORDS.iter().position(|k| *k == key)
+}
+
+/// The keyword kept at `at`, for messages.
+fn name(at: usize) -> &'static str {
+    let key = KEYWORDS.get(at).copied().unwrap_or_default();
+    std::str::from_utf8(key).unwrap_or_default()
+}
+
 pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     let ctx = input.ctx();
     let (header, format) = header_lines(input)?;
-    let find = |keys: &[&[u8]]| {
-        let wanted = |e: &&Entry| keys.contains(&e.key.as_slice());
-        header.iter().rev().find(wanted)
+    let find = |key: &[u8]| {
+        place(key)
+            .and_then(|at| header.get(at))
+            .and_then(Option::as_ref)
     };
-    let Some(names) = find(&[b"FIELDS", b"COLUMNS"]).filter(|e| !e.values.is_empty()) else {
+    let Some(names) = find(b"FIELDS").filter(|e| e.values().next().is_some()) else {
         return Err(ctx.bad_header(At::Header, "no FIELDS line naming the fields"));
     };
-    let n = names.values.len();
+    let n = names.values().count();
+    if n > MAX_FIELDS {
+        let (key, line) = (names.key, names.line);
+        return Err(ctx.too_large(format!(
+            "{key} on line {line} names {n} fields; at most {MAX_FIELDS} are read"
+        )));
+    }
     // Old headers without SIZE/TYPE/COUNT mean one 4-byte float per field, as in PCL.
-    let sizes = per_field(ctx, find(&[b"SIZE"]), n, 4, parse_usize)?;
-    let counts = per_field(ctx, find(&[b"COUNT"]), n, 1, parse_usize)?;
-    let types = per_field(ctx, find(&[b"TYPE"]), n, b'F', |t| match t {
+    let sizes = per_field(ctx, find(b"SIZE"), n, 4, parse_usize)?;
+    let counts = per_field(ctx, find(b"COUNT"), n, 1, parse_usize)?;
+    let types = per_field(ctx, find(b"TYPE"), n, b'F', |t| match t {
         [ty @ (b'F' | b'I' | b'U')] => Some(*ty),
         _ => None,
     })?;
-    let fields: Vec<Field> = (names.values.iter().zip(sizes).zip(types).zip(counts))
+    let fields: Vec<Field> = (names.values().zip(sizes).zip(types).zip(counts))
         .map(|(((name, size), ty), count)| Field {
-            name: name.clone(),
+            name,
             size,
             ty,
             count,
         })
         .collect();
-    let one = |key: &[u8]| match find(&[key]) {
+    let one = |key: &[u8]| match find(key) {
         None => Ok(None),
         Some(e) => e
-            .values
-            .first()
-            .and_then(|t| parse_usize(t))
+            .values()
+            .next()
+            .and_then(parse_usize)
             .map(Some)
             .ok_or_else(|| {
                 let what = format!("{} needs a count", quote(key));
@@ -144,7 +225,7 @@ pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
     let coords = [x?, y?, z?];
     let points = match format {
-        _ if slots == 0 => Points::with_capacity(0),
+        _ if slots == 0 => Points::new(),
         Format::PcdAscii => body::ascii(input, &fields, slots, coords)?,
         Format::PcdBinary => body::binary(input, &fields, slots, coords)?,
         _ => body::compressed(input, &fields, slots, coords)?,
@@ -163,14 +244,15 @@ fn per_field<T: Clone>(
     let Some(e) = entry else {
         return Ok(vec![default; n]);
     };
-    let (at, key) = (At::Line(e.line), String::from_utf8_lossy(&e.key));
-    if e.values.len() != n {
-        let what = format!("{key} has {} entries, FIELDS has {n}", e.values.len());
+    let (at, key) = (At::Line(e.line), e.key);
+    let given = e.values().count();
+    if given != n {
+        let what = format!("{key} has {given} entries, FIELDS has {n}");
         return Err(ctx.bad_header(at, what));
     }
     let what = |t: &[u8]| format!("{} is not a valid {key} entry", quote(t));
-    let value = |t: &Vec<u8>| parse(t).ok_or_else(|| ctx.bad_header(at, what(t)));
-    e.values.iter().map(value).collect()
+    let value = |t: &[u8]| parse(t).ok_or_else(|| ctx.bad_header(at, what(t)));
+    e.values().map(value).collect()
 }
 
 fn slots(
@@ -201,7 +283,7 @@ fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
     let overflow = || ctx.bad_header(At::Header, "the point size overflows");
     let (mut value, mut offset, mut column) = (0usize, 0usize, 0usize);
     for f in fields {
-        if f.name.as_slice() == axis.as_bytes() {
+        if f.name == axis.as_bytes() {
             let scalar = match (f.ty, f.size) {
                 (b'F', 4) => Scalar::F32,
                 (b'F', 8) => Scalar::F64,
@@ -235,12 +317,20 @@ fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
             column = column.checked_add(bytes).ok_or_else(overflow)?;
         }
     }
-    let names: Vec<_> = fields
-        .iter()
-        .map(|f| String::from_utf8_lossy(&f.name))
-        .collect();
+    // A few names say what the file has; thousands would make a message no one reads.
+    let mut names: Vec<String> = fields.iter().take(LISTED).map(|f| short(f.name)).collect();
+    if fields.len() > LISTED {
+        names.push(format!("... {} fields in all", fields.len()));
+    }
     let what = format!("no field {axis} (FIELDS {})", names.join(" "));
     Err(ctx.bad_header(At::Header, what))
+}
+
+/// A field name for a message: lossy, on one line, and cut short if long.
+fn short(name: &[u8]) -> String {
+    let quoted = quote(name);
+    let inner = quoted.strip_prefix('\'').and_then(|q| q.strip_suffix('\''));
+    inner.unwrap_or(&quoted).to_owned()
 }
 
 /// Sum of `size × count` over the fields `keep` selects, checked.

@@ -182,7 +182,7 @@ fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), Rea
 /// Reads `elements` (the last is the vertex) one line per instance.
 fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
     let ctx = input.ctx();
-    let mut points = Points::with_capacity(0);
+    let mut points = Points::new();
     for (i, el) in elements.iter().enumerate() {
         // An instance without properties has no text, and would otherwise loop `count` times.
         if el.props.is_empty() {
@@ -192,8 +192,8 @@ fn ascii(input: &mut Input, elements: &[Element]) -> Result<Points, ReadError> {
         if is_vertex {
             // Each value takes at least a character and a separator.
             let room = input.remaining() / (2 * el.props.len() as u64);
-            points =
-                Points::with_capacity(usize::try_from(room).map_or(el.count, |r| r.min(el.count)));
+            let capacity = usize::try_from(room).map_or(el.count, |r| r.min(el.count));
+            points = Points::with_capacity(ctx, capacity)?;
         }
         for done in 0..el.count {
             let Some(line) = input.next_non_blank()? else {
@@ -251,7 +251,7 @@ fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], Rea
 /// Reads `elements` (the last is the vertex) from the body.
 fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Points, ReadError> {
     let ctx = input.ctx();
-    let mut points = Points::with_capacity(0);
+    let mut points = Points::new();
     for (i, el) in elements.iter().enumerate() {
         // Checked up front so that an absurd count fails at once, naming the sizes involved.
         let need = el.count as u128 * el.min_stride() as u128;
@@ -264,7 +264,7 @@ fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Poi
         }
         let is_vertex = i + 1 == elements.len();
         if is_vertex {
-            points = Points::with_capacity(el.count);
+            points = Points::with_capacity(ctx, el.count)?;
         }
         if !el.has_lists() {
             if is_vertex {
@@ -288,10 +288,7 @@ fn binary(input: &mut Input, endian: Endian, elements: &[Element]) -> Result<Poi
 
 /// The error for an instance that the end of the file cuts short.
 fn ends(input: &Input, el: &Element, index: usize) -> ReadError {
-    let (name, pos, len) = (&el.name, input.pos(), input.len());
-    input.ctx().truncated(format!(
-        "element {name} instance {index} runs past the end of the file at offset {pos} of {len}"
-    ))
+    input.ended(&format!("element {} instance {index}", el.name))
 }
 
 /// Vertices without lists: records of one size, taken as many at a time as are buffered.
@@ -313,23 +310,16 @@ fn fixed_vertices(
             Kind::Scalar(s) | Kind::List { count: s, .. } => s.size(),
         };
     }
-    let mut done = 0;
-    while done < vertex.count {
-        let records = input.peek(stride)?;
-        let whole = (records.len() / stride.max(1)).min(vertex.count - done);
-        if whole == 0 {
-            return Err(ends(input, vertex, done));
-        }
-        for record in records.chunks_exact(stride.max(1)).take(whole) {
-            let value = |(offset, s): (usize, Scalar)| {
-                let v = record.get(offset..).and_then(|b| s.read(b, endian));
-                // Offsets inside a record sized from the same properties; NaN is unreachable.
-                v.unwrap_or(f64::NAN)
-            };
-            points.push(at.map(value));
-        }
-        input.consume(whole * stride);
-        done += whole;
+    let point = |record: &[u8]| {
+        at.map(|(offset, s): (usize, Scalar)| {
+            let v = record.get(offset..).and_then(|b| s.read(b, endian));
+            // Offsets inside a record sized from the same properties; NaN is unreachable.
+            v.unwrap_or(f64::NAN)
+        })
+    };
+    let done = input.records(stride, vertex.count, |record| points.push(point(record)))?;
+    if done < vertex.count {
+        return Err(ends(input, vertex, done));
     }
     Ok(())
 }
