@@ -15,6 +15,9 @@ use crate::map::MapEntity;
 use crate::moments::Moments;
 use crate::rng::stream_rng;
 
+mod pairs;
+use pairs::{ClosestPairs, MAX_MERGE_BATCH};
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StreamParams {
     pub fit: FitParams,
@@ -59,66 +62,6 @@ pub struct StreamMapper<const K: usize, const G: usize> {
     radius: f32,
     params: StreamParams,
     stats: StreamStats,
-}
-
-/// Most pairs merged per search for room: one search frees up to this many slots.
-const MAX_MERGE_BATCH: usize = 32;
-
-/// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
-/// is independent of visiting order.
-struct ClosestPairs {
-    pairs: [(f32, usize, usize); MAX_MERGE_BATCH],
-    len: usize,
-    wanted: usize,
-}
-
-impl ClosestPairs {
-    fn new(wanted: usize) -> Self {
-        Self {
-            pairs: [(0.0, 0, 0); MAX_MERGE_BATCH],
-            len: 0,
-            wanted: wanted.clamp(1, MAX_MERGE_BATCH),
-        }
-    }
-
-    fn offer(&mut self, a: usize, b: usize, d: f32) {
-        if a >= b {
-            return; // each pair once, as (low, high)
-        }
-        let item = (d, a, b);
-        let before = |x: &(f32, usize, usize), y: &(f32, usize, usize)| {
-            x.0 < y.0 || (x.0 == y.0 && (x.1, x.2) < (y.1, y.2))
-        };
-        if self.len == self.wanted
-            && self
-                .pairs
-                .get(self.len - 1)
-                .is_none_or(|worst| !before(&item, worst))
-        {
-            return;
-        }
-        // Into the last slot (appending, or replacing the worst), then bubbled into order.
-        let mut at = self.len.min(self.wanted - 1);
-        if let Some(slot) = self.pairs.get_mut(at) {
-            *slot = item;
-        }
-        while at > 0
-            && self
-                .pairs
-                .get(at - 1)
-                .is_some_and(|prev| before(&item, prev))
-        {
-            if let Some([prev, cur]) = self.pairs.get_mut(at - 1..=at) {
-                core::mem::swap(prev, cur);
-            }
-            at -= 1;
-        }
-        self.len = (self.len + 1).min(self.wanted);
-    }
-
-    fn as_slice(&self) -> &[(f32, usize, usize)] {
-        self.pairs.get(..self.len).unwrap_or(&[])
-    }
 }
 
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
@@ -441,99 +384,4 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn params(max_clusters: usize) -> StreamParams {
-        StreamParams {
-            fit: FitParams::default(),
-            seed: 0,
-            max_clusters,
-            refit_interval: 64,
-            tolerance: 0.0,
-        }
-    }
-
-    fn shells() -> [Point3; 2000] {
-        // Four separated ellipsoid shells, points interleaved as a sweeping scanner would not.
-        let mut pts = [Point3::default(); 2000];
-        for (i, p) in pts.iter_mut().enumerate() {
-            let shell = (i % 4) as f32;
-            let t = i as f32 * 0.618;
-            let u = i as f32 * 0.377;
-            *p = Point3::new(
-                10.0 * shell + 0.5 * libm::cosf(t) * libm::sinf(u),
-                0.3 * libm::sinf(t) * libm::sinf(u),
-                0.2 * libm::cosf(u),
-            );
-        }
-        pts
-    }
-
-    #[test]
-    fn fills_capacity_and_merges_exactly() {
-        let pts = shells();
-        let mut m = StreamMapper::<16, 64>::new(params(8));
-        m.add_all(&pts);
-        m.finish();
-        assert_eq!(m.clusters().len(), 8);
-        // Every point is in exactly one cluster: merged moments lose nothing.
-        let total: u64 = m.clusters().iter().map(|c| c.moments.count()).sum();
-        assert_eq!(total, 2000);
-        // Clusters never straddle two shells 10 apart: each centre sits on one shell.
-        for c in m.clusters() {
-            let x = c.center.x / 10.0;
-            assert!((x - libm::roundf(x)).abs() < 0.06, "{:?}", c.center);
-        }
-        assert!(m.stats().merges > 0 && m.radius() > 0.0);
-    }
-
-    #[test]
-    fn same_points_same_map_whatever_the_batching() {
-        let pts = shells();
-        let mut whole = StreamMapper::<16, 64>::new(params(12));
-        whole.add_all(&pts);
-        whole.finish();
-        let mut pieces = StreamMapper::<16, 64>::new(params(12));
-        for chunk in pts.chunks(7) {
-            pieces.add_all(chunk);
-        }
-        pieces.finish();
-        assert!(whole.entities().eq(pieces.entities()));
-    }
-
-    #[test]
-    fn tolerance_mode_lets_the_tolerance_choose_k() {
-        let pts = shells();
-        let run = |tolerance: f64| {
-            let mut m = StreamMapper::<256, 512>::new(StreamParams {
-                tolerance,
-                ..params(256)
-            });
-            m.add_all(&pts);
-            m.finish();
-            (m.clusters().len(), m.stats().forced_merges)
-        };
-        let (coarse, coarse_forced) = run(0.1);
-        let (fine, fine_forced) = run(0.03);
-        // Capacity to spare: nothing forced, and k well under it, larger for the tighter tolerance.
-        assert_eq!((coarse_forced, fine_forced), (0, 0));
-        assert!(
-            coarse < fine && fine < 256,
-            "k = {coarse} at 0.1, {fine} at 0.03"
-        );
-        // Four shells 10 apart never share a cluster, however loose the tolerance.
-        assert!(coarse >= 4);
-    }
-
-    #[test]
-    fn non_finite_points_are_counted_not_stored() {
-        let mut m = StreamMapper::<4, 8>::new(params(4));
-        m.add(Point3::new(f32::NAN, 0.0, 0.0));
-        m.add(Point3::new(1.0, f32::INFINITY, 0.0));
-        m.add(Point3::new(1.0, 2.0, 3.0));
-        assert_eq!(m.stats().non_finite, 2);
-        assert_eq!(m.stats().points, 1);
-        assert_eq!(m.clusters().len(), 1);
-    }
-}
+mod tests;

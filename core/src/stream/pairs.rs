@@ -1,0 +1,61 @@
+//! The cheapest merge candidates, kept in a fixed array so a search for room allocates nothing.
+
+/// Most pairs merged per search for room: one search frees up to this many slots.
+pub(super) const MAX_MERGE_BATCH: usize = 32;
+
+/// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
+/// is independent of visiting order.
+pub(super) struct ClosestPairs {
+    pairs: [(f32, usize, usize); MAX_MERGE_BATCH],
+    pub(super) len: usize,
+    wanted: usize,
+}
+
+impl ClosestPairs {
+    pub(super) fn new(wanted: usize) -> Self {
+        Self {
+            pairs: [(0.0, 0, 0); MAX_MERGE_BATCH],
+            len: 0,
+            wanted: wanted.clamp(1, MAX_MERGE_BATCH),
+        }
+    }
+
+    pub(super) fn offer(&mut self, a: usize, b: usize, d: f32) {
+        if a >= b {
+            return; // each pair once, as (low, high)
+        }
+        let item = (d, a, b);
+        let before = |x: &(f32, usize, usize), y: &(f32, usize, usize)| {
+            x.0 < y.0 || (x.0 == y.0 && (x.1, x.2) < (y.1, y.2))
+        };
+        if self.len == self.wanted
+            && self
+                .pairs
+                .get(self.len - 1)
+                .is_none_or(|worst| !before(&item, worst))
+        {
+            return;
+        }
+        // Into the last slot (appending, or replacing the worst), then bubbled into order.
+        let mut at = self.len.min(self.wanted - 1);
+        if let Some(slot) = self.pairs.get_mut(at) {
+            *slot = item;
+        }
+        while at > 0
+            && self
+                .pairs
+                .get(at - 1)
+                .is_some_and(|prev| before(&item, prev))
+        {
+            if let Some([prev, cur]) = self.pairs.get_mut(at - 1..=at) {
+                core::mem::swap(prev, cur);
+            }
+            at -= 1;
+        }
+        self.len = (self.len + 1).min(self.wanted);
+    }
+
+    pub(super) fn as_slice(&self) -> &[(f32, usize, usize)] {
+        self.pairs.get(..self.len).unwrap_or(&[])
+    }
+}

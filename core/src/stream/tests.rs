@@ -1,0 +1,94 @@
+use super::*;
+
+fn params(max_clusters: usize) -> StreamParams {
+    StreamParams {
+        fit: FitParams::default(),
+        seed: 0,
+        max_clusters,
+        refit_interval: 64,
+        tolerance: 0.0,
+    }
+}
+
+fn shells() -> [Point3; 2000] {
+    // Four separated ellipsoid shells, points interleaved as a sweeping scanner would not.
+    let mut pts = [Point3::default(); 2000];
+    for (i, p) in pts.iter_mut().enumerate() {
+        let shell = (i % 4) as f32;
+        let t = i as f32 * 0.618;
+        let u = i as f32 * 0.377;
+        *p = Point3::new(
+            10.0 * shell + 0.5 * libm::cosf(t) * libm::sinf(u),
+            0.3 * libm::sinf(t) * libm::sinf(u),
+            0.2 * libm::cosf(u),
+        );
+    }
+    pts
+}
+
+#[test]
+fn fills_capacity_and_merges_exactly() {
+    let pts = shells();
+    let mut m = StreamMapper::<16, 64>::new(params(8));
+    m.add_all(&pts);
+    m.finish();
+    assert_eq!(m.clusters().len(), 8);
+    // Every point is in exactly one cluster: merged moments lose nothing.
+    let total: u64 = m.clusters().iter().map(|c| c.moments.count()).sum();
+    assert_eq!(total, 2000);
+    // Clusters never straddle two shells 10 apart: each centre sits on one shell.
+    for c in m.clusters() {
+        let x = c.center.x / 10.0;
+        assert!((x - libm::roundf(x)).abs() < 0.06, "{:?}", c.center);
+    }
+    assert!(m.stats().merges > 0 && m.radius() > 0.0);
+}
+
+#[test]
+fn same_points_same_map_whatever_the_batching() {
+    let pts = shells();
+    let mut whole = StreamMapper::<16, 64>::new(params(12));
+    whole.add_all(&pts);
+    whole.finish();
+    let mut pieces = StreamMapper::<16, 64>::new(params(12));
+    for chunk in pts.chunks(7) {
+        pieces.add_all(chunk);
+    }
+    pieces.finish();
+    assert!(whole.entities().eq(pieces.entities()));
+}
+
+#[test]
+fn tolerance_mode_lets_the_tolerance_choose_k() {
+    let pts = shells();
+    let run = |tolerance: f64| {
+        let mut m = StreamMapper::<256, 512>::new(StreamParams {
+            tolerance,
+            ..params(256)
+        });
+        m.add_all(&pts);
+        m.finish();
+        (m.clusters().len(), m.stats().forced_merges)
+    };
+    let (coarse, coarse_forced) = run(0.1);
+    let (fine, fine_forced) = run(0.03);
+    // Capacity to spare: nothing forced, and k well under it, larger for the tighter tolerance.
+    assert_eq!((coarse_forced, fine_forced), (0, 0));
+    assert!(
+        coarse < fine && fine < 256,
+        "k = {coarse} at 0.1, {fine} at 0.03"
+    );
+    // Four shells 10 apart never share a cluster, however loose the tolerance.
+    assert!(coarse >= 4);
+}
+
+#[test]
+fn non_finite_points_are_counted_not_stored() {
+    let mut m = StreamMapper::<4, 8>::new(params(4));
+    m.add(Point3::new(f32::NAN, 0.0, 0.0));
+    m.add(Point3::new(1.0, f32::INFINITY, 0.0));
+    m.add(Point3::new(1.0, 2.0, 3.0));
+    assert_eq!(m.stats().non_finite, 2);
+    assert_eq!(m.stats().points, 1);
+    assert_eq!(m.clusters().len(), 1);
+}
