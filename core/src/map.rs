@@ -130,13 +130,37 @@ pub fn encode(
     entities: &[MapEntity],
     out: &mut [u8],
 ) -> Result<usize, EncodeError> {
-    let count = u32::try_from(entities.len()).map_err(|_| EncodeError::TooManyEntities)?;
     let needed = encoded_len(entities.len());
     let got = out.len();
-    let Some(out) = out.get_mut(..needed) else {
+    let Some(mut out) = out.get_mut(..needed) else {
         return Err(EncodeError::BufferTooSmall { needed, got });
     };
-    let (header, rest) = out.split_at_mut(HEADER_LEN);
+    encode_pieces(origin, entities.iter().copied(), |piece| {
+        // `out` holds exactly the pieces' total, checked above.
+        let rest = core::mem::take(&mut out);
+        let n = piece.len().min(rest.len());
+        let (head, tail) = rest.split_at_mut(n);
+        if let Some(piece) = piece.get(..n) {
+            head.copy_from_slice(piece);
+        }
+        out = tail;
+    })
+}
+
+/// Writes the `.mema` encoding piece by piece (header, each entity, CRC) into `sink`, returning
+/// the bytes written: the bytes of [`encode`], for a device that has no room for the whole map
+/// (400 entities are 10 KB) and sends it out as it goes.
+pub fn encode_pieces<I>(
+    origin: [f64; 3],
+    entities: I,
+    mut sink: impl FnMut(&[u8]),
+) -> Result<usize, EncodeError>
+where
+    I: Iterator<Item = MapEntity> + Clone,
+{
+    let len = entities.clone().count();
+    let count = u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?;
+    let mut header = [0u8; HEADER_LEN];
     header[field::MAGIC].copy_from_slice(&MAGIC);
     header[field::VERSION].copy_from_slice(&VERSION.to_le_bytes());
     header[field::FLAGS].copy_from_slice(&0u16.to_le_bytes());
@@ -144,8 +168,11 @@ pub fn encode(
         chunk.copy_from_slice(&v.to_le_bytes());
     }
     header[field::COUNT].copy_from_slice(&count.to_le_bytes());
-    let (body, crc_bytes) = rest.split_at_mut(ENTITY_LEN * entities.len());
-    for (record, e) in body.chunks_exact_mut(ENTITY_LEN).zip(entities.iter()) {
+    let mut crc = Crc32::new();
+    crc.update(&header);
+    sink(&header);
+    for e in entities.take(len) {
+        let mut record = [0u8; ENTITY_LEN];
         let c = e.entity.center.to_array();
         let values = [
             c[0],
@@ -161,12 +188,11 @@ pub fn encode(
         if let Some(kind) = record.last_mut() {
             *kind = e.kind as u8;
         }
+        crc.update(&record);
+        sink(&record);
     }
-    let mut crc = Crc32::new();
-    crc.update(header);
-    crc.update(body);
-    crc_bytes.copy_from_slice(&crc.finish().to_le_bytes());
-    Ok(needed)
+    sink(&crc.finish().to_le_bytes());
+    Ok(encoded_len(len))
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

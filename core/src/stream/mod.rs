@@ -7,6 +7,9 @@
 //! Semi-axes are refitted by DE under a per-point budget (one cluster every `refit_interval`
 //! points), scheduled by points ingested and never by time: the same points give the same map
 //! whatever the chunking or timing. [`StreamMapper::finish`] refits every cluster.
+//!
+//! With room for frozen entities (`F > 0`, `max_frozen > 0`), making room first tries to freeze
+//! instead of merging; see [`freeze`].
 
 use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
 use crate::geometry::{Entity, Point3};
@@ -15,6 +18,7 @@ use crate::map::MapEntity;
 use crate::moments::Moments;
 use crate::rng::stream_rng;
 
+pub mod freeze;
 mod pairs;
 use pairs::{ClosestPairs, MAX_MERGE_BATCH};
 
@@ -22,8 +26,12 @@ use pairs::{ClosestPairs, MAX_MERGE_BATCH};
 pub struct StreamParams {
     pub fit: FitParams,
     pub seed: u64,
-    /// At most this many clusters (<= K); lets a host pick k at run time under a fixed K.
+    /// At most this many clusters in working memory (<= K); lets a host pick k at run time
+    /// under a fixed K.
     pub max_clusters: usize,
+    /// At most this many clusters frozen out of working memory into fitted entities (<= F);
+    /// the map then holds up to `max_clusters + max_frozen` entities. 0: none are frozen.
+    pub max_frozen: usize,
     /// Refit one cluster every this many points (0: only at `finish`).
     pub refit_interval: u32,
     /// Tolerance mode when > 0: merges must keep the merged cluster's estimated eq. 13 error
@@ -40,6 +48,8 @@ pub struct StreamCluster {
     pub entity: Entity,
     /// Points added since the last fit; `u32::MAX` when never fitted.
     pub stale: u32,
+    /// The stream's point count (mod 2^32) when the cluster last received a point.
+    pub last_point: u32,
 }
 
 /// Counters a caller reports.
@@ -52,12 +62,16 @@ pub struct StreamStats {
     pub grid_rebuilds: u64,
     /// Tolerance mode: merges forced by the capacity although over the tolerance.
     pub forced_merges: u64,
+    /// Clusters frozen into fitted entities.
+    pub frozen: u64,
 }
 
-/// The streaming mapper with capacity `K` and a `G`-bucket spatial hash over the centres.
+/// The streaming mapper with capacity `K`, a `G`-bucket spatial hash over the centres, and room
+/// for `F` frozen entities.
 #[derive(Clone, Debug)]
-pub struct StreamMapper<const K: usize, const G: usize> {
+pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     clusters: heapless::Vec<StreamCluster, K>,
+    frozen: heapless::Vec<Entity, F>,
     grid: CentreGrid<K, G>,
     radius: f32,
     params: StreamParams,
@@ -76,11 +90,12 @@ fn center_of(m: &Moments) -> Point3 {
     Point3::new(c[0] as f32, c[1] as f32, c[2] as f32)
 }
 
-impl<const K: usize, const G: usize> StreamMapper<K, G> {
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// A `const fn`, so firmware can place the mapper in a `static`.
     pub const fn new(params: StreamParams) -> Self {
         Self {
             clusters: heapless::Vec::new(),
+            frozen: heapless::Vec::new(),
             grid: CentreGrid::new(f32::MIN_POSITIVE),
             radius: 0.0,
             params,
@@ -91,6 +106,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
                 refits: 0,
                 grid_rebuilds: 0,
                 forced_merges: 0,
+                frozen: 0,
             },
         }
     }
@@ -122,7 +138,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         match self.nearest_within_radius(p) {
             Some(i) => self.grow(i, p),
             None => {
-                if self.clusters.len() >= self.limit() {
+                if self.clusters.len() >= self.limit() && !self.freeze_one() {
                     self.merge_closest_pairs();
                 }
                 self.open(p);
@@ -163,6 +179,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
             c.moments.add(p);
             c.center = center_of(&c.moments);
             c.stale = c.stale.saturating_add(1);
+            c.last_point = self.stats.points as u32;
             let center = c.center;
             self.grid.update(i, center);
         }
@@ -176,6 +193,7 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
             center: p,
             entity: Entity::sphere(p, 0.0),
             stale: u32::MAX,
+            last_point: self.stats.points as u32,
         };
         let index = self.clusters.len();
         if self.clusters.push(cluster).is_ok() {
@@ -250,10 +268,16 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
                 continue;
             };
             let (moments, d2) = (cb.moments, ca.center.distance_squared(cb.center));
+            let last_point = if self.idle(cb) < self.idle(ca) {
+                cb.last_point
+            } else {
+                ca.last_point
+            };
             if let Some(ca) = self.clusters.get_mut(a) {
                 ca.moments.merge(&moments);
                 ca.center = center_of(&ca.moments);
                 ca.stale = u32::MAX;
+                ca.last_point = last_point;
             }
             if let (Some(slot), Some(pair)) = (
                 absorbed.get_mut(count),
@@ -353,13 +377,24 @@ impl<const K: usize, const G: usize> StreamMapper<K, G> {
         }
     }
 
-    /// The entities as they stand (call [`StreamMapper::refit_stale`] first for a snapshot).
+    /// The entities as they stand, frozen ones first (call [`StreamMapper::refit_stale`] first
+    /// for a snapshot).
     pub fn entities(&self) -> impl Iterator<Item = MapEntity> + '_ {
         let tolerance = self.params.fit.degeneration.sphere_tolerance;
-        self.clusters.iter().map(move |c| MapEntity {
-            entity: c.entity,
-            kind: c.entity.kind(tolerance),
-        })
+        let working = self.clusters.iter().map(|c| c.entity);
+        self.frozen
+            .iter()
+            .copied()
+            .chain(working)
+            .map(move |entity| MapEntity {
+                entity,
+                kind: entity.kind(tolerance),
+            })
+    }
+
+    /// Entities frozen out of working memory so far.
+    pub fn frozen(&self) -> &[Entity] {
+        &self.frozen
     }
 
     /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on

@@ -5,6 +5,7 @@ fn params(max_clusters: usize) -> StreamParams {
         fit: FitParams::default(),
         seed: 0,
         max_clusters,
+        max_frozen: 0,
         refit_interval: 64,
         tolerance: 0.0,
     }
@@ -91,4 +92,82 @@ fn non_finite_points_are_counted_not_stored() {
     assert_eq!(m.stats().non_finite, 2);
     assert_eq!(m.stats().points, 1);
     assert_eq!(m.clusters().len(), 1);
+}
+
+/// The shells' points one shell after another, as a scanner sweeping along x would send them.
+fn swept_shells() -> [Point3; 2000] {
+    let mut pts = shells();
+    // Stable: each shell keeps its own order; x (10 * shell) decides between shells.
+    crate::num::insertion_sort_by(&mut pts, |a, b| {
+        libm::roundf(a.x / 10.0) < libm::roundf(b.x / 10.0)
+    });
+    pts
+}
+
+fn frozen_params(working: usize, frozen: usize) -> StreamParams {
+    StreamParams {
+        max_frozen: frozen,
+        ..params(working)
+    }
+}
+
+#[test]
+fn a_sweep_freezes_the_clusters_it_leaves_behind() {
+    let pts = swept_shells();
+    let mut m = StreamMapper::<6, 64, 12>::new(frozen_params(6, 12));
+    m.add_all(&pts);
+    m.finish();
+    let frozen = m.frozen();
+    assert!(!frozen.is_empty(), "nothing frozen on a sweep");
+    assert_eq!(m.stats().frozen, frozen.len() as u64);
+    assert!(m.entities().count() <= 6 + 12);
+    // Frozen clusters are whole fits of one shell each, and of the shells the sweep has left.
+    for e in frozen {
+        let x = e.center.x / 10.0;
+        assert!((x - libm::roundf(x)).abs() < 0.06, "{:?}", e.center);
+        assert!(
+            libm::roundf(x) < 3.0,
+            "the last shell is still under the sweep: {:?}",
+            e.center
+        );
+        assert!(e.weights.iter().all(|w| w.is_finite() && *w >= 0.0));
+    }
+    // The entities come frozen first, then the working clusters.
+    assert!(m.entities().zip(frozen).all(|(a, b)| a.entity == *b));
+}
+
+#[test]
+fn clusters_the_stream_keeps_visiting_are_never_frozen() {
+    // Interleaved shells: every cluster gets points every few dozen, never idle for 8 turnovers.
+    let mut m = StreamMapper::<6, 64, 12>::new(frozen_params(6, 12));
+    m.add_all(&shells());
+    m.finish();
+    assert!(m.frozen().is_empty(), "{} frozen", m.frozen().len());
+}
+
+#[test]
+fn no_room_to_freeze_is_the_plain_mapper_bit_for_bit() {
+    let pts = swept_shells();
+    let mut plain = StreamMapper::<8, 64>::new(params(8));
+    let mut roomy = StreamMapper::<8, 64, 12>::new(frozen_params(8, 0));
+    plain.add_all(&pts);
+    roomy.add_all(&pts);
+    plain.finish();
+    roomy.finish();
+    assert!(plain.entities().eq(roomy.entities()));
+}
+
+#[test]
+fn freezing_gives_the_same_map_whatever_the_batching() {
+    let pts = swept_shells();
+    let mut whole = StreamMapper::<6, 64, 12>::new(frozen_params(6, 12));
+    whole.add_all(&pts);
+    whole.finish();
+    let mut pieces = StreamMapper::<6, 64, 12>::new(frozen_params(6, 12));
+    for chunk in pts.chunks(13) {
+        pieces.add_all(chunk);
+    }
+    pieces.finish();
+    assert!(!whole.frozen().is_empty());
+    assert!(whole.entities().eq(pieces.entities()));
 }

@@ -1,0 +1,77 @@
+//! Freezing: a cluster the scan has left behind is fitted once and kept as its 24-byte entity,
+//! and its slot in working memory is reused.
+//!
+//! Why: a cluster's moments are 24 f64 sums (the agreement with direct sums needs all 53 bits;
+//! `mema-firmware-sim reference --sum-bits`), so a working cluster costs 280 bytes and 400 of
+//! them do not fit a 64 KiB part. A scanner sweeps: once it has moved on, a cluster receives no
+//! more points, and merging it later (what a full working set otherwise does) only coarsens the
+//! map. Freezing keeps it at the resolution it was built at. The cost is that a frozen cluster
+//! can no longer grow or merge: points that later return to its region open new clusters, which
+//! is why a cluster is frozen only after a long idle spell, and why clouds whose point order is
+//! not a sweep map worse this way (README, "Streaming").
+
+use super::StreamMapper;
+use crate::fit::fit_ellipsoid_paper;
+use crate::rng::stream_rng;
+
+/// A cluster is idle enough to freeze when no point has joined it for this many turnovers of
+/// the working set (`max_clusters` points each): a cluster still under the scanner's sweep gets
+/// a share of every turnover, one behind it gets none.
+pub const IDLE_TURNOVERS: u64 = 8;
+
+/// Random streams of frozen fits: disjoint from `finish`'s (the working index) and from the
+/// periodic refits (index in the high 32 bits), so no two fits share a stream.
+const FROZEN_STREAMS: u64 = 1 << 63;
+
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Points since `cluster` last grew.
+    pub(super) fn idle(&self, cluster: &super::StreamCluster) -> u32 {
+        (self.stats.points as u32).wrapping_sub(cluster.last_point)
+    }
+
+    /// Frees a working slot by freezing the longest-idle cluster, if there is room for another
+    /// frozen entity and that cluster has been idle for [`IDLE_TURNOVERS`] turnovers. Returns
+    /// whether a slot was freed; otherwise the caller merges.
+    pub(super) fn freeze_one(&mut self) -> bool {
+        if self.frozen.len() >= self.params.max_frozen.min(F) || self.params.tolerance > 0.0 {
+            return false;
+        }
+        let mut pick: Option<(usize, u32)> = None;
+        for (i, c) in self.clusters.iter().enumerate() {
+            let idle = self.idle(c);
+            // Ties: the lowest index, so the choice does not depend on anything but the points.
+            if pick.is_none_or(|(_, best)| idle > best) {
+                pick = Some((i, idle));
+            }
+        }
+        let Some((i, idle)) = pick else {
+            return false;
+        };
+        if u64::from(idle) < IDLE_TURNOVERS * self.limit() as u64 {
+            return false;
+        }
+        let stream = FROZEN_STREAMS | self.frozen.len() as u64;
+        let fit = self.clusters.get(i).and_then(|c| {
+            let central = c.moments.central()?;
+            let fit = fit_ellipsoid_paper(
+                &central,
+                &self.params.fit,
+                &mut stream_rng(self.params.seed, stream),
+            );
+            Some(fit.entity)
+        });
+        let Some(entity) = fit else {
+            return false;
+        };
+        if i >= self.clusters.len() || self.frozen.push(entity).is_err() {
+            return false;
+        }
+        self.clusters.swap_remove(i);
+        self.stats.frozen += 1;
+        // The last cluster took slot `i`: refile the centres under their new indices.
+        let cell = self.grid.cell();
+        self.grid
+            .rebuild(cell, self.clusters.iter().map(|c| c.center));
+        true
+    }
+}
