@@ -22,6 +22,8 @@ RUSTFLAGS="-C target-cpu=native" cargo build -q --release "${minimal[@]}" --targ
 (cd firmware-sim/image && cargo fmt --check && cargo clippy -q --release --target-dir target -- -D warnings && cargo build -q --release --target-dir target)
 image=firmware-sim/image/target/thumbv7em-none-eabihf/release/mema-firmware-image
 
+# The image's layout: K = 400 ellipsoids, 150 of them in working memory (IMAGE_WORKING/FROZEN).
+shape=(-k 400 --working 150)
 status=0
 for cloud in car6.pcd demo; do
   dir="$work/$cloud"
@@ -31,11 +33,11 @@ for cloud in car6.pcd demo; do
   else
     target/release/mema scanner-sim --port "$dir/capture.bin" "../shared/data/$cloud" 2>/dev/null
   fi
-  target/release/mema replay "$dir/capture.bin" -k 150 -o "$dir/replay.mema" >/dev/null 2>&1
-  target/release/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/release.mema" 2>/dev/null
-  target/fw-debug/debug/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/debug.mema" \
+  target/release/mema replay "$dir/capture.bin" "${shape[@]}" -o "$dir/replay.mema" >/dev/null 2>&1
+  target/release/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/release.mema" 2>/dev/null
+  target/fw-debug/debug/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/debug.mema" \
     --chunk-seed 7 --max-chunk 13 2>/dev/null
-  target/fw-native/release/mema-firmware-sim run "$dir/capture.bin" -k 150 -o "$dir/native.mema" \
+  target/fw-native/release/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/native.mema" \
     --chunk-seed 3 --max-chunk 1000 2>/dev/null
   (cd "$dir" && timeout 600 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
     -monitor none -serial none -semihosting-config enable=on,target=native -icount shift=0 \
@@ -51,6 +53,6 @@ for cloud in car6.pcd demo; do
     fi
   done
 done
-echo "== firmware budget (image mapping car6, K = 150)"
+echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen)"
 target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/qemu.txt"
 exit $status

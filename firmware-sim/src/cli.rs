@@ -17,8 +17,11 @@ pub const SIM_G: usize = 2048;
 
 /// The firmware's state and its snapshot, in statics as on the device. The mutex is the board's
 /// ownership check: a second owner gets `WouldBlock`, never a second reference.
-static FIRMWARE: Mutex<Firmware<SIM_K, SIM_G>> = Mutex::new(Firmware::new(stream_params(0, 150)));
-static SNAPSHOT: Mutex<Snapshot<SIM_K, SIM_G>> = Mutex::new(Snapshot::new(stream_params(0, 150)));
+/// Frozen entities share the capacity: `-k` counts working and frozen together.
+static FIRMWARE: Mutex<Firmware<SIM_K, SIM_G, SIM_K>> =
+    Mutex::new(Firmware::new(stream_params(0, 150, 0)));
+static SNAPSHOT: Mutex<Snapshot<SIM_K, SIM_G, SIM_K>> =
+    Mutex::new(Snapshot::new(stream_params(0, 150, 0)));
 
 /// What can go wrong, by kind: usage (exit 2) or a failed run or check (exit 1).
 #[derive(Debug)]
@@ -188,6 +191,7 @@ fn crate_reference(args: &Args) -> Result<(), CliError> {
 fn run_command(args: &Args) -> Result<(), CliError> {
     args.only(&[
         "-k",
+        "--working",
         "--seed",
         "-o",
         "--output",
@@ -210,6 +214,10 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         return Err(usage(format!(
             "-k {k}: must be 1..={SIM_K}, the simulator's capacity"
         )));
+    }
+    let working: usize = args.number(&["--working"], k)?;
+    if working == 0 || working > k {
+        return Err(usage(format!("--working {working}: must be 1..=k ({k})")));
     }
     let seed: u64 = args.number(&["--seed"], 0)?;
     let faults = FaultConfig {
@@ -238,8 +246,8 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         stack_bytes: 64 * 1024,
     });
     board
-        .declare::<Firmware<SIM_K, SIM_G>>("FIRMWARE")
-        .and_then(|()| board.declare::<Snapshot<SIM_K, SIM_G>>("SNAPSHOT"))
+        .declare::<Firmware<SIM_K, SIM_G, SIM_K>>("FIRMWARE")
+        .and_then(|()| board.declare::<Snapshot<SIM_K, SIM_G, SIM_K>>("SNAPSHOT"))
         .map_err(|e| failed(format!("board: {e}")))?;
     let mut firmware = FIRMWARE
         .try_lock()
@@ -248,8 +256,8 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         .try_lock()
         .map_err(|_| failed("SNAPSHOT already has an owner"))?;
     // Power-on: the statics take this run's seed and k (their initialiser had the defaults).
-    *firmware = Firmware::new(stream_params(seed, k));
-    *snapshot = Snapshot::new(stream_params(seed, k));
+    *firmware = Firmware::new(stream_params(seed, working, k - working));
+    *snapshot = Snapshot::new(stream_params(seed, working, k - working));
 
     let report = run(&board, &mut firmware, &mut snapshot, &bytes, &config)
         .map_err(|e| failed(e.to_string()))?;

@@ -178,6 +178,7 @@ pub fn compare_points(name: &str, points: &[Point3], setup: &Setup) -> CloudComp
         fit: params,
         seed,
         max_clusters: k.min(1024),
+        max_frozen: 0,
         refit_interval: 0,
         tolerance: 0.0,
     }));

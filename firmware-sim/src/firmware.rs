@@ -21,19 +21,24 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::{EncodeError, MapEntity, encode};
+use mema_core::map::{EncodeError, encode_pieces, encoded_len};
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::wire::{Decoded, Decoder, DecoderStats, MAX_FRAME_LEN};
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next lands.
 pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 
+/// The image's layout: K = 400 ellipsoids as 150 working clusters and 250 frozen entities, the
+/// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
+pub const IMAGE_WORKING: usize = 150;
+pub const IMAGE_FROZEN: usize = 250;
+
 /// One cluster refit per this many points: the host's `REFIT_INTERVAL`, so both map alike.
 pub const REFIT_INTERVAL: u32 = 1024;
 
 /// The host's default parameters as a constant expression, so a `static` can be initialised with
 /// them (`FitParams::default()` is not `const`). A test checks they equal the host's defaults.
-pub const fn stream_params(seed: u64, max_clusters: usize) -> StreamParams {
+pub const fn stream_params(seed: u64, max_clusters: usize, max_frozen: usize) -> StreamParams {
     StreamParams {
         fit: FitParams {
             alpha: mema_core::fitness::PAPER_ALPHA,
@@ -56,6 +61,7 @@ pub const fn stream_params(seed: u64, max_clusters: usize) -> StreamParams {
         },
         seed,
         max_clusters,
+        max_frozen,
         refit_interval: REFIT_INTERVAL,
         tolerance: 0.0,
     }
@@ -83,24 +89,24 @@ pub struct AcceptedFrame {
     pub end_of_stream: bool,
 }
 
-/// The application state. `K` clusters, `G` centre-hash buckets.
+/// The application state. `K` working clusters, `G` centre-hash buckets, `F` frozen entities.
 #[derive(Debug)]
-pub struct Firmware<const K: usize, const G: usize> {
+pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
     rx: heapless::Deque<u8, RX_CAPACITY>,
     decoder: Decoder,
-    mapper: StreamMapper<K, G>,
+    mapper: StreamMapper<K, G, F>,
     stats: FirmwareStats,
 }
 
 /// The state that survives a reset.
 #[derive(Debug)]
-pub struct Snapshot<const K: usize, const G: usize> {
-    mapper: StreamMapper<K, G>,
+pub struct Snapshot<const K: usize, const G: usize, const F: usize = 0> {
+    mapper: StreamMapper<K, G, F>,
     frames: u64,
     saved: bool,
 }
 
-impl<const K: usize, const G: usize> Snapshot<K, G> {
+impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
     /// An empty snapshot: restarting from it is restarting from scratch.
     pub const fn new(params: StreamParams) -> Self {
         Self {
@@ -120,7 +126,7 @@ impl<const K: usize, const G: usize> Snapshot<K, G> {
     }
 }
 
-impl<const K: usize, const G: usize> Firmware<K, G> {
+impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// A `const fn`: the state can be a `static` initialiser.
     pub const fn new(params: StreamParams) -> Self {
         Self {
@@ -192,18 +198,30 @@ impl<const K: usize, const G: usize> Firmware<K, G> {
     /// Writes the `.mema` bytes of the map as it stands (origin 0: the sensor frame, as the host's
     /// `replay` writes it) and returns their length.
     pub fn encode_map(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        // The entities are copied out once (K * 28 bytes of stack) because the codec takes a slice.
-        let mut entities: heapless::Vec<MapEntity, K> = heapless::Vec::new();
-        for e in self.mapper.entities() {
-            if entities.push(e).is_err() {
-                break; // cannot happen: the mapper holds at most K clusters
+        let needed = encoded_len(self.mapper.entities().count());
+        let got = out.len();
+        let Some(mut out) = out.get_mut(..needed) else {
+            return Err(EncodeError::BufferTooSmall { needed, got });
+        };
+        self.send_map(|piece| {
+            let rest = core::mem::take(&mut out);
+            let n = piece.len().min(rest.len());
+            let (head, tail) = rest.split_at_mut(n);
+            if let Some(piece) = piece.get(..n) {
+                head.copy_from_slice(piece);
             }
-        }
-        encode([0.0; 3], &entities, out)
+            out = tail;
+        })
+    }
+
+    /// Sends the map's `.mema` bytes out piece by piece (a UART, a file): the device needs no
+    /// buffer for the whole map, which at 400 entities would be 10 KB of its RAM.
+    pub fn send_map(&self, sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
+        encode_pieces([0.0; 3], self.mapper.entities(), sink)
     }
 
     /// Copies the mapper into `snapshot` (the memory that survives a reset).
-    pub fn save(&self, snapshot: &mut Snapshot<K, G>) {
+    pub fn save(&self, snapshot: &mut Snapshot<K, G, F>) {
         snapshot.mapper.clone_from(&self.mapper);
         snapshot.frames = self.stats.frames;
         snapshot.saved = true;
@@ -211,7 +229,7 @@ impl<const K: usize, const G: usize> Firmware<K, G> {
 
     /// After a reset: RAM is gone, so the ring and the decoder start empty and the mapper comes
     /// back from `snapshot` (or starts empty if none was saved).
-    pub fn restart_from(&mut self, snapshot: &Snapshot<K, G>) {
+    pub fn restart_from(&mut self, snapshot: &Snapshot<K, G, F>) {
         self.rx.clear();
         self.decoder = Decoder::new();
         self.mapper.clone_from(&snapshot.mapper);
@@ -220,7 +238,7 @@ impl<const K: usize, const G: usize> Firmware<K, G> {
         self.stats.restarts += 1;
     }
 
-    pub fn mapper(&self) -> &StreamMapper<K, G> {
+    pub fn mapper(&self) -> &StreamMapper<K, G, F> {
         &self.mapper
     }
 
@@ -248,8 +266,11 @@ mod tests {
 
     #[test]
     fn const_parameters_are_the_host_defaults() {
-        let p = stream_params(7, 150);
+        let p = stream_params(7, 150, 250);
         assert_eq!(p.fit, FitParams::default());
-        assert_eq!((p.seed, p.max_clusters, p.tolerance), (7, 150, 0.0));
+        assert_eq!(
+            (p.seed, p.max_clusters, p.max_frozen, p.tolerance),
+            (7, 150, 250, 0.0)
+        );
     }
 }

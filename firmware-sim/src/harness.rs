@@ -80,10 +80,10 @@ impl From<BoardError> for RunError {
 }
 
 /// Plays `capture` into `firmware` on `board`, then finishes and encodes the map.
-pub fn run<const K: usize, const G: usize>(
+pub fn run<const K: usize, const G: usize, const F: usize>(
     board: &Board,
-    firmware: &mut Firmware<K, G>,
-    snapshot: &mut Snapshot<K, G>,
+    firmware: &mut Firmware<K, G, F>,
+    snapshot: &mut Snapshot<K, G, F>,
     capture: &[u8],
     config: &RunConfig,
 ) -> Result<RunReport, RunError> {
@@ -103,10 +103,15 @@ pub fn run<const K: usize, const G: usize>(
     }
 }
 
-fn drive<const K: usize, const G: usize, S: ByteSource<Error = core::convert::Infallible>>(
+fn drive<
+    const K: usize,
+    const G: usize,
+    const F: usize,
+    S: ByteSource<Error = core::convert::Infallible>,
+>(
     board: &Board,
-    firmware: &mut Firmware<K, G>,
-    snapshot: &mut Snapshot<K, G>,
+    firmware: &mut Firmware<K, G, F>,
+    snapshot: &mut Snapshot<K, G, F>,
     mut source: S,
     config: &RunConfig,
     fault_stats: impl Fn(&S) -> FaultStats,
@@ -142,7 +147,7 @@ fn drive<const K: usize, const G: usize, S: ByteSource<Error = core::convert::In
         }
     }
     firmware.finish();
-    let mut map = vec![0u8; encoded_len(K)];
+    let mut map = vec![0u8; encoded_len(firmware.mapper().entities().count())];
     let len = firmware.encode_map(&mut map).map_err(RunError::Encode)?;
     map.truncate(len);
     Ok(RunReport {
@@ -184,12 +189,12 @@ pub fn frames_of(capture: &[u8]) -> HashMap<u32, Vec<Point3>> {
 
 /// The map of an uninterrupted mapper fed exactly these frames, in this order: what a faulty or
 /// reset run must equal. Frames missing from `frames` are an error (they were never sent).
-pub fn map_of_frames<const K: usize, const G: usize>(
+pub fn map_of_frames<const K: usize, const G: usize, const F: usize>(
     params: StreamParams,
     sequences: &[u32],
     frames: &HashMap<u32, Vec<Point3>>,
 ) -> Result<Vec<u8>, u32> {
-    let mut mapper: Box<StreamMapper<K, G>> = Box::new(StreamMapper::new(params));
+    let mut mapper: Box<StreamMapper<K, G, F>> = Box::new(StreamMapper::new(params));
     for s in sequences {
         mapper.add_all(frames.get(s).ok_or(*s)?);
     }

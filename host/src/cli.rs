@@ -123,6 +123,10 @@ pub struct StreamArgs {
     /// Also save the raw bytes received, as `mema record` would.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    #[arg(long, value_name = "W")]
+    pub working: Option<usize>,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Print the summary as JSON on stdout (instead of the map path).
@@ -154,6 +158,10 @@ pub struct ReplayArgs {
     /// Bytes per delivery, as a UART would hand them over.
     #[arg(long, default_value_t = 4096)]
     pub chunk_bytes: usize,
+    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    #[arg(long, value_name = "W")]
+    pub working: Option<usize>,
     /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
     /// k follows from T (-k is then the capacity).
     #[arg(long)]
@@ -189,6 +197,10 @@ pub struct StreamBenchArgs {
     /// Timed repetitions of the ingest (the best is reported).
     #[arg(long, default_value_t = 3)]
     pub repetitions: usize,
+    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    #[arg(long, value_name = "W")]
+    pub working: Option<usize>,
     /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
     /// k follows from T (-k is then the capacity).
     #[arg(long)]

@@ -392,11 +392,12 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 
 pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    crate::serial::commands::check_k(args.k)?;
+    let capacity = crate::serial::commands::capacity(args.k, args.working, args.tolerance)?;
     let cloud = load_cloud(&args.input)?;
     let r = crate::stream_bench::run(
         &cloud,
         &config,
+        capacity,
         args.repetitions,
         args.tolerance.unwrap_or(0.0),
     )

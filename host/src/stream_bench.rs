@@ -9,7 +9,7 @@ use std::time::Instant;
 use crate::commands::{LocalCloud, evaluate};
 use crate::pipeline::{self, PipelineConfig};
 use crate::serial::frames::{dequantise, encode_stream, quantise};
-use crate::serial::link::{Link, new_mapper};
+use crate::serial::link::{Capacity, Link, new_mapper};
 
 /// The paper's scanner rate (Section 4).
 pub const SRI_500_POINTS_PER_S: f64 = 800_000.0;
@@ -39,6 +39,7 @@ pub struct StreamBench {
 pub fn run(
     cloud: &LocalCloud,
     config: &PipelineConfig,
+    capacity: Capacity,
     repetitions: usize,
     tolerance: f64,
 ) -> Result<StreamBench> {
@@ -53,18 +54,18 @@ pub fn run(
     let mut mapper_rate = 0.0f64;
     let mut wire_rate = 0.0f64;
     for _ in 0..repetitions.max(1) {
-        let mut mapper = new_mapper(config.k, config.seed, config.fit, tolerance);
+        let mut mapper = new_mapper(capacity, config.seed, config.fit, tolerance);
         let start = Instant::now();
         mapper.add_all(&points);
         mapper_rate = mapper_rate.max(points.len() as f64 / start.elapsed().as_secs_f64());
 
-        let mut link = Link::new(config.k, config.seed, config.fit, tolerance);
+        let mut link = Link::new(capacity, config.seed, config.fit, tolerance);
         let start = Instant::now();
         link.feed(&bytes);
         wire_rate = wire_rate.max(points.len() as f64 / start.elapsed().as_secs_f64());
     }
 
-    let mut link = Link::new(config.k, config.seed, config.fit, tolerance);
+    let mut link = Link::new(capacity, config.seed, config.fit, tolerance);
     link.feed(&bytes);
     let start = Instant::now();
     let mut stream_map = link.finish();

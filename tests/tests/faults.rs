@@ -5,7 +5,7 @@
 use crate::util::{Dir, MemaCommand, shared};
 use mema::commands::load_cloud;
 use mema::serial::frames::{POINTS_PER_FRAME, push_frame, quantise};
-use mema::serial::link::Link;
+use mema::serial::link::{Capacity, Link};
 
 struct Rng(u64);
 
@@ -118,12 +118,12 @@ fn corrupted_frames_are_refused_and_the_map_is_that_of_the_clean_frames() {
                 bad += 1;
             }
         }
-        let mut expected = Link::new(100, 0, Default::default(), 0.0);
+        let mut expected = Link::new(Capacity::all_working(100), 0, Default::default(), 0.0);
         expected.feed(&clean);
         let expected_map = expected.finish().to_mema().expect("encode");
 
         // Random chunk sizes, as a UART delivers.
-        let mut link = Link::new(100, 0, Default::default(), 0.0);
+        let mut link = Link::new(Capacity::all_working(100), 0, Default::default(), 0.0);
         let mut at = 0;
         while at < corrupted.len() {
             let n = (1 + rng.below(700)).min(corrupted.len() - at);

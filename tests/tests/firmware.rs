@@ -19,6 +19,12 @@ use crate::util::{Dir, MemaCommand, mema_bin, shared};
 
 const K: usize = 256;
 const G: usize = 512;
+/// Room for frozen entities; a run uses it only when its shape asks (`stream_params`).
+const F: usize = 256;
+
+/// Working clusters and frozen entities of a run: `(150, 0)` keeps all in working memory,
+/// `(150, 250)` is the image's K = 400 layout.
+type Shape = (usize, usize);
 
 fn capture_of(cloud: &str) -> Vec<u8> {
     let cloud = mema::commands::load_cloud(&shared(cloud)).expect("cloud reads");
@@ -31,12 +37,17 @@ fn capture_of(cloud: &str) -> Vec<u8> {
 }
 
 fn play(capture: &[u8], k: usize, config: &RunConfig) -> RunReport {
+    play_shaped(capture, (k, 0), config)
+}
+
+fn play_shaped(capture: &[u8], (working, frozen): Shape, config: &RunConfig) -> RunReport {
     let board = Board::new(BoardSpec {
         ram_bytes: 4 << 20,
         stack_bytes: 64 << 10,
     });
-    let mut firmware: Box<Firmware<K, G>> = Box::new(Firmware::new(stream_params(0, k)));
-    let mut snapshot: Box<Snapshot<K, G>> = Box::new(Snapshot::new(stream_params(0, k)));
+    let params = stream_params(0, working, frozen);
+    let mut firmware: Box<Firmware<K, G, F>> = Box::new(Firmware::new(params));
+    let mut snapshot: Box<Snapshot<K, G, F>> = Box::new(Snapshot::new(params));
     run(&board, &mut firmware, &mut snapshot, capture, config).expect("runs")
 }
 
@@ -75,7 +86,11 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
     let dir = Dir::new("fw-replay");
     let fw_bin =
         mema_bin().with_file_name(format!("mema-firmware-sim{}", std::env::consts::EXE_SUFFIX));
-    for (cloud, k) in [("car6.pcd", "150"), ("bun_zipper.ply", "350")] {
+    for (cloud, k, working) in [
+        ("car6.pcd", "150", "150"),
+        ("bun_zipper.ply", "350", "350"),
+        ("car6.pcd", "400", "150"),
+    ] {
         let capture = dir.join("capture.bin");
         MemaCommand::new(&dir)
             .arg("scanner-sim")
@@ -85,7 +100,8 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
             .run()
             .assert_ok();
         MemaCommand::new(&dir)
-            .args(["replay", "capture.bin", "-k", k, "-o", "replay.mema"])
+            .args(["replay", "capture.bin", "-k", k, "--working", working])
+            .args(["-o", "replay.mema"])
             .run()
             .assert_ok();
         let out = Command::new(&fw_bin)
@@ -94,6 +110,8 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
                 "capture.bin",
                 "-k",
                 k,
+                "--working",
+                working,
                 "-o",
                 "fw.mema",
                 "--max-chunk",
@@ -136,8 +154,13 @@ fn the_board_refuses_statics_over_its_ram() {
 
 /// Every accepted frame is a frame that was sent, and the map equals that of an uninterrupted
 /// mapper fed exactly the frames the firmware holds at the end.
-fn check_against_clean_frames(report: &RunReport, frames: &HashMap<u32, Vec<Point3>>, k: usize) {
-    let rebuilt = map_of_frames::<K, G>(stream_params(0, k), &report.accepted, frames)
+fn check_against_clean_frames(
+    report: &RunReport,
+    frames: &HashMap<u32, Vec<Point3>>,
+    (working, frozen): Shape,
+) {
+    let params = stream_params(0, working, frozen);
+    let rebuilt = map_of_frames::<K, G, F>(params, &report.accepted, frames)
         .unwrap_or_else(|seq| panic!("frame {seq} was never sent"));
     assert_eq!(
         report.map, rebuilt,
@@ -188,7 +211,7 @@ fn byte_faults_lose_only_corrupted_frames() {
             frames.len() - r.accepted.len() <= 2 * faults_injected,
             "seed {seed}"
         );
-        check_against_clean_frames(&r, &frames, 150);
+        check_against_clean_frames(&r, &frames, (150, 0));
     }
 }
 
@@ -196,16 +219,24 @@ fn byte_faults_lose_only_corrupted_frames() {
 fn after_a_reset_the_restored_mapper_continues_to_the_uninterrupted_map() {
     let capture = capture_of("car6.pcd");
     let frames = frames_of(&capture);
+    // Both layouts: the frozen entities are part of what a snapshot must carry.
+    for shape in [(150, 0), (150, 250)] {
+        resets_restore(&capture, &frames, shape);
+    }
+}
+
+fn resets_restore(capture: &[u8], frames: &HashMap<u32, Vec<Point3>>, shape: Shape) {
     let mut resets_seen = 0;
+    let mut frozen_seen = 0;
     for seed in 0..6 {
         let faults = FaultConfig {
             seed,
             reset_ppm: 3_000,
             ..FaultConfig::default()
         };
-        let r = play(
-            &capture,
-            150,
+        let r = play_shaped(
+            capture,
+            shape,
             &RunConfig {
                 snapshot_every: 8,
                 faults: Some(faults),
@@ -213,6 +244,7 @@ fn after_a_reset_the_restored_mapper_continues_to_the_uninterrupted_map() {
             },
         );
         resets_seen += r.faults.resets;
+        frozen_seen += r.mapper.frozen;
         assert_eq!(r.firmware.restarts, r.faults.resets);
         if r.faults.resets > 0 {
             // Frames between the last snapshot and a reset are gone: the map holds fewer.
@@ -222,9 +254,14 @@ fn after_a_reset_the_restored_mapper_continues_to_the_uninterrupted_map() {
                 "seed {seed}: the snapshot kept earlier frames"
             );
         }
-        check_against_clean_frames(&r, &frames, 150);
+        check_against_clean_frames(&r, frames, shape);
     }
     assert!(resets_seen >= 3, "only {resets_seen} resets over 6 seeds");
+    assert_eq!(
+        frozen_seen > 0,
+        shape.1 > 0,
+        "{shape:?}: {frozen_seen} frozen"
+    );
 }
 
 #[test]

@@ -6,6 +6,7 @@ use clap::Parser;
 use mema::cli::{Cli, Command as MemaSub};
 use mema::commands::load_cloud;
 use mema::serial::commands::map_points_directly;
+use mema::serial::link::Capacity;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -185,7 +186,8 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     );
 
     let cloud = load_cloud(&car).expect("car6");
-    let direct = map_points_directly(&cloud, 150, 0, default_fit()).expect("direct map");
+    let direct = map_points_directly(&cloud, Capacity::all_working(150), 0, default_fit())
+        .expect("direct map");
     assert_eq!(
         streamed,
         direct.to_mema().expect("encode"),
@@ -345,4 +347,56 @@ fn record_saves_exactly_the_bytes_sent() {
         std::fs::read(dir.join("capture.bin")).expect("capture"),
         std::fs::read(dir.join("sent.bin")).expect("sent")
     );
+}
+
+/// `--working W`: k ellipsoids with only W clusters in working memory. The map holds more than W
+/// entities (the frozen ones) and at most k, replay equals the mapper fed directly, and
+/// impossible shapes are usage errors.
+#[test]
+fn working_memory_smaller_than_k_freezes_and_stays_within_k() {
+    let dir = Dir::new("stream-working");
+    let car = shared("car6.pcd");
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .args(["--port", "car.bin"])
+        .arg(&car)
+        .run()
+        .assert_ok();
+    MemaCommand::new(&dir)
+        .args([
+            "replay",
+            "car.bin",
+            "-k",
+            "400",
+            "--working",
+            "150",
+            "-o",
+            "w.mema",
+        ])
+        .run()
+        .assert_ok();
+    let replayed = std::fs::read(dir.join("w.mema")).expect("replay map");
+    let cloud = load_cloud(&car).expect("car6");
+    let capacity = Capacity {
+        k: 400,
+        working: 150,
+    };
+    let direct = map_points_directly(&cloud, capacity, 0, default_fit()).expect("direct map");
+    assert_eq!(replayed, direct.to_mema().expect("encode"));
+    let n = direct.entities.len();
+    assert!(150 < n && n <= 400, "{n} entities");
+    for (args, needle) in [
+        (vec!["--working", "0"], "--working 0"),
+        (vec!["--working", "401"], "--working 401"),
+        (
+            vec!["--working", "150", "--tolerance", "0.05"],
+            "do not combine",
+        ),
+    ] {
+        MemaCommand::new(&dir)
+            .args(["replay", "car.bin", "-k", "400", "-o", "bad.mema"])
+            .args(args)
+            .run()
+            .assert_error(2, needle);
+    }
 }

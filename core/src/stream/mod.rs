@@ -379,7 +379,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// The entities as they stand, frozen ones first (call [`StreamMapper::refit_stale`] first
     /// for a snapshot).
-    pub fn entities(&self) -> impl Iterator<Item = MapEntity> + '_ {
+    pub fn entities(&self) -> impl Iterator<Item = MapEntity> + Clone + '_ {
         let tolerance = self.params.fit.degeneration.sphere_tolerance;
         let working = self.clusters.iter().map(|c| c.entity);
         self.frozen

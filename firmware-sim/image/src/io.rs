@@ -24,12 +24,14 @@ fn write(fd: usize, bytes: &[u8]) -> bool {
     unsafe { syscall!(WRITE, fd, bytes.as_ptr(), bytes.len()) == 0 }
 }
 
-/// Writes `bytes` to a new file at `path_nul` (QEMU's working directory).
-pub fn write_file(path_nul: &[u8], bytes: &[u8]) -> bool {
+/// Writes what `produce` hands over to a new file at `path_nul` (QEMU's working directory).
+pub fn write_file(path_nul: &[u8], produce: impl FnOnce(&mut dyn FnMut(&[u8]))) -> bool {
     let Some(fd) = open(path_nul, nr::open::W_TRUNC_BINARY) else {
         return false;
     };
-    let ok = write(fd, bytes);
+    let mut ok = true;
+    // Piece by piece as `produce` hands them over: no buffer ever holds the whole file.
+    produce(&mut |piece| ok &= write(fd, piece));
     close(fd);
     ok
 }

@@ -26,20 +26,20 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
-use mema_core::map::encoded_len;
-use mema_firmware_sim::firmware::{Firmware, stream_params};
+use mema_firmware_sim::firmware::{Firmware, IMAGE_FROZEN, IMAGE_WORKING, stream_params};
 use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
 use static_cell::StaticCell;
 
-/// Clusters and centre-hash buckets of the image (the host tests map with `-k 150`).
-const K: usize = 150;
+/// Working clusters, centre-hash buckets and frozen entities of the image: K = 400 ellipsoids
+/// (the host tests map with `-k 400 --working 150`).
+const K: usize = IMAGE_WORKING;
 const G: usize = 512;
+const F: usize = IMAGE_FROZEN;
 const SEED: u64 = 0;
 
 /// The application state lives in .bss, built in place at boot (never on the stack).
-static FIRMWARE: StaticCell<Firmware<K, G>> = StaticCell::new();
-static MAP_OUT: StaticCell<[u8; encoded_len(K)]> = StaticCell::new();
+static FIRMWARE: StaticCell<Firmware<K, G, F>> = StaticCell::new();
 
 /// SysTick wraps (24-bit counter).
 static WRAPS: AtomicU32 = AtomicU32::new(0);
@@ -80,8 +80,10 @@ fn spin(n: u32) {
 /// Builds the state in its static. Kept out of line so the compiler constructs the value in the
 /// slot itself rather than in a stack temporary (which would need as much stack as the state).
 #[inline(never)]
-fn boot(slot: &'static mut core::mem::MaybeUninit<Firmware<K, G>>) -> &'static mut Firmware<K, G> {
-    slot.write(Firmware::new(stream_params(SEED, K)))
+fn boot(
+    slot: &'static mut core::mem::MaybeUninit<Firmware<K, G, F>>,
+) -> &'static mut Firmware<K, G, F> {
+    slot.write(Firmware::new(stream_params(SEED, K, F)))
 }
 
 #[entry]
@@ -118,9 +120,6 @@ fn run() -> Result<(), &'static str> {
 
     // `try_init_with`, not `init_with`: a second initialisation is an error, not a panic.
     let firmware = boot(FIRMWARE.try_uninit().ok_or("FIRMWARE initialised twice")?);
-    let map_out = MAP_OUT
-        .try_init_with(|| [0u8; encoded_len(K)])
-        .ok_or("MAP_OUT initialised twice")?;
     let stack_boot = stack::high_water();
     stack::paint();
     let mut uart =
@@ -147,25 +146,29 @@ fn run() -> Result<(), &'static str> {
     stack::paint();
     let t0 = now();
     firmware.finish();
-    let len = firmware
-        .encode_map(map_out)
-        .map_err(|_| "map buffer too small")?;
+    // The map goes out as it is encoded, a piece at a time: 400 entities would be 10 KB of RAM.
+    let mut encoded = Err("map not encoded");
+    let written = io::write_file(b"map.mema\0", |sink| {
+        encoded = firmware
+            .send_map(|piece| sink(piece))
+            .map_err(|_| "more than 2^32 - 1 entities");
+    });
     let finish_ticks = now() - t0;
     let stack_finish = stack::high_water();
-
-    let map = map_out.get(..len).unwrap_or(&[]);
-    if !io::write_file(b"map.mema\0", map) {
+    let len = encoded?;
+    if !written {
         return Err("cannot write map.mema");
     }
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 15] = [
-        (b"k", K as u64),
+    let fields: [(&[u8], u64); 16] = [
+        (b"k", (K + F) as u64),
         (b"points", mapper.points),
         (b"frames", fw.frames),
         (b"rejected", decoder.rejected),
-        (b"entities", firmware.mapper().clusters().len() as u64),
+        (b"entities", firmware.mapper().entities().count() as u64),
+        (b"frozen", firmware.mapper().frozen().len() as u64),
         (b"map_bytes", len as u64),
         (b"end_of_stream", u64::from(fw.end_of_stream)),
         (b"ingest_ticks", ingest_ticks),

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::frames::{encode_stream, quantise};
-use super::link::{Link, MAX_CLUSTERS};
+use super::link::{Capacity, Link, MAX_CLUSTERS};
 use super::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
 use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, UsageError};
 use crate::commands::{LocalCloud, load_cloud};
@@ -99,14 +99,32 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `-k` within the host mapper's fixed capacity.
-pub fn check_k(k: usize) -> Result<(), UsageError> {
+/// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
+pub fn capacity(
+    k: usize,
+    working: Option<usize>,
+    tolerance: Option<f64>,
+) -> Result<Capacity, UsageError> {
     if k > MAX_CLUSTERS {
         return Err(UsageError(format!(
             "-k {k} is over the streaming mapper's capacity of {MAX_CLUSTERS}"
         )));
     }
-    Ok(())
+    let Some(working) = working else {
+        return Ok(Capacity::all_working(k));
+    };
+    if working == 0 || working > k {
+        return Err(UsageError(format!(
+            "--working {working} must be between 1 and -k ({k})"
+        )));
+    }
+    if tolerance.is_some() && working < k {
+        // Tolerance mode decides k by merging, and a frozen cluster can no longer merge.
+        return Err(UsageError(
+            "--working and --tolerance do not combine: frozen clusters cannot merge".into(),
+        ));
+    }
+    Ok(Capacity { k, working })
 }
 
 /// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
@@ -143,7 +161,7 @@ fn conclude(
 
 pub fn stream(args: &StreamArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    check_k(args.k)?;
+    let capacity = capacity(args.k, args.working, args.tolerance)?;
     crate::commands::check_output(&args.output)?;
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut record = match &args.record {
@@ -152,7 +170,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     };
     let stop = interrupted();
     let mut link = Link::new(
-        args.k,
+        capacity,
         config.seed,
         config.fit,
         args.tolerance.unwrap_or(0.0),
@@ -306,7 +324,7 @@ pub fn record(args: &RecordArgs) -> Result<()> {
 
 pub fn replay(args: &ReplayArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    check_k(args.k)?;
+    let capacity = capacity(args.k, args.working, args.tolerance)?;
     let output = args
         .output
         .clone()
@@ -316,7 +334,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
     let stop = interrupted();
     let mut link = Link::new(
-        args.k,
+        capacity,
         config.seed,
         config.fit,
         args.tolerance.unwrap_or(0.0),
@@ -398,7 +416,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
 /// The direct path the tests compare against: the same points, straight into the mapper.
 pub fn map_points_directly(
     cloud: &LocalCloud,
-    k: usize,
+    capacity: Capacity,
     seed: u64,
     fit: mema_core::fit::FitParams,
 ) -> Result<HostMap> {
@@ -407,7 +425,7 @@ pub fn map_points_directly(
         .iter()
         .map(|p| quantise(*p))
         .collect::<Result<_>>()?;
-    let mut mapper = super::link::new_mapper(k, seed, fit, 0.0);
+    let mut mapper = super::link::new_mapper(capacity, seed, fit, 0.0);
     for q in &wire {
         mapper.add(super::frames::dequantise(*q));
     }

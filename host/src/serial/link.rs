@@ -14,15 +14,37 @@ pub const GRID_BUCKETS: usize = 4096;
 /// One cluster refit (about 600 fitness evaluations, ~0.1 ms) per this many points.
 pub const REFIT_INTERVAL: u32 = 1024;
 
-pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS>;
+/// Working clusters and frozen entities share the host's bound: k <= `MAX_CLUSTERS` in all.
+pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS, MAX_CLUSTERS>;
+
+/// How a stream holds its k ellipsoids: all in working memory (merging when full), or `working`
+/// of them there and the rest frozen once the scan has left them (`--working`), as a small
+/// device must (README, "Streaming").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capacity {
+    pub k: usize,
+    pub working: usize,
+}
+
+impl Capacity {
+    pub fn all_working(k: usize) -> Self {
+        Self { k, working: k }
+    }
+}
 
 /// A boxed mapper: at 2,048 clusters it is too large for a test thread's stack.
 /// `tolerance` > 0 turns on the tolerance mode (k follows from it, `k` is the capacity).
-pub fn new_mapper(k: usize, seed: u64, fit: FitParams, tolerance: f64) -> Box<HostStreamMapper> {
+pub fn new_mapper(
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+    tolerance: f64,
+) -> Box<HostStreamMapper> {
     new_mapper_with(StreamParams {
         fit,
         seed,
-        max_clusters: k,
+        max_clusters: capacity.working,
+        max_frozen: capacity.k.saturating_sub(capacity.working),
         refit_interval: REFIT_INTERVAL,
         tolerance,
     })
@@ -48,10 +70,10 @@ pub struct Link {
 }
 
 impl Link {
-    pub fn new(k: usize, seed: u64, fit: FitParams, tolerance: f64) -> Self {
+    pub fn new(capacity: Capacity, seed: u64, fit: FitParams, tolerance: f64) -> Self {
         Self {
             decoder: Decoder::new(),
-            mapper: new_mapper(k, seed, fit, tolerance),
+            mapper: new_mapper(capacity, seed, fit, tolerance),
             end_of_stream: false,
             frames_after_end: 0,
         }
