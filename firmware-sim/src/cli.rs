@@ -158,7 +158,7 @@ fn crate_budget(args: &Args) -> Result<(), CliError> {
 
 #[cfg(feature = "reference")]
 fn crate_reference(args: &Args) -> Result<(), CliError> {
-    args.only(&["-k", "--seed", "--sum-bits"])?;
+    args.only(&["-k", "--working", "--seed", "--sum-bits"])?;
     let k: usize = args.number(&["-k"], 150)?;
     let seed: u64 = args.number(&["--seed"], 0)?;
     let setup = mema_firmware_sim::compare::Setup {
@@ -166,6 +166,7 @@ fn crate_reference(args: &Args) -> Result<(), CliError> {
             &["--sum-bits"],
             mema_firmware_sim::compare::Setup::F64_SUM_BITS,
         )?,
+        working: args.number(&["--working"], k)?,
         ..mema_firmware_sim::compare::Setup::new(k, seed)
     };
     let clouds: Vec<PathBuf> = if args.positional.is_empty() {

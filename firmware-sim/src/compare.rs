@@ -156,6 +156,8 @@ pub struct Setup {
     /// 53 is the f64 the core stores. Fewer rounds the sums after every point, as a narrower
     /// store would: the price of a compact cluster in agreement, measured before building one.
     pub sum_bits: u32,
+    /// Working clusters of the streaming map (the rest of `k` frozen); `k` keeps all working.
+    pub working: usize,
 }
 
 impl Setup {
@@ -166,6 +168,7 @@ impl Setup {
             k,
             seed,
             sum_bits: Self::F64_SUM_BITS,
+            working: k,
         }
     }
 }
@@ -173,20 +176,23 @@ impl Setup {
 /// Compares every cluster of `points` (local-frame f32, as mapped).
 pub fn compare_points(name: &str, points: &[Point3], setup: &Setup) -> CloudComparison {
     let Setup { k, seed, .. } = *setup;
+    let working = setup.working.clamp(1, k.max(1));
     let params = FitParams::default();
-    let mut mapper: Box<StreamMapper<1024, 2048>> = Box::new(StreamMapper::new(StreamParams {
-        fit: params,
-        seed,
-        max_clusters: k.min(1024),
-        max_frozen: 0,
-        refit_interval: 0,
-        tolerance: 0.0,
-    }));
+    let mut mapper: Box<StreamMapper<1024, 2048, 1024>> =
+        Box::new(StreamMapper::new(StreamParams {
+            fit: params,
+            seed,
+            max_clusters: working.min(1024),
+            max_frozen: k.saturating_sub(working).min(1024),
+            refit_interval: 0,
+            tolerance: 0.0,
+        }));
     mapper.add_all(points);
+    mapper.finish();
     let centres: Vec<Vector3<f64>> = mapper
-        .clusters()
-        .iter()
-        .map(|c| Vector3::new(c.center.x as f64, c.center.y as f64, c.center.z as f64))
+        .entities()
+        .map(|e| e.entity.center)
+        .map(|c| Vector3::new(c.x as f64, c.y as f64, c.z as f64))
         .collect();
     let mut members: Vec<Vec<Vector3<f64>>> = vec![Vec::new(); centres.len()];
     for p in points.iter().filter(|p| p.is_finite()) {
