@@ -97,6 +97,34 @@ fn reading_holds_the_cloud_once() {
         peak <= FIXED,
         "long_header.pcd: reading peaked at {peak} heap bytes"
     );
+
+    // A PLY header keeps a property in 4 bytes and its name, not a `String` and 48 bytes of
+    // bookkeeping: 60,000 `property char p` lines cost less than their own bytes, and 70,000 are
+    // past the cap, which stops reading before they are kept.
+    for (properties, cloud) in [(60_000, true), (70_000, false)] {
+        let lines = "property char p\n".repeat(properties);
+        let head = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 1\n{lines}\
+             property float x\nproperty float y\nproperty float z\nend_header\n"
+        );
+        let ply = [head.into_bytes(), vec![0; properties + 12]].concat();
+        let before = heap::reset_peak();
+        let read = read_cloud_bytes("wide.ply", &ply);
+        let peak = heap::peak().saturating_sub(before);
+        eprintln!(
+            "wide.ply, {properties} properties: heap peak {peak} bytes, file {} bytes",
+            ply.len()
+        );
+        match read {
+            Ok(c) => assert!(cloud && c.format == mema::read::Format::PlyBinaryLittleEndian),
+            Err(e) => assert!(!cloud && matches!(e, ReadError::TooLarge { .. }), "{e:?}"),
+        }
+        assert!(
+            peak <= ply.len(),
+            "wide.ply: reading peaked at {peak} heap bytes for a {} byte file",
+            ply.len()
+        );
+    }
 }
 
 /// A binary_compressed PCD claiming 4 million points with the fewest compressed bytes LZF's
