@@ -97,6 +97,68 @@ fn reading_holds_the_cloud_once() {
         peak <= FIXED,
         "long_header.pcd: reading peaked at {peak} heap bytes"
     );
+
+    // LAZ has no bound from its length, so it holds room for no more points than its bytes
+    // would store plainly and makes more as they are decoded. autzen_trim.laz has 110,000 points
+    // in 603 KB: claiming 4 billion costs the copy that `read_cloud_bytes` makes for `las`,
+    // a 2 MiB batch of records, and no more than twice the points decoded, 24 bytes each; so
+    // does claiming records of 64 KiB besides.
+    let laz = std::fs::read(data.join("autzen_trim.laz")).expect("autzen_trim.laz");
+    let real = 110_000;
+    for record in [None, Some(u16::MAX)] {
+        let mut claim = claiming(&laz, u32::MAX);
+        if let Some(len) = record {
+            claim[105..107].copy_from_slice(&len.to_le_bytes());
+        }
+        let before = heap::reset_peak();
+        let e = read_cloud_bytes("claim.laz", &claim).expect_err("the data ends early");
+        let peak = heap::peak().saturating_sub(before);
+        eprintln!("{e}; heap peak {peak} bytes, file {} bytes", claim.len());
+        assert!(
+            matches!(e, ReadError::Truncated { .. } | ReadError::BadValue { .. }),
+            "{e:?}"
+        );
+        let bound = claim.len() + (2 << 20) + 2 * real * 24 + FIXED;
+        assert!(
+            peak <= bound,
+            "claim.laz, records of {record:?}: reading peaked at {peak} heap bytes, more than {bound}"
+        );
+    }
+
+    // A PLY header keeps a property in 4 bytes and its name, not a `String` and 48 bytes of
+    // bookkeeping: 60,000 `property char p` lines cost less than their own bytes, and 70,000 are
+    // past the cap, which stops reading before they are kept.
+    for (properties, cloud) in [(60_000, true), (70_000, false)] {
+        let lines = "property char p\n".repeat(properties);
+        let head = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 1\n{lines}\
+             property float x\nproperty float y\nproperty float z\nend_header\n"
+        );
+        let ply = [head.into_bytes(), vec![0; properties + 12]].concat();
+        let before = heap::reset_peak();
+        let read = read_cloud_bytes("wide.ply", &ply);
+        let peak = heap::peak().saturating_sub(before);
+        eprintln!(
+            "wide.ply, {properties} properties: heap peak {peak} bytes, file {} bytes",
+            ply.len()
+        );
+        match read {
+            Ok(c) => assert!(cloud && c.format == mema::read::Format::PlyBinaryLittleEndian),
+            Err(e) => assert!(!cloud && matches!(e, ReadError::TooLarge { .. }), "{e:?}"),
+        }
+        assert!(
+            peak <= ply.len(),
+            "wide.ply: reading peaked at {peak} heap bytes for a {} byte file",
+            ply.len()
+        );
+    }
+}
+
+/// `file` with its header's point count (the legacy u32 of LAS 1.0-1.3) set to `points`.
+fn claiming(file: &[u8], points: u32) -> Vec<u8> {
+    let mut bytes = file.to_vec();
+    bytes[107..111].copy_from_slice(&points.to_le_bytes());
+    bytes
 }
 
 /// A binary_compressed PCD claiming 4 million points with the fewest compressed bytes LZF's

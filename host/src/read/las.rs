@@ -11,8 +11,10 @@ use std::io::{Read, Seek};
 
 use super::{At, Cloud, Ctx, Format, Points, ReadError};
 
-/// Points per batch: 64k records of at most a few dozen bytes each.
-const BATCH: u64 = 1 << 16;
+/// Bytes of records per batch: 64k records of the 32 bytes most point formats take. A format
+/// with extra bytes (a record may have up to 64 KiB) is read fewer records at a time: a LAZ
+/// batch is not bounded by the file's length, and 64k of those would be 4 GiB.
+const BATCH_BYTES: u64 = 1 << 21;
 
 /// Every LAS and LAZ file starts with this signature.
 pub fn has_signature(bytes: &[u8]) -> bool {
@@ -30,28 +32,33 @@ where
     let declared = header.number_of_points();
     let compressed = header.point_format().is_compressed;
     let format = if compressed { Format::Laz } else { Format::Las };
-    let record_len = u64::from(header.point_format().len());
-    if !compressed {
+    let record_len = u64::from(header.point_format().len()).max(1);
+    // The records the point data could hold stored as they are.
+    let plain = len.saturating_sub(u64::from(data_at)) / record_len;
+    if !compressed && declared > plain {
         // Uncompressed records can be counted before any is read.
-        let room = len.saturating_sub(u64::from(data_at));
-        if declared.saturating_mul(record_len.max(1)) > room {
-            return Err(ctx.truncated(format!(
-                "the header declares {declared} points of {record_len} bytes, the file holds {}",
-                room / record_len.max(1)
-            )));
-        }
+        return Err(ctx.truncated(format!(
+            "the header declares {declared} points of {record_len} bytes, the file holds {plain}"
+        )));
     }
-    let capacity = usize::try_from(declared.min(len)).unwrap_or(0);
+    // A LAS file's points, all of them. LAZ has no bound from its length: its arithmetic coder
+    // codes a point like the one before in well under a bit, so 300,000 identical points take
+    // 2.5 KB (a test below writes them) and 5 million 36 KB. It starts with room for the points
+    // its bytes would hold stored plainly, 24 bytes of slots for each record of 20 or more, and
+    // grows as points are decoded (`Points::grow`), never past the count declared.
+    let capacity = usize::try_from(declared.min(plain)).unwrap_or(0);
     let mut points = Points::with_capacity(ctx, capacity)?;
     let mut batch = las::PointDataBuilder::new()
         .for_header(reader.header())
         .build();
     let mut read = 0u64;
     while read < declared {
-        let want = BATCH.min(declared - read);
+        let want = (BATCH_BYTES / record_len).max(1).min(declared - read);
         let got = reader
             .fill_points(want, &mut batch)
             .map_err(|e| data_error(ctx, read, e))?;
+        let most = usize::try_from(declared - read).unwrap_or(usize::MAX);
+        points.grow(ctx, usize::try_from(got).unwrap_or(usize::MAX), most)?;
         for ((x, y), z) in batch.x().zip(batch.y()).zip(batch.z()) {
             points.push([x, y, z]);
         }
@@ -202,6 +209,37 @@ mod tests {
                 Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
             }
         }
+    }
+
+    /// LAZ may hold far more points than bytes, so no bound from its length is safe: 300,000
+    /// identical points take some 2.5 KB, and every one is read, room made as they are decoded.
+    #[test]
+    fn laz_denser_than_a_point_a_byte() {
+        let n = 300_000;
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format = las::point::Format::new(1).unwrap();
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        let point = las::Point {
+            x: 1.0,
+            y: 2.0,
+            z: 3.0,
+            gps_time: Some(0.0),
+            ..Default::default()
+        };
+        for _ in 0..n {
+            writer.write_point(point.clone()).unwrap();
+        }
+        writer.close().unwrap();
+        let bytes = writer.into_inner().unwrap().into_inner();
+        assert!(bytes.len() < n / 10, "{} bytes", bytes.len());
+        let cloud = read_cloud_bytes("dense.laz", &bytes).unwrap();
+        assert_eq!(
+            (cloud.format, cloud.slots, cloud.points.len()),
+            (Format::Laz, n, n)
+        );
+        assert_eq!(cloud.origin, [1.0, 2.0, 3.0]);
     }
 
     #[test]

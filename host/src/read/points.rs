@@ -143,6 +143,27 @@ impl Points {
         Ok(points)
     }
 
+    /// Makes room for `n` more points, for a reader whose count is known only as it decodes
+    /// (LAZ): when they do not fit, the buffer in use grows to twice the points it holds, or by
+    /// `n` if that is more, but by no more than `most`, the points the header still claims. A
+    /// true claim is then met with nothing over, and a false one costs at most twice the points
+    /// the data gave. A refused allocation is [`ReadError::OutOfMemory`].
+    pub fn grow(&mut self, ctx: Ctx, n: usize, most: usize) -> Result<(), ReadError> {
+        fn grow<T>(ctx: Ctx, v: &mut Vec<T>, n: usize, most: usize) -> Result<(), ReadError> {
+            if v.capacity() - v.len() >= n {
+                return Ok(());
+            }
+            let more = v.len().max(n).min(most.max(n));
+            reserve(ctx, v, more, "points")
+        }
+        // `push` fills `wide` once it has a point, and `narrow` until then.
+        if self.wide.is_empty() {
+            grow(ctx, &mut self.narrow, n, most)
+        } else {
+            grow(ctx, &mut self.wide, n, most)
+        }
+    }
+
     #[inline]
     pub fn push(&mut self, p: [f64; 3]) {
         self.slots += 1;

@@ -27,6 +27,14 @@ pub(crate) fn quote(token: &[u8]) -> String {
     format!("'{out}'")
 }
 
+/// A name from a header for a message: lossy, on one line, and cut short if long, as
+/// [`quote`] has it but without the quotes.
+pub(crate) fn short(name: &[u8]) -> String {
+    let quoted = quote(name);
+    let inner = quoted.strip_prefix('\'').and_then(|q| q.strip_suffix('\''));
+    inner.unwrap_or(&quoted).to_owned()
+}
+
 pub(crate) fn parse_f64(token: &[u8]) -> Option<f64> {
     std::str::from_utf8(token).ok()?.parse().ok()
 }

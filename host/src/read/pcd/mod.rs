@@ -10,7 +10,7 @@
 mod body;
 
 use super::stream::Input;
-use super::xyz::{parse_usize, quote, tokens};
+use super::xyz::{parse_usize, quote, short, tokens};
 use super::{At, Cloud, Ctx, Format, Points, ReadError, Scalar};
 
 /// The keywords a PCD header may start with (after comments).
@@ -324,13 +324,6 @@ fn coord(ctx: Ctx, fields: &[Field], axis: &str) -> Result<Coord, ReadError> {
     }
     let what = format!("no field {axis} (FIELDS {})", names.join(" "));
     Err(ctx.bad_header(At::Header, what))
-}
-
-/// A field name for a message: lossy, on one line, and cut short if long.
-fn short(name: &[u8]) -> String {
-    let quoted = quote(name);
-    let inner = quoted.strip_prefix('\'').and_then(|q| q.strip_suffix('\''));
-    inner.unwrap_or(&quoted).to_owned()
 }
 
 /// Sum of `size × count` over the fields `keep` selects, checked.

@@ -7,8 +7,24 @@
 //! not cost the user a cloud.
 
 use super::stream::{Input, Line};
-use super::xyz::{parse_f64, parse_usize, quote, tokens};
+use super::xyz::{parse_f64, parse_usize, quote, short, tokens};
 use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar};
+
+/// The longest header line read, comments aside (they are skipped, not kept). A line holds at
+/// most five words (`property list uchar int vertex_indices`) and real ones are under fifty
+/// bytes; 64 KiB leaves room for any name a tool means, and bounds the names kept per line.
+const MAX_LINE: usize = 1 << 16;
+
+/// The most elements a header may declare. Real files have a few (vertex, face, edge,
+/// material, range_grid, camera); each one kept costs some 80 bytes of bookkeeping.
+const MAX_ELEMENTS: usize = 1 << 12;
+
+/// The most properties a header may declare, over all its elements. Real vertices have a few
+/// dozen at most (a 3D Gaussian splat has 62); each one kept costs 4 bytes and its name.
+const MAX_PROPERTIES: usize = 1 << 16;
+
+/// How many names an error message lists.
+const LISTED: usize = 8;
 
 #[derive(Clone, Copy)]
 enum Kind {
@@ -16,16 +32,29 @@ enum Kind {
     List { count: Scalar, item: Scalar },
 }
 
+/// A property as the body is read; its name is in its element's `names`, looked up only for
+/// matching x, y, z and for messages.
+#[derive(Clone, Copy)]
 struct Property {
-    name: String,
     kind: Kind,
     /// 0, 1, 2 for the vertex's x, y, z; `None` for everything that is skipped.
-    axis: Option<usize>,
+    axis: Option<u8>,
+}
+
+impl Property {
+    /// The coordinate this property is, as an index.
+    fn axis(self) -> Option<usize> {
+        self.axis.map(usize::from)
+    }
 }
 
 struct Element {
+    /// As messages print it (see [`short`]); only `vertex` is ever compared.
     name: String,
     count: usize,
+    /// The properties' names, in order, each followed by a space (a name is a token, so it has
+    /// none): one text per element rather than a `String` per property line.
+    names: Vec<u8>,
     props: Vec<Property>,
 }
 
@@ -44,27 +73,47 @@ impl Element {
             .any(|p| matches!(p.kind, Kind::List { .. }))
     }
 
-    fn prop_names(&self) -> String {
-        let names: Vec<&str> = self.props.iter().map(|p| p.name.as_str()).collect();
-        names.join(" ")
+    /// The name of property `at`, for a message.
+    fn prop_name(&self, at: usize) -> String {
+        tokens(&self.names).nth(at).map(short).unwrap_or_default()
     }
+
+    /// The first few property names, for a message: thousands would make one no one reads.
+    fn prop_names(&self) -> String {
+        listed(
+            tokens(&self.names).map(short),
+            self.props.len(),
+            "properties",
+        )
+    }
+}
+
+/// The first [`LISTED`] of `names`, and how many there are in all if that is more.
+fn listed(names: impl Iterator<Item = String>, all: usize, what: &str) -> String {
+    let mut names: Vec<String> = names.take(LISTED).collect();
+    if all > LISTED {
+        names.push(format!("... {all} {what} in all"));
+    }
+    names.join(" ")
 }
 
 pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     let ctx = input.ctx();
     let (encoding, mut elements) = parse_header(input)?;
-    let Some(vertex_at) = elements.iter().position(|e| e.name == "vertex") else {
-        let names: Vec<&str> = elements.iter().map(|e| e.name.as_str()).collect();
-        let what = format!("no vertex element (elements: {})", names.join(" "));
+    // The header keeps the elements up to the first vertex, so it is the last if there is one.
+    let Some(vertex) = elements.last_mut().filter(|e| e.name == "vertex") else {
+        let names = listed(
+            elements.iter().map(|e| e.name.clone()),
+            elements.len(),
+            "elements",
+        );
+        let what = format!("no vertex element (elements: {names})");
         return Err(ctx.bad_header(At::Header, what));
     };
-    elements.truncate(vertex_at + 1);
-    let Some(vertex) = elements.last_mut() else {
-        return Err(ctx.bad_header(At::Header, "no vertex element"));
-    };
-    for (axis, name) in ["x", "y", "z"].into_iter().enumerate() {
-        let names = vertex.prop_names();
-        let Some(prop) = vertex.props.iter_mut().find(|p| p.name == name) else {
+    for (axis, name) in (0u8..).zip(["x", "y", "z"]) {
+        let at = tokens(&vertex.names).position(|n| n == name.as_bytes());
+        let Some(prop) = at.and_then(|at| vertex.props.get_mut(at)) else {
+            let names = vertex.prop_names();
             let what = format!("element vertex has no property {name} (it has: {names})");
             return Err(ctx.bad_header(At::Header, what));
         };
@@ -102,21 +151,32 @@ fn scalar(name: &[u8]) -> Option<Scalar> {
     })
 }
 
-/// The encoding (`None` for ascii) and the elements; leaves `input` at the body.
+/// The encoding (`None` for ascii) and the elements up to the first `vertex` (all of them if
+/// there is none); leaves `input` at the body. Later elements are checked and counted but not
+/// kept: the body is never read past the vertex.
 fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), ReadError> {
     let (ctx, len) = (input.ctx(), input.len());
     input.next_line()?; // the `ply` magic line, already checked by the caller
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
+    // Elements and properties declared so far, kept or not, and whether the current element
+    // is kept.
+    let (mut declared, mut properties, mut keep) = (0usize, 0usize, false);
     loop {
         // A header line without its newline is a cut file, whatever the line says.
         let Some(line) = input.next_line()?.filter(|l| l.terminated) else {
             return Err(ctx.truncated(format!("PLY header ends at byte {len} before end_header")));
         };
-        let at = At::Line(line.number);
+        let (number, at) = (line.number, At::Line(line.number));
         let bad = |what: String| ctx.bad_header(at, what);
         let mut toks = tokens(line.text);
         let Some(keyword) = toks.next() else { continue };
+        if line.text.len() > MAX_LINE && !matches!(keyword, b"comment" | b"obj_info") {
+            let bytes = line.text.len();
+            return Err(ctx.too_large(format!(
+                "PLY header line {number} is {bytes} bytes; header lines are read up to {MAX_LINE}"
+            )));
+        }
         let mut next = |what: &str| {
             toks.next()
                 .ok_or_else(|| bad(format!("{} line without {what}", quote(keyword))))
@@ -139,15 +199,26 @@ fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), Rea
                 }
             }
             b"element" => {
-                let name = String::from_utf8_lossy(next("a name")?).into_owned();
+                let name = next("a name")?;
                 let count = next("a count")?;
                 let count = parse_usize(count)
                     .ok_or_else(|| bad(format!("{} is not an element count", quote(count))))?;
-                elements.push(Element {
-                    name,
-                    count,
-                    props: Vec::new(),
-                });
+                declared += 1;
+                if declared > MAX_ELEMENTS {
+                    return Err(ctx.too_large(format!(
+                        "PLY header line {number} declares element {declared}; at most {MAX_ELEMENTS} are read"
+                    )));
+                }
+                // The body is read up to the first vertex, so nothing after it is kept.
+                keep = elements.last().is_none_or(|e| e.name != "vertex");
+                if keep {
+                    elements.push(Element {
+                        name: short(name),
+                        count,
+                        names: Vec::new(),
+                        props: Vec::new(),
+                    });
+                }
             }
             b"property" => {
                 let kind = match next("a type")? {
@@ -161,15 +232,30 @@ fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), Rea
                     }
                     t => Kind::Scalar(ty(t)?),
                 };
-                let name = String::from_utf8_lossy(next("a name")?).into_owned();
-                let Some(element) = elements.last_mut() else {
+                let name = next("a name")?;
+                if declared == 0 {
                     return Err(bad("property before any element line".into()));
+                }
+                properties += 1;
+                if properties > MAX_PROPERTIES {
+                    return Err(ctx.too_large(format!(
+                        "PLY header line {number} declares property {properties}; at most {MAX_PROPERTIES} are read"
+                    )));
+                }
+                let Some(element) = elements.last_mut().filter(|_| keep) else {
+                    continue;
                 };
-                element.props.push(Property {
-                    name,
-                    kind,
-                    axis: None,
-                });
+                let more = name.len() + 1;
+                if element.names.try_reserve(more).is_err() {
+                    let what = format!(
+                        "{more} bytes more for the names of element {}",
+                        element.name
+                    );
+                    return Err(ctx.out_of_memory(what));
+                }
+                element.names.extend_from_slice(name);
+                element.names.push(b' ');
+                element.props.push(Property { kind, axis: None });
             }
             b"end_header" => break,
             other => return Err(bad(format!("unknown header keyword {}", quote(other)))),
@@ -216,12 +302,13 @@ fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], Rea
     let names = || vertex.prop_names();
     let too_few = || ctx.bad_value(at, format!("too few values for properties {}", names()));
     let mut p = [f64::NAN; 3];
-    for prop in &vertex.props {
+    for (i, prop) in vertex.props.iter().enumerate() {
         let tok = toks.next().ok_or_else(too_few)?;
-        match (prop.kind, prop.axis.and_then(|a| p.get_mut(a))) {
+        match (prop.kind, prop.axis().and_then(|a| p.get_mut(a))) {
             (Kind::List { .. }, _) => {
                 let n = parse_usize(tok).ok_or_else(|| {
-                    let what = format!("{} is not a count for list {}", quote(tok), prop.name);
+                    let name = vertex.prop_name(i);
+                    let what = format!("{} is not a count for list {name}", quote(tok));
                     ctx.bad_value(at, what)
                 })?;
                 // Bounded by the tokens on this line, whatever `n` claims.
@@ -235,7 +322,7 @@ fn ascii_vertex(ctx: Ctx, line: &Line, vertex: &Element) -> Result<[f64; 3], Rea
                     let what = format!(
                         "{} is not a number; expected vertex {}",
                         quote(tok),
-                        prop.name
+                        vertex.prop_name(i)
                     );
                     ctx.bad_value(at, what)
                 })?;
@@ -303,7 +390,8 @@ fn fixed_vertices(
     let mut at = [(0, Scalar::F32); 3];
     let mut offset = 0;
     for prop in &vertex.props {
-        if let (Kind::Scalar(s), Some(axis)) = (prop.kind, prop.axis.and_then(|a| at.get_mut(a))) {
+        if let (Kind::Scalar(s), Some(axis)) = (prop.kind, prop.axis().and_then(|a| at.get_mut(a)))
+        {
             *axis = (offset, s);
         }
         offset += match prop.kind {
@@ -332,12 +420,12 @@ fn walk(
     index: usize,
 ) -> Result<[f64; 3], ReadError> {
     let mut p = [f64::NAN; 3];
-    for prop in &el.props {
+    for (i, prop) in el.props.iter().enumerate() {
         match prop.kind {
             Kind::Scalar(s) => {
                 let v = s.read(input.peek(s.size())?, endian);
                 let v = v.ok_or_else(|| ends(input, el, index))?;
-                if let Some(c) = prop.axis.and_then(|a| p.get_mut(a)) {
+                if let Some(c) = prop.axis().and_then(|a| p.get_mut(a)) {
                     *c = v;
                 }
                 input.consume(s.size());
@@ -348,7 +436,8 @@ fn walk(
                 if n < 0.0 {
                     let what = format!(
                         "negative count {n} for list {} of element {}",
-                        prop.name, el.name
+                        el.prop_name(i),
+                        el.name
                     );
                     return Err(input.ctx().bad_value(At::Offset(input.pos()), what));
                 }

@@ -204,3 +204,60 @@ fn bad_headers_and_lying_counts() {
     let want = "h.ply: line 9: 'abc' is not a number; expected vertex y";
     assert_eq!(e.to_string(), want);
 }
+
+/// A header costs memory for what it declares, not a `String` per line: past 65,536
+/// properties, 4,096 elements or a 64 KiB line it is too large, and a message lists a few of
+/// the names, not all of them.
+#[test]
+fn header_lines_are_bounded() {
+    let xyz = "property float x\nproperty float y\nproperty float z\n";
+    let ply = |header: &str, body: &[u8]| {
+        let head = format!("ply\nformat binary_little_endian 1.0\n{header}end_header\n");
+        [head.as_bytes(), body].concat()
+    };
+    let props = |n: usize| "property char p\n".repeat(n);
+    // Properties count over every element, kept or not: after the vertex too.
+    let wide = format!("element vertex 1\n{}{xyz}", props(65_534));
+    let e = expect_err("wide.ply", &ply(&wide, &[0; 65_546]), "TooLarge");
+    let want = "wide.ply: too large: PLY header line 65540 declares property 65537; at most 65536 are read";
+    assert_eq!(e.to_string(), want);
+    let after = format!("element vertex 1\n{xyz}element face 0\n{}", props(65_534));
+    expect_err("after.ply", &ply(&after, &[0; 12]), "TooLarge");
+    let elements = format!("{}element vertex 1\n{xyz}", "element e 0\n".repeat(4096));
+    let e = expect_err("many.ply", &ply(&elements, &[0; 12]), "TooLarge");
+    let want =
+        "many.ply: too large: PLY header line 4099 declares element 4097; at most 4096 are read";
+    assert_eq!(e.to_string(), want);
+    let long = format!("element {} 1\n{xyz}", "v".repeat(70_000));
+    let e = expect_err("long.ply", &ply(&long, &[0; 12]), "TooLarge");
+    assert!(e.to_string().contains("line 3 is 70010 bytes"), "{e}");
+    // Just under every limit, with a long comment (comments are not kept), reads.
+    let comment = format!("comment {}\n", "c".repeat(100_000));
+    let name = "v".repeat(65_000);
+    let most = format!(
+        "{comment}{}element {name} 1\nproperty char {name}\nelement vertex 1\n{}{xyz}element face 2\n{}",
+        "element e 0\n".repeat(4093),
+        props(32_000),
+        props(33_532),
+    );
+    let body = [
+        vec![0; 1 + 32_000],
+        [1.0f32, 2.0, 3.0].map(f32::to_le_bytes).concat(),
+    ]
+    .concat();
+    let cloud = read_cloud_bytes("most.ply", &ply(&most, &body)).unwrap();
+    assert_eq!((cloud.slots, cloud.origin), (1, [1.0, 2.0, 3.0]));
+    // Messages name eight properties or elements, and how many there are.
+    let no_z = format!("element vertex 1\n{}property float x\n", props(20));
+    let e = expect_err("noz.ply", &ply(&no_z, b""), "BadHeader");
+    let want = "noz.ply: header: element vertex has no property y (it has: p p p p p p p p ... 21 properties in all)";
+    assert_eq!(e.to_string(), want);
+    let e = expect_err(
+        "nov.ply",
+        &ply(&"element e 0\n".repeat(9), b""),
+        "BadHeader",
+    );
+    let want =
+        "nov.ply: header: no vertex element (elements: e e e e e e e e ... 9 elements in all)";
+    assert_eq!(e.to_string(), want);
+}
