@@ -130,12 +130,20 @@ pub fn encode(
     entities: &[MapEntity],
     out: &mut [u8],
 ) -> Result<usize, EncodeError> {
-    let needed = encoded_len(entities.len());
+    encode_into(origin, entities.iter().copied(), out)
+}
+
+/// [`encode`] from any iterator of entities (a mapper's, without copying them out first).
+pub fn encode_into<I>(origin: [f64; 3], entities: I, out: &mut [u8]) -> Result<usize, EncodeError>
+where
+    I: Iterator<Item = MapEntity> + Clone,
+{
+    let needed = encoded_len(entities.clone().count());
     let got = out.len();
     let Some(mut out) = out.get_mut(..needed) else {
         return Err(EncodeError::BufferTooSmall { needed, got });
     };
-    encode_pieces(origin, entities.iter().copied(), |piece| {
+    encode_pieces(origin, entities, |piece| {
         // `out` holds exactly the pieces' total, checked above.
         let rest = core::mem::take(&mut out);
         let n = piece.len().min(rest.len());

@@ -21,7 +21,7 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::{EncodeError, encode_pieces, encoded_len};
+use mema_core::map::{EncodeError, encode_into, encode_pieces};
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::wire::{Decoded, Decoder, DecoderStats, MAX_FRAME_LEN};
 
@@ -198,20 +198,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// Writes the `.mema` bytes of the map as it stands (origin 0: the sensor frame, as the host's
     /// `replay` writes it) and returns their length.
     pub fn encode_map(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        let needed = encoded_len(self.mapper.entities().count());
-        let got = out.len();
-        let Some(mut out) = out.get_mut(..needed) else {
-            return Err(EncodeError::BufferTooSmall { needed, got });
-        };
-        self.send_map(|piece| {
-            let rest = core::mem::take(&mut out);
-            let n = piece.len().min(rest.len());
-            let (head, tail) = rest.split_at_mut(n);
-            if let Some(piece) = piece.get(..n) {
-                head.copy_from_slice(piece);
-            }
-            out = tail;
-        })
+        encode_into([0.0; 3], self.mapper.entities(), out)
     }
 
     /// Sends the map's `.mema` bytes out piece by piece (a UART, a file): the device needs no
