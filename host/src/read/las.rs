@@ -7,7 +7,7 @@
 //! Points are pulled in fixed batches rather than with `read_all`: `read_all` sizes its buffer
 //! from the header's point count, which a corrupt header could set to 2^64.
 
-use std::io::{Read, Seek};
+use std::io::{Read, Seek, SeekFrom};
 
 use super::{At, Cloud, Ctx, Format, Points, ReadError};
 
@@ -27,6 +27,8 @@ where
     R: Read + Seek + Send + Sync + 'static,
 {
     let data_at = data_offset(ctx, &mut source)?;
+    check_chunk_table(ctx, &mut source, data_at, len)?;
+    source.rewind().map_err(io_error(ctx))?;
     let mut reader = las::Reader::new(source).map_err(|e| header_error(ctx, e))?;
     let header = reader.header();
     let declared = header.number_of_points();
@@ -75,10 +77,7 @@ where
 /// The header's offset to point data (bytes 96..100 in every LAS version; 0 if the file is
 /// shorter, which `las` then reports), leaving `source` at its start.
 fn data_offset(ctx: Ctx, source: &mut (impl Read + Seek)) -> Result<u32, ReadError> {
-    let io = |cause| ReadError::Io {
-        path: ctx.name().into(),
-        cause,
-    };
+    let io = io_error(ctx);
     source.rewind().map_err(io)?;
     let mut head = Vec::with_capacity(100);
     source
@@ -89,6 +88,132 @@ fn data_offset(ctx: Ctx, source: &mut (impl Read + Seek)) -> Result<u32, ReadErr
     source.rewind().map_err(io)?;
     let offset = head.get(96..100).and_then(|b| b.try_into().ok());
     Ok(offset.map_or(0, u32::from_le_bytes))
+}
+
+/// LASzip compressors that keep a chunk table: point-wise chunked (2) and layered chunked (3).
+/// Point-wise (1) codes the points as one stream with no table, and `laz` reads none.
+const CHUNKED: [u16; 2] = [2, 3];
+
+/// The fewest bytes a chunk of points takes: it opens with its first point stored whole, and the
+/// shortest LAS record (format 0) is 20 bytes.
+const MIN_CHUNK_BYTES: u64 = 20;
+
+/// Refuses a LAZ chunk table that lists more chunks than the file can hold. `laz` 0.13's
+/// `ChunkTable::read` reserves 16 bytes for each chunk the table counts before decoding any,
+/// so a count of 2^32 asks for 64 GiB and aborts the process. Past this check each chunk but
+/// one takes at least 20 of the file's bytes, so the reservation stays under its length.
+///
+/// The layout is `laz`'s: point data opens with an i64 offset to the table (at most the start
+/// of point data when the writer could not go back to set it, and then the file's last 8 bytes
+/// hold it instead), and the table opens with a u32 version and a u32 count. A file without
+/// the LASzip VLR, with a chunk size field cut off or with no table is left to `las` and `laz`,
+/// which read it or report it.
+fn check_chunk_table(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    data_at: u32,
+    len: u64,
+) -> Result<(), ReadError> {
+    let header = las::Header::new(&mut *source).map_err(|e| header_error(ctx, e))?;
+    if !header.point_format().is_compressed {
+        return Ok(());
+    }
+    let Some(vlr) = header.vlrs().iter().find(|v| las::laz::is_laszip_vlr(v)) else {
+        return Ok(());
+    };
+    let field = |at: usize| {
+        vlr.data
+            .get(at..at + 4)
+            .and_then(|b| <[u8; 4]>::try_from(b).ok())
+    };
+    let (Some([c0, c1, _, _]), Some(chunk_size)) = (field(0), field(12)) else {
+        return Ok(());
+    };
+    if !CHUNKED.contains(&u16::from_le_bytes([c0, c1])) {
+        return Ok(());
+    }
+    let Some((offset_at, table_at)) = table_offset(ctx, source, data_at, len)? else {
+        return Ok(());
+    };
+    if table_at.checked_add(8).is_none_or(|end| end > len) {
+        return Err(ctx.bad_value(
+            At::Offset(offset_at),
+            format!(
+                "the LAZ chunk table offset {table_at} is past the end of the file ({len} bytes)"
+            ),
+        ));
+    }
+    let [_, _, _, _, n0, n1, n2, n3] = bytes_at::<8>(ctx, source, table_at)?;
+    let chunks = u64::from(u32::from_le_bytes([n0, n1, n2, n3]));
+    let points = header.number_of_points();
+    // A chunk size of 0 or 2^32 - 1 means chunks of any size, as `LazVlr` reads it.
+    let by_points = match u32::from_le_bytes(chunk_size) {
+        0 | u32::MAX => points,
+        size => points.div_ceil(u64::from(size)),
+    };
+    let chunk_bytes = table_at.saturating_sub(u64::from(data_at) + 8);
+    // One more for the chunk a writer closes on finishing, empty if the points filled the last:
+    // `laz` records it always, so an empty LAZ file has a table of one chunk.
+    let most = by_points
+        .min(chunk_bytes / MIN_CHUNK_BYTES)
+        .saturating_add(1);
+    if chunks > most {
+        return Err(ctx.bad_value(
+            At::Offset(table_at + 4),
+            format!(
+                "the LAZ chunk table lists {chunks} chunks, more than the {most} that \
+                 {points} points in {chunk_bytes} bytes can make"
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Where the offset to the chunk table sits and what it says, as `laz` finds them; `None` where
+/// `laz` finds no table or cannot read the offset (and says so itself).
+fn table_offset(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    data_at: u32,
+    len: u64,
+) -> Result<Option<(u64, u64)>, ReadError> {
+    for at in [u64::from(data_at), len.saturating_sub(8)] {
+        if len < 8 || at > len - 8 {
+            return Ok(None);
+        }
+        let offset = i64::from_le_bytes(bytes_at(ctx, source, at)?);
+        if offset > i64::from(data_at) {
+            return Ok(u64::try_from(offset).ok().map(|table| (at, table)));
+        }
+    }
+    Ok(None)
+}
+
+/// The `N` bytes at `at`, which the caller has checked lie inside the file.
+fn bytes_at<const N: usize>(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    at: u64,
+) -> Result<[u8; N], ReadError> {
+    let mut bytes = [0; N];
+    source.seek(SeekFrom::Start(at)).map_err(io_error(ctx))?;
+    source.read_exact(&mut bytes).map_err(|e| {
+        if e.kind() == std::io::ErrorKind::UnexpectedEof {
+            ctx.truncated(format!(
+                "the file ends before byte {at}, short of its length"
+            ))
+        } else {
+            io_error(ctx)(e)
+        }
+    })?;
+    Ok(bytes)
+}
+
+fn io_error(ctx: Ctx) -> impl Fn(std::io::Error) -> ReadError + Copy {
+    move |cause| ReadError::Io {
+        path: ctx.name().into(),
+        cause,
+    }
 }
 
 fn header_error(ctx: Ctx, e: las::Error) -> ReadError {
@@ -120,7 +245,7 @@ fn one_line(e: &dyn std::error::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::super::read_cloud_bytes;
-    use super::super::testkit::{XorShift, shared};
+    use super::super::testkit::{XorShift, expect_err, shared};
     use super::*;
 
     fn u32_at(b: &[u8], at: usize) -> u32 {
@@ -240,6 +365,75 @@ mod tests {
             (Format::Laz, n, n)
         );
         assert_eq!(cloud.origin, [1.0, 2.0, 3.0]);
+    }
+
+    /// `laz` reserves room for every chunk its table counts before decoding one: a count of
+    /// 2^32 - 1 would ask for 64 GiB and abort the test binary. An offset past the end is
+    /// refused too, from the start of point data or, unset there, from the file's last 8 bytes.
+    #[test]
+    fn a_laz_chunk_table_the_file_cannot_hold_is_an_error() {
+        let laz = shared("autzen_trim.laz");
+        let data_at = u32_at(&laz, 96) as usize;
+        let table_at = i64::from_le_bytes(laz[data_at..data_at + 8].try_into().unwrap()) as usize;
+        assert_eq!(
+            u32_at(&laz, table_at + 4),
+            3,
+            "110,000 points in chunks of 50,000"
+        );
+        let (count_at, end) = (table_at + 4, laz.len() - 8);
+        let past = (laz.len() as i64 - 7).to_le_bytes();
+        let (huge, five, far, unset) = (
+            u32::MAX.to_le_bytes(),
+            5u32.to_le_bytes(),
+            i64::MAX.to_le_bytes(),
+            (-1i64).to_le_bytes(),
+        );
+        let edit = |edits: &[(usize, &[u8])]| {
+            let mut b = laz.clone();
+            for (at, value) in edits {
+                b[*at..at + value.len()].copy_from_slice(value);
+            }
+            b
+        };
+        for (name, edits, at) in [
+            ("chunks.laz", &[(count_at, &huge[..])][..], count_at),
+            ("chunks_5.laz", &[(count_at, &five[..])], count_at),
+            ("past.laz", &[(data_at, &past[..])], data_at),
+            ("far.laz", &[(data_at, &far[..])], data_at),
+            ("tail.laz", &[(data_at, &unset[..]), (end, &past)], end),
+        ] {
+            let e = expect_err(name, &edit(edits), "BadValue");
+            assert!(
+                matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == at as u64),
+                "{name}: {e:?}"
+            );
+        }
+        // The table as written reads; one chunk more passes this check, and `laz` then fails
+        // to decode a fourth entry from the table's bytes and says so.
+        let cloud = read_cloud_bytes("chunks_3.laz", &edit(&[])).unwrap();
+        assert_eq!(cloud.points.len(), 110_000);
+        let four = 4u32.to_le_bytes();
+        let e = read_cloud_bytes("chunks_4.laz", &edit(&[(count_at, &four)])).unwrap_err();
+        assert!(
+            !matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == count_at as u64),
+            "{e:?}"
+        );
+    }
+
+    /// `laz` closes a file with the chunk it has open, so a LAZ of no points has a table of one
+    /// chunk: not one too many.
+    #[test]
+    fn an_empty_laz_is_no_points_not_a_bad_chunk_table() {
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        writer.close().unwrap();
+        let bytes = writer.into_inner().unwrap().into_inner();
+        let data_at = u32_at(&bytes, 96) as usize;
+        let table_at = i64::from_le_bytes(bytes[data_at..data_at + 8].try_into().unwrap());
+        assert_eq!(u32_at(&bytes, table_at as usize + 4), 1);
+        expect_err("empty.laz", &bytes, "NoFinitePoints");
     }
 
     #[test]
