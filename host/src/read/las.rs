@@ -11,6 +11,8 @@ use std::io::{Read, Seek, SeekFrom};
 
 use super::{At, Cloud, Ctx, Format, Points, ReadError};
 
+mod guard;
+
 /// Bytes of records per batch: 64k records of the 32 bytes most point formats take. A format
 /// with extra bytes (a record may have up to 64 KiB) is read fewer records at a time: a LAZ
 /// batch is not bounded by the file's length, and 64k of those would be 4 GiB.
@@ -27,6 +29,9 @@ where
     R: Read + Seek + Send + Sync + 'static,
 {
     let data_at = data_offset(ctx, &mut source)?;
+    // `las` reads the first EVLR with the header, so this goes before `check_chunk_table`.
+    guard::check_evlrs(ctx, &mut source, len)?;
+    source.rewind().map_err(io_error(ctx))?;
     check_chunk_table(ctx, &mut source, data_at, len)?;
     source.rewind().map_err(io_error(ctx))?;
     let mut reader = las::Reader::new(source).map_err(|e| header_error(ctx, e))?;

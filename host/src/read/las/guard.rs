@@ -1,0 +1,227 @@
+//! Checks on a LAS 1.4 file's extended VLRs, made before `las` reads any of them.
+//!
+//! `las` 0.11's `raw::Vlr::read_from` sizes an EVLR's buffer from the u64 length in its header
+//! before reading a byte of it, so a length of 2^40 asks for 1 TiB and aborts the process.
+//! Past these checks every EVLR lies inside the file, so the buffer is at most its length.
+//!
+//! The regular VLRs need no such check: their length is a u16, so one buffer is at most 64 KiB,
+//! and `las` reads them one after another, each filled before the next is made, so their count
+//! (a u32) costs memory only as far as the file's bytes back it.
+
+use std::io::{Read, Seek};
+
+use super::super::{At, Ctx, ReadError};
+use super::bytes_at;
+
+/// The LAS 1.4 header's offset to the first EVLR (u64) and EVLR count (u32), which follow the
+/// 235 bytes of a 1.3 header. `las` reads them in that version only, where it reads them at all.
+const EVLR_START_AT: u64 = 235;
+const EVLR_COUNT_AT: u64 = 243;
+
+/// An EVLR's header: a reserved u16, a 16-byte user id, a u16 record id, the u64 length of the
+/// data after the header (at byte 20) and a 32-byte description.
+const EVLR_HEADER: u64 = 60;
+const EVLR_LENGTH_AT: u64 = 20;
+
+/// Refuses EVLRs that run past the end of the file (`len` bytes): a first one starting too late
+/// for its header, a count more than the bytes from it can hold, or one whose length runs past
+/// the end. `las` reads only the first, and only in version 1.4; the others, and versions past
+/// 1.4 with the same header, are checked too, so that a `las` reading more stays guarded. A
+/// version before 1.4, a start or count of 0 (`las` then reads no EVLR) or a header cut before
+/// these fields are left to `las`, which reads them or reports them.
+pub(super) fn check_evlrs(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    len: u64,
+) -> Result<(), ReadError> {
+    if len < EVLR_COUNT_AT + 4 {
+        return Ok(());
+    }
+    let [major, minor] = bytes_at(ctx, source, 24)?;
+    if (major, minor) < (1, 4) {
+        return Ok(());
+    }
+    let start = u64::from_le_bytes(bytes_at(ctx, source, EVLR_START_AT)?);
+    let count = u32::from_le_bytes(bytes_at(ctx, source, EVLR_COUNT_AT)?);
+    if start == 0 || count == 0 {
+        return Ok(());
+    }
+    if start.checked_add(EVLR_HEADER).is_none_or(|end| end > len) {
+        return Err(ctx.bad_value(
+            At::Offset(EVLR_START_AT),
+            format!(
+                "the first EVLR starts at byte {start}, too late for its {EVLR_HEADER}-byte \
+                 header in a file of {len} bytes"
+            ),
+        ));
+    }
+    let most = (len - start) / EVLR_HEADER;
+    if u64::from(count) > most {
+        return Err(ctx.bad_value(
+            At::Offset(EVLR_COUNT_AT),
+            format!(
+                "the header counts {count} EVLRs, more than the {most} headers of \
+                 {EVLR_HEADER} bytes that the file holds from byte {start}"
+            ),
+        ));
+    }
+    let mut at = start;
+    for i in 0..count {
+        // `at` never passes `len`: each step below is checked against it.
+        let Some(room) = (len - at).checked_sub(EVLR_HEADER) else {
+            return Err(ctx.bad_value(
+                At::Offset(EVLR_COUNT_AT),
+                format!(
+                    "the header counts {count} EVLRs, the file ends after {i} of them at byte \
+                     {at}"
+                ),
+            ));
+        };
+        let length_at = at + EVLR_LENGTH_AT;
+        let length = u64::from_le_bytes(bytes_at(ctx, source, length_at)?);
+        if length > room {
+            return Err(ctx.bad_value(
+                At::Offset(length_at),
+                format!(
+                    "EVLR {i} at byte {at} declares {length} bytes of data, the file holds \
+                     {room} after its header"
+                ),
+            ));
+        }
+        at += EVLR_HEADER + length;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::super::testkit::expect_err;
+    use super::super::super::{Format, read_cloud_bytes};
+    use super::*;
+
+    /// A LAS 1.4 file (LAZ if `compressed`) of three points and, after them, one EVLR of
+    /// `data`, as `las` writes it.
+    fn las_1_4_with_evlr(data: &[u8], compressed: bool) -> Vec<u8> {
+        let mut builder = las::Builder::from((1, 4));
+        builder.point_format.is_compressed = compressed;
+        builder.evlrs.push(las::Vlr {
+            user_id: "mema".to_owned(),
+            record_id: 1,
+            description: "test".to_owned(),
+            data: data.to_vec(),
+        });
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        for x in [1.0, 2.0, 3.0] {
+            let point = las::Point {
+                x,
+                y: 2.0 * x,
+                z: -x,
+                ..Default::default()
+            };
+            writer.write_point(point).unwrap();
+        }
+        writer.close().unwrap();
+        writer.into_inner().unwrap().into_inner()
+    }
+
+    fn u64_at(b: &[u8], at: u64) -> u64 {
+        let at = at as usize;
+        u64::from_le_bytes(b[at..at + 8].try_into().unwrap())
+    }
+
+    fn with(b: &[u8], at: u64, value: &[u8]) -> Vec<u8> {
+        let (mut b, at) = (b.to_vec(), at as usize);
+        b[at..at + value.len()].copy_from_slice(value);
+        b
+    }
+
+    fn bad_value_at(name: &str, bytes: &[u8], at: u64) {
+        let e = expect_err(name, bytes, "BadValue");
+        assert!(
+            matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == at),
+            "{name}: {e:?}"
+        );
+    }
+
+    /// `las` makes an EVLR's buffer from its declared length before reading it: 2^40 aborted the
+    /// test binary with "memory allocation of 1099511627776 bytes failed".
+    #[test]
+    fn an_evlr_longer_than_the_file_is_an_error() {
+        let data = b"twelve bytes";
+        for compressed in [false, true] {
+            let file = las_1_4_with_evlr(data, compressed);
+            let len = file.len() as u64;
+            let start = u64_at(&file, EVLR_START_AT);
+            let length_at = start + EVLR_LENGTH_AT;
+            assert_eq!(file[25], 4, "version 1.4");
+            assert_eq!(u64_at(&file, length_at), data.len() as u64);
+            assert_eq!(
+                start + EVLR_HEADER + data.len() as u64,
+                len,
+                "the EVLR ends the file"
+            );
+
+            // As written it reads, its points and the `las` header's EVLR as they were.
+            let cloud = read_cloud_bytes("evlr.las", &file).unwrap();
+            let format = if compressed { Format::Laz } else { Format::Las };
+            assert_eq!(
+                (cloud.format, cloud.slots, cloud.origin),
+                (format, 3, [2.0, 4.0, -2.0])
+            );
+            let header = las::Header::new(std::io::Cursor::new(&file)).unwrap();
+            assert_eq!(header.evlrs()[0].data, data);
+
+            let huge = (1u64 << 40).to_le_bytes();
+            bad_value_at("huge.las", &with(&file, length_at, &huge), length_at);
+            let one_over = (data.len() as u64 + 1).to_le_bytes();
+            bad_value_at("over.las", &with(&file, length_at, &one_over), length_at);
+            let all = u64::MAX.to_le_bytes();
+            bad_value_at("max.las", &with(&file, length_at, &all), length_at);
+        }
+    }
+
+    /// Without the checks `las` reports a start past the end as a file cut short, and reads a
+    /// file counting more EVLRs than it holds, since it reads only the first.
+    #[test]
+    fn an_evlr_start_or_count_past_the_end_is_an_error() {
+        for compressed in [false, true] {
+            let file = las_1_4_with_evlr(b"data", compressed);
+            let len = file.len() as u64;
+            for (name, start) in [
+                ("past.las", len + 1),
+                ("far.las", 1 << 40),
+                ("max.las", u64::MAX),
+                ("short.las", len - EVLR_HEADER + 1),
+            ] {
+                let bytes = with(&file, EVLR_START_AT, &start.to_le_bytes());
+                bad_value_at(name, &bytes, EVLR_START_AT);
+            }
+            for count in [2, u32::MAX] {
+                let bytes = with(&file, EVLR_COUNT_AT, &count.to_le_bytes());
+                bad_value_at("count.las", &bytes, EVLR_COUNT_AT);
+            }
+            // Two EVLR headers fit in the bytes from the first, but its data leaves no room
+            // for a second.
+            let file = las_1_4_with_evlr(&[0; 70], compressed);
+            let bytes = with(&file, EVLR_COUNT_AT, &2u32.to_le_bytes());
+            bad_value_at("second.las", &bytes, EVLR_COUNT_AT);
+        }
+    }
+
+    /// `las` reads no EVLR where the start or the count is 0, nor in a file before 1.4, so
+    /// nothing there is checked: the same lengths read as they did.
+    #[test]
+    fn evlr_fields_las_does_not_read_are_left_alone() {
+        let file = las_1_4_with_evlr(b"data", false);
+        let length_at = u64_at(&file, EVLR_START_AT) + EVLR_LENGTH_AT;
+        let huge = with(&file, length_at, &(1u64 << 40).to_le_bytes());
+        for (at, value) in [(EVLR_START_AT, &[0; 8][..]), (EVLR_COUNT_AT, &[0; 4])] {
+            let cloud = read_cloud_bytes("off.las", &with(&huge, at, value)).unwrap();
+            assert_eq!(cloud.slots, 3);
+        }
+        // The same bytes called 1.3: `las` reads the 375-byte header as 235 and padding.
+        let cloud = read_cloud_bytes("1_3.las", &with(&huge, 25, &[3])).unwrap();
+        assert_eq!(cloud.slots, 3);
+    }
+}
