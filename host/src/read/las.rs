@@ -31,6 +31,7 @@ where
     let data_at = data_offset(ctx, &mut source)?;
     // `las` reads the first EVLR with the header, so this goes before `check_chunk_table`.
     guard::check_evlrs(ctx, &mut source, len)?;
+    guard::check_point_extent(ctx, &mut source, len)?;
     source.rewind().map_err(io_error(ctx))?;
     check_chunk_table(ctx, &mut source, data_at, len)?;
     source.rewind().map_err(io_error(ctx))?;

@@ -1,4 +1,5 @@
-//! Checks on a LAS 1.4 file's extended VLRs, made before `las` reads any of them.
+//! Checks on a LAS file's header fields that `las` would trust into an allocation or an
+//! overflow, made before `las` reads them: the extended VLRs of LAS 1.4, and the point count.
 //!
 //! `las` 0.11's `raw::Vlr::read_from` sizes an EVLR's buffer from the u64 length in its header
 //! before reading a byte of it, so a length of 2^40 asks for 1 TiB and aborts the process.
@@ -22,6 +23,53 @@ const EVLR_COUNT_AT: u64 = 243;
 /// data after the header (at byte 20) and a 32-byte description.
 const EVLR_HEADER: u64 = 60;
 const EVLR_LENGTH_AT: u64 = 20;
+
+/// Where the point data starts (u32), each record's length (u16), the legacy point count (u32)
+/// and LAS 1.4's 64-bit point count (u64).
+const POINT_DATA_AT: u64 = 96;
+const RECORD_LENGTH_AT: u64 = 105;
+const LEGACY_COUNT_AT: u64 = 107;
+const COUNT_AT: u64 = 247;
+
+/// Refuses a point count whose records' end, `offset + count * record length`, does not fit in
+/// a u64: `las` computes it unchecked (`raw::Header::offset_to_end_of_points`), which panics in
+/// a build with overflow checks and wraps into a misleading error without them. A header cut
+/// before these fields is left to `las`.
+pub(super) fn check_point_extent(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    len: u64,
+) -> Result<(), ReadError> {
+    if len < LEGACY_COUNT_AT + 4 {
+        return Ok(());
+    }
+    let offset = u64::from(u32::from_le_bytes(bytes_at(ctx, source, POINT_DATA_AT)?));
+    let record = u64::from(u16::from_le_bytes(bytes_at(ctx, source, RECORD_LENGTH_AT)?));
+    let legacy = u64::from(u32::from_le_bytes(bytes_at(ctx, source, LEGACY_COUNT_AT)?));
+    let mut counts = vec![(LEGACY_COUNT_AT, legacy)];
+    let [major, minor] = bytes_at(ctx, source, 24)?;
+    if (major, minor) >= (1, 4) && len >= COUNT_AT + 8 {
+        counts.push((
+            COUNT_AT,
+            u64::from_le_bytes(bytes_at(ctx, source, COUNT_AT)?),
+        ));
+    }
+    for (at, count) in counts {
+        if count
+            .checked_mul(record)
+            .and_then(|b| b.checked_add(offset))
+            .is_none()
+        {
+            return Err(ctx.bad_value(
+                At::Offset(at),
+                format!(
+                    "the header counts {count} points of {record} bytes from byte {offset},                      past any file's end"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
 
 /// Refuses EVLRs that run past the end of the file (`len` bytes): a first one starting too late
 /// for its header, a count more than the bytes from it can hold, or one whose length runs past
@@ -146,6 +194,17 @@ mod tests {
 
     /// `las` makes an EVLR's buffer from its declared length before reading it: 2^40 aborted the
     /// test binary with "memory allocation of 1099511627776 bytes failed".
+    #[test]
+    fn a_point_count_whose_extent_overflows_is_an_error() {
+        for compressed in [false, true] {
+            let good = las_1_4_with_evlr(b"data", compressed);
+            // Legacy count 0 makes `las` use the 64-bit one; 2^64 - 1 records overflow.
+            let zero_legacy = with(&good, LEGACY_COUNT_AT, &0u32.to_le_bytes());
+            let huge = with(&zero_legacy, COUNT_AT, &u64::MAX.to_le_bytes());
+            bad_value_at("huge.las", &huge, COUNT_AT);
+        }
+    }
+
     #[test]
     fn an_evlr_longer_than_the_file_is_an_error() {
         let data = b"twelve bytes";
