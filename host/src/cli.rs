@@ -116,22 +116,29 @@ pub struct StreamArgs {
     /// Write the map so far every this many seconds.
     #[arg(long)]
     pub snapshot_every: Option<f64>,
-    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
-    /// k follows from T (-k is then the capacity).
-    #[arg(long)]
-    pub tolerance: Option<f64>,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
     /// Also save the raw bytes received, as `mema record` would.
     #[arg(long)]
     pub record: Option<PathBuf>,
-    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
-    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
-    #[arg(long, value_name = "W")]
-    pub working: Option<usize>,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Print the summary as JSON on stdout (instead of the map path).
     #[arg(long)]
     pub json: bool,
+}
+
+/// How a streaming mapper holds its k ellipsoids (`stream`, `replay`, `stream-bench`).
+#[derive(Args, Debug)]
+pub struct StreamShapeArgs {
+    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    #[arg(long, value_name = "W")]
+    pub working: Option<usize>,
+    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
+    /// k follows from T (-k is then the capacity).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
 }
 
 #[derive(Args, Debug)]
@@ -158,14 +165,8 @@ pub struct ReplayArgs {
     /// Bytes per delivery, as a UART would hand them over.
     #[arg(long, default_value_t = 4096)]
     pub chunk_bytes: usize,
-    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
-    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
-    #[arg(long, value_name = "W")]
-    pub working: Option<usize>,
-    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
-    /// k follows from T (-k is then the capacity).
-    #[arg(long)]
-    pub tolerance: Option<f64>,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub fit: FitArgs,
     #[arg(long)]
@@ -197,14 +198,8 @@ pub struct StreamBenchArgs {
     /// Timed repetitions of the ingest (the best is reported).
     #[arg(long, default_value_t = 3)]
     pub repetitions: usize,
-    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
-    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
-    #[arg(long, value_name = "W")]
-    pub working: Option<usize>,
-    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
-    /// k follows from T (-k is then the capacity).
-    #[arg(long)]
-    pub tolerance: Option<f64>,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub fit: FitArgs,
     #[arg(long)]

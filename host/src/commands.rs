@@ -392,14 +392,14 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 
 pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let capacity = crate::serial::commands::capacity(args.k, args.working, args.tolerance)?;
+    let capacity = crate::serial::commands::capacity(args.k, &args.shape)?;
     let cloud = load_cloud(&args.input)?;
     let r = crate::stream_bench::run(
         &cloud,
         &config,
         capacity,
         args.repetitions,
-        args.tolerance.unwrap_or(0.0),
+        args.shape.tolerance.unwrap_or(0.0),
     )
     .with_context(|| args.input.display().to_string())?;
     if args.json {

@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use super::frames::{encode_stream, quantise};
 use super::link::{Capacity, Link, MAX_CLUSTERS};
 use super::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
-use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, UsageError};
+use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs, UsageError};
 use crate::commands::{LocalCloud, load_cloud};
 use crate::mapfile::{HostMap, write_atomically};
 
@@ -100,11 +100,8 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
 }
 
 /// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
-pub fn capacity(
-    k: usize,
-    working: Option<usize>,
-    tolerance: Option<f64>,
-) -> Result<Capacity, UsageError> {
+pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, UsageError> {
+    let StreamShapeArgs { working, tolerance } = *shape;
     if k > MAX_CLUSTERS {
         return Err(UsageError(format!(
             "-k {k} is over the streaming mapper's capacity of {MAX_CLUSTERS}"
@@ -161,7 +158,7 @@ fn conclude(
 
 pub fn stream(args: &StreamArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let capacity = capacity(args.k, args.working, args.tolerance)?;
+    let capacity = capacity(args.k, &args.shape)?;
     crate::commands::check_output(&args.output)?;
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut record = match &args.record {
@@ -173,7 +170,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
         capacity,
         config.seed,
         config.fit,
-        args.tolerance.unwrap_or(0.0),
+        args.shape.tolerance.unwrap_or(0.0),
     );
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
@@ -324,7 +321,7 @@ pub fn record(args: &RecordArgs) -> Result<()> {
 
 pub fn replay(args: &ReplayArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let capacity = capacity(args.k, args.working, args.tolerance)?;
+    let capacity = capacity(args.k, &args.shape)?;
     let output = args
         .output
         .clone()
@@ -337,7 +334,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         capacity,
         config.seed,
         config.fit,
-        args.tolerance.unwrap_or(0.0),
+        args.shape.tolerance.unwrap_or(0.0),
     );
     let started = Instant::now();
     let mut end = None;
