@@ -244,8 +244,9 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     print_map_report(&report, args.json)
 }
 
-/// `mema eval`'s JSON shape (documented in the README; keys are stable): `points`, the
-/// statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes, percent`.
+/// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,
+/// the statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes,
+/// percent`. `eval::EvalJson` adds the two-way score after them.
 #[derive(Serialize)]
 pub struct EvalReport {
     pub points: usize,
