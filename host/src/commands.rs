@@ -480,6 +480,7 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
                 kind: n.fit.entity.kind(tol),
             })
             .collect(),
+        quantization: None,
     };
     map.write(&args.output)?;
     if let Some(path) = &args.labels {

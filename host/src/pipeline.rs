@@ -318,5 +318,6 @@ pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap 
                 kind: f.entity.kind(sphere_tolerance),
             })
             .collect(),
+        quantization: None,
     }
 }

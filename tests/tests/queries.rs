@@ -102,7 +102,7 @@ fn translations_and_axis_permutations_move_answers_exactly() {
     };
     let t = RigidTransform::translation([12.5, -3.25, 100.0]).after(&permutation);
     assert!(t.is_axis_permutation());
-    let moved = transform_map(&map, &t);
+    let moved = transform_map(&map, &t).expect("a rotation");
     let moved_index = build_index(&moved).expect("index");
     for (p, d) in random_queries(&map, 2000, 3) {
         // Queries take map-local coordinates: world = origin + local.
