@@ -7,7 +7,7 @@ use std::path::Path;
 
 use crate::cli::{AblationArgs, DemoArgs, EvalArgs, InfoArgs, MapArgs};
 use crate::mapfile::HostMap;
-use crate::pipeline::{self, EntityChoice, PipelineConfig};
+use crate::pipeline::{self, EntityChoice, Model, PipelineConfig};
 use crate::read::read_cloud;
 use crate::stats::{self, ErrorStats, MemoryRow};
 
@@ -86,9 +86,12 @@ impl KindCounts {
 /// What `mema map` and `mema demo` report.
 #[derive(Serialize)]
 pub struct MapReport {
+    pub model: Model,
     pub memory: MemoryRow,
+    /// Eq. 13 of the written map's entities (the shells, or the paper's ellipsoids).
     pub ellipsoidal: ErrorStats,
-    pub spherical: ErrorStats,
+    /// The paper's spherical comparison (null for shells).
+    pub spherical: Option<ErrorStats>,
     pub kinds: KindCounts,
     pub kmeans_iterations: u32,
     pub kmeans_converged: bool,
@@ -108,11 +111,26 @@ pub fn map_cloud(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
+    map_cloud_with(cloud, config, Model::Paper, entity, output, labels)
+}
+
+/// [`map_cloud`] in either model.
+pub fn map_cloud_with(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    model: Model,
+    entity: EntityChoice,
+    output: &Path,
+    labels: Option<&Path>,
+) -> Result<MapReport> {
     let clusters = crate::progress::stage("k-means", || {
         pipeline::cluster(&cloud.points, config.k, &config.kmeans)
     })?;
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
+    }
+    if model == Model::Shells {
+        return shells_report(cloud, config, &clusters, output);
     }
     let fitted = crate::progress::stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
@@ -132,13 +150,66 @@ pub fn map_cloud(
     };
     chosen.write(output)?;
     Ok(MapReport {
+        model: Model::Paper,
         memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
         ellipsoidal: errors(&ellipsoids),
-        spherical: errors(&spheres),
+        spherical: Some(errors(&spheres)),
         kinds: KindCounts::of(chosen),
         kmeans_iterations: clusters.outcome.iterations,
         kmeans_converged: clusters.outcome.converged,
         entity,
+        dropped_non_finite: cloud.dropped_non_finite,
+        output: output.display().to_string(),
+        filter: crate::filter::FilterCounts {
+            read: cloud.points.len(),
+            ..Default::default()
+        },
+    })
+}
+
+/// The shell model's map of the clusters, written, and its report.
+fn shells_report(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    clusters: &pipeline::Clusters,
+    output: &Path,
+) -> Result<MapReport> {
+    let params = mema_core::shell::ShellParams {
+        degeneration: config.fit.degeneration,
+        ..Default::default()
+    };
+    let centres: Vec<Point3> = clusters
+        .moments
+        .iter()
+        .map(|m| Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
+        .collect();
+    let map = crate::progress::stage("fitting", || {
+        crate::shells::shell_map(
+            cloud.origin,
+            &cloud.points,
+            &clusters.labels,
+            &centres,
+            &params,
+        )
+    });
+    map.write(output)?;
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let errors = crate::progress::stage("evaluating", || {
+        pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
+    });
+    Ok(MapReport {
+        model: Model::Shells,
+        memory: MemoryRow::with_entity_bytes(
+            cloud.points.len(),
+            map.entities.len(),
+            crate::shells::BYTES_PER_ENTITY,
+        ),
+        ellipsoidal: ErrorStats::from_errors(&errors),
+        spherical: None,
+        kinds: KindCounts::of(&map),
+        kmeans_iterations: clusters.outcome.iterations,
+        kmeans_converged: clusters.outcome.converged,
+        entity: EntityChoice::Ellipsoid,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
         filter: crate::filter::FilterCounts {
@@ -153,7 +224,10 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(r)?);
         return Ok(());
     }
-    println!("Table 2: memory (12 bytes per point, 24 per entity)");
+    println!(
+        "Table 2: memory (12 bytes per point, {} per entity)",
+        r.memory.map_bytes / r.memory.entities.max(1)
+    );
     println!("{}", stats::MEMORY_HEADER);
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
@@ -162,8 +236,13 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
         r.ellipsoidal.clusters
     );
     println!("{}", stats::ERROR_HEADER);
-    println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
-    println!("{}", stats::format_error_row("spherical", &r.spherical));
+    match &r.spherical {
+        Some(spherical) => {
+            println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
+            println!("{}", stats::format_error_row("spherical", spherical));
+        }
+        None => println!("{}", stats::format_error_row("shells", &r.ellipsoidal)),
+    }
     println!();
     println!(
         "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
@@ -208,15 +287,36 @@ pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(t) = args.tolerance {
         return map_to_tolerance(args, t);
     }
-    let config = args.fit.config(args.k.unwrap_or(0))?;
+    let model = if args.paper { Model::Paper } else { args.model };
+    if model == Model::Shells && args.entity == EntityChoice::Sphere {
+        return Err(crate::cli::UsageError(
+            "--entity sphere is the paper's comparison; add --paper (or --model paper)".into(),
+        )
+        .into());
+    }
+    let k = match args.bytes {
+        Some(bytes) => {
+            let per = model.bytes_per_entity();
+            if bytes < per {
+                return Err(crate::cli::UsageError(format!(
+                    "--bytes {bytes} holds no entity; one takes {per} bytes in this model"
+                ))
+                .into());
+            }
+            bytes / per
+        }
+        None => args.k.unwrap_or(0),
+    };
+    let config = args.fit.config(k)?;
     let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
-    let mut report = map_cloud(
+    let mut report = map_cloud_with(
         &cloud,
         &config,
+        model,
         args.entity,
         &args.output,
         args.labels.as_deref(),
@@ -480,6 +580,7 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
                 kind: n.fit.entity.kind(tol),
             })
             .collect(),
+        quantization: None,
     };
     map.write(&args.output)?;
     if let Some(path) = &args.labels {

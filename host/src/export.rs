@@ -492,10 +492,7 @@ mod tests {
                 0.0
             }
         });
-        let entity = Entity {
-            center: Point3::new(0.5, -0.25, 1.0),
-            weights,
-        };
+        let entity = Entity::axis_aligned(Point3::new(0.5, -0.25, 1.0), weights);
         MapEntity { entity, kind }
     }
 
@@ -511,10 +508,7 @@ mod tests {
         ];
         let t = Tessellation::checked(7, 5).unwrap();
         for e in cases {
-            let map = HostMap {
-                origin: [10.0, 20.0, 30.0],
-                entities: vec![e],
-            };
+            let map = HostMap::new([10.0, 20.0, 30.0], vec![e]);
             let bounds = Bounds::of_map(&map);
             let meshes = tessellate(&map, &bounds, &t);
             let (_, mesh) = &meshes[0];
