@@ -432,6 +432,19 @@ struct InfoReport {
     /// The paper's count: 24 bytes per entity.
     map_bytes: usize,
     file_bytes: u64,
+    /// How `.mema` stores (or would store) these entities, and its bytes per entity.
+    layout: String,
+    record_bytes: usize,
+    /// Entities with a rotation other than the identity.
+    oriented: usize,
+}
+
+fn layout_name(layout: &mema_core::map::Layout) -> &'static str {
+    match layout {
+        mema_core::map::Layout::AxisAligned => "version 1, axis-aligned f32",
+        mema_core::map::Layout::Oriented => "version 2, oriented f32",
+        mema_core::map::Layout::Quantized(_) => "version 2, oriented, quantized",
+    }
 }
 
 pub fn info(args: &InfoArgs) -> Result<()> {
@@ -461,6 +474,13 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         semi_axis_max: rmax,
         map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
         file_bytes,
+        layout: layout_name(&map.layout()).into(),
+        oriented: map
+            .entities
+            .iter()
+            .filter(|e| !e.entity.rotation.is_identity())
+            .count(),
+        record_bytes: map.layout().record_len(),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -477,8 +497,12 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.semi_axis_min, r.semi_axis_max
         );
         println!(
-            "bytes: {} (paper's 24 per entity), {} on disk",
-            r.map_bytes, r.file_bytes
+            "layout: {} ({} bytes an entity), {} of {} entities oriented",
+            r.layout, r.record_bytes, r.oriented, r.entities
+        );
+        println!(
+            "bytes: {} on disk ({} at the paper's 24 per entity)",
+            r.file_bytes, r.map_bytes
         );
     }
     Ok(())
