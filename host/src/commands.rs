@@ -111,14 +111,23 @@ pub fn map_cloud(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
-    map_cloud_with(cloud, config, Model::Paper, entity, output, labels)
+    map_cloud_with(
+        cloud,
+        config,
+        Model::Paper,
+        mema_core::shell::ShellParams::default(),
+        entity,
+        output,
+        labels,
+    )
 }
 
-/// [`map_cloud`] in either model.
+/// [`map_cloud`] in either model (`shell_params` for shells; its degeneration is `config`'s).
 pub fn map_cloud_with(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     model: Model,
+    shell_params: mema_core::shell::ShellParams,
     entity: EntityChoice,
     output: &Path,
     labels: Option<&Path>,
@@ -129,8 +138,8 @@ pub fn map_cloud_with(
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
     }
-    if model == Model::Shells {
-        return shells_report(cloud, config, &clusters, output);
+    if let Model::Shells = model {
+        return shells_report(cloud, config, shell_params, &clusters, output);
     }
     let fitted = crate::progress::stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
@@ -171,12 +180,13 @@ pub fn map_cloud_with(
 fn shells_report(
     cloud: &LocalCloud,
     config: &PipelineConfig,
+    params: mema_core::shell::ShellParams,
     clusters: &pipeline::Clusters,
     output: &Path,
 ) -> Result<MapReport> {
     let params = mema_core::shell::ShellParams {
         degeneration: config.fit.degeneration,
-        ..Default::default()
+        ..params
     };
     let centres: Vec<Point3> = clusters
         .moments
@@ -313,10 +323,24 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
+    for (name, v) in [
+        ("--tangent-scale", args.tangent_scale),
+        ("--normal-scale", args.normal_scale),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
+        }
+    }
+    let shell_params = mema_core::shell::ShellParams {
+        tangent_scale: args.tangent_scale,
+        normal_scale: args.normal_scale,
+        ..Default::default()
+    };
     let mut report = map_cloud_with(
         &cloud,
         &config,
         model,
+        shell_params,
         args.entity,
         &args.output,
         args.labels.as_deref(),
