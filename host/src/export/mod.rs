@@ -14,7 +14,8 @@
 //! map's origin and the one node carries the origin as its translation.
 
 use anyhow::Result;
-use mema_core::{EntityKind, MapEntity};
+use mema_core::query::half_extents;
+use mema_core::{EntityKind, MapEntity, Rotation};
 use serde::Serialize;
 use std::path::Path;
 
@@ -95,9 +96,10 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    /// The world box of the map itself: each entity's centre ± its finite semi-axes, grown on
-    /// each side to at least the largest finite semi-axis so a lone degenerated entity still
-    /// gets a visible length.
+    /// The world box of the map itself: each entity's centre ± its finite half extents along
+    /// the world axes (its semi-axes when axis-aligned; a world axis a degenerated one is
+    /// turned onto contributes the centre only), grown on each side to at least the largest
+    /// finite semi-axis so a lone degenerated entity still gets a visible length.
     pub fn of_map(map: &HostMap) -> Self {
         let mut b = Bounds {
             min: [f64::INFINITY; 3],
@@ -106,22 +108,52 @@ impl Bounds {
         let mut largest = 0.0f64;
         for e in &map.entities {
             let c = map.world_center(&e.entity);
-            let r = e.entity.semi_axes();
+            let r = e.entity.semi_axes().map(f64::from);
+            // Identity keeps the f32 semi-axes the axis-aligned boxes were always made of.
+            let h = if e.entity.rotation.is_identity() {
+                r
+            } else {
+                half_extents(&e.entity)
+            };
             for j in 0..3 {
-                let r = if r[j].is_finite() {
-                    f64::from(r[j])
-                } else {
-                    0.0
-                };
-                largest = largest.max(r);
-                b.min[j] = b.min[j].min(c[j] - r);
-                b.max[j] = b.max[j].max(c[j] + r);
+                if r[j].is_finite() {
+                    largest = largest.max(r[j]);
+                }
+                let h = if h[j].is_finite() { h[j] } else { 0.0 };
+                b.min[j] = b.min[j].min(c[j] - h);
+                b.max[j] = b.max[j].max(c[j] + h);
             }
         }
         for j in 0..3 {
             let grow = (largest - (b.max[j] - b.min[j])).max(0.0) / 2.0;
             b.min[j] -= grow;
             b.max[j] += grow;
+        }
+        b
+    }
+
+    /// The box seen from an entity's axes around its world centre `c`: per axis, the extent of
+    /// `R^T (x - c)` over the box's corners. A degenerated axis spans this, so a turned tube or
+    /// plane crosses the whole box along its own direction.
+    pub fn in_axes_of(&self, c: [f64; 3], rotation: &Rotation) -> Self {
+        let mut b = Bounds {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        for corner in 0..8 {
+            let x = [0, 1, 2].map(|j| {
+                let end = if corner >> j & 1 == 0 {
+                    self.min[j]
+                } else {
+                    self.max[j]
+                };
+                end - c[j]
+            });
+            let q = rotation.inverse_rotate(x);
+            for j in 0..3 {
+                b.min[j] = b.min[j].min(q[j]);
+                b.max[j] = b.max[j].max(q[j]);
+            }
         }
         b
     }
@@ -174,9 +206,34 @@ pub fn tessellate(map: &HostMap, bounds: &Bounds, t: &Tessellation) -> Vec<(Enti
     meshes
 }
 
+/// An oriented entity is meshed axis-aligned around 0 in its own axes, its degenerated axes
+/// spanning the bounds seen along those axes, and each vertex is then placed at `c + R v`. An
+/// axis-aligned one is meshed where it is, so its vertices keep the bits they always had.
 fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Tessellation) {
     let c = map.world_center(&e.entity);
+    let rotation = e.entity.rotation;
     let r = e.entity.semi_axes().map(f64::from);
+    let Some((mut v, tri)) = (if rotation.is_identity() {
+        axis_aligned_mesh(c, r, b, t)
+    } else {
+        axis_aligned_mesh([0.0; 3], r, &b.in_axes_of(c, &rotation), t)
+    }) else {
+        return;
+    };
+    if !rotation.is_identity() {
+        for p in &mut v {
+            let q = rotation.rotate(*p);
+            *p = [0, 1, 2].map(|j| c[j] + q[j]);
+        }
+    }
+    mesh.add(v, tri);
+}
+
+type Triangles = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+
+/// The mesh of an entity of semi-axes `r` centred at `c`, unturned; `None` without a finite
+/// axis.
+fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> Option<Triangles> {
     let (s, rings) = (t.segments, t.rings);
     let angle = |i: u32| std::f64::consts::TAU * f64::from(i) / f64::from(s);
     let finite: Vec<usize> = (0..3).filter(|&j| r[j].is_finite()).collect();
@@ -214,7 +271,7 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                     tri.push([a, c2, d]);
                 }
             }
-            mesh.add(v, tri);
+            Some((v, tri))
         }
         [j, k] => {
             let a = 3 - j - k;
@@ -242,7 +299,7 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                 tri.push([cap0, n, i]);
                 tri.push([cap1, s + i, s + n]);
             }
-            mesh.add(v, tri);
+            Some((v, tri))
         }
         [n] => {
             let (u, w) = ((n + 1) % 3, (n + 2) % 3);
@@ -261,11 +318,11 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                     v.push(p);
                 }
             }
-            mesh.add(v, [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]);
+            Some((v, vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]))
         }
         // `Entity` keeps at least one finite axis; a map read from elsewhere without one has
         // no surface to draw.
-        _ => {}
+        _ => None,
     }
 }
 
