@@ -149,10 +149,9 @@ impl Bounds {
                 };
                 end - c[j]
             });
-            let q = rotation.inverse_rotate(x);
-            for j in 0..3 {
-                b.min[j] = b.min[j].min(q[j]);
-                b.max[j] = b.max[j].max(q[j]);
+            for (j, q) in rotation.inverse_rotate(x).into_iter().enumerate() {
+                b.min[j] = b.min[j].min(q);
+                b.max[j] = b.max[j].max(q);
             }
         }
         b
@@ -428,7 +427,13 @@ mod tests {
             entity([0.3, inf, inf], EntityKind::PlanePair),
         ];
         let t = Tessellation::checked(7, 5).unwrap();
-        for e in cases {
+        // Turned, every mesh keeps its counts, its closure and its outward winding.
+        let turn = mema_core::Rotation::from_quaternion([0.3, -0.5, 0.2, 0.8]).unwrap();
+        let turned = cases.map(|e| MapEntity {
+            entity: e.entity.with_rotation(turn),
+            ..e
+        });
+        for e in cases.into_iter().chain(turned) {
             let map = HostMap::new([10.0, 20.0, 30.0], vec![e]);
             let bounds = Bounds::of_map(&map);
             let meshes = tessellate(&map, &bounds, &t);
