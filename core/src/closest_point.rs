@@ -177,12 +177,7 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
 
 /// Distance from `point` (f64, same frame as the map) to `entity`'s surface: eq. 13's `|d(x) - x|`.
 pub fn surface_distance(entity: &Entity, point: [f64; 3]) -> f64 {
-    let c = entity.center.to_f64();
-    let semi_axes = entity.semi_axes_f64();
-    distance_to_surface(
-        semi_axes,
-        [point[0] - c[0], point[1] - c[1], point[2] - c[2]],
-    )
+    distance_to_surface(entity.semi_axes_f64(), entity.to_local(point))
 }
 
 /// Running eq. 13: the RMS surface distance of the points of one cluster.

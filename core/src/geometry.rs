@@ -4,6 +4,8 @@
 //! a semi-axis that passed the degeneration threshold is infinite, and `w_j = 0` carries that
 //! limit (Table 1) as an ordinary finite number, so no inf or NaN is ever stored.
 
+pub use crate::rotation::Rotation;
+
 /// A point in R^3, in the map's local frame (metres or the cloud's own unit).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[repr(C)]
@@ -109,13 +111,43 @@ impl Default for Degeneration {
     }
 }
 
-/// One map entity: 24 bytes, the six floats of the paper's memory count (Table 2).
+/// The paper's 24-byte entity, axis-aligned: where entities are counted against a device's
+/// memory (the streaming mapper's working fits and frozen entities), the 16 bytes of an identity
+/// quaternion are not stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct AxisEntity {
+    pub center: Point3,
+    pub weights: [f32; 3],
+}
+
+impl AxisEntity {
+    /// The centre and weights of an entity fitted axis-aligned (its rotation, the identity,
+    /// is dropped).
+    pub const fn of_axis_aligned(e: &Entity) -> Self {
+        Self {
+            center: e.center,
+            weights: e.weights,
+        }
+    }
+}
+
+impl From<AxisEntity> for Entity {
+    fn from(e: AxisEntity) -> Self {
+        Entity::axis_aligned(e.center, e.weights)
+    }
+}
+
+/// One map entity: the six floats of the paper's memory count (Table 2), and an orientation.
+/// An axis-aligned entity (the paper's) has [`Rotation::IDENTITY`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Entity {
     pub center: Point3,
     /// `w_j = 1 / r_j^2`; zero for a degenerated (infinite) semi-axis, never negative, inf or NaN.
     pub weights: [f32; 3],
+    /// Local axes to world: `x_world = center + R(rotation) x_local`.
+    pub rotation: Rotation,
 }
 
 impl Entity {
@@ -152,7 +184,39 @@ impl Entity {
             };
             weights[thinnest] = weight_of(r);
         }
-        Self { center, weights }
+        Self {
+            center,
+            weights,
+            rotation: Rotation::IDENTITY,
+        }
+    }
+
+    /// An axis-aligned entity of these weights (the paper's, and the stored form of version 1).
+    pub const fn axis_aligned(center: Point3, weights: [f32; 3]) -> Self {
+        Self {
+            center,
+            weights,
+            rotation: Rotation::IDENTITY,
+        }
+    }
+
+    /// The same shape turned to `rotation`.
+    pub const fn with_rotation(self, rotation: Rotation) -> Self {
+        Self { rotation, ..self }
+    }
+
+    /// A world point in the entity's frame, `R^T (p - c)`; exactly `p - c` when axis-aligned.
+    pub fn to_local(&self, p: [f64; 3]) -> [f64; 3] {
+        let c = self.center.to_f64();
+        self.rotation
+            .inverse_rotate([p[0] - c[0], p[1] - c[1], p[2] - c[2]])
+    }
+
+    /// A point of the entity's frame in the world, `c + R local`.
+    pub fn to_world(&self, local: [f64; 3]) -> [f64; 3] {
+        let c = self.center.to_f64();
+        let v = self.rotation.rotate(local);
+        [c[0] + v[0], c[1] + v[1], c[2] + v[2]]
     }
 
     /// A sphere of radius `radius` (kept finite whatever the threshold).
@@ -162,10 +226,7 @@ impl Entity {
         } else {
             0.0
         };
-        Self {
-            center,
-            weights: [w; 3],
-        }
+        Self::axis_aligned(center, [w; 3])
     }
 
     /// Semi-axes `r_j = 1 / sqrt(w_j)`, with `f32::INFINITY` for a degenerated axis.
@@ -217,7 +278,9 @@ impl Entity {
         }
     }
 
-    /// `psi2(E)` of eq. 11.
+    /// `psi2(E)` of eq. 11, of the entity's axis-aligned shape at its centre: for an oriented
+    /// entity it pairs with `psi1` of the point's world position only when the rotation is the
+    /// identity; [`Entity::inner_product`] holds for every entity.
     pub fn psi2(&self) -> [f64; 7] {
         let c = self.center.to_f64();
         let w = self.weights.map(|w| w as f64);
@@ -236,12 +299,10 @@ impl Entity {
     /// `psi1(X)^T psi2(E)` in its closed form `(1 - sum_j w_j (x_j - c_j)^2) / 2`: zero on the
     /// surface, positive inside, negative outside.
     pub fn inner_product(&self, point: Point3) -> f64 {
-        let p = point.to_f64();
-        let c = self.center.to_f64();
+        let d = self.to_local(point.to_f64());
         let mut sum = 0.0;
         for j in 0..3 {
-            let d = p[j] - c[j];
-            sum += self.weights[j] as f64 * d * d;
+            sum += self.weights[j] as f64 * d[j] * d[j];
         }
         0.5 * (1.0 - sum)
     }

@@ -29,12 +29,15 @@ pub mod moments;
 mod num;
 pub mod query;
 pub mod rng;
+pub mod rotation;
+pub mod shell;
 pub mod stream;
 pub mod transform;
 pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};
 pub use map::{Map, MapEntity};
+pub use rotation::Rotation;
 
 /// Test helpers: tests return `Result` and use `?`, so core has no `expect` even in tests.
 #[cfg(test)]

@@ -27,10 +27,11 @@ impl Aabb {
         max: [f64::NEG_INFINITY; 3],
     };
 
-    /// The box of an entity: centre +- semi-axis, infinite along a degenerated axis.
+    /// The box of an entity: centre +- its half extent along each world axis, infinite along a
+    /// degenerated axis (or any world axis a degenerated axis is turned onto).
     pub fn of(e: &Entity) -> Self {
         let c = e.center.to_f64();
-        let r = e.semi_axes_f64();
+        let r = half_extents(e);
         Self {
             min: [c[0] - r[0], c[1] - r[1], c[2] - r[2]],
             max: [c[0] + r[0], c[1] + r[1], c[2] + r[2]],
@@ -103,22 +104,45 @@ pub struct RayHit {
     pub point: [f64; 3],
 }
 
+/// Half extents of an entity's world box: `sqrt(sum_k R_jk^2 r_k^2)` along world axis j, the
+/// support of the ellipsoid, exactly `r_j` when axis-aligned.
+pub fn half_extents(e: &Entity) -> [f64; 3] {
+    let r = e.semi_axes_f64();
+    if e.rotation.is_identity() {
+        return r;
+    }
+    let m = e.rotation.matrix();
+    [0, 1, 2].map(|j| {
+        let mut s = 0.0;
+        for k in 0..3 {
+            let a = m[j][k] * m[j][k];
+            if a == 0.0 {
+                continue;
+            }
+            if r[k].is_infinite() {
+                return f64::INFINITY;
+            }
+            s += a * r[k] * r[k];
+        }
+        libm::sqrt(s)
+    })
+}
+
 /// True if `p` is inside or on the entity: `psi1(X) . psi2(E) >= 0`.
 pub fn contains(e: &Entity, p: [f64; 3]) -> bool {
-    let c = e.center.to_f64();
-    let s: f64 = (0..3)
-        .map(|j| e.weights[j] as f64 * (p[j] - c[j]) * (p[j] - c[j]))
-        .sum();
+    let q = e.to_local(p);
+    let s: f64 = (0..3).map(|j| e.weights[j] as f64 * q[j] * q[j]).sum();
     s <= 1.0
 }
 
 /// The first `t` in `[0, t_max]` where the ray meets the entity's surface.
 pub fn ray_entity(e: &Entity, o: [f64; 3], d: [f64; 3], t_max: f64) -> Option<f64> {
-    let c = e.center.to_f64();
+    let local_o = e.to_local(o);
+    let d = e.rotation.inverse_rotate(d);
     let (mut a, mut b, mut k) = (0.0, 0.0, -1.0);
     for j in 0..3 {
         let w = e.weights[j] as f64;
-        let q = o[j] - c[j];
+        let q = local_o[j];
         a += w * d[j] * d[j];
         b += 2.0 * w * d[j] * q;
         k += w * q * q;

@@ -2,14 +2,13 @@
 //!
 //! A translation moves the centre: in G(6,3) `psi1(X + t) . psi2(E + t) = psi1(X) . psi2(E)`
 //! for every point, exactly. A signed axis permutation (a rotation that maps axes onto axes)
-//! permutes the centre and the weights: exact too. A general rotation turns an axis-aligned
-//! ellipsoid into an oriented one, which the 24-byte entity cannot hold; mema then stores the
-//! axis-aligned ellipsoid inscribed in the rotated ellipsoid's bounding box, semi-axes
-//! `r'_j = sqrt(sum_k R_jk^2 r_k^2)`. It has the same per-axis second moments as the rotated
-//! ellipsoid and touches all six faces of its box; it is exact for axis permutations. Keeping
-//! the orientation instead would cost a unit quaternion, 16 more bytes per entity (24 -> 40).
+//! permutes the centre and the weights of an axis-aligned entity, so it stays axis-aligned (and
+//! in the paper's 24-byte form) bit for bit. Any other rotation turns the entity: its rotation
+//! becomes `R q` and its shape is kept, so `psi1(R^T (x - c))` and every distance move with the
+//! map, to the f32 rounding of the stored quaternion.
 
 use crate::geometry::{Entity, Point3};
+use crate::rotation::Rotation;
 
 /// `x' = rotation x + translation`, in the map's world frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -85,46 +84,31 @@ impl RigidTransform {
         })
     }
 
-    /// The entity's shape rotated (its centre is moved by the caller, in its own frame).
-    pub fn rotate_shape(&self, e: &Entity) -> [f32; 3] {
-        let mut weights = [0.0f32; 3];
-        for (j, w) in weights.iter_mut().enumerate() {
-            let mut r2 = 0.0f64;
-            let mut infinite = false;
-            for k in 0..3 {
-                let m = self.rotation[j][k] * self.rotation[j][k];
-                if m == 0.0 {
-                    continue;
-                }
-                let wk = e.weights[k] as f64;
-                if wk == 0.0 {
-                    infinite = true;
-                } else {
-                    r2 += m / wk;
-                }
-            }
-            *w = if infinite || !(r2 > 0.0) {
-                0.0
-            } else if self.is_axis_permutation() {
-                // Exact: the permuted weight itself, never a round trip through r.
-                (0..3)
-                    .find(|&k| self.rotation[j][k] != 0.0)
-                    .and_then(|k| e.weights.get(k).copied())
-                    .unwrap_or(0.0)
-            } else {
-                (1.0 / r2) as f32
-            };
-        }
-        weights
+    /// The permuted weights of an axis-aligned entity under an axis permutation: exact, never a
+    /// round trip through r.
+    fn permute_weights(&self, e: &Entity) -> [f32; 3] {
+        [0, 1, 2].map(|j| {
+            (0..3)
+                .find(|&k| self.rotation[j][k] != 0.0)
+                .and_then(|k| e.weights.get(k).copied())
+                .unwrap_or(0.0)
+        })
     }
 
-    /// The entity in a frame whose origin is unchanged: centre rotated and translated.
-    pub fn apply_entity(&self, e: &Entity) -> Entity {
+    /// The entity in a frame whose origin is unchanged: centre rotated and translated, and the
+    /// shape turned with it (`None` if `rotation` is not a rotation).
+    pub fn apply_entity(&self, e: &Entity) -> Option<Entity> {
         let c = self.apply_point(e.center.to_f64());
-        Entity {
-            center: Point3::new(c[0] as f32, c[1] as f32, c[2] as f32),
-            weights: self.rotate_shape(e),
+        let center = Point3::new(c[0] as f32, c[1] as f32, c[2] as f32);
+        if e.rotation.is_identity() && self.is_axis_permutation() {
+            return Some(Entity::axis_aligned(center, self.permute_weights(e)));
         }
+        let turn = Rotation::from_matrix(self.rotation)?;
+        Some(Entity {
+            center,
+            weights: e.weights,
+            rotation: turn.after(&e.rotation),
+        })
     }
 }
 
@@ -134,14 +118,14 @@ mod tests {
     use crate::geometry::{Degeneration, psi_inner_product, psi1};
 
     #[test]
-    fn translation_keeps_every_g63_inner_product() {
+    fn translation_keeps_every_g63_inner_product() -> Result<(), &'static str> {
         let e = Entity::from_semi_axes(
             Point3::new(0.5, -0.25, 2.0),
             [0.5, 1.0, 0.25],
             &Degeneration::default(),
         );
         let t = RigidTransform::translation([1.5, -3.0, 0.75]);
-        let moved = t.apply_entity(&e);
+        let moved = t.apply_entity(&e).ok_or("a rotation")?;
         for p in [[0.0, 0.0, 0.0], [1.0, -0.25, 2.0], [3.0, 2.0, -1.0]] {
             let x = Point3::new(p[0] as f32, p[1] as f32, p[2] as f32);
             let q = t.apply_point(p);
@@ -150,10 +134,12 @@ mod tests {
             let after = psi_inner_product(&psi1(xq), &moved.psi2());
             assert!((before - after).abs() < 1e-5, "{p:?}: {before} vs {after}");
         }
+        Ok(())
     }
 
     #[test]
-    fn axis_permutations_are_exact_and_rotations_inscribe_the_box() {
+    fn axis_permutations_stay_axis_aligned_and_rotations_turn_the_entity()
+    -> Result<(), &'static str> {
         let e = Entity::from_semi_axes(
             Point3::new(1.0, 2.0, 3.0),
             [0.5, 1.0, 0.25],
@@ -166,14 +152,20 @@ mod tests {
             ..quarter
         };
         assert!(snapped.is_axis_permutation());
-        let p = snapped.apply_entity(&e);
+        let p = snapped.apply_entity(&e).ok_or("a rotation")?;
         assert_eq!(p.weights, [e.weights[1], e.weights[0], e.weights[2]]);
         assert_eq!(p.center, Point3::new(-2.0, 1.0, 3.0));
-        // 45 degrees about z: the x and y semi-axes both become sqrt((0.5^2 + 1^2) / 2).
-        let r = RigidTransform::rotation_about(2, core::f64::consts::FRAC_PI_4).apply_entity(&e);
-        let want = libm::sqrt((0.25 + 1.0) / 2.0);
-        let axes = r.semi_axes();
-        assert!((axes[0] as f64 - want).abs() < 1e-6 && (axes[1] as f64 - want).abs() < 1e-6);
-        assert!((axes[2] - 0.25).abs() < 1e-7);
+        assert!(p.rotation.is_identity());
+        // 0.4 rad about x: the entity's surface points move with the map.
+        let t = RigidTransform::rotation_about(0, 0.4);
+        let r = t.apply_entity(&e).ok_or("a rotation")?;
+        assert_eq!(r.weights, e.weights);
+        for local in [[0.5, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -0.25]] {
+            let before = e.to_world(local);
+            let after = t.apply_point(before);
+            let d = crate::closest_point::surface_distance(&r, after);
+            assert!(d < 1e-6, "{local:?}: {d}");
+        }
+        Ok(())
     }
 }

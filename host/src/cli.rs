@@ -274,10 +274,30 @@ pub struct MapArgs {
     /// Number of clusters (entities).
     #[arg(
         short,
-        required_unless_present = "tolerance",
-        conflicts_with = "tolerance"
+        required_unless_present_any = ["tolerance", "bytes"],
+        conflicts_with_all = ["tolerance", "bytes"]
     )]
     pub k: Option<usize>,
+    /// Instead of k: as many entities as B bytes of map file hold, its header and checksum
+    /// aside (14 bytes an entity for shells, 25 for the paper's entities).
+    #[arg(long, value_name = "B", conflicts_with = "tolerance")]
+    pub bytes: Option<usize>,
+    /// The entity model: `shells` (oriented shells of each cluster's covariance, stored on a
+    /// quantized grid) or `paper` (the paper's axis-aligned DE fit of eq. 12).
+    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Paper)]
+    pub model: crate::pipeline::Model,
+    /// Shells: semi-axes along a cluster's two largest principal axes are this many standard
+    /// deviations (the patch's extent).
+    #[arg(long, default_value_t = mema_core::shell::ShellParams::default().tangent_scale)]
+    pub tangent_scale: f64,
+    /// Shells: the semi-axis along the smallest principal axis is this many standard
+    /// deviations (the patch's thickness).
+    #[arg(long, default_value_t = mema_core::shell::ShellParams::default().normal_scale)]
+    pub normal_scale: f64,
+    /// The paper's method exactly: axis-aligned entities fitted by DE on eq. 12 (F 1.2, CR 0.7,
+    /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
+    #[arg(long)]
+    pub paper: bool,
     /// Instead of k: split clusters until each one's eq. 13 error is at most T (cloud units),
     /// then merge neighbours that stay under T.
     #[arg(long)]

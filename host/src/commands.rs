@@ -7,7 +7,7 @@ use std::path::Path;
 
 use crate::cli::{AblationArgs, DemoArgs, InfoArgs, MapArgs};
 use crate::mapfile::HostMap;
-use crate::pipeline::{self, EntityChoice, PipelineConfig};
+use crate::pipeline::{self, EntityChoice, Model, PipelineConfig};
 use crate::read::read_cloud;
 use crate::stats::{self, ErrorStats, MemoryRow};
 
@@ -86,9 +86,12 @@ impl KindCounts {
 /// What `mema map` and `mema demo` report.
 #[derive(Serialize)]
 pub struct MapReport {
+    pub model: Model,
     pub memory: MemoryRow,
+    /// Eq. 13 of the written map's entities (the shells, or the paper's ellipsoids).
     pub ellipsoidal: ErrorStats,
-    pub spherical: ErrorStats,
+    /// The paper's spherical comparison (null for shells).
+    pub spherical: Option<ErrorStats>,
     pub kinds: KindCounts,
     pub kmeans_iterations: u32,
     pub kmeans_converged: bool,
@@ -108,11 +111,35 @@ pub fn map_cloud(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
+    map_cloud_with(
+        cloud,
+        config,
+        Model::Paper,
+        mema_core::shell::ShellParams::default(),
+        entity,
+        output,
+        labels,
+    )
+}
+
+/// [`map_cloud`] in either model (`shell_params` for shells; its degeneration is `config`'s).
+pub fn map_cloud_with(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    model: Model,
+    shell_params: mema_core::shell::ShellParams,
+    entity: EntityChoice,
+    output: &Path,
+    labels: Option<&Path>,
+) -> Result<MapReport> {
     let clusters = crate::progress::stage("k-means", || {
         pipeline::cluster(&cloud.points, config.k, &config.kmeans)
     })?;
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
+    }
+    if let Model::Shells = model {
+        return shells_report(cloud, config, shell_params, &clusters, output);
     }
     let fitted = crate::progress::stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
@@ -132,13 +159,67 @@ pub fn map_cloud(
     };
     chosen.write(output)?;
     Ok(MapReport {
+        model: Model::Paper,
         memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
         ellipsoidal: errors(&ellipsoids),
-        spherical: errors(&spheres),
+        spherical: Some(errors(&spheres)),
         kinds: KindCounts::of(chosen),
         kmeans_iterations: clusters.outcome.iterations,
         kmeans_converged: clusters.outcome.converged,
         entity,
+        dropped_non_finite: cloud.dropped_non_finite,
+        output: output.display().to_string(),
+        filter: crate::filter::FilterCounts {
+            read: cloud.points.len(),
+            ..Default::default()
+        },
+    })
+}
+
+/// The shell model's map of the clusters, written, and its report.
+fn shells_report(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    params: mema_core::shell::ShellParams,
+    clusters: &pipeline::Clusters,
+    output: &Path,
+) -> Result<MapReport> {
+    let params = mema_core::shell::ShellParams {
+        degeneration: config.fit.degeneration,
+        ..params
+    };
+    let centres: Vec<Point3> = clusters
+        .moments
+        .iter()
+        .map(|m| Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
+        .collect();
+    let map = crate::progress::stage("fitting", || {
+        crate::shells::shell_map(
+            cloud.origin,
+            &cloud.points,
+            &clusters.labels,
+            &centres,
+            &params,
+        )
+    });
+    map.write(output)?;
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let errors = crate::progress::stage("evaluating", || {
+        pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
+    });
+    Ok(MapReport {
+        model: Model::Shells,
+        memory: MemoryRow::with_entity_bytes(
+            cloud.points.len(),
+            map.entities.len(),
+            crate::shells::BYTES_PER_ENTITY,
+        ),
+        ellipsoidal: ErrorStats::from_errors(&errors),
+        spherical: None,
+        kinds: KindCounts::of(&map),
+        kmeans_iterations: clusters.outcome.iterations,
+        kmeans_converged: clusters.outcome.converged,
+        entity: EntityChoice::Ellipsoid,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
         filter: crate::filter::FilterCounts {
@@ -153,7 +234,10 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(r)?);
         return Ok(());
     }
-    println!("Table 2: memory (12 bytes per point, 24 per entity)");
+    println!(
+        "Table 2: memory (12 bytes per point, {} per entity)",
+        r.memory.map_bytes / r.memory.entities.max(1)
+    );
     println!("{}", stats::MEMORY_HEADER);
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
@@ -162,8 +246,13 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
         r.ellipsoidal.clusters
     );
     println!("{}", stats::ERROR_HEADER);
-    println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
-    println!("{}", stats::format_error_row("spherical", &r.spherical));
+    match &r.spherical {
+        Some(spherical) => {
+            println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
+            println!("{}", stats::format_error_row("spherical", spherical));
+        }
+        None => println!("{}", stats::format_error_row("shells", &r.ellipsoidal)),
+    }
     println!();
     println!(
         "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
@@ -208,15 +297,50 @@ pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(t) = args.tolerance {
         return map_to_tolerance(args, t);
     }
-    let config = args.fit.config(args.k.unwrap_or(0))?;
+    let model = if args.paper { Model::Paper } else { args.model };
+    if model == Model::Shells && args.entity == EntityChoice::Sphere {
+        return Err(crate::cli::UsageError(
+            "--entity sphere is the paper's comparison; add --paper (or --model paper)".into(),
+        )
+        .into());
+    }
+    let k = match args.bytes {
+        Some(bytes) => {
+            let per = model.bytes_per_entity();
+            if bytes < per {
+                return Err(crate::cli::UsageError(format!(
+                    "--bytes {bytes} holds no entity; one takes {per} bytes in this model"
+                ))
+                .into());
+            }
+            bytes / per
+        }
+        None => args.k.unwrap_or(0),
+    };
+    let config = args.fit.config(k)?;
     let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
-    let mut report = map_cloud(
+    for (name, v) in [
+        ("--tangent-scale", args.tangent_scale),
+        ("--normal-scale", args.normal_scale),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
+        }
+    }
+    let shell_params = mema_core::shell::ShellParams {
+        tangent_scale: args.tangent_scale,
+        normal_scale: args.normal_scale,
+        ..Default::default()
+    };
+    let mut report = map_cloud_with(
         &cloud,
         &config,
+        model,
+        shell_params,
         args.entity,
         &args.output,
         args.labels.as_deref(),
@@ -310,6 +434,19 @@ struct InfoReport {
     /// The paper's count: 24 bytes per entity.
     map_bytes: usize,
     file_bytes: u64,
+    /// How `.mema` stores (or would store) these entities, and its bytes per entity.
+    layout: String,
+    record_bytes: usize,
+    /// Entities with a rotation other than the identity.
+    oriented: usize,
+}
+
+fn layout_name(layout: &mema_core::map::Layout) -> &'static str {
+    match layout {
+        mema_core::map::Layout::AxisAligned => "version 1, axis-aligned f32",
+        mema_core::map::Layout::Oriented => "version 2, oriented f32",
+        mema_core::map::Layout::Quantized(_) => "version 2, oriented, quantized",
+    }
 }
 
 pub fn info(args: &InfoArgs) -> Result<()> {
@@ -339,6 +476,13 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         semi_axis_max: rmax,
         map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
         file_bytes,
+        layout: layout_name(&map.layout()).into(),
+        oriented: map
+            .entities
+            .iter()
+            .filter(|e| !e.entity.rotation.is_identity())
+            .count(),
+        record_bytes: map.layout().record_len(),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -355,8 +499,12 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.semi_axis_min, r.semi_axis_max
         );
         println!(
-            "bytes: {} (paper's 24 per entity), {} on disk",
-            r.map_bytes, r.file_bytes
+            "layout: {} ({} bytes an entity), {} of {} entities oriented",
+            r.layout, r.record_bytes, r.oriented, r.entities
+        );
+        println!(
+            "bytes: {} on disk ({} at the paper's 24 per entity)",
+            r.file_bytes, r.map_bytes
         );
     }
     Ok(())
@@ -458,6 +606,7 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
                 kind: n.fit.entity.kind(tol),
             })
             .collect(),
+        quantization: None,
     };
     map.write(&args.output)?;
     if let Some(path) = &args.labels {

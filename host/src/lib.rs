@@ -17,6 +17,7 @@ pub mod query;
 pub mod read;
 pub mod scene;
 pub mod serial;
+pub mod shells;
 pub mod stats;
 pub mod stream_bench;
 pub mod tolerance;

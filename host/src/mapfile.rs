@@ -1,8 +1,9 @@
 //! Map files: `.mema` (binary, see `mema_core::map`), `.csv` and `.json`, written atomically.
 
 use anyhow::{Context, Result, bail};
-use mema_core::map::{MapFile, encode, encoded_len};
-use mema_core::{Entity, EntityKind, MapEntity, Point3};
+use mema_core::map::record::Quantization;
+use mema_core::map::{Layout, MapFile, encode_as};
+use mema_core::{Entity, EntityKind, MapEntity, Point3, Rotation};
 use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
@@ -12,6 +13,9 @@ use std::path::Path;
 pub struct HostMap {
     pub origin: [f64; 3],
     pub entities: Vec<MapEntity>,
+    /// The grid of a quantized map: its `.mema` file is written on it (14 bytes an entity).
+    /// `None` writes f32 records, version 1 when every entity is axis-aligned.
+    pub quantization: Option<Quantization>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,26 +54,57 @@ impl HostMap {
         ]
     }
 
+    /// A map of f32 entities (not quantized).
+    pub fn new(origin: [f64; 3], entities: Vec<MapEntity>) -> Self {
+        Self {
+            origin,
+            entities,
+            quantization: None,
+        }
+    }
+
+    /// The `.mema` layout this map is written in.
+    pub fn layout(&self) -> Layout {
+        match self.quantization {
+            Some(grid) => Layout::Quantized(grid),
+            None if self
+                .entities
+                .iter()
+                .all(|e| e.entity.rotation.is_identity()) =>
+            {
+                Layout::AxisAligned
+            }
+            None => Layout::Oriented,
+        }
+    }
+
     pub fn to_mema(&self) -> Result<Vec<u8>> {
-        let mut out = vec![0u8; encoded_len(self.entities.len())];
-        encode(self.origin, &self.entities, &mut out).map_err(anyhow::Error::from)?;
+        let layout = self.layout();
+        let mut out = vec![0u8; layout.encoded_len(self.entities.len())];
+        encode_as(layout, self.origin, self.entities.iter().copied(), &mut out)
+            .map_err(anyhow::Error::from)?;
         Ok(out)
     }
 
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("cx,cy,cz,rx,ry,rz,kind\n");
+        let mut s = String::from("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n");
         for e in &self.entities {
             let c = self.world_center(&e.entity);
             let r = e.entity.semi_axes();
+            let q = e.entity.rotation.to_array();
             // Shortest round-trip formatting, and `inf` for a degenerated axis.
             s.push_str(&format!(
-                "{},{},{},{},{},{},{}\n",
+                "{},{},{},{},{},{},{},{},{},{},{}\n",
                 c[0],
                 c[1],
                 c[2],
                 r[0],
                 r[1],
                 r[2],
+                q[0],
+                q[1],
+                q[2],
+                q[3],
                 e.kind.name()
             ));
         }
@@ -88,6 +123,7 @@ impl HostMap {
                     center: self.world_center(&e.entity),
                     local_center: e.entity.center.to_array(),
                     weights: e.entity.weights,
+                    rotation: e.entity.rotation.to_array(),
                     semi_axes: e.entity.semi_axes().map(|r| r.is_finite().then_some(r)),
                     kind: e.kind.name().into(),
                 })
@@ -127,21 +163,25 @@ impl HostMap {
         Ok(Self {
             origin: file.origin(),
             entities: file.entities().collect(),
+            quantization: match file.layout() {
+                Layout::Quantized(grid) => Some(grid),
+                _ => None,
+            },
         })
     }
 
-    fn from_world(rows: Vec<([f64; 3], [f64; 3], EntityKind)>) -> Result<Self> {
+    fn from_world(rows: Vec<CsvRow>) -> Result<Self> {
         // A local origin at the centres' mean keeps georeferenced centres precise in f32.
         let n = rows.len().max(1) as f64;
         let mut origin = [0.0; 3];
-        for (c, _, _) in &rows {
+        for (c, ..) in &rows {
             for j in 0..3 {
                 origin[j] += c[j] / n;
             }
         }
         let entities = rows
             .into_iter()
-            .map(|(c, r, kind)| {
+            .map(|(c, r, rotation, kind)| {
                 let center = Point3::new(
                     (c[0] - origin[0]) as f32,
                     (c[1] - origin[1]) as f32,
@@ -155,12 +195,16 @@ impl HostMap {
                     }
                 });
                 MapEntity {
-                    entity: Entity { center, weights },
+                    entity: Entity {
+                        center,
+                        weights,
+                        rotation,
+                    },
                     kind,
                 }
             })
             .collect();
-        Ok(Self { origin, entities })
+        Ok(Self::new(origin, entities))
     }
 
     fn from_csv(text: &str) -> Result<Self> {
@@ -171,8 +215,16 @@ impl HostMap {
                 continue;
             }
             let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            let [cx, cy, cz, rx, ry, rz, kind] = fields[..] else {
-                bail!("line {}: expected cx,cy,cz,rx,ry,rz,kind", i + 1);
+            // Version 1's seven columns are an axis-aligned map.
+            let (cx, cy, cz, rx, ry, rz, q, kind) = match fields[..] {
+                [cx, cy, cz, rx, ry, rz, qx, qy, qz, qw, kind] => {
+                    (cx, cy, cz, rx, ry, rz, Some([qx, qy, qz, qw]), kind)
+                }
+                [cx, cy, cz, rx, ry, rz, kind] => (cx, cy, cz, rx, ry, rz, None, kind),
+                _ => bail!(
+                    "line {}: expected cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind (or cx,cy,cz,rx,ry,rz,kind)",
+                    i + 1
+                ),
             };
             let num = |s: &str| -> Result<f64> {
                 let v: f64 = s
@@ -191,22 +243,40 @@ impl HostMap {
                     i + 1
                 );
             }
+            let rotation = match q {
+                Some(q) => unit_rotation([num(q[0])?, num(q[1])?, num(q[2])?, num(q[3])?])
+                    .with_context(|| format!("line {}", i + 1))?,
+                None => Rotation::IDENTITY,
+            };
             let kind = EntityKind::from_name(kind)
                 .with_context(|| format!("line {}: unknown kind '{kind}'", i + 1))?;
-            rows.push((c, r, kind));
+            rows.push((c, r, rotation, kind));
         }
         Self::from_world(rows)
     }
 
     fn from_json(bytes: &[u8]) -> Result<Self> {
         let doc: JsonMap = serde_json::from_slice(bytes).context("not a mema JSON map")?;
+        if doc.format != "mema-map" {
+            bail!("format is '{}', not 'mema-map'", doc.format);
+        }
+        if !(1..=mema_core::map::VERSION).contains(&doc.version) {
+            bail!(
+                "map version {} is not supported (this build reads 1 to {})",
+                doc.version,
+                mema_core::map::VERSION
+            );
+        }
         let mut entities = Vec::with_capacity(doc.entities.len());
         for (i, e) in doc.entities.iter().enumerate() {
             let kind = EntityKind::from_name(&e.kind)
                 .with_context(|| format!("entity {i}: unknown kind '{}'", e.kind))?;
+            let rotation =
+                unit_rotation(e.rotation.map(f64::from)).with_context(|| format!("entity {i}"))?;
             let entity = Entity {
                 center: Point3::from(e.local_center),
                 weights: e.weights,
+                rotation,
             };
             if !entity.center.is_finite()
                 || entity.weights.iter().any(|w| !(w.is_finite() && *w >= 0.0))
@@ -215,11 +285,21 @@ impl HostMap {
             }
             entities.push(MapEntity { entity, kind });
         }
-        Ok(Self {
-            origin: doc.origin,
-            entities,
-        })
+        Ok(Self::new(doc.origin, entities))
     }
+}
+
+/// (world centre, semi-axes, rotation, kind) of one CSV row.
+type CsvRow = ([f64; 3], [f64; 3], Rotation, EntityKind);
+
+/// A rotation from a text map's quaternion, which must be of unit length within 1e-3 (a
+/// quaternion printed to six or more digits): anything else is a mistake, not a rotation.
+fn unit_rotation(q: [f64; 4]) -> Result<Rotation> {
+    let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if (norm - 1.0).abs() > 1e-3 || norm.is_nan() {
+        bail!("quaternion {q:?} has length {norm}, not 1");
+    }
+    Rotation::from_quaternion(q).context("quaternion is not a rotation")
 }
 
 #[derive(Serialize, Deserialize)]
@@ -238,9 +318,16 @@ struct JsonEntity {
     local_center: [f32; 3],
     /// `1 / r^2`, 0 for a degenerated axis: the exact stored values.
     weights: [f32; 3],
+    /// Unit quaternion `[x, y, z, w]`, `x_world = center + R(q) x_local`; absent in version 1.
+    #[serde(default = "identity_quaternion")]
+    rotation: [f32; 4],
     /// `null` for a degenerated (infinite) axis.
     semi_axes: [Option<f32>; 3],
     kind: String,
+}
+
+fn identity_quaternion() -> [f32; 4] {
+    Rotation::IDENTITY.to_array()
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
@@ -288,17 +375,11 @@ mod tests {
                 }
             });
             entities.push(MapEntity {
-                entity: Entity {
-                    center: Point3::new(i as f32, -1.5, 0.25),
-                    weights,
-                },
+                entity: Entity::axis_aligned(Point3::new(i as f32, -1.5, 0.25), weights),
                 kind,
             });
         }
-        HostMap {
-            origin: [631_000.5, 4_833_000.25, 120.0],
-            entities,
-        }
+        HostMap::new([631_000.5, 4_833_000.25, 120.0], entities)
     }
 
     #[test]

@@ -24,6 +24,26 @@ pub enum EntityChoice {
     Sphere,
 }
 
+/// How each cluster becomes an entity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Model {
+    /// The paper: axis-aligned semi-axes fitted by DE on eq. 12 (and a sphere beside it).
+    Paper,
+    /// Oriented shells of the clusters' covariances, quantized (`crate::shells`).
+    Shells,
+}
+
+impl Model {
+    /// Bytes one entity takes in this model's map file.
+    pub fn bytes_per_entity(self) -> usize {
+        match self {
+            Self::Paper => mema_core::map::ENTITY_LEN,
+            Self::Shells => crate::shells::BYTES_PER_ENTITY,
+        }
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct PipelineConfig {
     pub k: usize,
@@ -230,13 +250,13 @@ pub fn cluster_moments(
 }
 
 /// The points of each cluster in point order: a counting sort of the labels, 4 bytes a point.
-struct Members {
+pub(crate) struct Members {
     start: Vec<u32>,
     order: Vec<u32>,
 }
 
 impl Members {
-    fn of(labels: &[u32], k: usize) -> Self {
+    pub(crate) fn of(labels: &[u32], k: usize) -> Self {
         let mut start = vec![0u32; k + 1];
         for &l in labels {
             if let Some(s) = start.get_mut(l as usize + 1) {
@@ -257,7 +277,7 @@ impl Members {
         Self { start, order }
     }
 
-    fn of_cluster(&self, c: usize) -> &[u32] {
+    pub(crate) fn of_cluster(&self, c: usize) -> &[u32] {
         &self.order[self.start[c] as usize..self.start[c + 1] as usize]
     }
 }
@@ -318,5 +338,6 @@ pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap 
                 kind: f.entity.kind(sphere_tolerance),
             })
             .collect(),
+        quantization: None,
     }
 }

@@ -159,8 +159,10 @@ pub fn query(args: &QueryArgs) -> Result<()> {
     Ok(())
 }
 
-/// Applies `transform` to a whole map: the origin moves exactly in f64, shapes per entity.
-pub fn transform_map(map: &HostMap, transform: &RigidTransform) -> HostMap {
+/// Applies `transform` to a whole map: the origin moves exactly in f64, shapes per entity
+/// (`None` if `transform` is not a rigid rotation). The result is not quantized: a rotated grid
+/// entity is no longer on the grid, and rounding it again would make the rotation lossy.
+pub fn transform_map(map: &HostMap, transform: &RigidTransform) -> Option<HostMap> {
     // x' = R (origin + local) + t = (R origin + t) + R local.
     let origin = transform.apply_point(map.origin);
     let rotation_only = RigidTransform {
@@ -171,14 +173,13 @@ pub fn transform_map(map: &HostMap, transform: &RigidTransform) -> HostMap {
         .entities
         .iter()
         .map(|e| {
-            let entity = rotation_only.apply_entity(&e.entity);
-            MapEntity {
-                entity,
+            Some(MapEntity {
+                entity: rotation_only.apply_entity(&e.entity)?,
                 kind: e.kind,
-            }
+            })
         })
-        .collect();
-    HostMap { origin, entities }
+        .collect::<Option<Vec<_>>>()?;
+    Some(HostMap::new(origin, entities))
 }
 
 pub fn transform(args: &TransformArgs) -> Result<()> {
@@ -204,15 +205,16 @@ pub fn transform(args: &TransformArgs) -> Result<()> {
     if let Some(text) = &args.translate {
         t = RigidTransform::translation(parse_numbers::<3>(text, "--translate")?).after(&t);
     }
-    let moved = transform_map(&map, &t);
+    let moved = transform_map(&map, &t)
+        .with_context(|| format!("{}: the transform is not a rotation", args.map.display()))?;
     moved.write(&args.output)?;
     eprintln!(
         "mema: transformed {} entities ({})",
         moved.entities.len(),
         if t.is_axis_permutation() {
-            "exact: translation and axis permutation"
+            "translation and axis permutation: exact, axis-aligned entities stay axis-aligned"
         } else {
-            "rotated shapes approximated by their inscribed axis-aligned ellipsoids"
+            "rotation: entities turned with the map, orientation stored as a quaternion"
         }
     );
     println!("{}", args.output.display());

@@ -19,8 +19,13 @@ pub struct MemoryRow {
 
 impl MemoryRow {
     pub fn new(points: usize, entities: usize) -> Self {
+        Self::with_entity_bytes(points, entities, MAP_BYTES_PER_ENTITY)
+    }
+
+    /// The row for a map whose entities take `bytes_per_entity` each (the paper counts 24).
+    pub fn with_entity_bytes(points: usize, entities: usize, bytes_per_entity: usize) -> Self {
         let cloud_bytes = points * CLOUD_BYTES_PER_POINT;
-        let map_bytes = entities * MAP_BYTES_PER_ENTITY;
+        let map_bytes = entities * bytes_per_entity;
         let percent = if cloud_bytes == 0 {
             0.0
         } else {

@@ -47,7 +47,10 @@ fn csv_and_json_maps_carry_the_same_entities() {
             .assert_ok();
     }
     let csv = std::fs::read_to_string(dir.join("m.csv")).expect("csv");
-    assert_eq!(csv.lines().next(), Some("cx,cy,cz,rx,ry,rz,kind"));
+    assert_eq!(
+        csv.lines().next(),
+        Some("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind")
+    );
     assert_eq!(csv.lines().count(), 61);
     let mema = HostMap::read(&dir.join("m.mema")).expect("mema");
     let json = HostMap::read(&dir.join("m.json")).expect("json");

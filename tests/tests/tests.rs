@@ -34,3 +34,5 @@ mod stream;
 // draw (pixels against projections computed here), export (re-read by gltf and ply-rs-bw),
 // completions and man.
 mod toolbox;
+// draw and export of oriented maps: a turned map meshes and draws as the turned original.
+mod toolbox_oriented;

@@ -396,14 +396,7 @@ fn export_ply_glb_obj_reread_by_independent_parsers() {
     let mut at = 0;
     for kind in EntityKind::ALL {
         for e in map.entities.iter().filter(|e| e.kind == kind) {
-            let (n, _) = expected_counts(
-                &HostMap {
-                    origin: map.origin,
-                    entities: vec![*e],
-                },
-                24,
-                12,
-            );
+            let (n, _) = expected_counts(&HostMap::new(map.origin, vec![*e]), 24, 12);
             if e.entity.degenerated_axes() == 0 {
                 let c = map.world_center(&e.entity);
                 for vert in &verts[at..at + n] {
@@ -439,15 +432,14 @@ fn export_ply_glb_obj_reread_by_independent_parsers() {
         .collect();
     assert_eq!(mesh.primitives().count(), kinds.len());
     for (p, kind) in mesh.primitives().zip(&kinds) {
-        let of_kind = HostMap {
-            origin: map.origin,
-            entities: map
-                .entities
+        let of_kind = HostMap::new(
+            map.origin,
+            map.entities
                 .iter()
                 .filter(|e| e.kind == *kind)
                 .copied()
                 .collect(),
-        };
+        );
         let (v, f) = expected_counts(&of_kind, 10, 6);
         let reader = p.reader(|_| Some(&blob));
         assert_eq!(reader.read_positions().unwrap().count(), v, "{kind:?}");

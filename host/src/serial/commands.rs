@@ -430,6 +430,7 @@ pub fn map_points_directly(
     Ok(HostMap {
         origin: [0.0; 3],
         entities: mapper.entities().collect(),
+        quantization: None,
     })
 }
 

@@ -121,6 +121,7 @@ impl Link {
         HostMap {
             origin: [0.0; 3],
             entities: self.mapper.entities().collect(),
+            quantization: None,
         }
     }
 }
