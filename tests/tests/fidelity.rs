@@ -12,12 +12,12 @@ use rayon::prelude::*;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
-fn map_with_binary(dir: &Dir, cloud: &str, k: usize) -> PathBuf {
-    let out = dir.join(&format!("{cloud}.{k}.mema"));
+fn map_with_binary(dir: &Dir, cloud: &str, k: usize, model: &str) -> PathBuf {
+    let out = dir.join(&format!("{cloud}.{k}.{model}.mema"));
     MemaCommand::new(dir)
         .arg("map")
         .arg(shared(cloud))
-        .args(["-k", &k.to_string(), "-o"])
+        .args(["-k", &k.to_string(), "--model", model, "-o"])
         .arg(&out)
         .run()
         .assert_ok();
@@ -93,9 +93,13 @@ fn close(got: f64, want: f64, what: &str) {
 fn eval_score_equals_a_brute_force_computation_on_real_clouds() {
     let dir = Dir::new("fidelity-brute");
     // car6: all points; simple.las: a map of pseudocylinders and plane pairs, whose infinite
-    // axes the sampler cuts to their points.
-    for (cloud, k) in [("car6.pcd", 400), ("simple.las", 100)] {
-        let map = map_with_binary(&dir, cloud, k);
+    // axes the sampler cuts to their points; car6 again in oriented, quantized shells.
+    for (cloud, k, model) in [
+        ("car6.pcd", 400, "paper"),
+        ("simple.las", 100, "paper"),
+        ("car6.pcd", 400, "shells"),
+    ] {
+        let map = map_with_binary(&dir, cloud, k, model);
         let (samples, seed) = (20_000, 5);
         let v = eval_json(
             &dir,
@@ -206,7 +210,7 @@ fn eval_score_equals_a_brute_force_computation_on_real_clouds() {
             "bytes per entity",
         );
         eprintln!(
-            "{cloud} k {k}: accuracy mean {:.6}, completeness mean {c_mean:.6}, tau {tau:.6}, phantom {:.3}",
+            "{cloud} k {k} {model}: accuracy mean {:.6}, completeness mean {c_mean:.6}, tau {tau:.6}, phantom {:.3}",
             get(&v, &["accuracy", "mean"]),
             1.0 - precision
         );
@@ -216,13 +220,15 @@ fn eval_score_equals_a_brute_force_computation_on_real_clouds() {
 #[test]
 fn accuracy_equals_the_scan_of_every_entity_on_subsampled_points() {
     let dir = Dir::new("fidelity-subsampled");
-    // Bunny scan, people in a room, and an aerial LAZ whose map is all plane pairs.
-    for (cloud, k, step) in [
-        ("bun000.ply", 400, 23),
-        ("five_people.pcd", 700, 97),
-        ("autzen_trim.laz", 400, 61),
+    // Bunny scan, people in a room, an aerial LAZ whose map is all plane pairs, and oriented
+    // shells of the people.
+    for (cloud, k, step, model) in [
+        ("bun000.ply", 400, 23, "paper"),
+        ("five_people.pcd", 700, 97, "paper"),
+        ("autzen_trim.laz", 400, 61, "paper"),
+        ("five_people.pcd", 700, 97, "shells"),
     ] {
-        let map = map_with_binary(&dir, cloud, k);
+        let map = map_with_binary(&dir, cloud, k, model);
         let (points, entities) = points_and_entities(&shared(cloud), &map);
         let fast = fidelity::accuracy_distances(&points, &entities);
         let subsample: Vec<[f64; 3]> = points.iter().copied().step_by(step).collect();
@@ -232,16 +238,17 @@ fn accuracy_equals_the_scan_of_every_entity_on_subsampled_points() {
             assert_eq!(
                 fast[i * step].to_bits(),
                 b.to_bits(),
-                "{cloud}: point {}",
+                "{cloud} {model}: point {}",
                 i * step
             );
         }
     }
 }
 
-/// A dense, roughly even cloud on the surface `|x / r|^2 = 1` (Fibonacci lattice mapped from
-/// the sphere), an independent drawing from the scorer's area-uniform sampler.
-fn fibonacci_on_ellipsoid(c: [f64; 3], r: [f64; 3], n: usize) -> Vec<[f64; 3]> {
+/// A dense, roughly even cloud on the surface `|x / r|^2 = 1` in the entity's own axes
+/// (Fibonacci lattice mapped from the sphere), an independent drawing from the scorer's
+/// area-uniform sampler.
+fn fibonacci_on_ellipsoid(r: [f64; 3], n: usize) -> Vec<[f64; 3]> {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
     (0..n)
         .map(|i| {
@@ -249,90 +256,153 @@ fn fibonacci_on_ellipsoid(c: [f64; 3], r: [f64; 3], n: usize) -> Vec<[f64; 3]> {
             let rho = (1.0 - z * z).sqrt();
             let t = golden * i as f64;
             let u = [rho * t.cos(), rho * t.sin(), z];
-            [0, 1, 2].map(|j| c[j] + r[j] * u[j])
+            [0, 1, 2].map(|j| r[j] * u[j])
         })
         .collect()
 }
 
-#[test]
-fn a_cloud_drawn_on_known_ellipsoids_scores_about_zero_both_ways() {
-    let dir = Dir::new("fidelity-synthetic");
-    // Georeferenced-sized coordinates, so both origins matter.
-    let base = [631_000.0, 4_833_000.0, 120.0];
-    let at = |dx: f64| [base[0] + dx, base[1], base[2]];
+/// The rotation matrix of the unit quaternion `(x, y, z, w)`, written out here rather than
+/// taken from core.
+fn matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let [x, y, z, w] = q.map(|v| v / n);
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - z * w),
+            2.0 * (x * z + y * w),
+        ],
+        [
+            2.0 * (x * y + z * w),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - x * w),
+        ],
+        [
+            2.0 * (x * z - y * w),
+            2.0 * (y * z + x * w),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+/// Three ellipsoids, a pseudocylinder and a plane pair, drawn densely in their own axes and
+/// placed at georeferenced-sized centres (so both origins matter), turned by a quaternion each
+/// when `turned`: the cloud as XYZ text and the map as CSV.
+fn drawn_scene(turned: bool) -> (String, String, f64) {
     let inf = f64::INFINITY;
-    let mut cloud = Vec::new();
-    let mut rows = Vec::new();
-    for (i, r) in [[0.5, 0.3, 0.2], [0.25, 0.25, 0.25], [0.6, 0.4, 0.05]]
-        .into_iter()
-        .enumerate()
-    {
-        let c = at(3.0 * i as f64);
-        cloud.extend(fibonacci_on_ellipsoid(c, r, 20_000));
-        rows.push((c, r, if i == 1 { "sphere" } else { "ellipsoid" }));
+    let mut entities: Vec<([f64; 3], &str, Vec<[f64; 3]>)> = Vec::new();
+    for (r, kind) in [
+        ([0.5, 0.3, 0.2], "ellipsoid"),
+        ([0.25, 0.25, 0.25], "sphere"),
+        ([0.6, 0.4, 0.05], "ellipsoid"),
+    ] {
+        entities.push((r, kind, fibonacci_on_ellipsoid(r, 20_000)));
     }
     // A pseudocylinder along y (radii 0.2 in x, 0.3 in z) drawn over y in [-0.8, 0.8].
-    let c = at(9.0);
+    let mut tube = Vec::new();
     for i in 0..200 {
         for k in 0..200 {
             let t = std::f64::consts::TAU * k as f64 / 200.0;
-            let y = -0.8 + 1.6 * i as f64 / 199.0;
-            cloud.push([c[0] + 0.2 * t.cos(), c[1] + y, c[2] + 0.3 * t.sin()]);
+            tube.push([0.2 * t.cos(), -0.8 + 1.6 * i as f64 / 199.0, 0.3 * t.sin()]);
         }
     }
-    rows.push((c, [0.2, inf, 0.3], "pseudocylinder"));
+    entities.push(([0.2, inf, 0.3], "pseudocylinder", tube));
     // Two planes z = +-0.1 drawn over x in [-0.5, 0.5], y in [-0.4, 0.4].
-    let c = at(12.0);
+    let mut planes = Vec::new();
     for i in 0..125 {
         for k in 0..100 {
-            for s in [-0.1, 0.1] {
-                let (x, y) = (-0.5 + i as f64 / 124.0, -0.4 + 0.8 * k as f64 / 99.0);
-                cloud.push([c[0] + x, c[1] + y, c[2] + s]);
+            for z in [-0.1, 0.1] {
+                planes.push([-0.5 + i as f64 / 124.0, -0.4 + 0.8 * k as f64 / 99.0, z]);
             }
         }
     }
-    rows.push((c, [inf, inf, 0.1], "plane_pair"));
+    entities.push(([inf, inf, 0.1], "plane_pair", planes));
 
-    let text: String = cloud
-        .iter()
-        .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
-        .collect();
-    let cloud_path = dir.write("drawn.xyz", text.as_bytes());
-    let mut csv = String::from("cx,cy,cz,rx,ry,rz,kind\n");
-    for (c, r, kind) in &rows {
-        csv.push_str(&format!(
-            "{},{},{},{},{},{},{kind}\n",
-            c[0], c[1], c[2], r[0], r[1], r[2]
-        ));
+    let quaternions = [
+        [0.3, -0.2, 0.5, 0.78],
+        [0.0, 0.0, 0.0, 1.0],
+        [-0.6, 0.1, 0.2, 0.5],
+        [0.4, 0.4, -0.1, 0.7],
+        [0.1, -0.7, 0.3, 0.2],
+    ];
+    let (mut text, mut csv) = (String::new(), String::new());
+    csv.push_str(if turned {
+        "cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n"
+    } else {
+        "cx,cy,cz,rx,ry,rz,kind\n"
+    });
+    let mut area = 0.0;
+    for (i, (r, kind, local)) in entities.iter().enumerate() {
+        let c = [631_000.0 + 3.0 * i as f64, 4_833_000.0, 120.0];
+        let q = if turned {
+            quaternions[i]
+        } else {
+            [0.0, 0.0, 0.0, 1.0]
+        };
+        let m = matrix(q);
+        for p in local {
+            let w = [0, 1, 2].map(|a| c[a] + (0..3).map(|b| m[a][b] * p[b]).sum::<f64>());
+            text.push_str(&format!("{} {} {}\n", w[0], w[1], w[2]));
+        }
+        let row = format!("{},{},{},{},{},{}", c[0], c[1], c[2], r[0], r[1], r[2]);
+        if turned {
+            let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let q = q.map(|v| v / n);
+            csv.push_str(&format!(
+                "{row},{},{},{},{},{kind}\n",
+                q[0], q[1], q[2], q[3]
+            ));
+        } else {
+            csv.push_str(&format!("{row},{kind}\n"));
+        }
+        area += match *kind {
+            // The cut surfaces have the drawn areas: the tube's perimeter x 1.6, planes 2 x 0.8.
+            "pseudocylinder" => 1.6 * fidelity::surface::ellipse_perimeter(r[0], r[2]),
+            "plane_pair" => 2.0 * 0.8,
+            _ => fidelity::surface::ellipsoid_area(r[0], r[1], r[2]),
+        };
     }
-    let map_path = dir.write("known.csv", csv.as_bytes());
-    let v = eval_json(&dir, &cloud_path, &map_path, &[]);
-    let spacing = get(&v, &["tau"]) / 2.0;
-    // Points are stored as f32 about a centre metres away: float precision is ~1e-6.
-    assert!(get(&v, &["accuracy", "max"]) < 5e-6, "{v}");
-    assert!(get(&v, &["accuracy", "mean"]) < 1e-6, "{v}");
-    // A surface sample is never farther from the drawn points than the spacing of their grid.
-    assert!(get(&v, &["completeness", "mean"]) < 0.5 * spacing, "{v}");
-    assert!(get(&v, &["completeness", "p95"]) < spacing, "{v}");
-    assert_eq!(get(&v, &["phantom"]), 0.0, "{v}");
-    assert_eq!(get(&v, &["f_score"]), 1.0, "{v}");
-    // The cut surfaces have the drawn areas: the cylinder's perimeter x 1.6, the planes 2 x 0.8.
-    let ellipsoids: f64 = [[0.5, 0.3, 0.2], [0.25, 0.25, 0.25], [0.6, 0.4, 0.05]]
-        .iter()
-        .map(|r| fidelity::surface::ellipsoid_area(r[0], r[1], r[2]))
-        .sum();
-    let want = ellipsoids + 1.6 * fidelity::surface::ellipse_perimeter(0.2, 0.3) + 2.0 * 0.8;
-    assert!(
-        (get(&v, &["area"]) / want - 1.0).abs() < 1e-5,
-        "area {} vs {want}",
-        get(&v, &["area"])
-    );
+    (text, csv, area)
+}
+
+#[test]
+fn a_cloud_drawn_on_known_entities_scores_about_zero_both_ways() {
+    let dir = Dir::new("fidelity-synthetic");
+    for turned in [false, true] {
+        let (text, csv, area) = drawn_scene(turned);
+        let cloud_path = dir.write("drawn.xyz", text.as_bytes());
+        let map_path = dir.write("known.csv", csv.as_bytes());
+        let v = eval_json(&dir, &cloud_path, &map_path, &[]);
+        let spacing = get(&v, &["tau"]) / 2.0;
+        // Points are stored as f32 about a centre metres away: float precision is ~1e-6.
+        assert!(get(&v, &["accuracy", "max"]) < 5e-6, "turned {turned}: {v}");
+        assert!(
+            get(&v, &["accuracy", "mean"]) < 1e-6,
+            "turned {turned}: {v}"
+        );
+        // A surface sample is never farther from the drawn points than the spacing of their grid.
+        assert!(
+            get(&v, &["completeness", "mean"]) < 0.5 * spacing,
+            "turned {turned}: {v}"
+        );
+        assert!(
+            get(&v, &["completeness", "p95"]) < spacing,
+            "turned {turned}: {v}"
+        );
+        assert_eq!(get(&v, &["phantom"]), 0.0, "turned {turned}: {v}");
+        assert_eq!(get(&v, &["f_score"]), 1.0, "turned {turned}: {v}");
+        assert!(
+            (get(&v, &["area"]) / area - 1.0).abs() < 1e-5,
+            "turned {turned}: area {} vs {area}",
+            get(&v, &["area"])
+        );
+    }
 }
 
 #[test]
 fn moving_one_entity_by_d_moves_each_points_accuracy_by_at_most_d() {
     let dir = Dir::new("fidelity-moved");
-    let map_path = map_with_binary(&dir, "bun000.ply", 400);
+    let map_path = map_with_binary(&dir, "bun000.ply", 400, "paper");
     let (points, entities) = points_and_entities(&shared("bun000.ply"), &map_path);
     let before = fidelity::accuracy_distances(&points, &entities);
     // The entity nearest most points' centres, moved 2 mm (about its own thickness).
