@@ -285,12 +285,15 @@ fn matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
     ]
 }
 
+/// An entity's semi-axes, kind, and the points drawn on it in its own axes.
+type Drawn = ([f64; 3], &'static str, Vec<[f64; 3]>);
+
 /// Three ellipsoids, a pseudocylinder and a plane pair, drawn densely in their own axes and
 /// placed at georeferenced-sized centres (so both origins matter), turned by a quaternion each
 /// when `turned`: the cloud as XYZ text and the map as CSV.
 fn drawn_scene(turned: bool) -> (String, String, f64) {
     let inf = f64::INFINITY;
-    let mut entities: Vec<([f64; 3], &str, Vec<[f64; 3]>)> = Vec::new();
+    let mut entities: Vec<Drawn> = Vec::new();
     for (r, kind) in [
         ([0.5, 0.3, 0.2], "ellipsoid"),
         ([0.25, 0.25, 0.25], "sphere"),
