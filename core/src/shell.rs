@@ -185,8 +185,8 @@ mod tests {
         assert!(
             (r[0] - 1.9).abs() < 1e-5 && (r[1] - 0.95).abs() < 1e-5 && (r[2] - 0.01).abs() < 1e-5
         );
-        // Its thin axis is w: a point 0.007 along w from the centre is on the surface.
-        let p = [1.0 + 0.007 * w[0], 2.0 + 0.007 * w[1], 3.0];
+        // Its thin axis is w: a point 0.01 along w from the centre is on the surface.
+        let p = [1.0 + 0.01 * w[0], 2.0 + 0.01 * w[1], 3.0];
         assert!(crate::closest_point::surface_distance(&e, p) < 1e-6);
         Ok(())
     }
