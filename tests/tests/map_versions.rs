@@ -145,16 +145,13 @@ fn paper_and_shell_maps_keep_within_their_bytes_in_their_versions() {
             let axes = u32::from_le_bytes(r[10..14].try_into().unwrap());
             assert_eq!(axes & 3, e.kind as u32);
             let semi = e.entity.semi_axes_f64();
-            for j in 0..3 {
+            for (j, r) in semi.iter().enumerate() {
                 let code = (axes >> (2 + 10 * j)) & 0x3ff;
                 if code == 1023 {
-                    assert!(semi[j].is_infinite());
+                    assert!(r.is_infinite());
                 } else {
                     let want = shortest * (log_step * f64::from(code)).exp();
-                    assert!(
-                        ((semi[j] - want) / want).abs() < 1e-6,
-                        "entity {i} axis {j}"
-                    );
+                    assert!(((r - want) / want).abs() < 1e-6, "entity {i} axis {j}");
                 }
             }
         }
