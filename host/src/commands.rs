@@ -184,8 +184,13 @@ fn shells_report(
     clusters: &pipeline::Clusters,
     output: &Path,
 ) -> Result<MapReport> {
+    // A shell spans its cluster's points, which are bounded: an infinite axis would only add
+    // surface where there are no points, so shells never degenerate (--threshold is the paper's).
     let params = mema_core::shell::ShellParams {
-        degeneration: config.fit.degeneration,
+        degeneration: mema_core::Degeneration {
+            threshold: f64::INFINITY,
+            ..config.fit.degeneration
+        },
         ..params
     };
     let centres: Vec<Point3> = clusters
@@ -293,6 +298,10 @@ pub fn check_output_dir(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Fewest points a cluster of a `--bytes` map is given: a covariance (or eq. 12's DE) needs
+/// more than a couple of points to have a shape.
+pub const MIN_POINTS_PER_ENTITY: usize = 4;
+
 pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(t) = args.tolerance {
         return map_to_tolerance(args, t);
@@ -336,6 +345,19 @@ pub fn map(args: &MapArgs) -> Result<()> {
         normal_scale: args.normal_scale,
         ..Default::default()
     };
+    let mut config = config;
+    // A budget is an upper bound: past a quarter of the points, clusters of one to three points
+    // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
+    let most = (cloud.points.len() / MIN_POINTS_PER_ENTITY).max(1);
+    if args.bytes.is_some() && config.k > most {
+        eprintln!(
+            "mema: {} bytes hold {} entities, but {} points make at most {most} clusters of {MIN_POINTS_PER_ENTITY}; mapping with k = {most}",
+            args.bytes.unwrap_or(0),
+            config.k,
+            cloud.points.len()
+        );
+        config.k = most;
+    }
     let mut report = map_cloud_with(
         &cloud,
         &config,

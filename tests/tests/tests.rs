@@ -36,3 +36,6 @@ mod stream;
 mod toolbox;
 // draw and export of oriented maps: a turned map meshes and draws as the turned original.
 mod toolbox_oriented;
+// .mema versions: a version-1 file written here by hand still loads; --paper writes version 1,
+// shells version 2 quantized, both within --bytes, decoded here from the documented layout.
+mod map_versions;
