@@ -9,6 +9,8 @@ mod bad_input;
 mod closest_point;
 // The CLI end to end on real clouds: determinism, formats, eval, info, demo.
 mod cli;
+// eval's two-way fidelity score against brute force, a drawn cloud and a moved entity.
+mod fidelity;
 // Fault injection on the wire: corrupted frames refused, clean frames used once.
 mod faults;
 // LAS/LAZ against their raw integer records, KITTI scans, --crop and --voxel.
