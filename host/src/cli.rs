@@ -284,7 +284,7 @@ pub struct MapArgs {
     pub bytes: Option<usize>,
     /// The entity model: `shells` (oriented shells of each cluster's covariance, stored on a
     /// quantized grid) or `paper` (the paper's axis-aligned DE fit of eq. 12).
-    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Paper)]
+    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Shells)]
     pub model: crate::pipeline::Model,
     /// Shells: semi-axes along a cluster's two largest principal axes are this many standard
     /// deviations (the patch's extent).

@@ -15,7 +15,7 @@ fn ellipsoids_beat_spheres_on_the_shared_objects() {
         let v = MemaCommand::new(&dir)
             .arg("map")
             .arg(shared(cloud))
-            .args(["-k", &k.to_string(), "--json", "-o"])
+            .args(["--paper", "-k", &k.to_string(), "--json", "-o"])
             .arg(&out)
             .run()
             .assert_ok()

@@ -43,7 +43,14 @@ fn tolerance_maps_meet_t_with_fewer_ellipsoids() {
         let fixed = MemaCommand::new(&dir)
             .arg("map")
             .arg(shared(cloud))
-            .args(["-k", &k.to_string(), "--json", "-o", "fixed.mema"])
+            .args([
+                "--paper",
+                "-k",
+                &k.to_string(),
+                "--json",
+                "-o",
+                "fixed.mema",
+            ])
             .run()
             .assert_ok()
             .json();

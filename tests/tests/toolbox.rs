@@ -33,7 +33,7 @@ fn map_cloud(dir: &Dir, cloud: &str, k: &str, out: &str, extra: &[&str]) {
     MemaCommand::new(dir)
         .arg("map")
         .arg(shared(cloud))
-        .args(["-k", k, "-o", out])
+        .args(["--paper", "-k", k, "-o", out])
         .args(extra)
         .run()
         .assert_ok();

@@ -81,7 +81,7 @@ fn map_and_turn(dir: &Dir, cloud: &str, k: &str) -> (HostMap, HostMap) {
     MemaCommand::new(dir)
         .arg("map")
         .arg(shared(cloud))
-        .args(["-k", k, "--bounds", "threshold", "-o", "a.mema"])
+        .args(["--paper", "-k", k, "--bounds", "threshold", "-o", "a.mema"])
         .run()
         .assert_ok();
     MemaCommand::new(dir)
