@@ -558,11 +558,15 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
         );
         println!("origin: {:?}", r.origin);
-        println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
-        println!(
-            "finite semi-axes: {} .. {}",
-            r.semi_axis_min, r.semi_axis_max
-        );
+        if r.entities == 0 {
+            println!("centres: none; finite semi-axes: none (the map is empty)");
+        } else {
+            println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
+            println!(
+                "finite semi-axes: {} .. {}",
+                r.semi_axis_min, r.semi_axis_max
+            );
+        }
         println!(
             "layout: {} ({} bytes an entity), {} of {} entities oriented",
             r.layout, r.record_bytes, r.oriented, r.entities

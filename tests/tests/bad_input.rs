@@ -227,3 +227,19 @@ fn unknown_map_extension_and_corrupt_map() {
             .assert_error(2, "--samples");
     }
 }
+
+#[test]
+fn a_voxel_too_small_for_the_cloud_is_refused_not_collapsed() {
+    let dir = Dir::new("voxel-tiny");
+    // 1e-30 m voxels on a bunny put indices past 2^53: f64 cannot keep them apart.
+    map(&dir, &shared("bun_zipper.ply"), "10")
+        .args(["--voxel", "1e-30"])
+        .run()
+        .assert_error(1, "too small for this cloud");
+    assert_nothing_written(&dir, &[]);
+    // The smallest usable size it suggests works.
+    map(&dir, &shared("bun_zipper.ply"), "10")
+        .args(["--voxel", "1e-12"])
+        .run()
+        .assert_ok();
+}
