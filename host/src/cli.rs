@@ -331,6 +331,13 @@ pub struct MapArgs {
 pub struct EvalArgs {
     pub input: PathBuf,
     pub map: PathBuf,
+    /// Points drawn uniformly by area over the map's surface for completeness (at least 8 per
+    /// entity whatever this says).
+    #[arg(long, default_value_t = crate::fidelity::DEFAULT_SAMPLES)]
+    pub samples: usize,
+    /// Seed of the surface samples.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
     #[arg(long)]
     pub json: bool,
 }

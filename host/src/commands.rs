@@ -5,7 +5,7 @@ use mema_core::{EntityKind, Point3};
 use serde::Serialize;
 use std::path::Path;
 
-use crate::cli::{AblationArgs, DemoArgs, EvalArgs, InfoArgs, MapArgs};
+use crate::cli::{AblationArgs, DemoArgs, InfoArgs, MapArgs};
 use crate::mapfile::HostMap;
 use crate::pipeline::{self, EntityChoice, Model, PipelineConfig};
 use crate::read::read_cloud;
@@ -393,29 +393,6 @@ pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
         map_bytes: memory.map_bytes,
         percent: memory.percent,
     }
-}
-
-pub fn eval(args: &EvalArgs) -> Result<()> {
-    let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
-    let map = HostMap::read(&args.map)?;
-    if map.entities.is_empty() {
-        anyhow::bail!("{}: the map has no entities", args.map.display());
-    }
-    let r = crate::progress::stage("evaluating", || evaluate(&cloud, &map));
-    if args.json {
-        println!("{}", serde_json::to_string(&r)?);
-    } else {
-        println!("{}", stats::MEMORY_HEADER);
-        println!(
-            "{}",
-            stats::format_memory_row(&MemoryRow::new(r.points, map.entities.len()))
-        );
-        println!();
-        println!("eq. 13 error over {} non-empty clusters", r.errors.clusters);
-        println!("{}", stats::ERROR_HEADER);
-        println!("{}", stats::format_error_row("map", &r.errors));
-    }
-    Ok(())
 }
 
 #[derive(Serialize)]

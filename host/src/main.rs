@@ -15,7 +15,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Map(a) => mema::commands::map(a),
-        Command::Eval(a) => mema::commands::eval(a),
+        Command::Eval(a) => mema::eval::eval(a),
         Command::Info(a) => mema::commands::info(a),
         Command::Demo(a) => mema::commands::demo(a),
         Command::Ablation(a) => mema::commands::ablation(a),
