@@ -42,8 +42,8 @@ impl FileBytes {
             .with_context(|| format!("{}: cannot read map", path.display()))?
             .len();
         let empty = HostMap {
-            origin: map.origin,
             entities: Vec::new(),
+            ..map.clone()
         };
         let header_bytes = empty.encode_as(MapFormat::from_path(path)?)?.len() as u64;
         Ok(Self {

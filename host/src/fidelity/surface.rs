@@ -156,17 +156,14 @@ impl Patch {
     }
 }
 
-/// A sample's place in the map frame. Entities are axis-aligned about their centre today; an
-/// oriented entity maps its local frame here and nowhere else.
+/// A sample's place in the map frame, `c + R local` (exactly `c + local` when axis-aligned).
 pub fn to_map_frame(entity: &Entity, local: [f64; 3]) -> [f64; 3] {
-    let c = entity.center.to_f64();
-    [local[0] + c[0], local[1] + c[1], local[2] + c[2]]
+    entity.to_world(local)
 }
 
 /// `p` in the entity's local frame (the inverse of [`to_map_frame`]).
 pub fn to_local_frame(entity: &Entity, p: [f64; 3]) -> [f64; 3] {
-    let c = entity.center.to_f64();
-    [p[0] - c[0], p[1] - c[1], p[2] - c[2]]
+    entity.to_local(p)
 }
 
 fn lerp(range: [f64; 2], t: f64) -> f64 {
