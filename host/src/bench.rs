@@ -59,6 +59,10 @@ pub struct BenchArgs {
     /// Fidelity: map budgets in bytes, comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = fidelity::DEFAULT_BUDGETS)]
     pub budgets: Vec<usize>,
+    /// Fidelity: keep each GMM fit in this directory and reuse it for the same points and
+    /// components (the fits take most of the run).
+    #[arg(long, value_name = "DIR")]
+    pub gmm_cache: Option<PathBuf>,
     /// Fidelity: print the results as one JSON object on stdout instead of the tables.
     #[arg(long)]
     pub json: bool,
@@ -506,7 +510,9 @@ fn fidelity_bench(args: &BenchArgs) -> Result<()> {
         );
     };
     if let Some(&b) = args.budgets.iter().find(|&&b| b == 0) {
-        return Err(crate::cli::UsageError(format!("--budgets {b}: a budget is at least 1 byte")).into());
+        return Err(
+            crate::cli::UsageError(format!("--budgets {b}: a budget is at least 1 byte")).into(),
+        );
     }
     let opts = fidelity::FidelityOptions {
         data: args.data.clone(),
@@ -517,16 +523,23 @@ fn fidelity_bench(args: &BenchArgs) -> Result<()> {
         base: crate::cli::default_fit_args().config(1)?,
         samples: crate::fidelity::DEFAULT_SAMPLES,
         seed: 0,
+        gmm_cache: args.gmm_cache.clone(),
     };
+    if let Some(dir) = &opts.gmm_cache {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     let report = fidelity::run(&opts)?;
+    // Under --json the tables go to stderr: one run gives both, and stdout stays one document.
+    let (mut stdout, mut stderr) = (std::io::stdout().lock(), std::io::stderr().lock());
+    let out: &mut dyn std::io::Write = if args.json { &mut stderr } else { &mut stdout };
+    writeln!(out)?;
+    writeln!(
+        out,
+        "5. fidelity: default (shells), paper and GMM (2-sigma shells) maps at equal bytes, two-way score as read back"
+    )?;
+    fidelity::print_tables(&report, out)?;
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
-    } else {
-        println!();
-        println!(
-            "5. fidelity: default (shells), paper and GMM (2-sigma shells) maps at equal bytes, two-way score as read back"
-        );
-        fidelity::print_tables(&report);
     }
     Ok(())
 }

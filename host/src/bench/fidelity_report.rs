@@ -1,6 +1,7 @@
 //! The fidelity benchmark's tables (markdown, one per budget) and per-budget summaries.
 
 use serde::Serialize;
+use std::io::Write;
 
 use super::fidelity::{Cell, FidelityReport, Method, Row};
 
@@ -77,21 +78,29 @@ fn ratio(q: Option<f64>) -> String {
 }
 
 /// The report as markdown: a table per budget, its summary, notes, and the stage times.
-pub fn print_tables(report: &FidelityReport) {
-    let columns = ["bytes", "entities", "Chamfer", "acc mean", "compl mean", "phantom", "F"];
+pub fn print_tables(report: &FidelityReport, out: &mut dyn Write) -> std::io::Result<()> {
+    let columns = [
+        "bytes",
+        "entities",
+        "Chamfer",
+        "acc mean",
+        "compl mean",
+        "phantom",
+        "F",
+    ];
     for (budget, summary) in report.budgets.iter().zip(&report.summaries) {
-        println!();
-        println!("#### B = {budget} bytes");
-        println!();
+        writeln!(out)?;
+        writeln!(out, "#### B = {budget} bytes")?;
+        writeln!(out)?;
         let mut header = vec!["cloud".to_string(), "points".to_string()];
         for m in Method::ALL {
             header.extend(columns.iter().map(|c| format!("{} {c}", m.name())));
         }
-        println!("| {} |", header.join(" | "));
+        writeln!(out, "| {} |", header.join(" | "))?;
         let align: Vec<&str> = std::iter::once(":--")
             .chain(std::iter::repeat_n("--:", header.len() - 1))
             .collect();
-        println!("|{}|", align.join("|"));
+        writeln!(out, "|{}|", align.join("|"))?;
         let mut notes = Vec::new();
         for row in report.rows.iter().filter(|r| r.budget == *budget) {
             let mut cells = vec![row.cloud.clone(), row.points.to_string()];
@@ -108,7 +117,7 @@ pub fn print_tables(report: &FidelityReport) {
                             format!("{:.0}%", 100.0 * f.phantom),
                             format!("{:.3}", f.f_score),
                         ]);
-                        if let Some(g) = s.gmm.filter(|g| !g.converged || g.dropped > 0) {
+                        if let Some(g) = s.gmm.as_ref().filter(|g| !g.converged || g.dropped > 0) {
                             notes.push(format!(
                                 "{}: GMM {} after {} of {} EM iterations, {} components without a shell",
                                 row.cloud,
@@ -131,10 +140,11 @@ pub fn print_tables(report: &FidelityReport) {
                     }
                 }
             }
-            println!("| {} |", cells.join(" | "));
+            writeln!(out, "| {} |", cells.join(" | "))?;
         }
-        println!();
-        println!(
+        writeln!(out)?;
+        writeln!(
+            out,
             "B = {budget}: the default's Chamfer is below the GMM's on {} of {} clouds (geometric mean of default/GMM {}) and below the paper's on {} of {} (default/paper {}).",
             summary.default_beats_gmm,
             summary.versus_gmm,
@@ -142,35 +152,44 @@ pub fn print_tables(report: &FidelityReport) {
             summary.default_beats_paper,
             summary.versus_paper,
             ratio(summary.chamfer_ratio_paper)
-        );
+        )?;
         for n in notes {
-            println!("- {n}");
+            writeln!(out, "- {n}")?;
         }
     }
     if !report.refused.is_empty() {
-        println!();
+        writeln!(out)?;
         for r in &report.refused {
-            println!("- {}: refused by the reader: {}", r.cloud, r.error);
+            writeln!(out, "- {}: refused by the reader: {}", r.cloud, r.error)?;
         }
     }
     let gmm: Vec<_> = report
         .rows
         .iter()
         .flat_map(|r| r.cells.iter().filter_map(Cell::scored))
-        .filter_map(|s| s.gmm)
+        .filter_map(|s| s.gmm.as_ref())
         .collect();
     let converged = gmm.iter().filter(|g| g.converged).count();
+    let cached = gmm.iter().filter(|g| g.cached).count();
+    let sklearn = gmm.iter().find_map(|g| g.sklearn.as_deref()).unwrap_or("?");
     let s = &report.stages;
-    println!();
-    println!(
-        "GMMs: {converged} of {} converged (EM's own tolerance, at most {} iterations); {} surface samples a map, seed {}, {} threads.",
+    writeln!(out)?;
+    writeln!(
+        out,
+        "GMMs (scikit-learn {sklearn}): {converged} of {} converged (EM's own tolerance, at most {} iterations){}; {} surface samples a map, seed {}, {} threads.",
         gmm.len(),
         gmm.iter().map(|g| g.max_iter).max().unwrap_or(0),
+        if cached > 0 {
+            format!(", {cached} read from the fit cache")
+        } else {
+            String::new()
+        },
         report.samples,
         report.seed,
         report.threads
-    );
-    println!(
+    )?;
+    writeln!(
+        out,
         "Wall time: {:.0} s in all; read {:.1} s, .npy {:.1} s, default maps {:.1} s, paper maps {:.1} s, GMM fits (Python) {:.1} s, GMM shells {:.2} s, write and read back {:.1} s, scoring {:.1} s.",
         s.total_s,
         s.read_s,
@@ -181,7 +200,8 @@ pub fn print_tables(report: &FidelityReport) {
         s.gmm_map_s,
         s.write_read_s,
         s.score_s
-    );
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]
