@@ -85,7 +85,6 @@ fn a_tilted_component_becomes_its_two_sigma_shell() {
             fit_s: 0.0,
             peak_rss_bytes: None,
             sklearn: None,
-            sklearn: None,
             means: vec![mean],
             covariances: vec![covariance(v, lambda)],
             weights: vec![1.0],
