@@ -111,6 +111,33 @@ impl Default for Degeneration {
     }
 }
 
+/// The paper's 24-byte entity, axis-aligned: where entities are counted against a device's
+/// memory (the streaming mapper's working fits and frozen entities), the 16 bytes of an identity
+/// quaternion are not stored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct AxisEntity {
+    pub center: Point3,
+    pub weights: [f32; 3],
+}
+
+impl AxisEntity {
+    /// The centre and weights of an entity fitted axis-aligned (its rotation, the identity,
+    /// is dropped).
+    pub const fn of_axis_aligned(e: &Entity) -> Self {
+        Self {
+            center: e.center,
+            weights: e.weights,
+        }
+    }
+}
+
+impl From<AxisEntity> for Entity {
+    fn from(e: AxisEntity) -> Self {
+        Entity::axis_aligned(e.center, e.weights)
+    }
+}
+
 /// One map entity: the six floats of the paper's memory count (Table 2), and an orientation.
 /// An axis-aligned entity (the paper's) has [`Rotation::IDENTITY`].
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -33,8 +33,8 @@ pub struct ShellParams {
 impl Default for ShellParams {
     fn default() -> Self {
         Self {
-            tangent_scale: 1.9,
-            normal_scale: 1.0,
+            tangent_scale: 2.0,
+            normal_scale: 0.7,
             min_ratio: 1e-3,
             degeneration: Degeneration::default(),
         }
@@ -175,7 +175,12 @@ mod tests {
                 cov[i][j] = u[i] * u[j] + 0.25 * z[i] * z[j] + 1e-4 * w[i] * w[j];
             }
         }
-        let e = shell([1.0, 2.0, 3.0], cov, &ShellParams::default()).or_fail("finite")?;
+        let params = ShellParams {
+            tangent_scale: 1.9,
+            normal_scale: 1.0,
+            ..ShellParams::default()
+        };
+        let e = shell([1.0, 2.0, 3.0], cov, &params).or_fail("finite")?;
         let r = e.semi_axes_f64();
         assert!(
             (r[0] - 1.9).abs() < 1e-5 && (r[1] - 0.95).abs() < 1e-5 && (r[2] - 0.01).abs() < 1e-5

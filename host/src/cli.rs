@@ -286,6 +286,14 @@ pub struct MapArgs {
     /// quantized grid) or `paper` (the paper's axis-aligned DE fit of eq. 12).
     #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Paper)]
     pub model: crate::pipeline::Model,
+    /// Shells: semi-axes along a cluster's two largest principal axes are this many standard
+    /// deviations (the patch's extent).
+    #[arg(long, default_value_t = mema_core::shell::ShellParams::default().tangent_scale)]
+    pub tangent_scale: f64,
+    /// Shells: the semi-axis along the smallest principal axis is this many standard
+    /// deviations (the patch's thickness).
+    #[arg(long, default_value_t = mema_core::shell::ShellParams::default().normal_scale)]
+    pub normal_scale: f64,
     /// The paper's method exactly: axis-aligned entities fitted by DE on eq. 12 (F 1.2, CR 0.7,
     /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
     #[arg(long)]

@@ -111,14 +111,23 @@ pub fn map_cloud(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
-    map_cloud_with(cloud, config, Model::Paper, entity, output, labels)
+    map_cloud_with(
+        cloud,
+        config,
+        Model::Paper,
+        mema_core::shell::ShellParams::default(),
+        entity,
+        output,
+        labels,
+    )
 }
 
-/// [`map_cloud`] in either model.
+/// [`map_cloud`] in either model (`shell_params` for shells; its degeneration is `config`'s).
 pub fn map_cloud_with(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     model: Model,
+    shell_params: mema_core::shell::ShellParams,
     entity: EntityChoice,
     output: &Path,
     labels: Option<&Path>,
@@ -129,8 +138,8 @@ pub fn map_cloud_with(
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
     }
-    if model == Model::Shells {
-        return shells_report(cloud, config, &clusters, output);
+    if let Model::Shells = model {
+        return shells_report(cloud, config, shell_params, &clusters, output);
     }
     let fitted = crate::progress::stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
@@ -171,12 +180,18 @@ pub fn map_cloud_with(
 fn shells_report(
     cloud: &LocalCloud,
     config: &PipelineConfig,
+    params: mema_core::shell::ShellParams,
     clusters: &pipeline::Clusters,
     output: &Path,
 ) -> Result<MapReport> {
+    // A shell spans its cluster's points, which are bounded: an infinite axis would only add
+    // surface where there are no points, so shells never degenerate (--threshold is the paper's).
     let params = mema_core::shell::ShellParams {
-        degeneration: config.fit.degeneration,
-        ..Default::default()
+        degeneration: mema_core::Degeneration {
+            threshold: f64::INFINITY,
+            ..config.fit.degeneration
+        },
+        ..params
     };
     let centres: Vec<Point3> = clusters
         .moments
@@ -283,6 +298,10 @@ pub fn check_output_dir(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Fewest points a cluster of a `--bytes` map is given: a covariance (or eq. 12's DE) needs
+/// more than a couple of points to have a shape.
+pub const MIN_POINTS_PER_ENTITY: usize = 4;
+
 pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(t) = args.tolerance {
         return map_to_tolerance(args, t);
@@ -313,10 +332,37 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
+    for (name, v) in [
+        ("--tangent-scale", args.tangent_scale),
+        ("--normal-scale", args.normal_scale),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
+        }
+    }
+    let shell_params = mema_core::shell::ShellParams {
+        tangent_scale: args.tangent_scale,
+        normal_scale: args.normal_scale,
+        ..Default::default()
+    };
+    let mut config = config;
+    // A budget is an upper bound: past a quarter of the points, clusters of one to three points
+    // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
+    let most = (cloud.points.len() / MIN_POINTS_PER_ENTITY).max(1);
+    if args.bytes.is_some() && config.k > most {
+        eprintln!(
+            "mema: {} bytes hold {} entities, but {} points make at most {most} clusters of {MIN_POINTS_PER_ENTITY}; mapping with k = {most}",
+            args.bytes.unwrap_or(0),
+            config.k,
+            cloud.points.len()
+        );
+        config.k = most;
+    }
     let mut report = map_cloud_with(
         &cloud,
         &config,
         model,
+        shell_params,
         args.entity,
         &args.output,
         args.labels.as_deref(),
@@ -344,8 +390,9 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     print_map_report(&report, args.json)
 }
 
-/// `mema eval`'s JSON shape (documented in the README; keys are stable): `points`, the
-/// statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes, percent`.
+/// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,
+/// the statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes,
+/// percent`. `eval::EvalJson` adds the two-way score after them.
 #[derive(Serialize)]
 pub struct EvalReport {
     pub points: usize,
@@ -409,6 +456,19 @@ struct InfoReport {
     /// The paper's count: 24 bytes per entity.
     map_bytes: usize,
     file_bytes: u64,
+    /// How `.mema` stores (or would store) these entities, and its bytes per entity.
+    layout: String,
+    record_bytes: usize,
+    /// Entities with a rotation other than the identity.
+    oriented: usize,
+}
+
+fn layout_name(layout: &mema_core::map::Layout) -> &'static str {
+    match layout {
+        mema_core::map::Layout::AxisAligned => "version 1, axis-aligned f32",
+        mema_core::map::Layout::Oriented => "version 2, oriented f32",
+        mema_core::map::Layout::Quantized(_) => "version 2, oriented, quantized",
+    }
 }
 
 pub fn info(args: &InfoArgs) -> Result<()> {
@@ -438,6 +498,13 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         semi_axis_max: rmax,
         map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
         file_bytes,
+        layout: layout_name(&map.layout()).into(),
+        oriented: map
+            .entities
+            .iter()
+            .filter(|e| !e.entity.rotation.is_identity())
+            .count(),
+        record_bytes: map.layout().record_len(),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -454,8 +521,12 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.semi_axis_min, r.semi_axis_max
         );
         println!(
-            "bytes: {} (paper's 24 per entity), {} on disk",
-            r.map_bytes, r.file_bytes
+            "layout: {} ({} bytes an entity), {} of {} entities oriented",
+            r.layout, r.record_bytes, r.oriented, r.entities
+        );
+        println!(
+            "bytes: {} on disk ({} at the paper's 24 per entity)",
+            r.file_bytes, r.map_bytes
         );
     }
     Ok(())

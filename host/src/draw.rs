@@ -9,7 +9,7 @@
 //! origin, pixel column `x = offset[0] + scale ((p - o) · right)` and row
 //! `y = offset[1] - scale ((p - o) · up)`; pixel (i, j) covers `[i, i+1) x [j, j+1)`.
 
-use mema_core::EntityKind;
+use mema_core::{EntityKind, Rotation};
 use serde::Serialize;
 
 use crate::export::kind_colour;
@@ -213,11 +213,14 @@ impl Raster {
     }
 }
 
-/// A box [min, max]; an entity is cut by it only along its infinite axes.
+/// A box [min, max] in an entity's axes (`R^T x`, x local to the frame's origin: turned, not
+/// moved); the entity is cut by it only along its infinite axes. For an axis-aligned entity
+/// these are the frame's own axes.
 pub type Clip = ([f64; 3], [f64; 3]);
 
 /// Where a ray `p + t forward` is inside an entity (its infinite axes cut by `clip`): the
-/// entry depth and the surface normal there, or `None`.
+/// entry depth and the surface normal there, or `None`. Everything is in the entity's axes,
+/// where its quadric and its clip are axis-aligned.
 fn hit(p: [f64; 3], f: [f64; 3], c: [f64; 3], w: [f64; 3], clip: &Clip) -> Option<(f64, [f64; 3])> {
     let o = [0, 1, 2].map(|j| p[j] - c[j]);
     let a: f64 = (0..3).map(|j| w[j] * f[j] * f[j]).sum();
@@ -271,8 +274,24 @@ fn hit(p: [f64; 3], f: [f64; 3], c: [f64; 3], w: [f64; 3], clip: &Clip) -> Optio
     Some((t0, normal))
 }
 
+/// The frame seen from an entity's axes: its camera turned by `R^T`, so that projecting or
+/// unprojecting there is `R^T` of the world's (`dot(R^T a, R^T b) = dot(a, b)`). The identity
+/// turns nothing, so axis-aligned entities keep their pixels bit for bit.
+fn in_entity_axes(frame: &Frame, rotation: &Rotation) -> Frame {
+    let c = frame.camera;
+    let turn = |v| rotation.inverse_rotate(v);
+    Frame {
+        camera: Camera {
+            right: turn(c.right),
+            up: turn(c.up),
+            forward: turn(c.forward),
+        },
+        ..*frame
+    }
+}
+
 /// Renders `map`'s entities into `plot` of `raster`; `clips[i]` bounds entity i's infinite
-/// axes (local to the frame's origin).
+/// axes, in its own axes (see [`Clip`]).
 pub fn draw_entities(
     raster: &mut Raster,
     frame: &Frame,
@@ -281,19 +300,27 @@ pub fn draw_entities(
     plot: [u32; 4],
     style: Style,
 ) {
-    let cam = frame.camera;
     let shift = [0, 1, 2].map(|j| map.origin[j] - frame.origin[j]);
     let toward_light = {
+        let cam = frame.camera;
         let l = [0, 1, 2].map(|j| -cam.forward[j] + 0.6 * cam.up[j] - 0.4 * cam.right[j]);
         let n = dot(l, l).sqrt();
         l.map(|v| v / n)
     };
     let [px, py, pw, ph] = plot.map(i64::from);
     for (e, clip) in map.entities.iter().zip(clips) {
-        let c = [0, 1, 2].map(|j| f64::from(e.entity.center.to_array()[j]) + shift[j]);
+        // An oriented entity is an axis-aligned one in its own axes: ray-cast it there, with
+        // the camera, its centre and the light turned by R^T instead of the entity by R.
+        let rotation = e.entity.rotation;
+        let frame = in_entity_axes(frame, &rotation);
+        let cam = frame.camera;
+        let toward_light = rotation.inverse_rotate(toward_light);
+        let c = rotation
+            .inverse_rotate([0, 1, 2].map(|j| f64::from(e.entity.center.to_array()[j]) + shift[j]));
         let w = e.entity.weights.map(f64::from);
         let r = e.entity.semi_axes().map(f64::from);
-        // The entity's box (clipped where an axis is infinite), projected, bounds its pixels.
+        // The entity's box in its axes (clipped where an axis is infinite), projected, bounds
+        // its pixels.
         let lo = [0, 1, 2].map(|j| {
             if r[j].is_finite() {
                 c[j] - r[j]

@@ -10,6 +10,7 @@ use crate::commands::{EvalReport, LocalCloud, evaluate, load_cloud};
 use crate::fidelity::{self, FidelityScore};
 use crate::mapfile::{HostMap, MapFormat};
 use crate::stats::{self, MemoryRow};
+use mema_core::map::MapFile;
 
 /// Past this many surface samples the score costs memory and time for no added precision.
 pub const MAX_SAMPLES: usize = 100_000_000;
@@ -29,8 +30,8 @@ pub struct EvalJson {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct FileBytes {
     pub file_bytes: u64,
-    /// What the file's format takes for a map of no entities (the header, and for `.mema` its
-    /// CRC trailer).
+    /// What the file's format takes for a map of no entities: for `.mema` its layout's header
+    /// and CRC trailer (40 bytes in version 1, 52 in version 2), for CSV the header line.
     pub header_bytes: u64,
     /// `(file_bytes - header_bytes) / entities`.
     pub bytes_per_entity: f64,
@@ -41,11 +42,26 @@ impl FileBytes {
         let file_bytes = std::fs::metadata(path)
             .with_context(|| format!("{}: cannot read map", path.display()))?
             .len();
-        let empty = HostMap {
-            entities: Vec::new(),
-            ..map.clone()
+        let header_bytes = match MapFormat::from_path(path)? {
+            // The file's own layout (version 1, 2 or quantized), not the one this map would
+            // be written in today.
+            MapFormat::Mema => {
+                let bytes = std::fs::read(path)
+                    .with_context(|| format!("{}: cannot read map", path.display()))?;
+                MapFile::new_checked(&bytes)
+                    .map_err(anyhow::Error::from)
+                    .with_context(|| path.display().to_string())?
+                    .layout()
+                    .encoded_len(0) as u64
+            }
+            format => {
+                let empty = HostMap {
+                    entities: Vec::new(),
+                    ..map.clone()
+                };
+                empty.encode_as(format)?.len() as u64
+            }
         };
-        let header_bytes = empty.encode_as(MapFormat::from_path(path)?)?.len() as u64;
         Ok(Self {
             file_bytes,
             header_bytes,

@@ -272,9 +272,11 @@ pub fn render(
     Ok((raster, report))
 }
 
-/// Per entity, the box of the points nearest its centre (as `mema eval` assigns them), local
-/// to the cloud's origin: a degenerated entity is drawn over its own cluster's extent, not
-/// across the whole cloud. An entity no point is nearest to gets the cloud's box.
+/// Per entity, the box of the points nearest its centre (as `mema eval` assigns them), in the
+/// entity's axes (`R^T p`, p local to the cloud's origin; see [`draw::Clip`]): a degenerated
+/// entity is drawn over its own cluster's extent along its infinite axes, not across the whole
+/// cloud, whichever way it is turned. An entity no point is nearest to gets the cloud's box,
+/// seen along its axes.
 pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
     let shift = [0, 1, 2].map(|j| cloud.origin[j] - map.origin[j]);
     let in_map: Vec<mema_core::Point3> = cloud
@@ -290,18 +292,42 @@ pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
     let labels = crate::pipeline::nearest_centre_labels(&in_map, &centres);
     let all = Bounds::of_points([0.0; 3], &cloud.points);
     let mut boxes = vec![([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); centres.len()];
+    let grow = |b: &mut draw::Clip, q: [f64; 3]| {
+        for (j, q) in q.into_iter().enumerate() {
+            b.0[j] = b.0[j].min(q);
+            b.1[j] = b.1[j].max(q);
+        }
+    };
     for (p, &l) in cloud.points.iter().zip(&labels) {
-        if let Some(b) = boxes.get_mut(l as usize) {
-            for (j, q) in p.to_f64().into_iter().enumerate() {
-                b.0[j] = b.0[j].min(q);
-                b.1[j] = b.1[j].max(q);
-            }
+        if let (Some(b), Some(e)) = (boxes.get_mut(l as usize), map.entities.get(l as usize)) {
+            grow(b, e.entity.rotation.inverse_rotate(p.to_f64()));
         }
     }
     let empty = |b: &draw::Clip| b.0[0] > b.1[0];
     boxes
         .into_iter()
-        .map(|b| if empty(&b) { (all.min, all.max) } else { b })
+        .zip(&map.entities)
+        .map(|(b, e)| {
+            if !empty(&b) {
+                return b;
+            }
+            if e.entity.rotation.is_identity() || empty(&(all.min, all.max)) {
+                return (all.min, all.max);
+            }
+            // The cloud's corners turned: their box holds every turned point.
+            let mut turned = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            for corner in 0..8 {
+                let q = [0, 1, 2].map(|j| {
+                    if corner >> j & 1 == 0 {
+                        all.min[j]
+                    } else {
+                        all.max[j]
+                    }
+                });
+                grow(&mut turned, e.entity.rotation.inverse_rotate(q));
+            }
+            turned
+        })
         .collect()
 }
 

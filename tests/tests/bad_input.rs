@@ -192,4 +192,13 @@ fn unknown_map_extension_and_corrupt_map() {
         .arg(&bad)
         .run()
         .assert_error(1, "bad.mema");
+    for samples in ["0", "100000001"] {
+        MemaCommand::new(&dir)
+            .arg("eval")
+            .arg(&car)
+            .arg(&good)
+            .args(["--samples", samples])
+            .run()
+            .assert_error(2, "--samples");
+    }
 }

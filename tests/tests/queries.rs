@@ -193,3 +193,100 @@ fn query_command_answers_in_world_coordinates() {
         .run()
         .assert_error(2, "--point");
 }
+
+/// The rotation matrix of a unit quaternion (x, y, z, w), written out here rather than taken
+/// from the core, so the surface check below does not trust the code it checks.
+fn matrix_of(q: [f32; 4]) -> [[f64; 3]; 3] {
+    let [x, y, z, w] = q.map(f64::from);
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - z * w),
+            2.0 * (x * z + y * w),
+        ],
+        [
+            2.0 * (x * y + z * w),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - x * w),
+        ],
+        [
+            2.0 * (x * z - y * w),
+            2.0 * (y * z + x * w),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
+}
+
+#[test]
+fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
+    // Shells of car6 (every entity turned), and the bunny's threshold-box map (pseudocylinders)
+    // turned by a general rotation, so degenerated axes point off the world axes.
+    let car = {
+        let local = load_cloud(&shared("car6.pcd")).expect("cloud");
+        let config = mema::cli::default_fit_args().config(150).expect("config");
+        let clusters = pipeline::cluster(&local.points, 150, &config.kmeans).expect("clusters");
+        let centres: Vec<_> = clusters
+            .moments
+            .iter()
+            .map(|m| mema_core::Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
+            .collect();
+        mema::shells::shell_map(
+            local.origin,
+            &local.points,
+            &clusters.labels,
+            &centres,
+            &mema_core::shell::ShellParams::default(),
+        )
+    };
+    let turn = RigidTransform::rotation_about(0, 0.3)
+        .after(&RigidTransform::rotation_about(1, -1.1))
+        .after(&RigidTransform::rotation_about(2, 0.7));
+    let bunny = transform_map(&map_of("bun_zipper.ply", 350, true), &turn).expect("a rotation");
+    for (name, map) in [("car6 shells", car), ("turned bunny", bunny)] {
+        let turned = map
+            .entities
+            .iter()
+            .filter(|e| !e.entity.rotation.is_identity())
+            .count();
+        assert!(
+            turned * 10 > map.entities.len() * 9,
+            "{name}: {turned} turned"
+        );
+        let index = build_index(&map).expect("index");
+        let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+        let mut hits = 0;
+        for (p, d) in random_queries(&map, 20_000, 11) {
+            assert_eq!(
+                index.nearest(p),
+                brute_force::nearest(&entities, p),
+                "{name}: nearest at {p:?}"
+            );
+            assert_eq!(
+                index.occupied(p),
+                brute_force::occupied(&entities, p),
+                "{name}: occupancy at {p:?}"
+            );
+            let ray = index.ray_cast(p, d, 1e9);
+            assert_eq!(
+                ray,
+                brute_force::ray_cast(&entities, p, d, 1e9),
+                "{name}: ray from {p:?}"
+            );
+            if let Some(hit) = ray {
+                hits += 1;
+                // On the surface in the entity's own frame: sum w (R^T (x - c))^2 = 1.
+                let e = &entities[hit.entity];
+                let (c, m) = (e.center.to_f64(), matrix_of(e.rotation.to_array()));
+                let d = [0, 1, 2].map(|j| hit.point[j] - c[j]);
+                let s: f64 = (0..3)
+                    .map(|j| {
+                        let local: f64 = (0..3).map(|i| m[i][j] * d[i]).sum();
+                        e.weights[j] as f64 * local * local
+                    })
+                    .sum();
+                assert!((s - 1.0).abs() < 1e-5, "{name}: hit off the surface ({s})");
+            }
+        }
+        assert!(hits > 1000, "{name}: queries too easy ({hits} hits)");
+    }
+}

@@ -9,6 +9,8 @@ mod bad_input;
 mod closest_point;
 // The CLI end to end on real clouds: determinism, formats, eval, info, demo.
 mod cli;
+// eval's two-way fidelity score against brute force, a drawn cloud and a moved entity.
+mod fidelity;
 // Fault injection on the wire: corrupted frames refused, clean frames used once.
 mod faults;
 // LAS/LAZ against their raw integer records, KITTI scans, --crop and --voxel.
@@ -34,3 +36,8 @@ mod stream;
 // draw (pixels against projections computed here), export (re-read by gltf and ply-rs-bw),
 // completions and man.
 mod toolbox;
+// draw and export of oriented maps: a turned map meshes and draws as the turned original.
+mod toolbox_oriented;
+// .mema versions: a version-1 file written here by hand still loads; --paper writes version 1,
+// shells version 2 quantized, both within --bytes, decoded here from the documented layout.
+mod map_versions;

@@ -12,6 +12,7 @@
 
 use super::StreamMapper;
 use crate::fit::fit_ellipsoid_paper;
+use crate::geometry::AxisEntity;
 use crate::rng::stream_rng;
 
 /// A cluster is idle enough to freeze when no point has joined it for this many turnovers of
@@ -63,7 +64,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let Some(entity) = fit else {
             return false;
         };
-        if i >= self.clusters.len() || self.frozen.push(entity).is_err() {
+        if i >= self.clusters.len()
+            || self
+                .frozen
+                .push(AxisEntity::of_axis_aligned(&entity))
+                .is_err()
+        {
             return false;
         }
         self.clusters.swap_remove(i);

@@ -12,7 +12,7 @@
 //! instead of merging; see [`freeze`].
 
 use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
-use crate::geometry::{Entity, Point3};
+use crate::geometry::{AxisEntity, Entity, Point3};
 use crate::grid::CentreGrid;
 use crate::map::MapEntity;
 use crate::moments::Moments;
@@ -45,7 +45,8 @@ pub struct StreamParams {
 pub struct StreamCluster {
     pub moments: Moments,
     pub center: Point3,
-    pub entity: Entity,
+    /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes.
+    pub entity: AxisEntity,
     /// Points added since the last fit; `u32::MAX` when never fitted.
     pub stale: u32,
     /// The stream's point count (mod 2^32) when the cluster last received a point.
@@ -71,7 +72,7 @@ pub struct StreamStats {
 #[derive(Clone, Debug)]
 pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     clusters: heapless::Vec<StreamCluster, K>,
-    frozen: heapless::Vec<Entity, F>,
+    frozen: heapless::Vec<AxisEntity, F>,
     grid: CentreGrid<K, G>,
     radius: f32,
     params: StreamParams,
@@ -191,7 +192,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let cluster = StreamCluster {
             moments,
             center: p,
-            entity: Entity::sphere(p, 0.0),
+            entity: AxisEntity::of_axis_aligned(&Entity::sphere(p, 0.0)),
             stale: u32::MAX,
             last_point: self.stats.points as u32,
         };
@@ -357,7 +358,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         };
         let entity = self.clusters.get(i).and_then(|c| self.fit(i, c));
         if let (Some(entity), Some(c)) = (entity, self.clusters.get_mut(i)) {
-            c.entity = entity;
+            c.entity = AxisEntity::of_axis_aligned(&entity);
             c.stale = 0;
             self.stats.refits += 1;
         }
@@ -369,7 +370,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if self.clusters.get(i).is_some_and(|c| c.stale > 0) {
                 let entity = self.clusters.get(i).and_then(|c| self.fit(i, c));
                 if let (Some(entity), Some(c)) = (entity, self.clusters.get_mut(i)) {
-                    c.entity = entity;
+                    c.entity = AxisEntity::of_axis_aligned(&entity);
                     c.stale = 0;
                     self.stats.refits += 1;
                 }
@@ -386,14 +387,17 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             .iter()
             .copied()
             .chain(working)
-            .map(move |entity| MapEntity {
-                entity,
-                kind: entity.kind(tolerance),
+            .map(move |stored| {
+                let entity = Entity::from(stored);
+                MapEntity {
+                    entity,
+                    kind: entity.kind(tolerance),
+                }
             })
     }
 
     /// Entities frozen out of working memory so far.
-    pub fn frozen(&self) -> &[Entity] {
+    pub fn frozen(&self) -> &[AxisEntity] {
         &self.frozen
     }
 
@@ -410,7 +414,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                     &mut stream_rng(self.params.seed, i as u64),
                 );
                 if let Some(c) = self.clusters.get_mut(i) {
-                    c.entity = fit.entity;
+                    c.entity = AxisEntity::of_axis_aligned(&fit.entity);
                     c.stale = 0;
                 }
             }

@@ -133,7 +133,11 @@ fn a_sweep_freezes_the_clusters_it_leaves_behind() {
         assert!(e.weights.iter().all(|w| w.is_finite() && *w >= 0.0));
     }
     // The entities come frozen first, then the working clusters.
-    assert!(m.entities().zip(frozen).all(|(a, b)| a.entity == *b));
+    assert!(
+        m.entities()
+            .zip(frozen)
+            .all(|(a, b)| a.entity == Entity::from(*b))
+    );
 }
 
 #[test]

@@ -328,7 +328,7 @@ fn extents_with_labels(
         let Some(entity) = entities.get(l as usize) else {
             continue;
         };
-        let local = surface::to_local_frame(entity, *p);
+        let local = entity.to_local(*p);
         let slot = extents[l as usize].get_or_insert([[f64::INFINITY, f64::NEG_INFINITY]; 3]);
         for j in 0..3 {
             slot[j][0] = slot[j][0].min(local[j]);
@@ -405,7 +405,7 @@ fn samples_of(
                 .sample(*n, &mut rng)
                 .into_iter()
                 .map(|local| SurfaceSample {
-                    point: surface::to_map_frame(entity, local),
+                    point: entity.to_world(local),
                     weight,
                     entity: i as u32,
                 })

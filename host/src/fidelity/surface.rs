@@ -1,7 +1,7 @@
 //! Points spread uniformly by area over each entity's surface, and the areas that weight them.
 //!
 //! Everything here works in the entity's local frame, where the semi-axes lie along the
-//! coordinate axes; [`to_map_frame`] is the one place a local sample is placed in the map.
+//! coordinate axes; `Entity::to_world` (`c + R(q) x`) places a sample in the map.
 //!
 //! **Ellipsoid.** A point `u` uniform on the unit sphere, mapped by `D = diag(a, b, c)`, is not
 //! uniform on the ellipsoid: the linear map scales the area element at `u` by
@@ -154,16 +154,6 @@ impl Patch {
         }
         out
     }
-}
-
-/// A sample's place in the map frame, `c + R local` (exactly `c + local` when axis-aligned).
-pub fn to_map_frame(entity: &Entity, local: [f64; 3]) -> [f64; 3] {
-    entity.to_world(local)
-}
-
-/// `p` in the entity's local frame (the inverse of [`to_map_frame`]).
-pub fn to_local_frame(entity: &Entity, p: [f64; 3]) -> [f64; 3] {
-    entity.to_local(p)
 }
 
 fn lerp(range: [f64; 2], t: f64) -> f64 {

@@ -13,13 +13,17 @@
 //! cloud it came from; glTF positions are f32 by the specification, so they are local to the
 //! map's origin and the one node carries the origin as its translation.
 
-use anyhow::{Context, Result};
-use mema_core::{EntityKind, MapEntity};
+use anyhow::Result;
+use mema_core::query::half_extents;
+use mema_core::{EntityKind, MapEntity, Rotation};
 use serde::Serialize;
 use std::path::Path;
 
 use crate::cli::UsageError;
 use crate::mapfile::HostMap;
+
+mod formats;
+pub use formats::{to_glb, to_obj, to_ply};
 
 /// Colours by kind (Okabe-Ito, readable with colour-blindness), shared with `mema draw`.
 pub fn kind_colour(kind: EntityKind) -> [u8; 3] {
@@ -92,9 +96,10 @@ pub struct Bounds {
 }
 
 impl Bounds {
-    /// The world box of the map itself: each entity's centre ± its finite semi-axes, grown on
-    /// each side to at least the largest finite semi-axis so a lone degenerated entity still
-    /// gets a visible length.
+    /// The world box of the map itself: each entity's centre ± its finite half extents along
+    /// the world axes (its semi-axes when axis-aligned; a world axis a degenerated one is
+    /// turned onto contributes the centre only), grown on each side to at least the largest
+    /// finite semi-axis so a lone degenerated entity still gets a visible length.
     pub fn of_map(map: &HostMap) -> Self {
         let mut b = Bounds {
             min: [f64::INFINITY; 3],
@@ -103,22 +108,51 @@ impl Bounds {
         let mut largest = 0.0f64;
         for e in &map.entities {
             let c = map.world_center(&e.entity);
-            let r = e.entity.semi_axes();
+            let r = e.entity.semi_axes().map(f64::from);
+            // Identity keeps the f32 semi-axes the axis-aligned boxes were always made of.
+            let h = if e.entity.rotation.is_identity() {
+                r
+            } else {
+                half_extents(&e.entity)
+            };
             for j in 0..3 {
-                let r = if r[j].is_finite() {
-                    f64::from(r[j])
-                } else {
-                    0.0
-                };
-                largest = largest.max(r);
-                b.min[j] = b.min[j].min(c[j] - r);
-                b.max[j] = b.max[j].max(c[j] + r);
+                if r[j].is_finite() {
+                    largest = largest.max(r[j]);
+                }
+                let h = if h[j].is_finite() { h[j] } else { 0.0 };
+                b.min[j] = b.min[j].min(c[j] - h);
+                b.max[j] = b.max[j].max(c[j] + h);
             }
         }
         for j in 0..3 {
             let grow = (largest - (b.max[j] - b.min[j])).max(0.0) / 2.0;
             b.min[j] -= grow;
             b.max[j] += grow;
+        }
+        b
+    }
+
+    /// The box seen from an entity's axes around its world centre `c`: per axis, the extent of
+    /// `R^T (x - c)` over the box's corners. A degenerated axis spans this, so a turned tube or
+    /// plane crosses the whole box along its own direction.
+    pub fn in_axes_of(&self, c: [f64; 3], rotation: &Rotation) -> Self {
+        let mut b = Bounds {
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        for corner in 0..8 {
+            let x = [0, 1, 2].map(|j| {
+                let end = if corner >> j & 1 == 0 {
+                    self.min[j]
+                } else {
+                    self.max[j]
+                };
+                end - c[j]
+            });
+            for (j, q) in rotation.inverse_rotate(x).into_iter().enumerate() {
+                b.min[j] = b.min[j].min(q);
+                b.max[j] = b.max[j].max(q);
+            }
         }
         b
     }
@@ -171,9 +205,34 @@ pub fn tessellate(map: &HostMap, bounds: &Bounds, t: &Tessellation) -> Vec<(Enti
     meshes
 }
 
+/// An oriented entity is meshed axis-aligned around 0 in its own axes, its degenerated axes
+/// spanning the bounds seen along those axes, and each vertex is then placed at `c + R v`. An
+/// axis-aligned one is meshed where it is, so its vertices keep the bits they always had.
 fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Tessellation) {
     let c = map.world_center(&e.entity);
+    let rotation = e.entity.rotation;
     let r = e.entity.semi_axes().map(f64::from);
+    let Some((mut v, tri)) = (if rotation.is_identity() {
+        axis_aligned_mesh(c, r, b, t)
+    } else {
+        axis_aligned_mesh([0.0; 3], r, &b.in_axes_of(c, &rotation), t)
+    }) else {
+        return;
+    };
+    if !rotation.is_identity() {
+        for p in &mut v {
+            let q = rotation.rotate(*p);
+            *p = [0, 1, 2].map(|j| c[j] + q[j]);
+        }
+    }
+    mesh.add(v, tri);
+}
+
+type Triangles = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+
+/// The mesh of an entity of semi-axes `r` centred at `c`, unturned; `None` without a finite
+/// axis.
+fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> Option<Triangles> {
     let (s, rings) = (t.segments, t.rings);
     let angle = |i: u32| std::f64::consts::TAU * f64::from(i) / f64::from(s);
     let finite: Vec<usize> = (0..3).filter(|&j| r[j].is_finite()).collect();
@@ -211,7 +270,7 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                     tri.push([a, c2, d]);
                 }
             }
-            mesh.add(v, tri);
+            Some((v, tri))
         }
         [j, k] => {
             let a = 3 - j - k;
@@ -239,7 +298,7 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                 tri.push([cap0, n, i]);
                 tri.push([cap1, s + i, s + n]);
             }
-            mesh.add(v, tri);
+            Some((v, tri))
         }
         [n] => {
             let (u, w) = ((n + 1) % 3, (n + 2) % 3);
@@ -258,151 +317,12 @@ fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Te
                     v.push(p);
                 }
             }
-            mesh.add(v, [[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]);
+            Some((v, vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]))
         }
         // `Entity` keeps at least one finite axis; a map read from elsewhere without one has
         // no surface to draw.
-        _ => {}
+        _ => None,
     }
-}
-
-/// Binary little-endian PLY: `double x y z` and `uchar red green blue` per vertex (the kind's
-/// colour), `list uchar int vertex_indices` per face.
-pub fn to_ply(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Vec<u8> {
-    let vertices: usize = meshes.iter().map(|(_, m)| m.positions.len()).sum();
-    let faces: usize = meshes.iter().map(|(_, m)| m.triangles.len()).sum();
-    let o = map.origin;
-    let mut out = format!(
-        "ply\nformat binary_little_endian 1.0\ncomment mema map, {} entities; map origin {} {} {}\n\
-         element vertex {vertices}\nproperty double x\nproperty double y\nproperty double z\n\
-         property uchar red\nproperty uchar green\nproperty uchar blue\n\
-         element face {faces}\nproperty list uchar int vertex_indices\nend_header\n",
-        map.entities.len(),
-        o[0],
-        o[1],
-        o[2]
-    )
-    .into_bytes();
-    for (kind, m) in meshes {
-        for p in &m.positions {
-            p.iter()
-                .for_each(|c| out.extend_from_slice(&c.to_le_bytes()));
-            out.extend_from_slice(&kind_colour(*kind));
-        }
-    }
-    let mut base = 0u32;
-    for (_, m) in meshes {
-        for t in &m.triangles {
-            out.push(3);
-            t.iter()
-                .for_each(|i| out.extend_from_slice(&(base + i).to_le_bytes()));
-        }
-        base += m.positions.len() as u32;
-    }
-    out
-}
-
-/// Wavefront OBJ with one group per kind and the kind's colour after each vertex (the
-/// extension MeshLab, CloudCompare and Blender read).
-pub fn to_obj(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Vec<u8> {
-    use std::fmt::Write;
-    let o = map.origin;
-    let mut s = format!(
-        "# mema map, {} entities; map origin {} {} {}\n",
-        map.entities.len(),
-        o[0],
-        o[1],
-        o[2]
-    );
-    let mut base = 1u32;
-    for (kind, m) in meshes {
-        let [r, g, b] = kind_colour(*kind).map(|c| f64::from(c) / 255.0);
-        let _ = writeln!(s, "g {}", kind.name());
-        for p in &m.positions {
-            let _ = writeln!(s, "v {} {} {} {r:.4} {g:.4} {b:.4}", p[0], p[1], p[2]);
-        }
-        for t in &m.triangles {
-            let _ = writeln!(s, "f {} {} {}", base + t[0], base + t[1], base + t[2]);
-        }
-        base += m.positions.len() as u32;
-    }
-    s.into_bytes()
-}
-
-/// Binary glTF 2.0: one node translated to the map's origin, one mesh with a primitive and a
-/// material per kind, f32 positions relative to the origin and u32 indices.
-pub fn to_glb(map: &HostMap, meshes: &[(EntityKind, Mesh)]) -> Result<Vec<u8>> {
-    use serde_json::json;
-    let mut bin: Vec<u8> = Vec::new();
-    let (mut views, mut accessors, mut primitives, mut materials) =
-        (vec![], vec![], vec![], vec![]);
-    for (kind, m) in meshes {
-        let local: Vec<[f32; 3]> = m
-            .positions
-            .iter()
-            .map(|p| [0, 1, 2].map(|j| (p[j] - map.origin[j]) as f32))
-            .collect();
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        let start = bin.len();
-        for p in &local {
-            for j in 0..3 {
-                lo[j] = lo[j].min(p[j]);
-                hi[j] = hi[j].max(p[j]);
-                bin.extend_from_slice(&p[j].to_le_bytes());
-            }
-        }
-        views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start, "target": 34962}));
-        accessors.push(
-            json!({"bufferView": views.len() - 1, "componentType": 5126, "count": local.len(),
-            "type": "VEC3", "min": lo, "max": hi}),
-        );
-        let start = bin.len();
-        for i in m.triangles.iter().flatten() {
-            bin.extend_from_slice(&i.to_le_bytes());
-        }
-        views.push(json!({"buffer": 0, "byteOffset": start, "byteLength": bin.len() - start, "target": 34963}));
-        accessors.push(json!({"bufferView": views.len() - 1, "componentType": 5125,
-            "count": 3 * m.triangles.len(), "type": "SCALAR"}));
-        let [r, g, b] = kind_colour(*kind).map(|c| f64::from(c) / 255.0);
-        materials.push(json!({"name": kind.name(),
-            "pbrMetallicRoughness": {"baseColorFactor": [r, g, b, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.8}}));
-        primitives.push(
-            json!({"attributes": {"POSITION": accessors.len() - 2}, "indices": accessors.len() - 1,
-            "material": materials.len() - 1, "mode": 4}),
-        );
-    }
-    let doc = json!({
-        "asset": {"version": "2.0", "generator": concat!("mema ", env!("CARGO_PKG_VERSION"))},
-        "scene": 0,
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"name": "mema map", "mesh": 0, "translation": map.origin,
-            "extras": {"mema_origin": map.origin, "entities": map.entities.len()}}],
-        "meshes": [{"name": "entities", "primitives": primitives}],
-        "materials": materials,
-        "accessors": accessors,
-        "bufferViews": views,
-        "buffers": [{"byteLength": bin.len()}],
-    });
-    let mut json_chunk = serde_json::to_vec(&doc)?;
-    while !json_chunk.len().is_multiple_of(4) {
-        json_chunk.push(b' ');
-    }
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    let total = 12 + 8 + json_chunk.len() + 8 + bin.len();
-    let total = u32::try_from(total).context("the mesh exceeds glTF's 4 GiB limit")?;
-    let mut out = Vec::with_capacity(total as usize);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&total.to_le_bytes());
-    for (kind, chunk) in [(*b"JSON", &json_chunk), (*b"BIN\0", &bin)] {
-        out.extend_from_slice(&(chunk.len() as u32).to_le_bytes());
-        out.extend_from_slice(&kind);
-        out.extend_from_slice(chunk);
-    }
-    Ok(out)
 }
 
 /// Per-kind figures of `mema export --json`.
@@ -507,7 +427,13 @@ mod tests {
             entity([0.3, inf, inf], EntityKind::PlanePair),
         ];
         let t = Tessellation::checked(7, 5).unwrap();
-        for e in cases {
+        // Turned, every mesh keeps its counts, its closure and its outward winding.
+        let turn = mema_core::Rotation::from_quaternion([0.3, -0.5, 0.2, 0.8]).unwrap();
+        let turned = cases.map(|e| MapEntity {
+            entity: e.entity.with_rotation(turn),
+            ..e
+        });
+        for e in cases.into_iter().chain(turned) {
             let map = HostMap::new([10.0, 20.0, 30.0], vec![e]);
             let bounds = Bounds::of_map(&map);
             let meshes = tessellate(&map, &bounds, &t);
