@@ -111,9 +111,9 @@ pub fn gmm_map(origin: [f64; 3], fit: &GmmFit) -> Result<(HostMap, usize)> {
 }
 
 /// Runs `script` (`scripts/gmm_fit.py`) on the points of `npy` with `components` components.
-/// With a `cache` directory, a fit of the same points and components made before is read from
-/// there instead (the fits take most of the benchmark's time), and a new one is kept there;
-/// the flag says which happened.
+/// With a `cache` directory, a fit of the same points and components by the same script made
+/// before is read from there instead (the fits take most of the benchmark's time), and a new
+/// one is kept there; the flag says which happened.
 pub fn fit_gmm(
     python: &Path,
     script: &Path,
@@ -123,7 +123,12 @@ pub fn fit_gmm(
 ) -> Result<(GmmFit, bool)> {
     let cached = match cache {
         Some(dir) => {
-            let bytes = std::fs::read(npy).with_context(|| format!("reading {}", npy.display()))?;
+            // The script is part of the key: a fit made by another version of it is another fit.
+            let mut bytes =
+                std::fs::read(npy).with_context(|| format!("reading {}", npy.display()))?;
+            bytes.extend(
+                std::fs::read(script).with_context(|| format!("reading {}", script.display()))?,
+            );
             Some(dir.join(format!("gmm-{:016x}-{components}.json", fnv1a(&bytes))))
         }
         None => None,
