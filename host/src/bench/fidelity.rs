@@ -400,6 +400,7 @@ impl Case<'_> {
                 summary = Some(GmmSummary {
                     sklearn: fit.sklearn.clone(),
                     cached,
+                    scale: fit.scale,
                     components: fit.means.len(),
                     converged: fit.converged,
                     iterations: fit.iterations,

@@ -27,6 +27,9 @@ pub struct GmmFit {
     pub peak_rss_bytes: Option<u64>,
     #[serde(default)]
     pub sklearn: Option<String>,
+    /// The length the script fitted in (the cloud's RMS spread), in cloud units.
+    #[serde(default)]
+    pub scale: Option<f64>,
     pub means: Vec<[f64; 3]>,
     pub covariances: Vec<[[f64; 3]; 3]>,
     pub weights: Vec<f64>,
@@ -38,6 +41,7 @@ pub struct GmmSummary {
     pub sklearn: Option<String>,
     /// Read from the fit cache instead of fitted in this run.
     pub cached: bool,
+    pub scale: Option<f64>,
     pub components: usize,
     pub converged: bool,
     pub iterations: u64,
