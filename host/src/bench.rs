@@ -4,8 +4,13 @@
 //! 1. fitness: eq. 12 from moments vs the direct per-point sum, per evaluation and per fit;
 //! 2. kmeans: accelerated vs plain k-means (the same labels and centre bits, checked);
 //! 3. pipeline: read + k-means + fit + eval with stage shares and peak memory, 1 vs 2 threads;
-//! 4. python: the same cloud and k through numpy + scikit-learn + a numpy DE (`--python`).
+//! 4. python: the same cloud and k through numpy + scikit-learn + a numpy DE (`--python`);
+//! 5. fidelity (only when asked): the default map, the paper's and a Gaussian mixture at equal
+//!    bytes on every shared cloud, scored two ways (`--python`).
 
+pub mod fidelity;
+mod fidelity_report;
+pub mod gmm;
 mod memory;
 mod pipeline_case;
 mod scene;
@@ -31,6 +36,7 @@ pub enum Which {
     Kmeans,
     Pipeline,
     Python,
+    Fidelity,
 }
 
 #[derive(Args, Debug)]
@@ -39,12 +45,27 @@ pub struct BenchArgs {
     #[arg(long, default_value = "../shared/data")]
     pub data: PathBuf,
     /// Benchmarks to run, comma-separated (default: fitness,kmeans,pipeline, plus python when
-    /// --python is given).
+    /// --python is given; fidelity, which takes about an hour, only when named).
     #[arg(long, value_enum, value_delimiter = ',')]
     pub only: Vec<Which>,
-    /// A Python with numpy and scikit-learn (scripts/bench.sh installs one) for benchmark 4.
+    /// A Python with numpy and scikit-learn (scripts/bench.sh installs one) for benchmarks 4
+    /// and 5.
     #[arg(long)]
     pub python: Option<PathBuf>,
+    /// Fidelity: only these clouds of --data, comma-separated file names (default: every
+    /// PLY, PCD, LAS and LAZ file there).
+    #[arg(long, value_delimiter = ',')]
+    pub clouds: Vec<String>,
+    /// Fidelity: map budgets in bytes, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = fidelity::DEFAULT_BUDGETS)]
+    pub budgets: Vec<usize>,
+    /// Fidelity: keep each GMM fit in this directory and reuse it for the same points and
+    /// components (the fits take most of the run).
+    #[arg(long, value_name = "DIR")]
+    pub gmm_cache: Option<PathBuf>,
+    /// Fidelity: print the results as one JSON object on stdout instead of the tables.
+    #[arg(long)]
+    pub json: bool,
     /// Iteration cap of the plain k-means on the environment case, and of the accelerated run
     /// it is compared with (uncapped, the plain run would take hours).
     #[arg(long, default_value_t = 3)]
@@ -94,17 +115,24 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             which.push(Which::Python);
         }
     }
-    println!(
+    let header = format!(
         "mema bench: {} threads in the global pool, data {}",
         rayon::current_num_threads(),
         args.data.display()
     );
+    // Keeps stdout one JSON document under --json.
+    if args.json {
+        eprintln!("{header}");
+    } else {
+        println!("{header}");
+    }
     for w in which {
         match w {
             Which::Fitness => fitness(args)?,
             Which::Kmeans => kmeans(args)?,
             Which::Pipeline => pipeline(args)?,
             Which::Python => python(args)?,
+            Which::Fidelity => fidelity_bench(args)?,
         }
     }
     Ok(())
@@ -472,6 +500,47 @@ fn python(args: &BenchArgs) -> Result<()> {
     println!(
         " their input (mema the cloud file or scene, Python the same points as .npy); eval excluded)"
     );
+    Ok(())
+}
+
+fn fidelity_bench(args: &BenchArgs) -> Result<()> {
+    let Some(python) = &args.python else {
+        bail!(
+            "the fidelity benchmark needs --python PATH (a Python with numpy and scikit-learn; see scripts/bench.sh)"
+        );
+    };
+    if let Some(&b) = args.budgets.iter().find(|&&b| b == 0) {
+        return Err(
+            crate::cli::UsageError(format!("--budgets {b}: a budget is at least 1 byte")).into(),
+        );
+    }
+    let opts = fidelity::FidelityOptions {
+        data: args.data.clone(),
+        python: python.clone(),
+        clouds: args.clouds.clone(),
+        budgets: args.budgets.clone(),
+        // k is set per budget; 1 only passes the check.
+        base: crate::cli::default_fit_args().config(1)?,
+        samples: crate::fidelity::DEFAULT_SAMPLES,
+        seed: 0,
+        gmm_cache: args.gmm_cache.clone(),
+    };
+    if let Some(dir) = &opts.gmm_cache {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let report = fidelity::run(&opts)?;
+    // Under --json the tables go to stderr: one run gives both, and stdout stays one document.
+    let (mut stdout, mut stderr) = (std::io::stdout().lock(), std::io::stderr().lock());
+    let out: &mut dyn std::io::Write = if args.json { &mut stderr } else { &mut stdout };
+    writeln!(out)?;
+    writeln!(
+        out,
+        "5. fidelity: default (shells), paper and GMM (2-sigma shells) maps at equal bytes, two-way score as read back"
+    )?;
+    fidelity::print_tables(&report, out)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+    }
     Ok(())
 }
 

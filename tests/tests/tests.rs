@@ -19,6 +19,8 @@ mod lidar;
 mod core_contract;
 // The core as firmware runs it: chunking, faults, resets, replay, the f64 reference, fuzzing.
 mod firmware;
+// The fidelity benchmark's GMM baseline: a component becomes its 2-sigma oriented shell.
+mod gmm_shell;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
 mod fitness;
 // Accelerated k-means against the plain reference on real clouds, on 1 and 2 threads.

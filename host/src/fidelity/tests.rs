@@ -323,3 +323,39 @@ fn quantiles_and_empty_inputs() {
     assert!(two_way_score(&[], &entities, 0, 10).is_err());
     assert!(two_way_score(&points, &[], 0, 10).is_err());
 }
+
+#[test]
+fn oriented_entities_are_sampled_on_their_turned_surfaces() {
+    let degeneration = mema_core::Degeneration::default();
+    let turn = mema_core::Rotation::from_quaternion([0.3, -0.5, 0.2, 0.8]).expect("unit");
+    let entities = vec![
+        Entity::from_semi_axes(Point3::new(1.0, 2.0, 3.0), [1.0, 0.5, 0.2], &degeneration)
+            .with_rotation(turn),
+        Entity::from_semi_axes(Point3::new(-4.0, 0.0, 1.0), [0.3, 9.0, 0.3], &degeneration)
+            .with_rotation(turn),
+    ];
+    // The cloud lies on both surfaces: on the ellipsoid, and on the cylinder for |y| <= 1.
+    let points: Vec<[f64; 3]> = (0..4000)
+        .map(|i| {
+            let (t, u) = (i as f64 * 0.618_034, i as f64 * 0.137);
+            if i % 2 == 0 {
+                let (z, rho) = (u.sin(), u.cos());
+                entities[0].to_world([rho * t.cos(), 0.5 * rho * t.sin(), 0.2 * z])
+            } else {
+                entities[1].to_world([0.3 * t.cos(), (u % 2.0) - 1.0, 0.3 * t.sin()])
+            }
+        })
+        .collect();
+    for s in surface_samples(&points, &entities, 3, 20_000) {
+        let e = &entities[s.entity as usize];
+        let d = surface_distance(e, s.point);
+        assert!(d < 1e-6, "entity {}: {d}", s.entity);
+        // The cylinder is cut to its own points along its (turned) axis.
+        if s.entity == 1 {
+            assert!(e.to_local(s.point)[1].abs() <= 1.0 + 1e-6);
+        }
+    }
+    let score = two_way_score(&points, &entities, 3, 20_000).expect("score");
+    assert!(score.accuracy.max < 1e-5, "{:?}", score.accuracy);
+    assert!(score.completeness.mean < 0.05, "{:?}", score.completeness);
+}

@@ -1,0 +1,452 @@
+//! `mema bench --only fidelity`: every shared cloud at each byte budget, three maps side by side,
+//! each scored two ways (`crate::fidelity`) as read back from the file it was written to:
+//!
+//! - **default**: the shell model filling the budget (`mema map --model shells --bytes B`);
+//! - **paper**: the paper's method at the same budget (`mema map --bytes B --paper`);
+//! - **GMM**: a converged full-covariance Gaussian mixture of `B / 40` components
+//!   (scikit-learn, `scripts/gmm_fit.py`), each component its 2-sigma shell ([`super::gmm`]).
+//!
+//! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
+//! reported and the run goes on.
+
+use anyhow::{Context, Result, bail};
+use mema_core::shell::ShellParams;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use super::gmm::{self, GmmSummary};
+use super::write_npy;
+use crate::commands::{LocalCloud, MIN_POINTS_PER_ENTITY, load_cloud, map_cloud_with};
+use crate::eval::{FileBytes, points_in_map_frame};
+use crate::fidelity::{FidelityScore, two_way_score};
+use crate::mapfile::HostMap;
+use crate::pipeline::{EntityChoice, Model, PipelineConfig};
+
+pub use super::fidelity_report::{Summary, print_tables, summaries};
+
+/// The budgets: 60, 240 and 960 components of 40 bytes.
+pub const DEFAULT_BUDGETS: [usize; 3] = [2_400, 9_600, 38_400];
+
+/// Extensions of the clouds the benchmark takes from the data directory.
+pub const CLOUD_EXTENSIONS: [&str; 4] = ["ply", "pcd", "las", "laz"];
+
+/// What one run does; everything the command line chose, and nothing of its types.
+pub struct FidelityOptions {
+    pub data: PathBuf,
+    /// A Python with numpy and scikit-learn (scripts/bench.sh installs one).
+    pub python: PathBuf,
+    /// File names to keep (all clouds of `data` when empty).
+    pub clouds: Vec<String>,
+    pub budgets: Vec<usize>,
+    /// `mema map`'s configuration with its defaults; `k` follows from each budget.
+    pub base: PipelineConfig,
+    /// Surface samples and their seed, as `mema eval` defaults them.
+    pub samples: usize,
+    pub seed: u64,
+    /// Where GMM fits are kept and reused (see [`gmm::fit_gmm`]); `None` fits every one.
+    pub gmm_cache: Option<PathBuf>,
+}
+
+/// The three maps of one row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    Default,
+    Paper,
+    Gmm,
+}
+
+impl Method {
+    pub const ALL: [Method; 3] = [Method::Default, Method::Paper, Method::Gmm];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Default => "default",
+            Method::Paper => "paper",
+            Method::Gmm => "GMM",
+        }
+    }
+
+    /// Entities (components) that `budget` bytes hold.
+    pub fn entities(self, budget: usize) -> usize {
+        budget
+            / match self {
+                Method::Default => Model::Shells.bytes_per_entity(),
+                Method::Paper => Model::Paper.bytes_per_entity(),
+                Method::Gmm => gmm::BYTES_PER_COMPONENT,
+            }
+    }
+}
+
+/// One map, scored: or why there is none.
+#[derive(Clone, Debug, Serialize)]
+pub struct Scored {
+    pub method: Method,
+    /// Entities the budget holds: k of the map (fewer on a cloud of under 4 points an entity,
+    /// as `mema map --bytes` caps it), or the mixture's components.
+    pub asked: usize,
+    pub file_bytes: u64,
+    pub header_bytes: u64,
+    pub entities: usize,
+    pub score: FidelityScore,
+    /// Seconds: making the map (k-means and fit, or the whole Python process), writing and
+    /// reading it back, and scoring it.
+    pub build_s: f64,
+    pub io_s: f64,
+    pub score_s: f64,
+    pub gmm: Option<GmmSummary>,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Failed {
+    pub method: Method,
+    pub asked: usize,
+    pub error: String,
+}
+
+#[derive(Clone, Debug, Serialize)]
+#[serde(untagged)]
+pub enum Cell {
+    Scored(Box<Scored>),
+    Failed(Failed),
+}
+
+impl Cell {
+    pub fn scored(&self) -> Option<&Scored> {
+        match self {
+            Cell::Scored(s) => Some(s),
+            Cell::Failed(_) => None,
+        }
+    }
+}
+
+/// One cloud at one budget: the default, paper and GMM cells in that order.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub cloud: String,
+    pub points: usize,
+    pub budget: usize,
+    pub cells: Vec<Cell>,
+}
+
+impl Row {
+    pub fn cell(&self, method: Method) -> Option<&Scored> {
+        self.cells
+            .iter()
+            .filter_map(Cell::scored)
+            .find(|s| s.method == method)
+    }
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct Refused {
+    pub cloud: String,
+    pub error: String,
+}
+
+/// Wall seconds spent in each stage over the whole run.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Stages {
+    pub read_s: f64,
+    pub npy_s: f64,
+    pub default_map_s: f64,
+    pub paper_map_s: f64,
+    /// The Python processes, start to finish (EM itself is each summary's `fit_s`).
+    pub gmm_fit_s: f64,
+    /// Shells of the components.
+    pub gmm_map_s: f64,
+    pub write_read_s: f64,
+    pub score_s: f64,
+    pub total_s: f64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct FidelityReport {
+    pub data: String,
+    pub budgets: Vec<usize>,
+    pub samples: usize,
+    pub seed: u64,
+    pub threads: usize,
+    pub rows: Vec<Row>,
+    pub refused: Vec<Refused>,
+    pub summaries: Vec<Summary>,
+    pub stages: Stages,
+}
+
+/// The clouds of `data` the benchmark reads, by file name; `only` keeps those it names.
+pub fn cloud_files(data: &Path, only: &[String]) -> Result<Vec<String>> {
+    let mut names: Vec<String> = std::fs::read_dir(data)
+        .with_context(|| format!("{}: cannot list the shared clouds", data.display()))?
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| {
+            Path::new(n)
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| CLOUD_EXTENSIONS.contains(&e.to_ascii_lowercase().as_str()))
+        })
+        .collect();
+    names.sort();
+    if !only.is_empty() {
+        if let Some(missing) = only.iter().find(|n| !names.contains(n)) {
+            bail!(
+                "--clouds: {missing} is not a cloud of {} (there: {})",
+                data.display(),
+                names.join(", ")
+            );
+        }
+        names.retain(|n| only.contains(n));
+    }
+    Ok(names)
+}
+
+/// Removes the run's scratch directory however the run ends.
+struct Scratch(PathBuf);
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        std::fs::remove_dir_all(&self.0).ok();
+    }
+}
+
+pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
+    if opts.budgets.is_empty() {
+        bail!("no budget to run");
+    }
+    let start = Instant::now();
+    let names = cloud_files(&opts.data, &opts.clouds)?;
+    let scratch =
+        Scratch(std::env::temp_dir().join(format!("mema-fidelity-{}", std::process::id())));
+    std::fs::create_dir_all(&scratch.0)
+        .with_context(|| format!("creating {}", scratch.0.display()))?;
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/gmm_fit.py");
+    let mut stages = Stages::default();
+    let mut refused = Vec::new();
+    // Every cloud is read first (about 1.3 M points in all, 16 MB), so the run can go budget
+    // by budget: the small budgets' tables are complete long before the largest one's fits.
+    let mut clouds = Vec::new();
+    for name in &names {
+        let t = Instant::now();
+        let cloud = load_cloud(&opts.data.join(name));
+        stages.read_s += t.elapsed().as_secs_f64();
+        let error = match cloud {
+            Ok(c) if !c.points.is_empty() => {
+                let t = Instant::now();
+                let npy = scratch.0.join(format!("cloud-{}.npy", clouds.len()));
+                write_npy(&npy, &c.points)?;
+                stages.npy_s += t.elapsed().as_secs_f64();
+                clouds.push((name, c, npy));
+                continue;
+            }
+            Ok(_) => "no finite points".to_string(),
+            Err(e) => format!("{e:#}"),
+        };
+        eprintln!("fidelity: {name}: refused: {error}");
+        refused.push(Refused {
+            cloud: name.clone(),
+            error,
+        });
+    }
+    let mut rows = Vec::new();
+    for &budget in &opts.budgets {
+        for (name, cloud, npy) in &clouds {
+            let case = Case {
+                opts,
+                cloud,
+                dir: &scratch.0,
+                npy,
+                script: &script,
+            };
+            let cells = Method::ALL
+                .map(|m| {
+                    let cell = case.cell(m, budget, &mut stages);
+                    eprintln!(
+                        "fidelity: {name} ({} points) B={budget} {}",
+                        cloud.points.len(),
+                        describe(&cell)
+                    );
+                    cell
+                })
+                .to_vec();
+            rows.push(Row {
+                cloud: name.to_string(),
+                points: cloud.points.len(),
+                budget,
+                cells,
+            });
+        }
+    }
+    stages.total_s = start.elapsed().as_secs_f64();
+    Ok(FidelityReport {
+        data: opts.data.display().to_string(),
+        budgets: opts.budgets.clone(),
+        samples: opts.samples,
+        seed: opts.seed,
+        threads: rayon::current_num_threads(),
+        summaries: summaries(&rows, &opts.budgets),
+        rows,
+        refused,
+        stages,
+    })
+}
+
+/// One line of progress for stderr: the run can take an hour.
+fn describe(cell: &Cell) -> String {
+    match cell {
+        Cell::Scored(s) => {
+            let gmm = s.gmm.as_ref().map_or(String::new(), |g| {
+                format!(
+                    ", EM {} in {} iterations ({:.1} s{})",
+                    if g.converged {
+                        "converged"
+                    } else {
+                        "NOT converged"
+                    },
+                    g.iterations,
+                    g.fit_s,
+                    if g.cached { ", cached" } else { "" }
+                )
+            });
+            format!(
+                "{}: {} entities, {} bytes, Chamfer {:.6}{gmm}; build {:.1} s, score {:.1} s",
+                s.method.name(),
+                s.entities,
+                s.file_bytes,
+                s.score.chamfer,
+                s.build_s,
+                s.score_s
+            )
+        }
+        Cell::Failed(f) => format!("{}: no map: {}", f.method.name(), f.error),
+    }
+}
+
+/// One cloud's inputs, shared by its cells.
+struct Case<'a> {
+    opts: &'a FidelityOptions,
+    cloud: &'a LocalCloud,
+    dir: &'a Path,
+    npy: &'a Path,
+    script: &'a Path,
+}
+
+impl Case<'_> {
+    fn cell(&self, method: Method, budget: usize, stages: &mut Stages) -> Cell {
+        let asked = method.entities(budget);
+        match self.scored(method, asked, stages) {
+            Ok(s) => Cell::Scored(Box::new(s)),
+            Err(e) => Cell::Failed(Failed {
+                method,
+                asked,
+                error: format!("{e:#}"),
+            }),
+        }
+    }
+
+    fn scored(&self, method: Method, asked: usize, stages: &mut Stages) -> Result<Scored> {
+        let points = self.cloud.points.len();
+        if asked == 0 {
+            bail!("the budget holds no entity");
+        }
+        if method == Method::Gmm && asked > points {
+            bail!("{asked} components for {points} points");
+        }
+        let path = self.dir.join(format!("{}.mema", method.name()));
+        let t = Instant::now();
+        let mut summary = None;
+        match method {
+            Method::Default | Method::Paper => {
+                let model = if method == Method::Default {
+                    Model::Shells
+                } else {
+                    Model::Paper
+                };
+                // As `mema map --bytes` does: a budget is an upper bound, and a small cloud
+                // gets at most one cluster per MIN_POINTS_PER_ENTITY points.
+                let most = (points / MIN_POINTS_PER_ENTITY).max(1);
+                let config = PipelineConfig {
+                    k: asked.min(most),
+                    ..self.opts.base
+                };
+                map_cloud_with(
+                    self.cloud,
+                    &config,
+                    model,
+                    ShellParams::default(),
+                    EntityChoice::Ellipsoid,
+                    &path,
+                    None,
+                )?;
+                let s = t.elapsed().as_secs_f64();
+                if method == Method::Default {
+                    stages.default_map_s += s;
+                } else {
+                    stages.paper_map_s += s;
+                }
+            }
+            Method::Gmm => {
+                let (fit, cached) = gmm::fit_gmm(
+                    &self.opts.python,
+                    self.script,
+                    self.npy,
+                    asked,
+                    self.opts.gmm_cache.as_deref(),
+                )?;
+                stages.gmm_fit_s += t.elapsed().as_secs_f64();
+                let m = Instant::now();
+                let (map, dropped) = gmm::gmm_map(self.cloud.origin, &fit)?;
+                stages.gmm_map_s += m.elapsed().as_secs_f64();
+                summary = Some(GmmSummary {
+                    sklearn: fit.sklearn.clone(),
+                    cached,
+                    scale: fit.scale,
+                    components: fit.means.len(),
+                    converged: fit.converged,
+                    iterations: fit.iterations,
+                    max_iter: fit.max_iter,
+                    fit_s: fit.fit_s,
+                    peak_rss_bytes: fit.peak_rss_bytes,
+                    dropped,
+                });
+                let w = Instant::now();
+                map.write(&path)?;
+                stages.write_read_s += w.elapsed().as_secs_f64();
+            }
+        }
+        let build_s = t.elapsed().as_secs_f64();
+        let io = Instant::now();
+        let map = HostMap::read(&path)?;
+        let bytes = FileBytes::of(&path, &map)?;
+        let io_s = io.elapsed().as_secs_f64();
+        stages.write_read_s += io_s;
+        let s = Instant::now();
+        let score = score_map(self.cloud, &map, self.opts.seed, self.opts.samples)?;
+        let score_s = s.elapsed().as_secs_f64();
+        stages.score_s += score_s;
+        std::fs::remove_file(&path).ok();
+        Ok(Scored {
+            method,
+            asked,
+            file_bytes: bytes.file_bytes,
+            header_bytes: bytes.header_bytes,
+            entities: map.entities.len(),
+            score,
+            build_s,
+            io_s,
+            score_s,
+            gmm: summary,
+        })
+    }
+}
+
+/// `mema eval`'s two-way score of a map against the cloud it was made from.
+pub fn score_map(
+    cloud: &LocalCloud,
+    map: &HostMap,
+    seed: u64,
+    samples: usize,
+) -> Result<FidelityScore> {
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    two_way_score(&points_in_map_frame(cloud, map), &entities, seed, samples)
+}
