@@ -180,7 +180,7 @@ impl Report {
             "static RAM of the firmware state (size_of; a working cluster is {} bytes: f64 moments, centre, entity; a frozen entity {} bytes)\n\
              {:>5} {:>8} {:>7} {:>7} {:>12} {:>10} {:>8} {:>14} {:>12}  under 64 KiB? (+ {} stack)\n",
             self.cluster_bytes,
-            size_of::<mema_core::geometry::AxisEntity>(),
+            size_of::<mema_core::stream::FrozenEntity>(),
             "K",
             "working",
             "frozen",
