@@ -31,7 +31,8 @@ pub struct ShellParams {
 }
 
 impl ShellParams {
-    /// [`ShellParams::default`] as a constant, for a firmware's `static` initialiser.
+    /// [`ShellParams::default`] as a constant, for a firmware's `static` initialiser (its
+    /// degeneration is `Degeneration::default()`'s values).
     pub const DEFAULT: Self = Self {
         tangent_scale: 2.0,
         normal_scale: 0.7,
@@ -45,10 +46,7 @@ impl ShellParams {
 
 impl Default for ShellParams {
     fn default() -> Self {
-        Self {
-            degeneration: Degeneration::default(),
-            ..Self::DEFAULT
-        }
+        Self::DEFAULT
     }
 }
 
@@ -153,6 +151,11 @@ pub fn shell(mean: [f64; 3], covariance: [[f64; 3]; 3], params: &ShellParams) ->
 mod tests {
     use super::*;
     use crate::test_support::{OrFail, TestResult};
+
+    #[test]
+    fn the_constant_defaults_are_the_defaults() {
+        assert_eq!(ShellParams::DEFAULT.degeneration, Degeneration::default());
+    }
 
     #[test]
     fn eigenpairs_reconstruct_the_matrix() {
