@@ -223,7 +223,8 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         return Err(usage(format!("--working {working}: must be 1..=k ({k})")));
     }
     let seed: u64 = args.number(&["--seed"], 0)?;
-    let model = match args.get(&["--model"]).unwrap_or("paper") {
+    // The host's default (`mema replay`), so both map a capture to the same bytes.
+    let model = match args.get(&["--model"]).unwrap_or("shells") {
         "paper" => StreamModel::Paper,
         "shells" => SHELLS,
         other => return Err(usage(format!("--model {other}: must be paper or shells"))),

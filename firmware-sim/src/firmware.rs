@@ -32,6 +32,11 @@ pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
 pub const IMAGE_WORKING: usize = 150;
 pub const IMAGE_FROZEN: usize = 250;
+/// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
+/// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
+/// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters
+/// cost, so the layout stays under 64 KiB beside an 8 KiB stack.
+pub const IMAGE_BUCKETS: usize = 256;
 
 /// One cluster refit per this many points: the host's `REFIT_INTERVAL`, so both map alike.
 pub const REFIT_INTERVAL: u32 = 1024;

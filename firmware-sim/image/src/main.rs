@@ -4,9 +4,9 @@
 //! working directory through semihosting, in chunks of 1..=256 bytes as a UART interrupt would
 //! hand them over, ticks the firmware after each chunk, finishes the map with the same seed as
 //! the host, and writes the map's bytes to `map.mema` beside the capture. The entity model is
-//! the paper's unless a file `model.txt` there says `shells` (a device would take it from its
-//! configuration the same way: one image, either model). It then prints one line of
-//! measurements (`key=value`), which `mema-firmware-sim budget` reads:
+//! shells, the host's default, unless a file `model.txt` there says `paper` (a device would
+//! take it from its configuration the same way: one image, either model). It then prints one
+//! line of measurements (`key=value`), which `mema-firmware-sim budget` reads:
 //! - `ingest_ticks` / `finish_ticks`: SysTick counts over the ingest loop and over `finish`.
 //!   Under `-icount shift=0` QEMU's clock advances one nanosecond per instruction, so with the
 //!   calibration loop (`calib_insns` instructions took `calib_ticks`) they convert to
@@ -29,7 +29,9 @@ use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::{Firmware, IMAGE_FROZEN, IMAGE_WORKING, SHELLS, model_params};
+use mema_firmware_sim::firmware::{
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, SHELLS, model_params,
+};
 use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
 use static_cell::StaticCell;
@@ -37,7 +39,7 @@ use static_cell::StaticCell;
 /// Working clusters, centre-hash buckets and frozen entities of the image: K = 400 ellipsoids
 /// (the host tests map with `-k 400 --working 150`).
 const K: usize = IMAGE_WORKING;
-const G: usize = 512;
+const G: usize = IMAGE_BUCKETS;
 const F: usize = IMAGE_FROZEN;
 const SEED: u64 = 0;
 
@@ -90,12 +92,12 @@ fn boot(
     slot.write(Firmware::new(model_params(SEED, K, F, model)))
 }
 
-/// The model `model.txt` asks for: shells if it begins with `shells`, else the paper's.
+/// The model `model.txt` asks for: the paper's if it begins with `paper`, else shells.
 fn configured_model() -> StreamModel {
     let mut text = [0u8; 8];
     match io::read_file(b"model.txt\0", &mut text) {
-        Some(n) if text.get(..n).is_some_and(|t| t.starts_with(b"shells")) => SHELLS,
-        _ => StreamModel::Paper,
+        Some(n) if text.get(..n).is_some_and(|t| t.starts_with(b"paper")) => StreamModel::Paper,
+        _ => SHELLS,
     }
 }
 
