@@ -135,12 +135,26 @@ pub fn map_cloud_with(
     let clusters = crate::progress::stage("k-means", || {
         pipeline::cluster(&cloud.points, config.k, &config.kmeans)
     })?;
+    let report = match model {
+        Model::Shells => shells_report(cloud, config, shell_params, &clusters, output)?,
+        Model::Paper => paper_report(cloud, config, entity, &clusters, output)?,
+    };
+    // After the map: labels never describe a map that was not written.
     if let Some(path) = labels {
         write_labels(path, &clusters.labels)?;
     }
-    if let Model::Shells = model {
-        return shells_report(cloud, config, shell_params, &clusters, output);
-    }
+    Ok(report)
+}
+
+/// The paper's maps of the clusters (ellipsoids and spheres by DE on eq. 12), the chosen one
+/// written, and their report.
+fn paper_report(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    entity: EntityChoice,
+    clusters: &pipeline::Clusters,
+    output: &Path,
+) -> Result<MapReport> {
     let fitted = crate::progress::stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
     });
@@ -279,23 +293,49 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
 /// Fails before any work if the map could not be written where asked.
 pub fn check_output(path: &Path) -> Result<()> {
     crate::mapfile::MapFormat::from_path(path)?;
-    check_output_dir(path)
+    check_output_file(path, "map")
 }
 
-/// Fails before any work if `path`'s directory does not exist.
+/// Fails before any work if `path`'s directory is missing or not writable.
 pub fn check_output_dir(path: &Path) -> Result<()> {
+    check_output_file(path, "file")
+}
+
+/// Fails before any work if a `what` file could not be written at `path`: its directory must
+/// exist, be a directory, and take a new file (probed with an empty file, removed at once).
+pub fn check_output_file(path: &Path, what: &str) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    if !dir.is_dir() {
+    if !dir.exists() {
         anyhow::bail!(
-            "cannot write map to {}: {} is not a directory",
+            "cannot write {what} to {}: directory {} does not exist",
             path.display(),
             dir.display()
         );
     }
-    Ok(())
+    if !dir.is_dir() {
+        anyhow::bail!(
+            "cannot write {what} to {}: {} is not a directory",
+            path.display(),
+            dir.display()
+        );
+    }
+    let probe = dir.join(format!(".mema-probe.{}", std::process::id()));
+    match std::fs::File::create(&probe) {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => Err(e).with_context(|| {
+            format!(
+                "cannot write {what} to {}: directory {} is not writable",
+                path.display(),
+                dir.display()
+            )
+        }),
+    }
 }
 
 /// Fewest points a cluster of a `--bytes` map is given: a covariance (or eq. 12's DE) needs
@@ -329,6 +369,9 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let config = args.fit.config(k)?;
     let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
+    if let Some(labels) = &args.labels {
+        check_output_file(labels, "labels")?;
+    }
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
@@ -515,11 +558,15 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
         );
         println!("origin: {:?}", r.origin);
-        println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
-        println!(
-            "finite semi-axes: {} .. {}",
-            r.semi_axis_min, r.semi_axis_max
-        );
+        if r.entities == 0 {
+            println!("centres: none; finite semi-axes: none (the map is empty)");
+        } else {
+            println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
+            println!(
+                "finite semi-axes: {} .. {}",
+                r.semi_axis_min, r.semi_axis_max
+            );
+        }
         println!(
             "layout: {} ({} bytes an entity), {} of {} entities oriented",
             r.layout, r.record_bytes, r.oriented, r.entities
@@ -616,6 +663,9 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
     let config = args.fit.config(1)?;
     let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
     check_output(&args.output)?;
+    if let Some(labels) = &args.labels {
+        check_output_file(labels, "labels")?;
+    }
     let (cloud, _) = crate::filter::apply(load_cloud(&args.input)?, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
     let outcome = crate::tolerance::build(
@@ -711,5 +761,5 @@ pub fn write_labels(path: &Path, labels: &[u32]) -> Result<()> {
         text.push_str(&l.to_string());
         text.push('\n');
     }
-    crate::mapfile::write_atomically(path, text.as_bytes())
+    crate::mapfile::write_file_atomically(path, text.as_bytes(), "labels")
 }

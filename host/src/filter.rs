@@ -100,6 +100,19 @@ pub fn apply(
         }
     }
     if let Some(size) = voxel {
+        // Past 2^53 voxels from zero, f64 cannot tell neighbouring voxels apart and far ones
+        // would share a saturated index: refuse rather than merge unrelated points.
+        let reach = points
+            .iter()
+            .flat_map(|p| p.iter())
+            .fold(0.0f64, |m, c| m.max(c.abs()));
+        let limit = (1u64 << 53) as f64;
+        if reach / size >= limit {
+            anyhow::bail!(
+                "--voxel {size} is too small for this cloud: its coordinates reach {reach}, more than 2^53 voxels from zero; use at least {:e} (in the file's units)",
+                reach / limit
+            );
+        }
         points = voxel_centroids(&points, size);
         counts.voxelized = Some(points.len());
     }
@@ -111,8 +124,8 @@ pub fn apply(
 /// One point per occupied voxel: the centroid of the points in it, in voxel order (so the
 /// result does not depend on the input order).
 pub fn voxel_centroids(points: &[[f64; 3]], size: f64) -> Vec<[f64; 3]> {
-    // Indices beyond i64 cannot occur for a finite cloud with a voxel that survives `check_voxel`
-    // unless the ratio overflows; `as` saturates then, merging the far voxels, never panicking.
+    // `apply` refuses a voxel so small that an index passes 2^53; `as` would saturate there,
+    // merging far voxels, but never panic.
     let key = |p: &[f64; 3]| p.map(|c| (c / size).floor() as i64);
     let mut order: Vec<(usize, [i64; 3])> = points.iter().map(key).enumerate().collect();
     order.sort_unstable_by(|a, b| a.1.cmp(&b.1).then(a.0.cmp(&b.0)));

@@ -174,40 +174,47 @@ impl HostMap {
         // A local origin at the centres' mean keeps georeferenced centres precise in f32.
         let n = rows.len().max(1) as f64;
         let mut origin = [0.0; 3];
-        for (c, ..) in &rows {
+        for (_, c, ..) in &rows {
             for j in 0..3 {
                 origin[j] += c[j] / n;
             }
         }
-        let entities = rows
-            .into_iter()
-            .map(|(c, r, rotation, kind)| {
-                let center = Point3::new(
-                    (c[0] - origin[0]) as f32,
-                    (c[1] - origin[1]) as f32,
-                    (c[2] - origin[2]) as f32,
+        let mut entities = Vec::with_capacity(rows.len());
+        for (line, c, r, rotation, kind) in rows {
+            let local = [0, 1, 2].map(|j| (c[j] - origin[j]) as f32);
+            if !local.iter().all(|v| v.is_finite()) {
+                bail!(
+                    "line {line}: centre {c:?} is too far from the map's other centres for f32 (the binary map's precision)"
                 );
-                let weights = r.map(|r| {
-                    if r.is_finite() {
-                        (1.0 / (r * r)) as f32
-                    } else {
-                        0.0
-                    }
-                });
-                MapEntity {
-                    entity: Entity {
-                        center,
-                        weights,
-                        rotation,
-                    },
-                    kind,
+            }
+            let weights = r.map(|r| {
+                if r.is_finite() {
+                    (1.0 / (r * r)) as f32
+                } else {
+                    0.0
                 }
-            })
-            .collect();
+            });
+            if !weights.iter().all(|w| w.is_finite()) {
+                bail!(
+                    "line {line}: semi-axes {r:?} include one too short for f32 (1/r^2 overflows)"
+                );
+            }
+            entities.push(MapEntity {
+                entity: Entity {
+                    center: Point3::new(local[0], local[1], local[2]),
+                    weights,
+                    rotation,
+                },
+                kind,
+            });
+        }
         Ok(Self::new(origin, entities))
     }
 
     fn from_csv(text: &str) -> Result<Self> {
+        if text.trim().is_empty() {
+            bail!("an empty file, not a mema CSV map (header cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind)");
+        }
         let mut rows = Vec::new();
         for (i, line) in text.lines().enumerate() {
             let line = line.trim();
@@ -250,7 +257,7 @@ impl HostMap {
             };
             let kind = EntityKind::from_name(kind)
                 .with_context(|| format!("line {}: unknown kind '{kind}'", i + 1))?;
-            rows.push((c, r, rotation, kind));
+            rows.push((i + 1, c, r, rotation, kind));
         }
         Self::from_world(rows)
     }
@@ -289,8 +296,8 @@ impl HostMap {
     }
 }
 
-/// (world centre, semi-axes, rotation, kind) of one CSV row.
-type CsvRow = ([f64; 3], [f64; 3], Rotation, EntityKind);
+/// (line, world centre, semi-axes, rotation, kind) of one CSV row.
+type CsvRow = (usize, [f64; 3], [f64; 3], Rotation, EntityKind);
 
 /// A rotation from a text map's quaternion, which must be of unit length within 1e-3 (a
 /// quaternion printed to six or more digits): anything else is a mistake, not a rotation.
@@ -330,9 +337,17 @@ fn identity_quaternion() -> [f32; 4] {
     Rotation::IDENTITY.to_array()
 }
 
-/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so a
-/// reader (or a crash) never sees a partial map at `path`.
+/// Writes a map to `path` atomically ([`write_file_atomically`]).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
+    write_file_atomically(path, bytes, "map")
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory, a sync and a rename,
+/// then syncs the directory, so neither a reader nor a crash ever sees a partial file at `path`
+/// and the rename itself survives a power cut. `what` names the file in errors ("map",
+/// "labels", "picture", "mesh"). Temporary files left by writers of the same name that died
+/// (their process is gone) are removed first, so crashes do not leave them forever.
+pub fn write_file_atomically(path: &Path, bytes: &[u8], what: &str) -> Result<()> {
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -341,18 +356,47 @@ pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
         .file_name()
         .with_context(|| format!("{}: not a file path", path.display()))?
         .to_string_lossy();
+    remove_stale_temporaries(dir, &name);
     let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
     let result = (|| -> std::io::Result<()> {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
-        std::fs::rename(&tmp, path)
+        std::fs::rename(&tmp, path)?;
+        // The rename is durable only once the directory entry is on disk.
+        std::fs::File::open(dir)?.sync_all()
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("cannot write map to {}", path.display()));
+        return Err(e).with_context(|| format!("cannot write {what} to {}", path.display()));
     }
     Ok(())
+}
+
+/// Removes `.NAME.PID.tmp` files in `dir` whose process no longer runs (Linux's /proc tells;
+/// where there is no /proc nothing is removed, as a live writer cannot be told from a dead one).
+fn remove_stale_temporaries(dir: &Path, name: &str) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let prefix = format!(".{name}.");
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(pid) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&prefix))
+            .and_then(|rest| rest.strip_suffix(".tmp"))
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
 }
 
 #[cfg(test)]
@@ -406,6 +450,70 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn text_maps_refuse_what_the_binary_map_cannot_hold() {
+        let header = "cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n";
+        for (body, needle) in [
+            ("", "empty file"),
+            ("  \n\n", "empty file"),
+            // 1e-30 would be an infinite weight.
+            ("0,0,0,1e-30,1,1,0,0,0,1,ellipsoid\n", "too short"),
+            // Two centres 1e300 apart cannot both be f32 around one origin.
+            (
+                "1e300,0,0,1,1,1,0,0,0,1,ellipsoid\n-1e300,0,0,1,1,1,0,0,0,1,ellipsoid\n",
+                "too far",
+            ),
+            ("0,0,0,1,1,1,0,0,0,2,ellipsoid\n", "length"),
+            ("0,0,0,1,1,1,0,0,0,1,blob\n", "unknown kind"),
+        ] {
+            let text = if body.trim().is_empty() {
+                body.to_string()
+            } else {
+                format!("{header}{body}")
+            };
+            let err = HostMap::from_csv(&text).expect_err(needle);
+            assert!(format!("{err:#}").contains(needle), "{needle}: {err:#}");
+        }
+        // A header alone is a map with no entities, as mema writes an empty map.
+        assert!(
+            HostMap::from_csv(header)
+                .expect("header only")
+                .entities
+                .is_empty()
+        );
+        for (json, needle) in [
+            (
+                r#"{"format":"other","version":2,"origin":[0,0,0],"entities":[]}"#,
+                "not 'mema-map'",
+            ),
+            (
+                r#"{"format":"mema-map","version":3,"origin":[0,0,0],"entities":[]}"#,
+                "version 3",
+            ),
+        ] {
+            let err = HostMap::from_json(json.as_bytes()).expect_err(needle);
+            assert!(format!("{err:#}").contains(needle), "{needle}: {err:#}");
+        }
+    }
+
+    #[test]
+    fn temporaries_of_dead_writers_are_removed_and_live_ones_kept() {
+        let dir = std::env::temp_dir().join(format!("mema-stale-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        // PID 4194304 is past Linux's largest (2^22), so no process has it; PID 1 always runs.
+        let dead = dir.join(".m.mema.4194304.tmp");
+        let live = dir.join(".m.mema.1.tmp");
+        let other = dir.join(".n.mema.4194304.tmp");
+        for p in [&dead, &live, &other] {
+            std::fs::write(p, b"partial").expect("temp");
+        }
+        sample().write(&dir.join("m.mema")).expect("write");
+        assert!(!dead.exists(), "a dead writer's temporary is removed");
+        assert!(live.exists(), "a live writer's temporary is kept");
+        assert!(other.exists(), "another file's temporary is not touched");
+        std::fs::remove_dir_all(&dir).expect("cleanup");
     }
 
     #[test]

@@ -87,7 +87,7 @@ pub struct CompletionsArgs {
     pub shell: clap_complete::Shell,
 }
 
-/// Fails before any work if `path` lacks the extension or its directory does not exist.
+/// Fails before any work if `path` lacks the extension or its directory cannot take it.
 fn check_output(path: &Path, ext: &[&str], what: &str) -> Result<()> {
     let got = path
         .extension()
@@ -101,18 +101,7 @@ fn check_output(path: &Path, ext: &[&str], what: &str) -> Result<()> {
         ))
         .into());
     }
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        anyhow::bail!(
-            "cannot write {}: {} is not a directory",
-            path.display(),
-            dir.display()
-        );
-    }
-    Ok(())
+    crate::commands::check_output_file(path, what)
 }
 
 fn read_map(path: &Path) -> Result<HostMap> {
@@ -342,7 +331,7 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
         render(&cloud, &maps, args.view, args.size, args.style)
     })?;
     let png = raster.encode_png().context("PNG encoding")?;
-    crate::mapfile::write_atomically(&args.output, &png)
+    crate::mapfile::write_file_atomically(&args.output, &png, "picture")
         .with_context(|| format!("{}", args.output.display()))?;
     report.output = args.output.display().to_string();
     if args.json {

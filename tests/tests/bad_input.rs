@@ -145,7 +145,7 @@ fn an_unwritable_output_directory() {
         .args(["-k", "10", "-o"])
         .arg(&missing)
         .run()
-        .assert_error(1, "no/such/dir");
+        .assert_error(1, "no/such/dir does not exist");
     // A regular file where a directory should be: tests run as root, so permission bits alone
     // would not stop the write.
     let file = dir.write("plain-file", b"x");
@@ -155,8 +155,33 @@ fn an_unwritable_output_directory() {
         .args(["-k", "10", "-o"])
         .arg(file.join("map.mema"))
         .run()
-        .assert_error(1, "plain-file");
+        .assert_error(1, "plain-file is not a directory");
     assert_eq!(dir.listing(), vec!["plain-file".to_string()]);
+    // --labels where it cannot go fails before any work, naming the labels, and writes no map.
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["-k", "10", "-o"])
+        .arg(dir.join("map.mema"))
+        .arg("--labels")
+        .arg(dir.join("gone/labels.txt"))
+        .run()
+        .assert_error(1, "cannot write labels");
+    assert_eq!(dir.listing(), vec!["plain-file".to_string()]);
+    // A picture that cannot be written says so, not "map".
+    MemaCommand::new(&dir)
+        .args(["map", "--paper", "-k", "10", "-o", "m.mema"])
+        .arg(&car)
+        .run()
+        .assert_ok();
+    MemaCommand::new(&dir)
+        .arg("draw")
+        .arg(&car)
+        .arg("m.mema")
+        .arg("-o")
+        .arg(file.join("p.png"))
+        .run()
+        .assert_error(1, "cannot write picture");
 }
 
 #[test]
@@ -201,4 +226,20 @@ fn unknown_map_extension_and_corrupt_map() {
             .run()
             .assert_error(2, "--samples");
     }
+}
+
+#[test]
+fn a_voxel_too_small_for_the_cloud_is_refused_not_collapsed() {
+    let dir = Dir::new("voxel-tiny");
+    // 1e-30 m voxels on a bunny put indices past 2^53: f64 cannot keep them apart.
+    map(&dir, &shared("bun_zipper.ply"), "10")
+        .args(["--voxel", "1e-30"])
+        .run()
+        .assert_error(1, "too small for this cloud");
+    assert_nothing_written(&dir, &[]);
+    // The smallest usable size it suggests works.
+    map(&dir, &shared("bun_zipper.ply"), "10")
+        .args(["--voxel", "1e-12"])
+        .run()
+        .assert_ok();
 }

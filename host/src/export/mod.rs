@@ -373,7 +373,7 @@ pub fn export(
         MeshFormat::Obj => to_obj(map, &meshes),
         MeshFormat::Glb => to_glb(map, &meshes)?,
     };
-    crate::mapfile::write_atomically(output, &bytes)?;
+    crate::mapfile::write_file_atomically(output, &bytes, "mesh")?;
     let mut kinds = std::collections::BTreeMap::new();
     for kind in EntityKind::ALL {
         let entities = map.entities.iter().filter(|e| e.kind == kind).count();
