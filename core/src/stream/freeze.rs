@@ -41,6 +41,7 @@ impl FrozenEntity {
         }
     }
 
+    /// The entity the map holds.
     pub fn to_entity(&self) -> Entity {
         Entity::from(self.entity).with_rotation(rotation_of_code(self.rotation))
     }

@@ -185,8 +185,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 if self.clusters.len() >= self.limit() && !self.freeze_one(observer) {
                     self.merge_closest_pairs(observer);
                 }
-                observer.opened(self.clusters.len());
-                self.open(p);
+                self.open(p, observer);
             }
         }
         let interval = self.params.refit_interval as u64;
@@ -230,7 +229,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
-    fn open(&mut self, p: Point3) {
+    /// A new cluster of `p` at the end (dropped, as the point is, if no room was made).
+    fn open(&mut self, p: Point3, observer: &mut impl Observer) {
         let mut moments = Moments::new();
         moments.add(p);
         let cluster = StreamCluster {
@@ -242,6 +242,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         };
         let index = self.clusters.len();
         if self.clusters.push(cluster).is_ok() {
+            observer.opened(index);
             self.grid.insert(index, p);
         }
     }
