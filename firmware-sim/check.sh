@@ -4,8 +4,9 @@
 #   - `mema-firmware-sim run` built in release, in debug, and in release with -C target-cpu=native
 #     (each with different UART chunkings), and
 #   - the Cortex-M4F image under qemu-system-arm (mps2-an386, semihosting),
-# must give identical map bytes. Everything is built and compared in this run; no stored hash.
-# Then `mema-firmware-sim budget` prints the memory and cycle figures from the image's run.
+# must give identical map bytes, in both entity models (`--model paper` and `--model shells`; the
+# image reads its model from model.txt). Everything is built and compared in this run; no stored
+# hash. Then `mema-firmware-sim budget` prints the memory and cycle figures from the image's runs.
 # Needs: the thumbv7em-none-eabihf target, qemu-system-arm, llvm-size (scripts/test.sh installs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -33,26 +34,34 @@ for cloud in car6.pcd demo; do
   else
     target/release/mema scanner-sim --port "$dir/capture.bin" "../shared/data/$cloud" 2>/dev/null
   fi
-  target/release/mema replay "$dir/capture.bin" "${shape[@]}" -o "$dir/replay.mema" >/dev/null 2>&1
-  target/release/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/release.mema" 2>/dev/null
-  target/fw-debug/debug/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/debug.mema" \
-    --chunk-seed 7 --max-chunk 13 2>/dev/null
-  target/fw-native/release/mema-firmware-sim run "$dir/capture.bin" "${shape[@]}" -o "$dir/native.mema" \
-    --chunk-seed 3 --max-chunk 1000 2>/dev/null
-  (cd "$dir" && timeout 600 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
-    -monitor none -serial none -semihosting-config enable=on,target=native -icount shift=0 \
-    -kernel "$OLDPWD/$image" > qemu.txt) || { echo "firmware: QEMU run failed"; cat "$dir/qemu.txt"; exit 1; }
-  mv "$dir/map.mema" "$dir/qemu.mema"
-  for variant in release debug native qemu; do
-    if cmp -s "$dir/replay.mema" "$dir/$variant.mema"; then
-      echo "   $cloud: $variant = mema replay ($(stat -c %s "$dir/replay.mema") bytes)"
-    else
-      echo "firmware: $cloud: $variant differs from mema replay:"
-      cmp "$dir/replay.mema" "$dir/$variant.mema" || true
-      status=1
-    fi
+  for model in paper shells; do
+    m="$dir/$model"
+    mkdir -p "$m"
+    cp "$dir/capture.bin" "$m/capture.bin"
+    echo "$model" > "$m/model.txt"
+    target/release/mema replay "$m/capture.bin" "${shape[@]}" --model "$model" -o "$m/replay.mema" >/dev/null 2>&1
+    target/release/mema-firmware-sim run "$m/capture.bin" "${shape[@]}" --model "$model" -o "$m/release.mema" 2>/dev/null
+    target/fw-debug/debug/mema-firmware-sim run "$m/capture.bin" "${shape[@]}" --model "$model" -o "$m/debug.mema" \
+      --chunk-seed 7 --max-chunk 13 2>/dev/null
+    target/fw-native/release/mema-firmware-sim run "$m/capture.bin" "${shape[@]}" --model "$model" -o "$m/native.mema" \
+      --chunk-seed 3 --max-chunk 1000 2>/dev/null
+    (cd "$m" && timeout 600 qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+      -monitor none -serial none -semihosting-config enable=on,target=native -icount shift=0 \
+      -kernel "$OLDPWD/$image" > qemu.txt) || { echo "firmware: QEMU run failed"; cat "$m/qemu.txt"; exit 1; }
+    mv "$m/map.mema" "$m/qemu.mema"
+    for variant in release debug native qemu; do
+      if cmp -s "$m/replay.mema" "$m/$variant.mema"; then
+        echo "   $cloud, $model: $variant = mema replay ($(stat -c %s "$m/replay.mema") bytes)"
+      else
+        echo "firmware: $cloud, $model: $variant differs from mema replay:"
+        cmp "$m/replay.mema" "$m/$variant.mema" || true
+        status=1
+      fi
+    done
   done
 done
-echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen)"
-target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/qemu.txt"
+for model in paper shells; do
+  echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen, model $model)"
+  target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt"
+done
 exit $status

@@ -23,11 +23,21 @@ for run in "car6.pcd 150" "bun_zipper.ply 100" "bun_zipper.ply 350" "five_people
   "$mema" ablation "$data/$1" -k "$2"
 done
 
-echo "## mema stream-bench"
+echo "## mema stream-bench (the paper's model)"
 for run in "car6.pcd 150" "bun_zipper.ply 350" "five_people.pcd 350" "cturtle.pcd 400"; do
   set -- $run
-  echo "### \$ mema stream-bench $data/$1 -k $2"
-  "$mema" stream-bench "$data/$1" -k "$2"
+  echo "### \$ mema stream-bench $data/$1 -k $2 --model paper"
+  "$mema" stream-bench "$data/$1" -k "$2" --model paper
+done
+
+echo "## mema stream-bench: shells against the paper's fits, K = 400 (all working, and 150 working)"
+for cloud in car6.pcd bun000.ply five_people.pcd cturtle.pcd; do
+  for model in paper shells; do
+    for working in 400 150; do
+      echo "### \$ mema stream-bench $data/$cloud -k 400 --working $working --model $model --repetitions 1 --json"
+      "$mema" stream-bench "$data/$cloud" -k 400 --working "$working" --model "$model" --repetitions 1 --json
+    done
+  done
 done
 
 echo "## mema query-bench"
@@ -44,8 +54,8 @@ for run in "car6.pcd 150" "bun_zipper.ply 350" "five_people.pcd 350" "cturtle.pc
     echo "### \$ mema eval $data/$1 t.mema --json"
     "$mema" eval "$data/$1" "$tmp/t.mema" --json
   done
-  echo "### \$ mema stream-bench $data/$1 -k 2048 --tolerance $t --repetitions 1"
-  "$mema" stream-bench "$data/$1" -k 2048 --tolerance "$t" --repetitions 1
+  echo "### \$ mema stream-bench $data/$1 -k 2048 --tolerance $t --model paper --repetitions 1"
+  "$mema" stream-bench "$data/$1" -k 2048 --tolerance "$t" --model paper --repetitions 1
 done
 
 echo "## mema query-bench on a real map"

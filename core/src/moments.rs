@@ -210,6 +210,29 @@ impl Moments {
         ])
     }
 
+    /// Mean and covariance `E[d_j d_k]` (`d = x - mean`, divided by n), or `None` for an empty
+    /// cluster: all an oriented shell needs. The diagonal is [`CentralMoments::second`] to the
+    /// bit, from the same expression.
+    pub fn covariance(&self) -> Option<([f64; 3], [[f64; 3]; 3])> {
+        if self.count == 0 {
+            return None;
+        }
+        let n = self.count as f64;
+        let e = |s: f64| s / n;
+        let a = [0, 1, 2].map(|j| e(self.axis[j][0]));
+        let mut cov = [[0.0; 3]; 3];
+        for j in 0..3 {
+            cov[j][j] = (e(self.axis[j][1]) - a[j] * a[j]).max(0.0);
+        }
+        for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            let value = e(self.pair[p][0]) - a[j] * a[k];
+            cov[j][k] = value;
+            cov[k][j] = value;
+        }
+        let mean = [0, 1, 2].map(|j| self.shift[j] + a[j]);
+        Some((mean, cov))
+    }
+
     /// Central moments about the mean, or `None` for an empty cluster.
     pub fn central(&self) -> Option<CentralMoments> {
         if self.count == 0 {
@@ -379,10 +402,78 @@ mod tests {
         Ok(())
     }
 
+    /// Direct two-pass covariance, the independent check of [`Moments::covariance`].
+    fn direct_covariance(points: &[[f64; 3]]) -> ([f64; 3], [[f64; 3]; 3]) {
+        let n = points.len() as f64;
+        let mut mean = [0.0; 3];
+        for p in points {
+            for j in 0..3 {
+                mean[j] += p[j] / n;
+            }
+        }
+        let mut cov = [[0.0; 3]; 3];
+        for p in points {
+            for j in 0..3 {
+                for k in 0..3 {
+                    cov[j][k] += (p[j] - mean[j]) * (p[k] - mean[k]) / n;
+                }
+            }
+        }
+        (mean, cov)
+    }
+
+    #[test]
+    fn covariance_matches_two_pass_after_merges_and_far_from_origin() -> TestResult {
+        // Tilted so every off-diagonal term is non-zero: the shell's rotation comes from them.
+        let tilt = |mut pts: [[f64; 3]; 64]| {
+            for p in pts.iter_mut() {
+                let (x, y, z) = (p[0], p[1], p[2]);
+                *p = [x + 0.5 * y, y - 0.3 * z + 0.2 * x, z + 0.1 * x];
+            }
+            pts
+        };
+        let (a, na) = lcg_points(40, 3, [1000.0, -250.0, 30.0]);
+        let (b, nb) = lcg_points(24, 4, [1000.2, -250.1, 30.05]);
+        let (a, b) = (tilt(a), tilt(b));
+        let (mut ma, mut mb) = (Moments::new(), Moments::new());
+        let mut all = [[0.0; 3]; 64];
+        for (i, p) in a[..na].iter().enumerate() {
+            ma.add_f64(*p);
+            all[i] = *p;
+        }
+        for (i, p) in b[..nb].iter().enumerate() {
+            mb.add_f64(*p);
+            all[na + i] = *p;
+        }
+        ma.merge(&mb);
+        let (mean, cov) = ma.covariance().or_fail("non-empty")?;
+        let (want_mean, want) = direct_covariance(&all[..na + nb]);
+        let scale = want[0][0] + want[1][1] + want[2][2];
+        for j in 0..3 {
+            if (mean[j] - want_mean[j]).abs() > 1e-12 * want_mean[j].abs() {
+                return Err("mean differs from the two-pass mean");
+            }
+            for k in 0..3 {
+                // Relative to the trace: a small off-diagonal term is judged at the matrix's scale.
+                if (cov[j][k] - want[j][k]).abs() > 1e-9 * scale || cov[j][k] != cov[k][j] {
+                    return Err("covariance differs from the two-pass covariance");
+                }
+            }
+        }
+        if want[0][1].abs() < 1e-3 * scale {
+            return Err("the test cloud must be tilted");
+        }
+        let second = ma.central().or_fail("non-empty")?.second;
+        if (0..3).any(|j| second[j].to_bits() != cov[j][j].to_bits()) {
+            return Err("the diagonal must be `second` to the bit");
+        }
+        Ok(())
+    }
+
     #[test]
     fn empty_moments_have_no_mean() {
         let m = Moments::new();
-        assert!(m.mean().is_none() && m.central().is_none());
+        assert!(m.mean().is_none() && m.central().is_none() && m.covariance().is_none());
         let mut merged = Moments::new();
         merged.merge(&m);
         assert!(merged.is_empty());

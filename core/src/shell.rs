@@ -30,14 +30,23 @@ pub struct ShellParams {
     pub degeneration: Degeneration,
 }
 
+impl ShellParams {
+    /// [`ShellParams::default`] as a constant, for a firmware's `static` initialiser (its
+    /// degeneration is `Degeneration::default()`'s values).
+    pub const DEFAULT: Self = Self {
+        tangent_scale: 2.0,
+        normal_scale: 0.7,
+        min_ratio: 1e-3,
+        degeneration: Degeneration {
+            threshold: 4.0,
+            sphere_tolerance: 0.01,
+        },
+    };
+}
+
 impl Default for ShellParams {
     fn default() -> Self {
-        Self {
-            tangent_scale: 2.0,
-            normal_scale: 0.7,
-            min_ratio: 1e-3,
-            degeneration: Degeneration::default(),
-        }
+        Self::DEFAULT
     }
 }
 
@@ -52,7 +61,9 @@ pub fn symmetric_eigen(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
         if !(off > 1e-30 * diag) {
             break;
         }
-        for (p, q) in [(0, 1), (0, 2), (1, 2)] {
+        for (p, q) in [(0usize, 1usize), (0, 2), (1, 2)] {
+            // The same p and q, in a form whose indexing cannot panic (the loop is not unrolled).
+            let (p, q) = (p.min(2), q.min(2));
             if a[p][q] == 0.0 {
                 continue;
             }
@@ -79,13 +90,15 @@ pub fn symmetric_eigen(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
             }
         }
     }
+    // `i.min(2)` is `i` (an index of `order`): written so, no bounds check survives to panic.
+    let diagonal = [a[0][0], a[1][1], a[2][2]];
     let mut order = [0usize, 1, 2];
-    crate::num::insertion_sort_by(&mut order, |&i, &j| a[i][i] > a[j][j]);
-    let values = order.map(|i| a[i][i]);
+    crate::num::insertion_sort_by(&mut order, |&i, &j| diagonal[i.min(2)] > diagonal[j.min(2)]);
+    let values = order.map(|i| diagonal[i.min(2)]);
     let mut vectors = [[0.0; 3]; 3];
     for (col, &i) in order.iter().enumerate() {
         for row in 0..3 {
-            vectors[row][col] = v[row][i];
+            vectors[row][col] = v[row][i.min(2)];
         }
     }
     // Right-handed, so the columns are a rotation: the third axis is the cross product.
@@ -138,6 +151,11 @@ pub fn shell(mean: [f64; 3], covariance: [[f64; 3]; 3], params: &ShellParams) ->
 mod tests {
     use super::*;
     use crate::test_support::{OrFail, TestResult};
+
+    #[test]
+    fn the_constant_defaults_are_the_defaults() {
+        assert_eq!(ShellParams::DEFAULT.degeneration, Degeneration::default());
+    }
 
     #[test]
     fn eigenpairs_reconstruct_the_matrix() {

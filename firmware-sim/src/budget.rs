@@ -10,7 +10,9 @@ use mema_core::stream::{StreamCluster, StreamMapper};
 use mema_core::wire::Decoder;
 
 use crate::board::TARGET_BOARD;
-use crate::firmware::{Firmware, IMAGE_FROZEN, IMAGE_WORKING, RX_CAPACITY, Snapshot};
+use crate::firmware::{
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, RX_CAPACITY, Snapshot,
+};
 
 /// One capacity's static RAM.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -160,7 +162,7 @@ pub fn report(image: Option<&Path>, qemu: Option<&Path>) -> Result<Report, Budge
         rows: vec![
             row::<150, 512, 0>(),
             row::<400, 1024, 0>(),
-            row::<IMAGE_WORKING, 512, IMAGE_FROZEN>(),
+            row::<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>(),
             row::<1000, 2048, 0>(),
         ],
         image,
@@ -180,7 +182,7 @@ impl Report {
             "static RAM of the firmware state (size_of; a working cluster is {} bytes: f64 moments, centre, entity; a frozen entity {} bytes)\n\
              {:>5} {:>8} {:>7} {:>7} {:>12} {:>10} {:>8} {:>14} {:>12}  under 64 KiB? (+ {} stack)\n",
             self.cluster_bytes,
-            size_of::<mema_core::geometry::AxisEntity>(),
+            size_of::<mema_core::stream::FrozenEntity>(),
             "K",
             "working",
             "frozen",
@@ -255,10 +257,16 @@ impl Report {
         }
         if let Some(q) = &self.qemu {
             let g = |k: &str| q.get(k).unwrap_or(0);
+            // Shells are made, not fitted: no DE at a freeze nor at the end.
+            let (model, made, at_finish) = if g("shells") == 1 {
+                ("shells", "made a shell", "shells made")
+            } else {
+                ("paper", "fitted by DE", "refitted")
+            };
             s += &format!(
-                "QEMU mps2-an386 (-icount shift=0): {} points, {} entities\n\
+                "QEMU mps2-an386 (-icount shift=0), model {model}: {} points, {} entities\n\
                  \x20 stack high-water: boot {} B, ingest ticks {} B, finish {} B (painted stack)\n\
-                 \x20 instructions per ingested point: {:.0} ({} clusters frozen, each fitted as it froze); finish ({} working clusters refitted + encode): {:.3e} instructions\n\
+                 \x20 instructions per ingested point: {:.0} ({} clusters frozen, each {made} as it froze); finish ({} working clusters {at_finish} + encode): {:.3e} instructions\n\
                  \x20 (QEMU counts instructions, not cycles: a Cortex-M4F takes about 1-1.5 cycles per\n\
                  \x20 instruction on this integer and soft-float f64 code)\n",
                 g("points"),

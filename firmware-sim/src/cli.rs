@@ -5,9 +5,10 @@
 use std::path::PathBuf;
 use std::sync::Mutex;
 
+use mema_core::stream::StreamModel;
 use mema_firmware_sim::board::{Board, BoardSpec};
 use mema_firmware_sim::fault::FaultConfig;
-use mema_firmware_sim::firmware::{Firmware, Snapshot, stream_params};
+use mema_firmware_sim::firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::harness::{RunConfig, RunReport, run};
 
 /// The simulator's capacity: `-k` may be at most this (the budget's largest K).
@@ -206,6 +207,7 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         "--reset",
         "--accepted",
         "--ram",
+        "--model",
     ])?;
     let [capture] = args.positional.as_slice() else {
         return Err(usage("run takes exactly one CAPTURE"));
@@ -221,6 +223,12 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         return Err(usage(format!("--working {working}: must be 1..=k ({k})")));
     }
     let seed: u64 = args.number(&["--seed"], 0)?;
+    // The host's default (`mema replay`), so both map a capture to the same bytes.
+    let model = match args.get(&["--model"]).unwrap_or("shells") {
+        "paper" => StreamModel::Paper,
+        "shells" => SHELLS,
+        other => return Err(usage(format!("--model {other}: must be paper or shells"))),
+    };
     let faults = FaultConfig {
         seed: args.number(&["--fault-seed"], 0)?,
         noise_ppm: args.number(&["--noise"], 0)?,
@@ -257,8 +265,9 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         .try_lock()
         .map_err(|_| failed("SNAPSHOT already has an owner"))?;
     // Power-on: the statics take this run's seed and k (their initialiser had the defaults).
-    *firmware = Firmware::new(stream_params(seed, working, k - working));
-    *snapshot = Snapshot::new(stream_params(seed, working, k - working));
+    let params = model_params(seed, working, k - working, model);
+    *firmware = Firmware::new(params);
+    *snapshot = Snapshot::new(params);
 
     let report = run(&board, &mut firmware, &mut snapshot, &bytes, &config)
         .map_err(|e| failed(e.to_string()))?;
@@ -279,6 +288,13 @@ fn run_command(args: &Args) -> Result<(), CliError> {
 
 fn crc_of(map: &[u8]) -> u32 {
     map.last_chunk::<4>().map_or(0, |c| u32::from_le_bytes(*c))
+}
+
+/// The entity count the map's header states (any version).
+fn entities_of(map: &[u8]) -> u32 {
+    map.get(32..36)
+        .and_then(|c| c.try_into().ok())
+        .map_or(0, u32::from_le_bytes)
 }
 
 fn text(r: &RunReport, board: &Board, capture: &str) -> String {
@@ -311,7 +327,7 @@ fn text(r: &RunReport, board: &Board, capture: &str) -> String {
         f.truncated_bytes,
         f.resets,
         r.mapper.points,
-        r.map.len().saturating_sub(40) / 25,
+        entities_of(&r.map),
         r.peak_clusters,
         r.mapper.merges,
         r.mapper.refits,
@@ -340,7 +356,7 @@ fn json(r: &RunReport, board: &Board) -> String {
          \"ticks\":{},\"deliveries\":{},\"static_bytes\":{}}}",
         r.map.len(),
         crc_of(&r.map),
-        r.map.len().saturating_sub(40) / 25,
+        entities_of(&r.map),
         r.end_of_stream,
         r.mapper.points,
         d.accepted,

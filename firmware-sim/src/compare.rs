@@ -186,6 +186,7 @@ pub fn compare_points(name: &str, points: &[Point3], setup: &Setup) -> CloudComp
             max_frozen: k.saturating_sub(working).min(1024),
             refit_interval: 0,
             tolerance: 0.0,
+            model: mema_core::stream::StreamModel::Paper,
         }));
     mapper.add_all(points);
     mapper.finish();

@@ -21,8 +21,8 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::{EncodeError, encode_into, encode_pieces};
-use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
+use mema_core::map::EncodeError;
+use mema_core::stream::{StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::wire::{Decoded, Decoder, DecoderStats, MAX_FRAME_LEN};
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next lands.
@@ -32,13 +32,34 @@ pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
 pub const IMAGE_WORKING: usize = 150;
 pub const IMAGE_FROZEN: usize = 250;
+/// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
+/// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
+/// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters
+/// cost, so the layout stays under 64 KiB beside an 8 KiB stack.
+pub const IMAGE_BUCKETS: usize = 256;
 
 /// One cluster refit per this many points: the host's `REFIT_INTERVAL`, so both map alike.
 pub const REFIT_INTERVAL: u32 = 1024;
 
+/// The sphere tolerance of the host's defaults (`--sphere-tolerance`).
+const SPHERE_TOLERANCE: f64 = 0.01;
+
 /// The host's default parameters as a constant expression, so a `static` can be initialised with
 /// them (`FitParams::default()` is not `const`). A test checks they equal the host's defaults.
 pub const fn stream_params(seed: u64, max_clusters: usize, max_frozen: usize) -> StreamParams {
+    model_params(seed, max_clusters, max_frozen, StreamModel::Paper)
+}
+
+/// Shells as the host's `--model shells` makes them.
+pub const SHELLS: StreamModel = StreamModel::shells(SPHERE_TOLERANCE);
+
+/// [`stream_params`] with the entity model chosen.
+pub const fn model_params(
+    seed: u64,
+    max_clusters: usize,
+    max_frozen: usize,
+    model: StreamModel,
+) -> StreamParams {
     StreamParams {
         fit: FitParams {
             alpha: mema_core::fitness::PAPER_ALPHA,
@@ -56,7 +77,7 @@ pub const fn stream_params(seed: u64, max_clusters: usize, max_frozen: usize) ->
             initialisation: Initialisation::MomentSeeded,
             degeneration: Degeneration {
                 threshold: 4.0,
-                sphere_tolerance: 0.01,
+                sphere_tolerance: SPHERE_TOLERANCE,
             },
         },
         seed,
@@ -64,6 +85,7 @@ pub const fn stream_params(seed: u64, max_clusters: usize, max_frozen: usize) ->
         max_frozen,
         refit_interval: REFIT_INTERVAL,
         tolerance: 0.0,
+        model,
     }
 }
 
@@ -196,15 +218,15 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     }
 
     /// Writes the `.mema` bytes of the map as it stands (origin 0: the sensor frame, as the host's
-    /// `replay` writes it) and returns their length.
+    /// `replay` writes it; the mapper's layout) and returns their length.
     pub fn encode_map(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        encode_into([0.0; 3], self.mapper.entities(), out)
+        self.mapper.encode_into([0.0; 3], out)
     }
 
     /// Sends the map's `.mema` bytes out piece by piece (a UART, a file): the device needs no
     /// buffer for the whole map, which at 400 entities would be 10 KB of its RAM.
     pub fn send_map(&self, sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
-        encode_pieces([0.0; 3], self.mapper.entities(), sink)
+        self.mapper.encode_pieces([0.0; 3], sink)
     }
 
     /// Copies the mapper into `snapshot` (the memory that survives a reset).
@@ -258,6 +280,18 @@ mod tests {
         assert_eq!(
             (p.seed, p.max_clusters, p.max_frozen, p.tolerance),
             (7, 150, 250, 0.0)
+        );
+        assert_eq!(p.model, StreamModel::Paper);
+        let StreamModel::Shells(shells) = SHELLS else {
+            panic!("SHELLS is the shell model");
+        };
+        assert_eq!(
+            (shells.tangent_scale, shells.normal_scale, shells.min_ratio),
+            (2.0, 0.7, 1e-3)
+        );
+        assert_eq!(
+            shells.degeneration.sphere_tolerance,
+            FitParams::default().degeneration.sphere_tolerance
         );
     }
 }

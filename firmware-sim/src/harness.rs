@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use mema_core::Point3;
-use mema_core::map::{EncodeError, encoded_len};
+use mema_core::map::EncodeError;
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::wire::{Decoded, Decoder, DecoderStats};
 
@@ -147,7 +147,7 @@ fn drive<
         }
     }
     firmware.finish();
-    let mut map = vec![0u8; encoded_len(firmware.mapper().entities().count())];
+    let mut map = vec![0u8; firmware.mapper().encoded_len()];
     let len = firmware.encode_map(&mut map).map_err(RunError::Encode)?;
     map.truncate(len);
     Ok(RunReport {
@@ -199,8 +199,9 @@ pub fn map_of_frames<const K: usize, const G: usize, const F: usize>(
         mapper.add_all(frames.get(s).ok_or(*s)?);
     }
     mapper.finish();
-    let entities: Vec<_> = mapper.entities().collect();
-    let mut out = vec![0u8; encoded_len(entities.len())];
-    mema_core::map::encode([0.0; 3], &entities, &mut out).map_err(|_| u32::MAX)?;
+    let mut out = vec![0u8; mapper.encoded_len()];
+    mapper
+        .encode_into([0.0; 3], &mut out)
+        .map_err(|_| u32::MAX)?;
     Ok(out)
 }

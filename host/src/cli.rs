@@ -131,6 +131,11 @@ pub struct StreamArgs {
 /// How a streaming mapper holds its k ellipsoids (`stream`, `replay`, `stream-bench`).
 #[derive(Args, Debug)]
 pub struct StreamShapeArgs {
+    /// The entity model: `shells` (each cluster's oriented covariance shell, as `mema map`
+    /// makes them; written quantized, 14 bytes an entity) or `paper` (the paper's axis-aligned
+    /// DE fit of eq. 12, refitted as points arrive; written as version 1).
+    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Shells)]
+    pub model: crate::pipeline::Model,
     /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
     /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
     #[arg(long, value_name = "W")]

@@ -595,22 +595,32 @@ pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
         capacity,
         args.repetitions,
         args.shape.tolerance.unwrap_or(0.0),
+        args.shape.model,
     )
     .with_context(|| args.input.display().to_string())?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         println!(
-            "{}: {} points, k = {}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
+            "{}: {} points, k = {}, model {:?}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  two-way score, stream / batch: Chamfer {:.6} / {:.6}, accuracy mean {:.6} / {:.6}, completeness mean {:.6} / {:.6}, phantom {:.3} / {:.3}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
             args.input.display(),
             r.points,
             r.k,
+            r.model,
             r.stream_entities,
             r.batch_entities,
             r.stream_mean_error,
             r.batch_mean_error,
             r.error_change_percent,
             r.stream_max_error,
+            r.stream_score.chamfer,
+            r.batch_score.chamfer,
+            r.stream_score.accuracy.mean,
+            r.batch_score.accuracy.mean,
+            r.stream_score.completeness.mean,
+            r.batch_score.completeness.mean,
+            r.stream_score.phantom,
+            r.batch_score.phantom,
             r.mapper_points_per_s,
             r.mapper_vs_sri500,
             r.wire_points_per_s,

@@ -167,7 +167,7 @@ fn corrupted_frames_are_refused_and_the_map_is_that_of_the_clean_frames() {
         MemaCommand::new(&dir)
             .arg("replay")
             .arg(&capture)
-            .args(["-k", "100", "--chunk-bytes", "97", "-o"])
+            .args(["-k", "100", "--model", "paper", "--chunk-bytes", "97", "-o"])
             .arg(&out)
             .run()
             .assert_ok();

@@ -9,10 +9,11 @@ use std::process::Command;
 
 use mema::serial::frames::{encode_stream, quantise};
 use mema_core::Point3;
+use mema_core::stream::StreamModel;
 use mema_firmware_sim::board::{Board, BoardSpec};
 use mema_firmware_sim::compare::{Setup, compare_clouds, shared_clouds};
 use mema_firmware_sim::fault::FaultConfig;
-use mema_firmware_sim::firmware::{Firmware, Snapshot, stream_params};
+use mema_firmware_sim::firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::harness::{RunConfig, RunReport, frames_of, map_of_frames, run};
 
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
@@ -40,12 +41,21 @@ fn play(capture: &[u8], k: usize, config: &RunConfig) -> RunReport {
     play_shaped(capture, (k, 0), config)
 }
 
-fn play_shaped(capture: &[u8], (working, frozen): Shape, config: &RunConfig) -> RunReport {
+fn play_shaped(capture: &[u8], shape: Shape, config: &RunConfig) -> RunReport {
+    play_model(capture, shape, StreamModel::Paper, config)
+}
+
+fn play_model(
+    capture: &[u8],
+    (working, frozen): Shape,
+    model: StreamModel,
+    config: &RunConfig,
+) -> RunReport {
     let board = Board::new(BoardSpec {
         ram_bytes: 4 << 20,
         stack_bytes: 64 << 10,
     });
-    let params = stream_params(0, working, frozen);
+    let params = model_params(0, working, frozen, model);
     let mut firmware: Box<Firmware<K, G, F>> = Box::new(Firmware::new(params));
     let mut snapshot: Box<Snapshot<K, G, F>> = Box::new(Snapshot::new(params));
     run(&board, &mut firmware, &mut snapshot, capture, config).expect("runs")
@@ -81,16 +91,45 @@ fn the_map_is_the_same_whatever_the_chunking() {
     }
 }
 
+/// Shells at the image's layout (frozen entities included): the same bytes whatever the UART's
+/// chunking, and no DE anywhere.
+#[test]
+fn shells_are_the_same_whatever_the_chunking() {
+    let capture = capture_of("car6.pcd");
+    let play = |chunk_seed, max_chunk| {
+        let config = RunConfig {
+            chunk_seed,
+            max_chunk,
+            ..RunConfig::default()
+        };
+        play_model(&capture, (150, 250), SHELLS, &config)
+    };
+    let whole = play(0, 1 << 20);
+    assert!(whole.end_of_stream && whole.mapper.points == 10_031);
+    assert!(whole.mapper.frozen > 200 && whole.mapper.refits == 0);
+    for (chunk_seed, max_chunk) in [(0, 1), (2, 7), (3, 256)] {
+        assert_eq!(
+            play(chunk_seed, max_chunk).map,
+            whole.map,
+            "1..={max_chunk}"
+        );
+    }
+}
+
 #[test]
 fn firmware_sim_equals_mema_replay_of_the_same_capture() {
     let dir = Dir::new("fw-replay");
     let fw_bin =
         mema_bin().with_file_name(format!("mema-firmware-sim{}", std::env::consts::EXE_SUFFIX));
-    for (cloud, k, working) in [
-        ("car6.pcd", "150", "150"),
-        ("bun_zipper.ply", "350", "350"),
-        ("car6.pcd", "400", "150"),
+    // The paper's model pinned as before; shells asked for, and by both defaults (no --model).
+    for (cloud, k, working, model) in [
+        ("car6.pcd", "150", "150", Some("paper")),
+        ("bun_zipper.ply", "350", "350", Some("paper")),
+        ("car6.pcd", "400", "150", Some("paper")),
+        ("car6.pcd", "400", "150", None),
+        ("bun_zipper.ply", "400", "150", Some("shells")),
     ] {
+        let model_args: Vec<&str> = model.map_or(vec![], |m| vec!["--model", m]);
         let capture = dir.join("capture.bin");
         MemaCommand::new(&dir)
             .arg("scanner-sim")
@@ -101,6 +140,7 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
             .assert_ok();
         MemaCommand::new(&dir)
             .args(["replay", "capture.bin", "-k", k, "--working", working])
+            .args(&model_args)
             .args(["-o", "replay.mema"])
             .run()
             .assert_ok();
@@ -118,6 +158,7 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
                 "97",
                 "--json",
             ])
+            .args(&model_args)
             .current_dir(&dir.path)
             .output()
             .expect("mema-firmware-sim runs");
@@ -128,8 +169,19 @@ fn firmware_sim_equals_mema_replay_of_the_same_capture() {
         );
         let replay = std::fs::read(dir.join("replay.mema")).expect("replay map");
         let fw = std::fs::read(dir.join("fw.mema")).expect("firmware map");
-        assert!(replay.len() > 40, "{cloud}: a map with entities");
-        assert_eq!(fw, replay, "{cloud}: firmware-sim and mema replay differ");
+        assert!(replay.len() > 52, "{cloud}: a map with entities");
+        assert_eq!(
+            fw, replay,
+            "{cloud} {model:?}: firmware-sim and mema replay differ"
+        );
+        // Version 1 for the paper's fits, version 2 quantized (flags 1) for shells.
+        let version_flags = &replay[4..8];
+        let expected: &[u8] = if model == Some("paper") {
+            &[1, 0, 0, 0]
+        } else {
+            &[2, 0, 1, 0]
+        };
+        assert_eq!(version_flags, expected, "{cloud} {model:?}");
     }
 }
 

@@ -150,6 +150,8 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
             pty.b.to_str().expect("utf8"),
             "-k",
             "150",
+            "--model",
+            "paper",
             "-o",
             "stream.mema",
             "--record",
@@ -175,7 +177,8 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     pty.unplug();
 
     MemaCommand::new(&dir)
-        .args(["replay", "wire.bin", "-k", "150", "-o", "replay.mema"])
+        .args(["replay", "wire.bin", "-k", "150", "--model", "paper"])
+        .args(["-o", "replay.mema"])
         .run()
         .assert_ok();
     let streamed = std::fs::read(dir.join("stream.mema")).expect("stream map");
@@ -370,6 +373,8 @@ fn working_memory_smaller_than_k_freezes_and_stays_within_k() {
             "400",
             "--working",
             "150",
+            "--model",
+            "paper",
             "-o",
             "w.mema",
         ])

@@ -33,6 +33,9 @@ mod queries;
 mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
+// Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,
+// replay's bytes whatever the chunking, shells against the paper's fits.
+mod stream_shells;
 // draw (pixels against projections computed here), export (re-read by gltf and ply-rs-bw),
 // completions and man.
 mod toolbox;

@@ -222,7 +222,11 @@ fn encode_rotation(r: &Rotation) -> u32 {
             largest = i;
         }
     }
-    let sign = if q[largest] < 0.0 { -1.0 } else { 1.0 };
+    let sign = if q.get(largest).is_some_and(|&v| v < 0.0) {
+        -1.0
+    } else {
+        1.0
+    };
     let mut code = largest as u32;
     let mut shift = 2;
     for (i, &v) in q.iter().enumerate() {
@@ -257,17 +261,31 @@ fn decode_rotation(code: u32) -> Rotation {
     Rotation::from_quaternion(q).unwrap_or(Rotation::IDENTITY)
 }
 
+/// The rotation's u32 code in a quantized record: 0 for the identity, else smallest three
+/// (within a quarter of a degree). A streaming mapper keeps frozen entities' rotations in it.
+pub fn rotation_code(r: &Rotation) -> u32 {
+    if r.is_identity() {
+        0
+    } else {
+        encode_rotation(r)
+    }
+}
+
+/// The rotation of a [`rotation_code`]; every code is a valid rotation.
+pub fn rotation_of_code(code: u32) -> Rotation {
+    match code {
+        0 => Rotation::IDENTITY,
+        code => decode_rotation(code),
+    }
+}
+
 /// Writes a quantized version-2 record (`out` is [`QUANTIZED_LEN`] bytes).
 pub fn write_quantized(grid: &Quantization, e: &MapEntity, out: &mut [u8]) {
     let c = e.entity.center.to_array();
     for (chunk, v) in out.chunks_exact_mut(2).take(3).zip(c.iter()) {
         chunk.copy_from_slice(&quantize_centre(grid.centre_step, *v).to_le_bytes());
     }
-    let rotation = if e.entity.rotation.is_identity() {
-        0
-    } else {
-        encode_rotation(&e.entity.rotation)
-    };
+    let rotation = rotation_code(&e.entity.rotation);
     let mut axes = e.kind as u32 & 3;
     for (j, w) in e.entity.weights.iter().enumerate() {
         axes |= grid.axis_code(*w) << (2 + 10 * j);
@@ -287,10 +305,7 @@ pub fn read_quantized(grid: &Quantization, record: &[u8]) -> MapEntity {
     for (v, chunk) in centre.iter_mut().zip(record.chunks_exact(2).take(3)) {
         *v = i16::from_le_bytes([chunk[0], chunk[1]]) as f32 * grid.centre_step;
     }
-    let rotation = match u32_at(record, 6) {
-        0 => Rotation::IDENTITY,
-        code => decode_rotation(code),
-    };
+    let rotation = rotation_of_code(u32_at(record, 6));
     let axes = u32_at(record, 10);
     let weights = [0, 1, 2].map(|j| grid.axis_weight((axes >> (2 + 10 * j)) & 0x3ff));
     let kind = EntityKind::from_u8((axes & 3) as u8).unwrap_or(EntityKind::Ellipsoid);

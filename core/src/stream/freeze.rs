@@ -1,5 +1,5 @@
-//! Freezing: a cluster the scan has left behind is fitted once and kept as its 24-byte entity,
-//! and its slot in working memory is reused.
+//! Freezing: a cluster the scan has left behind is fitted once and kept as its 28-byte
+//! [`FrozenEntity`], and its slot in working memory is reused.
 //!
 //! Why: a cluster's moments are 24 f64 sums (the agreement with direct sums needs all 53 bits;
 //! `mema-firmware-sim reference --sum-bits`), so a working cluster costs 280 bytes and 400 of
@@ -10,10 +10,42 @@
 //! is why a cluster is frozen only after a long idle spell, and why clouds whose point order is
 //! not a sweep map worse this way (README, "Streaming").
 
-use super::StreamMapper;
+use super::{Observer, StreamMapper, StreamModel};
 use crate::fit::fit_ellipsoid_paper;
-use crate::geometry::AxisEntity;
+use crate::geometry::{AxisEntity, Entity};
+use crate::map::record::{rotation_code, rotation_of_code};
 use crate::rng::stream_rng;
+
+/// A frozen entity: centre and weights (the paper's 24 bytes) and the rotation as the
+/// quantized record's smallest-three code, 0 for the identity of the paper's fits.
+///
+/// Why the code and not a quaternion: the firmware's 250 frozen entities must fit 64 KiB beside
+/// 150 working clusters; four bytes each cost 1,000 bytes, a quaternion 4,000. The code is
+/// within a quarter of a degree, and it is exactly what a shells map file stores anyway.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct FrozenEntity {
+    pub entity: AxisEntity,
+    pub rotation: u32,
+}
+
+impl FrozenEntity {
+    /// An entity as frozen: its rotation kept to the code's precision.
+    pub fn of(e: &Entity) -> Self {
+        Self {
+            entity: AxisEntity {
+                center: e.center,
+                weights: e.weights,
+            },
+            rotation: rotation_code(&e.rotation),
+        }
+    }
+
+    /// The entity the map holds.
+    pub fn to_entity(&self) -> Entity {
+        Entity::from(self.entity).with_rotation(rotation_of_code(self.rotation))
+    }
+}
 
 /// A cluster is idle enough to freeze when no point has joined it for this many turnovers of
 /// the working set (`max_clusters` points each): a cluster still under the scanner's sweep gets
@@ -33,7 +65,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Frees a working slot by freezing the longest-idle cluster, if there is room for another
     /// frozen entity and that cluster has been idle for [`IDLE_TURNOVERS`] turnovers. Returns
     /// whether a slot was freed; otherwise the caller merges.
-    pub(super) fn freeze_one(&mut self) -> bool {
+    pub(super) fn freeze_one(&mut self, observer: &mut impl Observer) -> bool {
         if self.frozen.len() >= self.params.max_frozen.min(F) || self.params.tolerance > 0.0 {
             return false;
         }
@@ -52,26 +84,26 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         }
         let stream = FROZEN_STREAMS | self.frozen.len() as u64;
-        let fit = self.clusters.get(i).and_then(|c| {
-            let central = c.moments.central()?;
-            let fit = fit_ellipsoid_paper(
-                &central,
-                &self.params.fit,
-                &mut stream_rng(self.params.seed, stream),
-            );
-            Some(fit.entity)
+        let fit = self.clusters.get(i).and_then(|c| match self.params.model {
+            StreamModel::Paper => {
+                let central = c.moments.central()?;
+                let fit = fit_ellipsoid_paper(
+                    &central,
+                    &self.params.fit,
+                    &mut stream_rng(self.params.seed, stream),
+                );
+                Some(fit.entity)
+            }
+            StreamModel::Shells(params) => super::shells::shell_of(&c.moments, &params),
         });
         let Some(entity) = fit else {
             return false;
         };
-        if i >= self.clusters.len()
-            || self
-                .frozen
-                .push(AxisEntity::of_axis_aligned(&entity))
-                .is_err()
-        {
+        if i >= self.clusters.len() || self.frozen.push(FrozenEntity::of(&entity)).is_err() {
             return false;
         }
+        observer.frozen(i);
+        observer.removed(i);
         self.clusters.swap_remove(i);
         self.stats.frozen += 1;
         // The last cluster took slot `i`: refile the centres under their new indices.

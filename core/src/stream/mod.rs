@@ -10,6 +10,10 @@
 //!
 //! With room for frozen entities (`F > 0`, `max_frozen > 0`), making room first tries to freeze
 //! instead of merging; see [`freeze`].
+//!
+//! Two entity models ([`StreamModel`]): the paper's DE fit of eq. 12, kept per cluster and
+//! refitted on the schedule above, or oriented shells, which are a function of the moments
+//! alone and so are computed when the map is read, with no refits at all; see [`shells`].
 
 use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
 use crate::geometry::{AxisEntity, Entity, Point3};
@@ -17,10 +21,39 @@ use crate::grid::CentreGrid;
 use crate::map::MapEntity;
 use crate::moments::Moments;
 use crate::rng::stream_rng;
+use crate::shell::ShellParams;
 
 pub mod freeze;
+mod observe;
 mod pairs;
+pub mod shells;
+pub use freeze::FrozenEntity;
+pub use observe::Observer;
 use pairs::{ClosestPairs, MAX_MERGE_BATCH};
+
+/// How a cluster becomes its entity.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StreamModel {
+    /// The paper's axis-aligned semi-axes, fitted by DE on eq. 12 (`params.fit`).
+    Paper,
+    /// The oriented shell of the cluster's mean and covariance (`crate::shell`).
+    Shells(ShellParams),
+}
+
+impl StreamModel {
+    /// Shells at the default scales, as `mema map` makes them: a shell spans its cluster's
+    /// points, which are bounded, so no axis degenerates (an infinite one would only add
+    /// surface where there are no points); `sphere_tolerance` names the kind.
+    pub const fn shells(sphere_tolerance: f64) -> Self {
+        Self::Shells(ShellParams {
+            degeneration: crate::geometry::Degeneration {
+                threshold: f64::INFINITY,
+                sphere_tolerance,
+            },
+            ..ShellParams::DEFAULT
+        })
+    }
+}
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StreamParams {
@@ -38,6 +71,7 @@ pub struct StreamParams {
     /// (`fit::surface_error_estimate`) at or under this length, and `finish` keeps merging
     /// neighbours while they stay under it, so k follows from the tolerance. 0: fixed capacity.
     pub tolerance: f64,
+    pub model: StreamModel,
 }
 
 /// One cluster: its moments, running centre and latest fit.
@@ -45,7 +79,8 @@ pub struct StreamParams {
 pub struct StreamCluster {
     pub moments: Moments,
     pub center: Point3,
-    /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes.
+    /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes (shells are
+    /// computed from the moments instead, and leave the sphere the cluster opened with).
     pub entity: AxisEntity,
     /// Points added since the last fit; `u32::MAX` when never fitted.
     pub stale: u32,
@@ -72,7 +107,7 @@ pub struct StreamStats {
 #[derive(Clone, Debug)]
 pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     clusters: heapless::Vec<StreamCluster, K>,
-    frozen: heapless::Vec<AxisEntity, F>,
+    frozen: heapless::Vec<FrozenEntity, F>,
     grid: CentreGrid<K, G>,
     radius: f32,
     params: StreamParams,
@@ -131,18 +166,26 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Adds one point; non-finite points are counted and skipped, never stored.
     pub fn add(&mut self, p: Point3) {
+        self.add_observed(p, &mut ());
+    }
+
+    /// [`StreamMapper::add`], telling `observer` where the point went and what moved.
+    pub fn add_observed(&mut self, p: Point3, observer: &mut impl Observer) {
         if !p.is_finite() {
             self.stats.non_finite += 1;
             return;
         }
         self.stats.points += 1;
         match self.nearest_within_radius(p) {
-            Some(i) => self.grow(i, p),
+            Some(i) => {
+                observer.joined(i);
+                self.grow(i, p);
+            }
             None => {
-                if self.clusters.len() >= self.limit() && !self.freeze_one() {
-                    self.merge_closest_pairs();
+                if self.clusters.len() >= self.limit() && !self.freeze_one(observer) {
+                    self.merge_closest_pairs(observer);
                 }
-                self.open(p);
+                self.open(p, observer);
             }
         }
         let interval = self.params.refit_interval as u64;
@@ -186,7 +229,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
-    fn open(&mut self, p: Point3) {
+    /// A new cluster of `p` at the end (dropped, as the point is, if no room was made).
+    fn open(&mut self, p: Point3, observer: &mut impl Observer) {
         let mut moments = Moments::new();
         moments.add(p);
         let cluster = StreamCluster {
@@ -198,6 +242,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         };
         let index = self.clusters.len();
         if self.clusters.push(cluster).is_ok() {
+            observer.opened(index);
             self.grid.insert(index, p);
         }
     }
@@ -246,7 +291,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Merges the disjoint pairs of `pairs` that respect the tolerance, cheapest first; with
     /// `force`, the cheapest pair merges even if none does (the capacity must give way).
-    fn merge_pairs(&mut self, pairs: &ClosestPairs, force: bool) -> usize {
+    fn merge_pairs(
+        &mut self,
+        pairs: &ClosestPairs,
+        force: bool,
+        observer: &mut impl Observer,
+    ) -> usize {
         let mut absorbed = [0usize; MAX_MERGE_BATCH];
         let mut count = 0;
         let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
@@ -274,6 +324,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             } else {
                 ca.last_point
             };
+            observer.merged(a, b);
             if let Some(ca) = self.clusters.get_mut(a) {
                 ca.moments.merge(&moments);
                 ca.center = center_of(&ca.moments);
@@ -296,6 +347,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         for &b in absorbed.iter() {
             // In range by construction; the check keeps `swap_remove`'s panic out of the build.
             if b < self.clusters.len() {
+                observer.removed(b);
                 self.clusters.swap_remove(b);
             }
         }
@@ -315,20 +367,20 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
     /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
     /// of far points. The join radius widens to the largest merged distance.
-    fn merge_closest_pairs(&mut self) {
+    fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
         let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
-        self.merge_pairs(&pairs, true);
+        self.merge_pairs(&pairs, true, observer);
     }
 
     /// Tolerance mode's last step: neighbours keep merging while the merged estimate stays
     /// under the tolerance, so the final k is what the tolerance needs, not the capacity.
-    fn consolidate(&mut self) {
+    fn consolidate(&mut self, observer: &mut impl Observer) {
         if self.params.tolerance <= 0.0 {
             return;
         }
         while self.clusters.len() > 1 {
             let pairs = self.candidate_pairs(MAX_MERGE_BATCH);
-            if self.merge_pairs(&pairs, false) == 0 {
+            if self.merge_pairs(&pairs, false, observer) == 0 {
                 break;
             }
         }
@@ -346,7 +398,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Refits the cluster with the most points added since its last fit (ties: lowest index).
+    /// Shells need no refit: they are read off the moments whenever the map is.
     fn refit_stalest(&mut self) {
+        if self.is_shells() {
+            return;
+        }
         let mut pick: Option<(usize, u32)> = None;
         for (i, c) in self.clusters.iter().enumerate() {
             if c.stale > 0 && pick.is_none_or(|(_, s)| c.stale > s) {
@@ -366,6 +422,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Refits every cluster changed since its last fit, so the entities describe all points so far.
     pub fn refit_stale(&mut self) {
+        if self.is_shells() {
+            return;
+        }
         for i in 0..self.clusters.len() {
             if self.clusters.get(i).is_some_and(|c| c.stale > 0) {
                 let entity = self.clusters.get(i).and_then(|c| self.fit(i, c));
@@ -378,33 +437,38 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
-    /// The entities as they stand, frozen ones first (call [`StreamMapper::refit_stale`] first
-    /// for a snapshot).
+    /// The entities as they stand, frozen ones first (for the paper's model, call
+    /// [`StreamMapper::refit_stale`] first for a snapshot; shells are always current).
     pub fn entities(&self) -> impl Iterator<Item = MapEntity> + Clone + '_ {
-        let tolerance = self.params.fit.degeneration.sphere_tolerance;
-        let working = self.clusters.iter().map(|c| c.entity);
+        let tolerance = self.sphere_tolerance();
+        let working = self.clusters.iter().map(|c| self.working_entity(c));
         self.frozen
             .iter()
-            .copied()
+            .map(FrozenEntity::to_entity)
             .chain(working)
-            .map(move |stored| {
-                let entity = Entity::from(stored);
-                MapEntity {
-                    entity,
-                    kind: entity.kind(tolerance),
-                }
+            .map(move |entity| MapEntity {
+                entity,
+                kind: entity.kind(tolerance),
             })
     }
 
     /// Entities frozen out of working memory so far.
-    pub fn frozen(&self) -> &[AxisEntity] {
+    pub fn frozen(&self) -> &[FrozenEntity] {
         &self.frozen
     }
 
     /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on
     /// the cluster's index only, so the final map is a function of the points alone.
     pub fn finish(&mut self) {
-        self.consolidate();
+        self.finish_observed(&mut ());
+    }
+
+    /// [`StreamMapper::finish`], telling `observer` of the tolerance mode's last merges.
+    pub fn finish_observed(&mut self, observer: &mut impl Observer) {
+        self.consolidate(observer);
+        if self.is_shells() {
+            return;
+        }
         for i in 0..self.clusters.len() {
             let central = self.clusters.get(i).and_then(|c| c.moments.central());
             if let Some(central) = central {

@@ -1,4 +1,5 @@
 use super::*;
+use crate::shell::ShellParams;
 
 fn params(max_clusters: usize) -> StreamParams {
     StreamParams {
@@ -8,6 +9,7 @@ fn params(max_clusters: usize) -> StreamParams {
         max_frozen: 0,
         refit_interval: 64,
         tolerance: 0.0,
+        model: StreamModel::Paper,
     }
 }
 
@@ -122,7 +124,7 @@ fn a_sweep_freezes_the_clusters_it_leaves_behind() {
     assert_eq!(m.stats().frozen, frozen.len() as u64);
     assert!(m.entities().count() <= 6 + 12);
     // Frozen clusters are whole fits of one shell each, and of the shells the sweep has left.
-    for e in frozen {
+    for e in frozen.iter().map(|f| f.entity) {
         let x = e.center.x / 10.0;
         assert!((x - libm::roundf(x)).abs() < 0.06, "{:?}", e.center);
         assert!(
@@ -136,7 +138,7 @@ fn a_sweep_freezes_the_clusters_it_leaves_behind() {
     assert!(
         m.entities()
             .zip(frozen)
-            .all(|(a, b)| a.entity == Entity::from(*b))
+            .all(|(a, b)| a.entity == b.to_entity() && b.rotation == 0)
     );
 }
 
@@ -169,6 +171,69 @@ fn freezing_gives_the_same_map_whatever_the_batching() {
     whole.finish();
     let mut pieces = StreamMapper::<6, 64, 12>::new(frozen_params(6, 12));
     for chunk in pts.chunks(13) {
+        pieces.add_all(chunk);
+    }
+    pieces.finish();
+    assert!(!whole.frozen().is_empty());
+    assert!(whole.entities().eq(pieces.entities()));
+}
+
+fn shells_params(working: usize, frozen: usize) -> StreamParams {
+    StreamParams {
+        model: StreamModel::Shells(ShellParams::DEFAULT),
+        ..frozen_params(working, frozen)
+    }
+}
+
+/// Tilted, so a shell must turn to follow each one: x and y mixed.
+fn tilted_swept_shells() -> [Point3; 2000] {
+    let mut pts = swept_shells();
+    for p in pts.iter_mut() {
+        *p = Point3::new(
+            p.x + 0.4 * p.y,
+            p.y - 0.4 * p.x + 4.0 * libm::roundf(p.x / 10.0),
+            p.z,
+        );
+    }
+    pts
+}
+
+#[test]
+fn shells_are_the_shells_of_the_moments_with_no_refit() -> crate::test_support::TestResult {
+    use crate::test_support::OrFail;
+    let mut m = StreamMapper::<6, 64, 12>::new(shells_params(6, 12));
+    m.add_all(&tilted_swept_shells());
+    m.finish();
+    assert_eq!(m.stats().refits, 0);
+    let frozen = m.frozen().len();
+    assert!(frozen > 0 && m.entities().count() == frozen + m.clusters().len());
+    // Working entities: the shell of the final moments, to the bit.
+    for (e, c) in m.entities().skip(frozen).zip(m.clusters()) {
+        let want = shells::shell_of(&c.moments, &ShellParams::DEFAULT).or_fail("finite")?;
+        assert_eq!(e.entity, want);
+    }
+    // The shells turn: the sweep's clusters are tilted in x-y.
+    assert!(m.entities().any(|e| !e.entity.rotation.is_identity()));
+    // Frozen ones keep their rotation to the code's quarter degree, and it survives the file.
+    assert!(m.frozen().iter().any(|f| f.rotation != 0));
+    let mut file = [0u8; 48 + 14 * 18 + 4];
+    let len = m.encode_into([0.0; 3], &mut file).or_fail("fits")?;
+    let read =
+        crate::map::MapFile::new_checked(file.get(..len).or_fail("len")?).or_fail("reads")?;
+    let layout = m.layout();
+    assert!(matches!(layout, crate::map::Layout::Quantized(_)));
+    assert!(read.entities().eq(m.stored_entities(layout)));
+    Ok(())
+}
+
+#[test]
+fn shells_give_the_same_map_whatever_the_batching() {
+    let pts = tilted_swept_shells();
+    let mut whole = StreamMapper::<6, 64, 12>::new(shells_params(6, 12));
+    whole.add_all(&pts);
+    whole.finish();
+    let mut pieces = StreamMapper::<6, 64, 12>::new(shells_params(6, 12));
+    for chunk in pts.chunks(11) {
         pieces.add_all(chunk);
     }
     pieces.finish();

@@ -36,6 +36,16 @@ pub fn write_file(path_nul: &[u8], produce: impl FnOnce(&mut dyn FnMut(&[u8]))) 
     ok
 }
 
+/// Reads up to `buf.len()` bytes of the file at `path_nul`; `None` if it cannot be opened.
+pub fn read_file(path_nul: &[u8], buf: &mut [u8]) -> Option<usize> {
+    let fd = open(path_nul, nr::open::R_BINARY)?;
+    // SAFETY: SYS_READ writes at most `buf.len()` bytes into a live slice; it returns the
+    // number of bytes *not* read.
+    let not_read = unsafe { syscall!(READ, fd, buf.as_mut_ptr(), buf.len()) };
+    close(fd);
+    Some(buf.len().saturating_sub(not_read))
+}
+
 /// Writes the pieces to the host's stdout.
 pub fn print(pieces: &[&[u8]]) {
     if let Some(fd) = open(b":tt\0", nr::open::W_TRUNC) {

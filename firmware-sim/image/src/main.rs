@@ -3,7 +3,9 @@
 //! Under `qemu-system-arm -machine mps2-an386 -semihosting`, it reads `capture.bin` from QEMU's
 //! working directory through semihosting, in chunks of 1..=256 bytes as a UART interrupt would
 //! hand them over, ticks the firmware after each chunk, finishes the map with the same seed as
-//! the host, and writes the map's bytes to `map.mema` beside the capture. It then prints one
+//! the host, and writes the map's bytes to `map.mema` beside the capture. The entity model is
+//! shells, the host's default, unless a file `model.txt` there says `paper` (a device would
+//! take it from its configuration the same way: one image, either model). It then prints one
 //! line of measurements (`key=value`), which `mema-firmware-sim budget` reads:
 //! - `ingest_ticks` / `finish_ticks`: SysTick counts over the ingest loop and over `finish`.
 //!   Under `-icount shift=0` QEMU's clock advances one nanosecond per instruction, so with the
@@ -26,7 +28,10 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use cortex_m::peripheral::SYST;
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
-use mema_firmware_sim::firmware::{Firmware, IMAGE_FROZEN, IMAGE_WORKING, stream_params};
+use mema_core::stream::StreamModel;
+use mema_firmware_sim::firmware::{
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, SHELLS, model_params,
+};
 use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
 use static_cell::StaticCell;
@@ -34,7 +39,7 @@ use static_cell::StaticCell;
 /// Working clusters, centre-hash buckets and frozen entities of the image: K = 400 ellipsoids
 /// (the host tests map with `-k 400 --working 150`).
 const K: usize = IMAGE_WORKING;
-const G: usize = 512;
+const G: usize = IMAGE_BUCKETS;
 const F: usize = IMAGE_FROZEN;
 const SEED: u64 = 0;
 
@@ -82,8 +87,18 @@ fn spin(n: u32) {
 #[inline(never)]
 fn boot(
     slot: &'static mut core::mem::MaybeUninit<Firmware<K, G, F>>,
+    model: StreamModel,
 ) -> &'static mut Firmware<K, G, F> {
-    slot.write(Firmware::new(stream_params(SEED, K, F)))
+    slot.write(Firmware::new(model_params(SEED, K, F, model)))
+}
+
+/// The model `model.txt` asks for: the paper's if it begins with `paper`, else shells.
+fn configured_model() -> StreamModel {
+    let mut text = [0u8; 8];
+    match io::read_file(b"model.txt\0", &mut text) {
+        Some(n) if text.get(..n).is_some_and(|t| t.starts_with(b"paper")) => StreamModel::Paper,
+        _ => SHELLS,
+    }
 }
 
 #[entry]
@@ -119,7 +134,11 @@ fn run() -> Result<(), &'static str> {
     let calib_ticks = now() - t0;
 
     // `try_init_with`, not `init_with`: a second initialisation is an error, not a panic.
-    let firmware = boot(FIRMWARE.try_uninit().ok_or("FIRMWARE initialised twice")?);
+    let model = configured_model();
+    let firmware = boot(
+        FIRMWARE.try_uninit().ok_or("FIRMWARE initialised twice")?,
+        model,
+    );
     let stack_boot = stack::high_water();
     stack::paint();
     let mut uart =
@@ -162,8 +181,9 @@ fn run() -> Result<(), &'static str> {
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 16] = [
+    let fields: [(&[u8], u64); 17] = [
         (b"k", (K + F) as u64),
+        (b"shells", u64::from(model != StreamModel::Paper)),
         (b"points", mapper.points),
         (b"frames", fw.frames),
         (b"rejected", decoder.rejected),

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::frames::{encode_stream, quantise};
-use super::link::{Capacity, Link, MAX_CLUSTERS};
+use super::link::{Capacity, Link, MAX_CLUSTERS, stream_model, stream_params};
 use super::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
 use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs, UsageError};
 use crate::commands::{LocalCloud, load_cloud};
@@ -101,7 +101,9 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
 
 /// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
 pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, UsageError> {
-    let StreamShapeArgs { working, tolerance } = *shape;
+    let StreamShapeArgs {
+        working, tolerance, ..
+    } = *shape;
     if k > MAX_CLUSTERS {
         return Err(UsageError(format!(
             "-k {k} is over the streaming mapper's capacity of {MAX_CLUSTERS}"
@@ -122,6 +124,21 @@ pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, UsageErro
         ));
     }
     Ok(Capacity { k, working })
+}
+
+/// The mapper's parameters from the command line.
+pub fn link_params(
+    config: &crate::pipeline::PipelineConfig,
+    capacity: Capacity,
+    shape: &StreamShapeArgs,
+) -> mema_core::stream::StreamParams {
+    stream_params(
+        capacity,
+        config.seed,
+        config.fit,
+        shape.tolerance.unwrap_or(0.0),
+        stream_model(shape.model, &config.fit),
+    )
 }
 
 /// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
@@ -166,12 +183,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
         None => None,
     };
     let stop = interrupted();
-    let mut link = Link::new(
-        capacity,
-        config.seed,
-        config.fit,
-        args.shape.tolerance.unwrap_or(0.0),
-    );
+    let mut link = Link::with_params(link_params(&config, capacity, &args.shape));
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
@@ -330,12 +342,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let bytes = std::fs::read(&args.capture)
         .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
     let stop = interrupted();
-    let mut link = Link::new(
-        capacity,
-        config.seed,
-        config.fit,
-        args.shape.tolerance.unwrap_or(0.0),
-    );
+    let mut link = Link::with_params(link_params(&config, capacity, &args.shape));
     let started = Instant::now();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
@@ -417,21 +424,32 @@ pub fn map_points_directly(
     seed: u64,
     fit: mema_core::fit::FitParams,
 ) -> Result<HostMap> {
+    let params = stream_params(
+        capacity,
+        seed,
+        fit,
+        0.0,
+        mema_core::stream::StreamModel::Paper,
+    );
+    map_points_directly_with(cloud, params)
+}
+
+/// [`map_points_directly`] with every parameter chosen (the model, say).
+pub fn map_points_directly_with(
+    cloud: &LocalCloud,
+    params: mema_core::stream::StreamParams,
+) -> Result<HostMap> {
     let wire: Vec<[i32; 3]> = cloud
         .points
         .iter()
         .map(|p| quantise(*p))
         .collect::<Result<_>>()?;
-    let mut mapper = super::link::new_mapper(capacity, seed, fit, 0.0);
+    let mut mapper = super::link::new_mapper_with(params);
     for q in &wire {
         mapper.add(super::frames::dequantise(*q));
     }
     mapper.finish();
-    Ok(HostMap {
-        origin: [0.0; 3],
-        entities: mapper.entities().collect(),
-        quantization: None,
-    })
+    Ok(super::link::map_of(&mapper))
 }
 
 /// Writes a capture atomically (used by tests and tools that build captures in memory).

@@ -2,7 +2,7 @@
 
 use mema_core::Point3;
 use mema_core::fit::FitParams;
-use mema_core::stream::{StreamMapper, StreamParams};
+use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::{Decoded, Decoder, DecoderStats};
 
 use crate::mapfile::HostMap;
@@ -32,22 +32,63 @@ impl Capacity {
     }
 }
 
-/// A boxed mapper: at 2,048 clusters it is too large for a test thread's stack.
-/// `tolerance` > 0 turns on the tolerance mode (k follows from it, `k` is the capacity).
+/// A boxed mapper of the paper's model: at 2,048 clusters it is too large for a test thread's
+/// stack. `tolerance` > 0 turns on the tolerance mode (k follows from it, `k` is the capacity).
 pub fn new_mapper(
     capacity: Capacity,
     seed: u64,
     fit: FitParams,
     tolerance: f64,
 ) -> Box<HostStreamMapper> {
-    new_mapper_with(StreamParams {
+    new_mapper_with(stream_params(
+        capacity,
+        seed,
+        fit,
+        tolerance,
+        StreamModel::Paper,
+    ))
+}
+
+/// The parameters `stream`, `replay` and `stream-bench` map with.
+pub fn stream_params(
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+    tolerance: f64,
+    model: StreamModel,
+) -> StreamParams {
+    StreamParams {
         fit,
         seed,
         max_clusters: capacity.working,
         max_frozen: capacity.k.saturating_sub(capacity.working),
         refit_interval: REFIT_INTERVAL,
         tolerance,
-    })
+        model,
+    }
+}
+
+/// The command line's `--model` as the stream's: shells at the defaults and `fit`'s sphere
+/// tolerance, as `mema map` makes them.
+pub fn stream_model(model: crate::pipeline::Model, fit: &FitParams) -> StreamModel {
+    match model {
+        crate::pipeline::Model::Paper => StreamModel::Paper,
+        crate::pipeline::Model::Shells => StreamModel::shells(fit.degeneration.sphere_tolerance),
+    }
+}
+
+/// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
+/// quantized grid (the entities already on it, so the map in memory is its file read back).
+pub fn map_of(mapper: &HostStreamMapper) -> HostMap {
+    let layout = mapper.layout();
+    HostMap {
+        origin: [0.0; 3],
+        entities: mapper.stored_entities(layout).collect(),
+        quantization: match layout {
+            mema_core::map::Layout::Quantized(grid) => Some(grid),
+            _ => None,
+        },
+    }
 }
 
 /// A boxed mapper with every parameter chosen by the caller (tolerance mode, say).
@@ -70,10 +111,21 @@ pub struct Link {
 }
 
 impl Link {
+    /// A link of the paper's model.
     pub fn new(capacity: Capacity, seed: u64, fit: FitParams, tolerance: f64) -> Self {
+        Self::with_params(stream_params(
+            capacity,
+            seed,
+            fit,
+            tolerance,
+            StreamModel::Paper,
+        ))
+    }
+
+    pub fn with_params(params: StreamParams) -> Self {
         Self {
             decoder: Decoder::new(),
-            mapper: new_mapper(capacity, seed, fit, tolerance),
+            mapper: new_mapper_with(params),
             end_of_stream: false,
             frames_after_end: 0,
         }
@@ -118,10 +170,6 @@ impl Link {
     }
 
     fn map(&self) -> HostMap {
-        HostMap {
-            origin: [0.0; 3],
-            entities: self.mapper.entities().collect(),
-            quantization: None,
-        }
+        map_of(&self.mapper)
     }
 }
