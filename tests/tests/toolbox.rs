@@ -331,7 +331,7 @@ fn draw_compare_views_styles_and_bad_arguments() {
         tiny.stderr()
     );
     bad(&["missing.mema", "-o", "x.png"], 1, "missing.mema");
-    bad(&["e.mema", "-o", "no/dir/x.png"], 1, "not a directory");
+    bad(&["e.mema", "-o", "no/dir/x.png"], 1, "does not exist");
     assert!(!dir.join("x.png").exists());
 }
 
