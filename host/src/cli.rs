@@ -299,6 +299,11 @@ pub struct MapArgs {
     /// deviations (the patch's thickness).
     #[arg(long, default_value_t = mema_core::shell::ShellParams::default().normal_scale)]
     pub normal_scale: f64,
+    /// Shells: rounds of surface following after k-means, which moves each point to the
+    /// neighbouring cluster whose Gaussian explains it best (stops early once at most one point
+    /// in a thousand moves); 0 keeps the k-means cells.
+    #[arg(long, value_name = "N", default_value_t = crate::surface_clusters::DEFAULT_ROUNDS)]
+    pub surface_rounds: usize,
     /// The paper's method exactly: axis-aligned entities fitted by DE on eq. 12 (F 1.2, CR 0.7,
     /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
     #[arg(long)]

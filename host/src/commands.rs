@@ -95,6 +95,9 @@ pub struct MapReport {
     pub kinds: KindCounts,
     pub kmeans_iterations: u32,
     pub kmeans_converged: bool,
+    /// Rounds of surface following run after k-means (null for the paper's maps and for
+    /// `--surface-rounds 0`).
+    pub surface_rounds: Option<usize>,
     pub entity: EntityChoice,
     pub dropped_non_finite: usize,
     pub output: String,
@@ -115,19 +118,19 @@ pub fn map_cloud(
         cloud,
         config,
         Model::Paper,
-        mema_core::shell::ShellParams::default(),
+        crate::shells::ShellModel::default(),
         entity,
         output,
         labels,
     )
 }
 
-/// [`map_cloud`] in either model (`shell_params` for shells; its degeneration is `config`'s).
+/// [`map_cloud`] in either model (`shells` for shells; their degeneration is `config`'s).
 pub fn map_cloud_with(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     model: Model,
-    shell_params: mema_core::shell::ShellParams,
+    shells: crate::shells::ShellModel,
     entity: EntityChoice,
     output: &Path,
     labels: Option<&Path>,
@@ -135,13 +138,16 @@ pub fn map_cloud_with(
     let clusters = crate::progress::stage("k-means", || {
         pipeline::cluster(&cloud.points, config.k, &config.kmeans)
     })?;
-    let report = match model {
-        Model::Shells => shells_report(cloud, config, shell_params, &clusters, output)?,
-        Model::Paper => paper_report(cloud, config, entity, &clusters, output)?,
+    let (report, refined) = match model {
+        Model::Shells => shells_report(cloud, config, shells, &clusters, output)?,
+        Model::Paper => (
+            paper_report(cloud, config, entity, &clusters, output)?,
+            None,
+        ),
     };
     // After the map: labels never describe a map that was not written.
     if let Some(path) = labels {
-        write_labels(path, &clusters.labels)?;
+        write_labels(path, refined.as_deref().unwrap_or(&clusters.labels))?;
     }
     Ok(report)
 }
@@ -180,6 +186,7 @@ fn paper_report(
         kinds: KindCounts::of(chosen),
         kmeans_iterations: clusters.outcome.iterations,
         kmeans_converged: clusters.outcome.converged,
+        surface_rounds: None,
         entity,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
@@ -190,14 +197,16 @@ fn paper_report(
     })
 }
 
-/// The shell model's map of the clusters, written, and its report.
+/// The shell model's map of the clusters, written, its report, and the points' labels when
+/// surface following changed them.
 fn shells_report(
     cloud: &LocalCloud,
     config: &PipelineConfig,
-    params: mema_core::shell::ShellParams,
+    model: crate::shells::ShellModel,
     clusters: &pipeline::Clusters,
     output: &Path,
-) -> Result<MapReport> {
+) -> Result<(MapReport, Option<Vec<u32>>)> {
+    let params = model.shell;
     // A shell spans its cluster's points, which are bounded: an infinite axis would only add
     // surface where there are no points, so shells never degenerate (--threshold is the paper's).
     let params = mema_core::shell::ShellParams {
@@ -212,21 +221,29 @@ fn shells_report(
         .iter()
         .map(|m| Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
         .collect();
+    let surfaces = (model.surface_rounds > 0).then(|| {
+        crate::progress::stage("following surfaces", || {
+            crate::surface_clusters::follow_surfaces(
+                &cloud.points,
+                &clusters.labels,
+                &centres,
+                model.surface_rounds,
+            )
+        })
+    });
+    let (labels, anchors) = match &surfaces {
+        Some(s) => (&s.labels[..], &s.anchors[..]),
+        None => (&clusters.labels[..], &centres[..]),
+    };
     let map = crate::progress::stage("fitting", || {
-        crate::shells::shell_map(
-            cloud.origin,
-            &cloud.points,
-            &clusters.labels,
-            &centres,
-            &params,
-        )
+        crate::shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
     });
     map.write(output)?;
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     let errors = crate::progress::stage("evaluating", || {
-        pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
+        pipeline::cluster_errors(&cloud.points, labels, &entities)
     });
-    Ok(MapReport {
+    let report = MapReport {
         model: Model::Shells,
         memory: MemoryRow::with_entity_bytes(
             cloud.points.len(),
@@ -238,6 +255,7 @@ fn shells_report(
         kinds: KindCounts::of(&map),
         kmeans_iterations: clusters.outcome.iterations,
         kmeans_converged: clusters.outcome.converged,
+        surface_rounds: surfaces.as_ref().map(|s| s.rounds),
         entity: EntityChoice::Ellipsoid,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
@@ -245,7 +263,8 @@ fn shells_report(
             read: cloud.points.len(),
             ..Default::default()
         },
-    })
+    };
+    Ok((report, surfaces.map(|s| s.labels)))
 }
 
 fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
@@ -277,8 +296,12 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
         "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
         r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
     );
+    let surfaces = match r.surface_rounds {
+        Some(n) => format!("; surface following: {n} rounds"),
+        None => String::new(),
+    };
     eprintln!(
-        "k-means: {} iterations{}; wrote {}",
+        "k-means: {} iterations{}{surfaces}; wrote {}",
         r.kmeans_iterations,
         if r.kmeans_converged {
             ", converged"
@@ -383,10 +406,13 @@ pub fn map(args: &MapArgs) -> Result<()> {
             return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
         }
     }
-    let shell_params = mema_core::shell::ShellParams {
-        tangent_scale: args.tangent_scale,
-        normal_scale: args.normal_scale,
-        ..Default::default()
+    let shells = crate::shells::ShellModel {
+        shell: mema_core::shell::ShellParams {
+            tangent_scale: args.tangent_scale,
+            normal_scale: args.normal_scale,
+            ..Default::default()
+        },
+        surface_rounds: args.surface_rounds,
     };
     let mut config = config;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
@@ -405,7 +431,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
         &cloud,
         &config,
         model,
-        shell_params,
+        shells,
         args.entity,
         &args.output,
         args.labels.as_deref(),

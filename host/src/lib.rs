@@ -20,5 +20,6 @@ pub mod serial;
 pub mod shells;
 pub mod stats;
 pub mod stream_bench;
+pub mod surface_clusters;
 pub mod tolerance;
 pub mod toolbox;

@@ -10,6 +10,24 @@ use rayon::prelude::*;
 use crate::mapfile::HostMap;
 use crate::pipeline::Members;
 
+/// The shell model's settings: the shell of a cluster, and how its clusters are made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShellModel {
+    pub shell: ShellParams,
+    /// Rounds of surface following after k-means (`crate::surface_clusters`); 0 keeps the
+    /// k-means cells.
+    pub surface_rounds: usize,
+}
+
+impl Default for ShellModel {
+    fn default() -> Self {
+        Self {
+            shell: ShellParams::default(),
+            surface_rounds: crate::surface_clusters::DEFAULT_ROUNDS,
+        }
+    }
+}
+
 /// Bytes of one entity of the shell model's file (the header and checksum aside).
 pub const BYTES_PER_ENTITY: usize = QUANTIZED_LEN;
 

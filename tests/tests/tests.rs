@@ -33,6 +33,8 @@ mod queries;
 mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
+// Surface following: closer maps on real scans, labels that match the shells, thread-free.
+mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,
 // replay's bytes whatever the chunking, shells against the paper's fits.
 mod stream_shells;

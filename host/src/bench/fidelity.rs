@@ -9,8 +9,8 @@
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
 
+use crate::shells::ShellModel;
 use anyhow::{Context, Result, bail};
-use mema_core::shell::ShellParams;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -373,7 +373,7 @@ impl Case<'_> {
                     self.cloud,
                     &config,
                     model,
-                    ShellParams::default(),
+                    ShellModel::default(),
                     EntityChoice::Ellipsoid,
                     &path,
                     None,
