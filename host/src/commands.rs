@@ -365,16 +365,37 @@ pub fn check_output_file(path: &Path, what: &str) -> Result<()> {
 /// more than a couple of points to have a shape.
 pub const MIN_POINTS_PER_ENTITY: usize = 4;
 
-pub fn map(args: &MapArgs) -> Result<()> {
-    if let Some(t) = args.tolerance {
-        return map_to_tolerance(args, t);
+/// The shell model `mema map`'s arguments ask for, checked before any work.
+fn shell_model(args: &MapArgs) -> Result<crate::shells::ShellModel> {
+    for (name, v) in [
+        ("--tangent-scale", args.tangent_scale),
+        ("--normal-scale", args.normal_scale),
+    ] {
+        if !(v > 0.0 && v.is_finite()) {
+            return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
+        }
     }
+    Ok(crate::shells::ShellModel {
+        shell: mema_core::shell::ShellParams {
+            tangent_scale: args.tangent_scale,
+            normal_scale: args.normal_scale,
+            ..Default::default()
+        },
+        surface_rounds: args.surface_rounds,
+    })
+}
+
+pub fn map(args: &MapArgs) -> Result<()> {
     let model = if args.paper { Model::Paper } else { args.model };
     if model == Model::Shells && args.entity == EntityChoice::Sphere {
         return Err(crate::cli::UsageError(
             "--entity sphere is the paper's comparison; add --paper (or --model paper)".into(),
         )
         .into());
+    }
+    let shells = shell_model(args)?;
+    if let Some(t) = args.tolerance {
+        return map_to_tolerance(args, t, model, shells.shell);
     }
     let k = match args.bytes {
         Some(bytes) => {
@@ -398,22 +419,6 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
     let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
-    for (name, v) in [
-        ("--tangent-scale", args.tangent_scale),
-        ("--normal-scale", args.normal_scale),
-    ] {
-        if !(v > 0.0 && v.is_finite()) {
-            return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
-        }
-    }
-    let shells = crate::shells::ShellModel {
-        shell: mema_core::shell::ShellParams {
-            tangent_scale: args.tangent_scale,
-            normal_scale: args.normal_scale,
-            ..Default::default()
-        },
-        surface_rounds: args.surface_rounds,
-    };
     let mut config = config;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
     // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
@@ -662,6 +667,7 @@ pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
 #[derive(Serialize)]
 pub struct ToleranceReport {
     pub tolerance: f64,
+    pub model: Model,
     /// The k the hierarchy chose.
     pub k: usize,
     pub memory: MemoryRow,
@@ -676,7 +682,12 @@ pub struct ToleranceReport {
     pub output: String,
 }
 
-fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
+fn map_to_tolerance(
+    args: &MapArgs,
+    tolerance: f64,
+    model: Model,
+    shell: mema_core::shell::ShellParams,
+) -> Result<()> {
     if !(tolerance > 0.0 && tolerance.is_finite()) {
         return Err(crate::cli::UsageError(format!(
             "--tolerance {tolerance} must be a positive length in the cloud's units"
@@ -694,13 +705,27 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
     }
     let (cloud, _) = crate::filter::apply(load_cloud(&args.input)?, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
+    let fit = match model {
+        Model::Paper => crate::tolerance::EntityFit::Paper(config.fit),
+        // As in shells_report: shells never degenerate.
+        Model::Shells => crate::tolerance::EntityFit::shells_for(
+            &cloud.points,
+            mema_core::shell::ShellParams {
+                degeneration: mema_core::Degeneration {
+                    threshold: f64::INFINITY,
+                    ..config.fit.degeneration
+                },
+                ..shell
+            },
+        ),
+    };
     let outcome = crate::tolerance::build(
         &cloud.points,
         tolerance,
         args.capacity,
         args.voronoi_rounds,
         config.seed,
-        &config.fit,
+        &fit,
     )
     .with_context(|| args.input.display().to_string())?;
     let tol = config.fit.degeneration.sphere_tolerance;
@@ -710,11 +735,14 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
             .nodes
             .iter()
             .map(|n| mema_core::MapEntity {
-                entity: n.fit.entity,
-                kind: n.fit.entity.kind(tol),
+                entity: n.entity,
+                kind: n.entity.kind(tol),
             })
             .collect(),
-        quantization: None,
+        quantization: match fit {
+            crate::tolerance::EntityFit::Shells { grid, .. } => Some(grid),
+            crate::tolerance::EntityFit::Paper(_) => None,
+        },
     };
     map.write(&args.output)?;
     if let Some(path) = &args.labels {
@@ -732,7 +760,12 @@ fn map_to_tolerance(args: &MapArgs, tolerance: f64) -> Result<()> {
     let report = ToleranceReport {
         tolerance,
         k: map.entities.len(),
-        memory: MemoryRow::new(cloud.points.len(), map.entities.len()),
+        model,
+        memory: MemoryRow::with_entity_bytes(
+            cloud.points.len(),
+            map.entities.len(),
+            model.bytes_per_entity(),
+        ),
         ellipsoidal: ErrorStats::from_errors(&errors),
         clusters_over_tolerance: errors.iter().filter(|&&e| e > tolerance).count(),
         splits: outcome.splits,

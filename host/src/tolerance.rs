@@ -1,26 +1,63 @@
 //! `mema map --tolerance T`: the hierarchical clustering the paper's future work asks for. No k:
 //! clusters split (2-means inside, moments recomputed) while their eq. 13 error is above T, then
 //! neighbours merge while the merged fit stays at or under T, until every cluster meets T or the
-//! capacity is reached.
+//! capacity is reached. Each cluster's entity is the paper's DE fit or its oriented shell.
+//!
+//! A cluster's eq. 13 error is the RMS distance of its own points to its own entity, and each
+//! point's distance to the map's nearest surface is at most that to its own entity: a map whose
+//! clusters all meet T has `mema eval`'s accuracy RMS at or under T too.
 
 use anyhow::{Result, bail};
 use mema_core::Point3;
 use mema_core::closest_point::SurfaceError;
-use mema_core::fit::{Fit, FitParams, fit_ellipsoid_paper};
+use mema_core::fit::{FitParams, fit_ellipsoid_paper};
 use mema_core::kmeans::{CentroidSum, KMeansParams, kmeans};
+use mema_core::map::record::Quantization;
 use mema_core::moments::Moments;
 use mema_core::rng::stream_rng;
+use mema_core::shell::{ShellParams, shell};
+use mema_core::{Entity, MapEntity};
 use rayon::prelude::*;
 
-/// A cluster of the hierarchy: its points, its place in the tree (for seeds) and its fit.
+/// How a cluster becomes its entity.
+#[derive(Clone, Copy, Debug)]
+pub enum EntityFit {
+    /// The paper's DE fit of eq. 12 (axis-aligned).
+    Paper(FitParams),
+    /// The oriented shell of the cluster's covariance, as stored on `grid`: a cluster's error
+    /// is that of the entity its file reads back.
+    Shells {
+        params: ShellParams,
+        grid: Quantization,
+    },
+}
+
+impl EntityFit {
+    /// Shells on a grid fixed by the cloud's extent: centres are means of points, and no
+    /// cluster's standard deviation exceeds the cloud's largest distance from its origin.
+    pub fn shells_for(points: &[Point3], params: ShellParams) -> Self {
+        let far = points
+            .iter()
+            .flat_map(|p| p.to_f64())
+            .filter(|v| v.is_finite())
+            .fold(0.0f64, |m, v| m.max(v.abs()));
+        let longest = params.tangent_scale.max(params.normal_scale) * far * 3f64.sqrt();
+        Self::Shells {
+            params,
+            grid: Quantization::for_extent(far, longest * 1e-6, longest),
+        }
+    }
+}
+
+/// A cluster of the hierarchy: its points, its place in the tree (for seeds) and its entity.
 #[derive(Clone, Debug)]
 pub struct Node {
     pub members: Vec<u32>,
     /// Heap numbering of the split tree (root 1, children 2i and 2i+1; merges keep the lower):
     /// every random stream derives from it, so the result does not depend on processing order.
     pub id: u64,
-    pub fit: Fit,
-    /// Eq. 13 of `fit` over `members`.
+    pub entity: Entity,
+    /// Eq. 13 of `entity` over `members`.
     pub error: f64,
 }
 
@@ -43,22 +80,32 @@ fn evaluate(
     members: &[u32],
     id: u64,
     seed: u64,
-    fit: &FitParams,
+    fit: &EntityFit,
 ) -> Option<Node> {
     let mut moments = Moments::new();
     for &i in members {
         moments.add(*points.get(i as usize)?);
     }
-    let central = moments.central()?;
-    let f = fit_ellipsoid_paper(&central, fit, &mut stream_rng(seed, id));
+    let entity = match fit {
+        EntityFit::Paper(params) => {
+            let central = moments.central()?;
+            fit_ellipsoid_paper(&central, params, &mut stream_rng(seed, id)).entity
+        }
+        EntityFit::Shells { params, grid } => {
+            let (mean, covariance) = moments.covariance()?;
+            let entity = shell(mean, covariance, params)?;
+            let kind = entity.kind(params.degeneration.sphere_tolerance);
+            grid.quantize(MapEntity { entity, kind }).entity
+        }
+    };
     let mut error = SurfaceError::default();
     for &i in members {
-        error.add(&f.entity, points.get(i as usize)?.to_f64());
+        error.add(&entity, points.get(i as usize)?.to_f64());
     }
     Some(Node {
         members: members.to_vec(),
         id,
-        fit: f,
+        entity,
         error: error.rmse(),
     })
 }
@@ -109,7 +156,7 @@ pub fn build(
     capacity: usize,
     voronoi_rounds: usize,
     seed: u64,
-    fit: &FitParams,
+    fit: &EntityFit,
 ) -> Result<ToleranceOutcome> {
     if !(t > 0.0 && t.is_finite()) {
         bail!("the tolerance must be a positive length");
@@ -153,7 +200,7 @@ fn split_until(
     t: f64,
     capacity: usize,
     seed: u64,
-    fit: &FitParams,
+    fit: &EntityFit,
     outcome: &mut ToleranceOutcome,
 ) {
     while !open.is_empty() {
@@ -198,9 +245,9 @@ fn nearest_centre_refit(
     points: &[Point3],
     nodes: &[Node],
     seed: u64,
-    fit: &FitParams,
+    fit: &EntityFit,
 ) -> Vec<Node> {
-    let centres: Vec<Point3> = nodes.iter().map(|n| n.fit.entity.center).collect();
+    let centres: Vec<Point3> = nodes.iter().map(|n| n.entity.center).collect();
     let labels = crate::pipeline::nearest_centre_labels(points, &centres);
     let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
     for (i, &l) in labels.iter().enumerate() {
@@ -223,11 +270,11 @@ fn merge_neighbours(
     nodes: &mut Vec<Node>,
     t: f64,
     seed: u64,
-    fit: &FitParams,
+    fit: &EntityFit,
 ) -> usize {
     let mut merges = 0;
     loop {
-        let centres: Vec<Point3> = nodes.iter().map(|n| n.fit.entity.center).collect();
+        let centres: Vec<Point3> = nodes.iter().map(|n| n.entity.center).collect();
         let mut pairs: Vec<(f32, usize, usize)> = Vec::new();
         for (a, ca) in centres.iter().enumerate() {
             let mut near: Vec<(f32, usize)> = centres

@@ -56,6 +56,14 @@ impl Quantization {
                 }
             }
         }
+        Self::for_extent(far, lo, hi)
+    }
+
+    /// The finest grid for centres within `far` of the origin on every axis and finite
+    /// semi-axes from `shortest` (at least 10^-6 of `longest`) to `longest`: a grid fixed before
+    /// the entities are known, so that each can be judged as it will be stored.
+    pub fn for_extent(far: f64, shortest: f64, longest: f64) -> Self {
+        let (lo, hi) = (shortest, longest);
         let centre_step = if far > 0.0 {
             // A hair over far / 32767 so the farthest centre rounds inside the i16 range.
             (far * (1.0 + 1e-6) / 32767.0) as f32
