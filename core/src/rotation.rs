@@ -32,11 +32,19 @@ impl Rotation {
     };
 
     /// The rotation of quaternion `[x, y, z, w]`, normalised; `None` for a zero or non-finite one.
+    /// One already unit to f32 precision is kept as it is: a stored rotation read back from a
+    /// CSV or JSON map is then the same bits (renormalising moves an f32 by an ulp), and
+    /// [`Rotation::matrix`] renormalises in f64 anyway.
     pub fn from_quaternion(q: [f64; 4]) -> Option<Self> {
         let n = libm::sqrt(q.iter().map(|v| v * v).sum::<f64>());
         if !(n > 0.0) || !n.is_finite() {
             return None;
         }
+        let n = if libm::fabs(n - 1.0) <= 4.0 * f32::EPSILON as f64 {
+            1.0
+        } else {
+            n
+        };
         let sign = if q[3] < 0.0 { -1.0 } else { 1.0 };
         let [x, y, z, w] = q.map(|v| (sign * v / n) as f32);
         let r = Self { x, y, z, w };

@@ -375,6 +375,10 @@ pub struct DemoArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Map the scan with the paper's method (Tables 2 and 4 with the spherical comparison)
+    /// instead of the default's oriented shells.
+    #[arg(long)]
+    pub paper: bool,
     #[arg(long)]
     pub json: bool,
 }

@@ -459,8 +459,21 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         scan.rays
     );
     let cloud = LocalCloud::from_world(&scan.points);
-    let report = map_cloud(&cloud, &config, EntityChoice::Ellipsoid, &args.output, None)
-        .context("demo scene")?;
+    let model = if args.paper {
+        Model::Paper
+    } else {
+        Model::Shells
+    };
+    let report = map_cloud_with(
+        &cloud,
+        &config,
+        model,
+        crate::shells::ShellModel::default(),
+        EntityChoice::Ellipsoid,
+        &args.output,
+        None,
+    )
+    .context("demo scene")?;
     print_map_report(&report, args.json)
 }
 

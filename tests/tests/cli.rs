@@ -83,10 +83,12 @@ fn eval_json_has_the_documented_keys_and_consistent_figures() {
     let dir = Dir::new("eval");
     let car = shared("car6.pcd");
     let map = dir.join("car.mema");
+    // k-means cells (no surface following): eval's eq. 13 takes each point to its nearest
+    // centre, which is a k-means cell's membership up to its borders.
     let mapped = MemaCommand::new(&dir)
         .arg("map")
         .arg(&car)
-        .args(["-k", "150", "--json", "-o"])
+        .args(["-k", "150", "--surface-rounds", "0", "--json", "-o"])
         .arg(&map)
         .run()
         .assert_ok();
@@ -186,13 +188,42 @@ fn info_counts_kinds_that_sum_to_the_entities() {
 #[test]
 fn demo_needs_no_files_and_writes_its_map() {
     let dir = Dir::new("demo");
+    // The default: oriented shells on the quantized grid.
     let ran = MemaCommand::new(&dir).arg("demo").run().assert_ok();
     assert!(
-        ran.stdout().contains("Table 2") && ran.stdout().contains("ellipsoidal"),
+        ran.stdout().contains("Table 2") && ran.stdout().contains("shells"),
         "{}",
         ran.stdout()
     );
     let map = HostMap::read(&dir.join("mema-demo.mema")).expect("demo map");
     assert_eq!(map.entities.len(), 250);
+    assert!(
+        map.quantization.is_some(),
+        "the default demo map is quantized"
+    );
+    assert!(
+        map.entities
+            .iter()
+            .any(|e| e.entity.rotation != mema_core::Rotation::IDENTITY),
+        "no shell of the demo turned"
+    );
     assert_eq!(dir.listing(), vec!["mema-demo.mema".to_string()]);
+    // The paper's method, one flag away, with its spherical comparison.
+    let ran = MemaCommand::new(&dir)
+        .args(["demo", "--paper"])
+        .run()
+        .assert_ok();
+    assert!(
+        ran.stdout().contains("ellipsoidal") && ran.stdout().contains("spherical"),
+        "{}",
+        ran.stdout()
+    );
+    let map = HostMap::read(&dir.join("mema-demo.mema")).expect("paper demo map");
+    assert_eq!(map.entities.len(), 250);
+    assert!(map.quantization.is_none());
+    assert!(
+        map.entities
+            .iter()
+            .all(|e| e.entity.rotation == mema_core::Rotation::IDENTITY)
+    );
 }
