@@ -155,13 +155,20 @@ fn seeding_start(
     Ok(index_below(rng, points.len()))
 }
 
-/// The integer weights of the draws, fixed by the distances to the first centre (the largest
-/// any point will have).
-fn seeding_scale(distances: &[f32], k: usize) -> Result<WeightScale, KMeansError> {
+/// The largest squared distance to the first centre, refused near f32 overflow. A single
+/// cluster needs it too: its centroid sum and the fit's moments would overflow just the same.
+fn check_extent(distances: &[f32]) -> Result<f32, KMeansError> {
     let max = distances.iter().fold(0.0f32, |m, &d| m.max(d));
     if !(max <= MAX_SQUARED) {
         return Err(KMeansError::CoordinatesTooLarge);
     }
+    Ok(max)
+}
+
+/// The integer weights of the draws, fixed by the distances to the first centre (the largest
+/// any point will have).
+fn seeding_scale(distances: &[f32], k: usize) -> Result<WeightScale, KMeansError> {
+    let max = check_extent(distances)?;
     if !(max > 0.0) {
         return Err(KMeansError::TooFewDistinctPoints { k, distinct: 1 });
     }
@@ -187,6 +194,7 @@ pub fn seed_plus_plus(
     let scale = if k > 1 {
         Some(seeding_scale(distances, k)?)
     } else {
+        check_extent(distances)?;
         None
     };
     for (placed, centre) in centres.iter_mut().enumerate() {

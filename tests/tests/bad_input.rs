@@ -243,3 +243,23 @@ fn a_voxel_too_small_for_the_cloud_is_refused_not_collapsed() {
         .run()
         .assert_ok();
 }
+
+/// A cloud spanning nearly the whole f32 range: every k, one cluster included, refuses it
+/// instead of writing an infinite entity with error 0.
+#[test]
+fn a_cloud_too_wide_for_f32_distances() {
+    let dir = Dir::new("too-wide");
+    let path = dir.write(
+        "wide.xyz",
+        b"-3.4e38 0 0\n3.4e38 0 0\n0 1 0\n0 0 1\n1 1 1\n2 0 1\n",
+    );
+    for k in ["1", "2"] {
+        for model in ["shells", "paper"] {
+            map(&dir, &path, k)
+                .args(["--model", model])
+                .run()
+                .assert_error(1, "squared distances would overflow");
+        }
+    }
+    assert_nothing_written(&dir, &["wide.xyz"]);
+}

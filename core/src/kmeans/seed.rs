@@ -11,7 +11,7 @@
 
 use super::margin::{skip_squared, squared, upper};
 use super::weights::{BLOCK, blocks_for, draw_target};
-use super::{KMEANS_STREAM, KMeansError, check_len, seeding_scale, seeding_start};
+use super::{KMEANS_STREAM, KMeansError, check_extent, check_len, seeding_scale, seeding_start};
 use crate::geometry::Point3;
 use crate::rng::stream_rng;
 
@@ -90,7 +90,9 @@ pub fn seed_plus_plus_fast(
         *c = chosen;
         *l = SeedList::new(0, max);
     }
-    if k > 1 {
+    if k == 1 {
+        check_extent(distances)?;
+    } else {
         let scale = seeding_scale(distances, k)?;
         let mut total = 0u128;
         for (b, chunk) in blocks.iter_mut().zip(distances.chunks(BLOCK)) {
