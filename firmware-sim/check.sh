@@ -60,6 +60,19 @@ for cloud in car6.pcd demo; do
     done
   done
 done
+# A line idling at zero: 1 MiB of zeros before car6's capture changes nothing in the map of the
+# debug build (idle delimiters are skipped in place; the decoder once recursed per idle byte).
+idle="$work/idle"
+mkdir -p "$idle"
+{ head -c 1048576 /dev/zero; cat "$work/car6.pcd/capture.bin"; } > "$idle/capture.bin"
+target/fw-debug/debug/mema-firmware-sim run "$idle/capture.bin" "${shape[@]}" --model shells -o "$idle/debug.mema" \
+  --chunk-seed 5 --max-chunk 2000000 2>/dev/null
+if cmp -s "$work/car6.pcd/shells/replay.mema" "$idle/debug.mema"; then
+  echo "   car6 after 1 MiB of idle zeros, shells: debug = mema replay"
+else
+  echo "firmware: car6 after 1 MiB of idle zeros: the debug build's map differs"
+  status=1
+fi
 for model in paper shells; do
   echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen, model $model)"
   target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt"

@@ -29,6 +29,8 @@ echo "== cargo clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 echo "== core builds without std"
 cargo build -p mema-core --no-default-features
+echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are tested below)"
+(cd core/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== tests (release profile: real clouds)"
 cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"

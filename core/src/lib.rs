@@ -21,6 +21,8 @@ pub mod crc32;
 pub mod de;
 pub mod fit;
 pub mod fitness;
+#[cfg(feature = "fuzzing")]
+pub mod fuzz_checks;
 pub mod geometry;
 pub mod grid;
 pub mod kmeans;

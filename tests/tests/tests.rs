@@ -21,6 +21,8 @@ mod core_contract;
 mod firmware;
 // The fidelity benchmark's GMM baseline: a component becomes its 2-sigma oriented shell.
 mod gmm_shell;
+// The fuzz targets' properties on mutated maps of every layout and mutated captures.
+mod fuzzing;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
 mod fitness;
 // Accelerated k-means against the plain reference on real clouds, on 1 and 2 threads.

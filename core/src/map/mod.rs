@@ -532,7 +532,7 @@ impl<'a> MapFile<'a> {
         self.body.is_empty()
     }
 
-    pub fn entities(&self) -> impl Iterator<Item = MapEntity> + 'a {
+    pub fn entities(&self) -> impl Iterator<Item = MapEntity> + Clone + 'a {
         let layout = self.layout;
         self.body
             .chunks_exact(layout.record_len())
