@@ -20,6 +20,7 @@ pub mod closest_point;
 pub mod crc32;
 pub mod de;
 pub mod fit;
+pub mod fit32;
 pub mod fitness;
 pub mod geometry;
 pub mod grid;
