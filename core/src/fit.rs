@@ -255,7 +255,7 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
 /// [`optimal_sphere_radius`] on the f32 form, in units of `s`: the candidate of the f32 search.
 fn optimal_sphere_radius32(fast: &Fitness32, lo: f32, hi: f32) -> f32 {
     let fitness_of_weight = |w: f32| {
-        let r = 1.0 / libm::sqrtf(w);
+        let r = 1.0 / crate::fit32::sqrt32(w);
         fast.fitness(&[r; 3])
     };
     let (mut a, mut b) = (1.0 / (hi * hi), 1.0 / (lo * lo));
@@ -280,7 +280,7 @@ fn optimal_sphere_radius32(fast: &Fitness32, lo: f32, hi: f32) -> f32 {
             fd = fitness_of_weight(d);
         }
     }
-    let r = 1.0 / libm::sqrtf(0.5 * (a + b));
+    let r = 1.0 / crate::fit32::sqrt32(0.5 * (a + b));
     if r < lo {
         lo
     } else if r > hi {
