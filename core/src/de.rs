@@ -129,7 +129,7 @@ where
     let mut next_scores = scores;
     for _ in 0..params.generations {
         for i in 0..POP {
-            let (r1, r2, r3) = distinct_three::<POP, R>(i, rng);
+            let [r1, r2, r3] = distinct_three::<POP, R>(i, rng);
             let forced = index_below(rng, D);
             let mut trial = population[i];
             // r1, r2, r3 < POP by construction; `get` keeps a bounds-check panic out of the build.
@@ -169,10 +169,10 @@ where
 }
 
 /// Three indices, distinct from each other and from `target`; POP >= 4 guarantees they exist.
-fn distinct_three<const POP: usize, R: Rng + ?Sized>(
+pub(crate) fn distinct_three<const POP: usize, R: Rng + ?Sized>(
     target: usize,
     rng: &mut R,
-) -> (usize, usize, usize) {
+) -> [usize; 3] {
     // Draw from the POP-1 others, then from the remaining ones, skipping taken slots: three
     // draws, never a rejection loop, so the cost is bounded.
     let pick = |rng: &mut R, taken: &[usize]| {
@@ -194,7 +194,7 @@ fn distinct_three<const POP: usize, R: Rng + ?Sized>(
     let r1 = pick(rng, &[target]);
     let r2 = pick(rng, &[target, r1]);
     let r3 = pick(rng, &[target, r1, r2]);
-    (r1, r2, r3)
+    [r1, r2, r3]
 }
 
 #[cfg(test)]
@@ -281,7 +281,7 @@ mod tests {
         let mut rng = stream_rng(5, 5);
         for target in 0..4 {
             for _ in 0..1000 {
-                let (a, b, c) = distinct_three::<4, _>(target, &mut rng);
+                let [a, b, c] = distinct_three::<4, _>(target, &mut rng);
                 let all = [target, a, b, c];
                 for i in 0..4 {
                     assert!(all[i] < 4);

@@ -1,6 +1,7 @@
 //! Fitting one cluster's semi-axes by DE on eq. 12 (Section 3), ellipsoid or one-radius sphere.
 
 use crate::de::{DeParams, OutOfBounds, PAPER_POPULATION, minimize};
+use crate::fit32::{Fitness32, minimize32};
 use crate::fitness::{FitnessTerms, PAPER_ALPHA, VolumeTerm};
 use crate::geometry::{Degeneration, Entity, Point3};
 use crate::moments::CentralMoments;
@@ -92,6 +93,8 @@ struct SearchBox {
     lo: f64,
     hi: f64,
     log_space: bool,
+    /// The cluster's RMS radius (or a positive stand-in): the f32 search's unit of length.
+    scale: f64,
 }
 
 impl SearchBox {
@@ -110,7 +113,51 @@ impl SearchBox {
             lo,
             hi: upper.max(lo),
             log_space,
+            scale: s,
         }
+    }
+
+    /// The f32 search coordinate of semi-axis `r`: `r / s`, or its log.
+    fn coordinate32(&self, r: f64) -> f32 {
+        let x = r / self.scale;
+        (if self.log_space { libm::log(x) } else { x }) as f32
+    }
+
+    /// The semi-axis, in units of `s`, at f32 search coordinate `x`.
+    fn unit_axis32(&self, x: f32) -> f32 {
+        if self.log_space { libm::expf(x) } else { x }
+    }
+
+    /// The semi-axis in the cloud's unit at f32 search coordinate `x`.
+    fn semi_axis_of32(&self, x: f32) -> f64 {
+        clamp(
+            f64::from(self.unit_axis32(x)) * self.scale,
+            self.lo,
+            self.hi,
+        )
+    }
+
+    /// [`SearchBox::minimize`] in f32 on [`Fitness32`]: the fit the core runs.
+    fn minimize32<const D: usize, const POP: usize, R: Rng + ?Sized>(
+        &self,
+        objective: impl Fn(&[f32; D]) -> f32,
+        seed: Option<[f64; D]>,
+        params: &FitParams,
+        rng: &mut R,
+    ) -> ([f64; D], u32) {
+        let result = minimize32::<D, POP, R, _>(
+            |x| objective(&x.map(|v| self.unit_axis32(v))),
+            self.coordinate32(self.lo),
+            self.coordinate32(self.hi),
+            &params.de,
+            params.out_of_bounds,
+            seed.map(|r| r.map(|v| self.coordinate32(v))),
+            rng,
+        );
+        (
+            result.best.map(|v| self.semi_axis_of32(v)),
+            result.evaluations,
+        )
     }
 
     fn search_coordinate(&self, r: f64) -> f64 {
@@ -205,6 +252,67 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
     clamp(1.0 / libm::sqrt(0.5 * (a + b)), lo, hi)
 }
 
+/// [`optimal_sphere_radius`] on the f32 form, in units of `s`: the candidate of the f32 search.
+fn optimal_sphere_radius32(fast: &Fitness32, lo: f32, hi: f32) -> f32 {
+    let fitness_of_weight = |w: f32| {
+        let r = 1.0 / crate::fit32::sqrt32(w);
+        fast.fitness(&[r; 3])
+    };
+    let (mut a, mut b) = (1.0 / (hi * hi), 1.0 / (lo * lo));
+    const INV_PHI: f32 = 0.618_034;
+    let mut c = b - INV_PHI * (b - a);
+    let mut d = a + INV_PHI * (b - a);
+    let (mut fc, mut fd) = (fitness_of_weight(c), fitness_of_weight(d));
+    // 48 steps shrink the bracket by 0.618^48 ~ 1e-10 of its width, past f32's resolution of
+    // the weights in the default box (1/9 to 400 in units of s).
+    for _ in 0..48 {
+        if fc <= fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - INV_PHI * (b - a);
+            fc = fitness_of_weight(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + INV_PHI * (b - a);
+            fd = fitness_of_weight(d);
+        }
+    }
+    let r = 1.0 / crate::fit32::sqrt32(0.5 * (a + b));
+    if r < lo {
+        lo
+    } else if r > hi {
+        hi
+    } else {
+        r
+    }
+}
+
+/// The optimal sphere's radius in units of `s`: found in f32, then made exact in f64.
+fn exact_sphere(fast: &Fitness32, search: &SearchBox) -> f64 {
+    let (lo, hi) = (search.lo / search.scale, search.hi / search.scale);
+    let start = optimal_sphere_radius32(fast, lo as f32, hi as f32);
+    fast.optimal_sphere(lo, hi, f64::from(start))
+}
+
+/// The f32 search's start candidate: the better, by the f32 form, of the least-squares
+/// ellipsoid and the optimal sphere, as semi-axes in the cloud's unit.
+fn moment_candidate32(moments: &CentralMoments, fast: &Fitness32, search: &SearchBox) -> [f64; 3] {
+    let s = search.scale;
+    let sphere = exact_sphere(fast, search);
+    let sphere_axes = [sphere * s; 3];
+    match least_squares_semi_axes(moments, search.lo, search.hi) {
+        Some(e)
+            if fast.fitness(&e.map(|r| (r / s) as f32)) <= fast.fitness(&[sphere as f32; 3]) =>
+        {
+            e
+        }
+        _ => sphere_axes,
+    }
+}
+
 /// Semi-axes minimising eq. 12's residual, `w = E[q q^T]^-1 E[q]`, each clamped into the box.
 fn least_squares_semi_axes(moments: &CentralMoments, lo: f64, hi: f64) -> Option<[f64; 3]> {
     let w = solve3(moments.fourth, moments.second)?;
@@ -255,8 +363,63 @@ pub fn surface_error_estimate(moments: &CentralMoments, params: &FitParams) -> f
     }
 }
 
-/// Fits the ellipsoid semi-axes of one cluster (eq. 12 by DE) with a `POP`-member population.
+/// Fits the ellipsoid semi-axes of one cluster (eq. 12 by DE) with a `POP`-member population:
+/// the search runs in f32 on [`Fitness32`], the reported fitness is eq. 12 in f64.
 pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> Fit {
+    let terms = FitnessTerms::new(moments, params.alpha, params.volume);
+    let search = SearchBox::new(moments, params);
+    let fast = Fitness32::new(&terms, search.scale);
+    let seed = match params.initialisation {
+        Initialisation::Random => None,
+        Initialisation::MomentSeeded => Some(moment_candidate32(moments, &fast, &search)),
+    };
+    let (semi_axes, evaluations) =
+        search.minimize32::<3, POP, R>(|r| fast.fitness(r), seed, params, rng);
+    finish(
+        moments,
+        &terms,
+        semi_axes,
+        search.hi,
+        evaluations,
+        params,
+        false,
+    )
+}
+
+/// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.
+pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> Fit {
+    let terms = FitnessTerms::new(moments, params.alpha, params.volume);
+    let search = SearchBox::new(moments, params);
+    let fast = Fitness32::new(&terms, search.scale);
+    let s = search.scale;
+    let seed = match params.initialisation {
+        Initialisation::Random => None,
+        Initialisation::MomentSeeded => Some([exact_sphere(&fast, &search) * s]),
+    };
+    let ([radius], evaluations) =
+        search.minimize32::<1, POP, R>(|r| fast.fitness(&[r[0]; 3]), seed, params, rng);
+    finish(
+        moments,
+        &terms,
+        [radius; 3],
+        search.hi,
+        evaluations,
+        params,
+        true,
+    )
+}
+
+/// [`fit_ellipsoid`] as it was before the f32 search: DE in f64 on the raw moment form. Kept
+/// as the baseline `mema bench` measures the f32 fit against.
+pub fn fit_ellipsoid_f64<const POP: usize, R: Rng + ?Sized>(
     moments: &CentralMoments,
     params: &FitParams,
     rng: &mut R,
@@ -273,8 +436,8 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     finish(moments, &terms, semi_axes, hi, evaluations, params, false)
 }
 
-/// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.
-pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
+/// [`fit_sphere`] before the f32 search (see [`fit_ellipsoid_f64`]).
+pub fn fit_sphere_f64<const POP: usize, R: Rng + ?Sized>(
     moments: &CentralMoments,
     params: &FitParams,
     rng: &mut R,
@@ -298,6 +461,10 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
     )
 }
 
+/// A semi-axis this close to the box's upper bound rests on it: the f32 search holds the bound
+/// to f32's precision (6e-8), the f64 one exactly.
+const ON_BOUND: f64 = 1e-6;
+
 fn finish(
     moments: &CentralMoments,
     terms: &FitnessTerms,
@@ -319,11 +486,11 @@ fn finish(
     };
     let weights = semi_axes.map(|r| 1.0 / (r * r));
     let on_upper_bound = if sphere {
-        u8::from(semi_axes[0] >= hi * (1.0 - 1e-9))
+        u8::from(semi_axes[0] >= hi * (1.0 - ON_BOUND))
     } else {
         semi_axes
             .iter()
-            .filter(|&&r| r >= hi * (1.0 - 1e-9))
+            .filter(|&&r| r >= hi * (1.0 - ON_BOUND))
             .count() as u8
     };
     Fit {

@@ -20,6 +20,7 @@ pub mod closest_point;
 pub mod crc32;
 pub mod de;
 pub mod fit;
+pub mod fit32;
 pub mod fitness;
 #[cfg(feature = "fuzzing")]
 pub mod fuzz_checks;

@@ -364,8 +364,9 @@ fn readers_never_panic_on_mutated_real_files() {
 }
 
 /// Why a cluster keeps f64 sums (272 bytes, so K = 400 does not fit 64 KiB): the same check
-/// with the sums rounded after every point to f32's 24 significant bits fails on nearly every
-/// cloud, and even 48 bits fails where 2-point clusters fit almost exactly (lamppost).
+/// with the sums rounded after every point to f32's 24 significant bits fails on 7 of the 16
+/// clouds (9 before flat optima were judged on the objective), and even 48 bits fails where
+/// 2-point clusters fit almost exactly (lamppost).
 #[test]
 fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
     let clouds = shared_clouds().expect("../shared/data lists");
@@ -383,7 +384,7 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
         .map(|c| c.cloud.as_str())
         .collect();
     assert!(
-        failing.len() >= 9,
+        failing.len() >= 7,
         "24-bit sums failed only on {failing:?}\n{}",
         f32_sums.text()
     );

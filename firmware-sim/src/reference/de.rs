@@ -1,7 +1,8 @@
 //! DE/rand/1/bin on the direct fitness, drawing from the PCG32 stream exactly as the paper's
 //! algorithm is specified in the core (init draws, seed member, then per target: three distinct
 //! donors, the forced coordinate, one crossover draw per other coordinate), so both runs see the
-//! same random numbers. Everything else is computed here: vectors, box, start candidate.
+//! same random numbers. Everything else is computed here, in f64 and in the cloud's unit where
+//! the core searches in f32 and in units of the cluster's spread: vectors, box, start candidate.
 
 use mema_core::de::DeParams;
 use mema_core::rng::Pcg32;
@@ -14,8 +15,13 @@ use super::moments::DirectMoments;
 const POP: usize = mema_core::de::PAPER_POPULATION;
 
 fn uniform(rng: &mut Pcg32) -> f64 {
-    // 53 random bits scaled into [0, 1).
-    (rng.next_u64() >> 11) as f64 / 9_007_199_254_740_992.0
+    // The top 24 bits of one draw, scaled into [0, 1).
+    f64::from(rng.next_u32() >> 8) / 16_777_216.0
+}
+
+/// A crossover: one draw, passing with probability `rate` (`u / 2^32 <= rate`).
+fn crosses(rng: &mut Pcg32, rate: f64) -> bool {
+    f64::from(rng.next_u32()) <= rate * 4_294_967_296.0
 }
 
 fn index_below(rng: &mut Pcg32, n: usize) -> usize {
@@ -36,22 +42,40 @@ fn pick(rng: &mut Pcg32, taken: &[usize]) -> usize {
 }
 
 /// Minimises `f` over `[lo, hi]^3`; returns the best member and its fitness.
+///
+/// The search space is the core's: coordinates `r / s` held in f32 (`s` the cluster's RMS
+/// radius), the donor `x1 + F (x2 - x3)` rounded as f32 arithmetic rounds it. That is the
+/// algorithm's specification, not its evaluation: which member wins is decided here by the
+/// direct f64 sum, so a comparison the core's f32 form decides differently shows as a
+/// different trajectory.
 pub fn minimize(
     f: impl Fn(&Vector3<f64>) -> f64,
     lo: f64,
     hi: f64,
+    s: f64,
     seed: Option<Vector3<f64>>,
     de: &DeParams,
     rng: &mut Pcg32,
 ) -> (Vector3<f64>, f64) {
-    let mut pop: Vec<Vector3<f64>> = (0..POP)
-        .map(|_| Vector3::from_fn(|_, _| lo + uniform(rng) * (hi - lo)))
+    let (lo32, hi32) = ((lo / s) as f32, (hi / s) as f32);
+    let clamp32 = |v: f32| v.max(lo32).min(hi32);
+    let axes = |x: &[f32; 3]| Vector3::from_fn(|j, _| (f64::from(x[j]) * s).max(lo).min(hi));
+    let mut pop: Vec<[f32; 3]> = (0..POP)
+        .map(|_| [0; 3].map(|_| lo32 + uniform(rng) as f32 * (hi32 - lo32)))
         .collect();
-    let mut score: Vec<f64> = pop.iter().map(&f).collect();
-    if let Some(s) = seed {
-        pop[0] = s.map(|v| if v.is_nan() { lo } else { v.max(lo).min(hi) });
-        score[0] = f(&pop[0]);
+    let mut score: Vec<f64> = pop.iter().map(|x| f(&axes(x))).collect();
+    if let Some(seed) = seed {
+        pop[0] = [0, 1, 2].map(|j| {
+            let v = seed[j];
+            if v.is_nan() {
+                lo32
+            } else {
+                clamp32((v / s) as f32)
+            }
+        });
+        score[0] = f(&axes(&pop[0]));
     }
+    let mutation = de.mutation as f32;
     let wins = |new: f64, old: f64| new <= old || (old.is_nan() && !new.is_nan());
     for _ in 0..de.generations {
         let mut next = pop.clone();
@@ -63,12 +87,11 @@ pub fn minimize(
             let forced = index_below(rng, 3);
             let mut trial = pop[i];
             for j in 0..3 {
-                if j == forced || uniform(rng) <= de.crossover {
-                    let v = pop[r1][j] + de.mutation * (pop[r2][j] - pop[r3][j]);
-                    trial[j] = v.max(lo).min(hi);
+                if j == forced || crosses(rng, de.crossover) {
+                    trial[j] = clamp32(pop[r1][j] + mutation * (pop[r2][j] - pop[r3][j]));
                 }
             }
-            let s = f(&trial);
+            let s = f(&axes(&trial));
             if wins(s, score[i]) {
                 next[i] = trial;
                 next_score[i] = s;
@@ -84,7 +107,7 @@ pub fn minimize(
             b
         }
     });
-    (pop[best], score[best])
+    (axes(&pop[best]), score[best])
 }
 
 /// The start candidate: the better (by direct fitness) of the least-squares ellipsoid, solved
@@ -115,22 +138,28 @@ pub fn moment_candidate(m: &DirectMoments, f: &DirectFitness, lo: f64, hi: f64) 
     }
 }
 
-/// Eq. 12 over spheres is unimodal in `r` (it is convex in `1/r^2`, a monotone map of `r`).
+/// The best sphere: eq. 12 over spheres is convex in `w = 1/r^2`, so its minimum is where the
+/// derivative in `w`, summed point by point, changes sign; bisection finds it to the last bit
+/// (a root is determined to the arithmetic's precision, a minimum only to its square root).
 fn best_sphere(f: &DirectFitness, lo: f64, hi: f64) -> f64 {
-    let g = |r: f64| f.eval(&Vector3::repeat(r));
-    let inv_phi = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (lo, hi);
-    for _ in 0..200 {
-        let c = b - inv_phi * (b - a);
-        let d = a + inv_phi * (b - a);
-        if g(c) <= g(d) {
-            b = d;
-        } else {
-            a = c;
-        }
-        if b - a <= 1e-15 * b {
+    let slope = |w: f64| f.sphere_slope(w);
+    let (mut a, mut b) = (1.0 / (hi * hi), 1.0 / (lo * lo));
+    if slope(a) >= 0.0 {
+        return hi;
+    }
+    if slope(b) <= 0.0 {
+        return lo;
+    }
+    loop {
+        let mid = 0.5 * (a + b);
+        if mid <= a || mid >= b {
             break;
         }
+        if slope(mid) < 0.0 {
+            a = mid;
+        } else {
+            b = mid;
+        }
     }
-    0.5 * (a + b)
+    1.0 / (0.5 * (a + b)).sqrt()
 }

@@ -38,4 +38,24 @@ impl DirectFitness {
         self.alpha * (sum / n).sqrt()
             + (1.0 - self.alpha) * 4.0 / 3.0 * std::f64::consts::PI * r.x * r.y * r.z / n
     }
+
+    /// The derivative of eq. 12 over spheres (`r_x = r_y = r_z = 1/sqrt(w)`) in `w`.
+    pub fn sphere_slope(&self, w: f64) -> f64 {
+        let n = self.squared_offsets.len() as f64;
+        let (mut g2, mut g_dg) = (0.0, 0.0);
+        for q in &self.squared_offsets {
+            let sum = q.x + q.y + q.z;
+            let g = 0.5 * (1.0 - w * sum);
+            g2 += g * g;
+            g_dg += g * (-0.5 * sum);
+        }
+        let rms = (g2 / n).sqrt();
+        let residual = if rms > 0.0 {
+            self.alpha * (g_dg / n) / rms
+        } else {
+            0.0
+        };
+        residual
+            - 1.5 * (1.0 - self.alpha) * 4.0 / 3.0 * std::f64::consts::PI / n / (w * w * w.sqrt())
+    }
 }

@@ -52,7 +52,7 @@ pub fn fit_cluster(
     };
     let hi = hi.max(lo);
     let seed = de::moment_candidate(&m, &f, lo, hi);
-    let (best, fitness) = de::minimize(|r| f.eval(r), lo, hi, Some(seed), &params.de, rng);
+    let (best, fitness) = de::minimize(|r| f.eval(r), lo, hi, s, Some(seed), &params.de, rng);
     let semi_axes = [best.x, best.y, best.z];
     Some(ReferenceFit {
         semi_axes,
