@@ -1,6 +1,6 @@
 //! Command-line arguments (what the user typed) and their validation into a pipeline config.
 
-use crate::pipeline::{EntityChoice, PipelineConfig};
+use crate::mapping::pipeline::{EntityChoice, PipelineConfig};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use mema_core::Degeneration;
 use mema_core::de::{DeParams, OutOfBounds};
@@ -134,8 +134,8 @@ pub struct StreamShapeArgs {
     /// The entity model: `shells` (each cluster's oriented covariance shell, as `mema map`
     /// makes them; written quantized, 14 bytes an entity) or `paper` (the paper's axis-aligned
     /// DE fit of eq. 12, refitted as points arrive; written as version 1).
-    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Shells)]
-    pub model: crate::pipeline::Model,
+    #[arg(long, value_enum, default_value_t = crate::mapping::pipeline::Model::Shells)]
+    pub model: crate::mapping::pipeline::Model,
     /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
     /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
     #[arg(long, value_name = "W")]
@@ -289,8 +289,8 @@ pub struct MapArgs {
     pub bytes: Option<usize>,
     /// The entity model: `shells` (oriented shells of each cluster's covariance, stored on a
     /// quantized grid) or `paper` (the paper's axis-aligned DE fit of eq. 12).
-    #[arg(long, value_enum, default_value_t = crate::pipeline::Model::Shells)]
-    pub model: crate::pipeline::Model,
+    #[arg(long, value_enum, default_value_t = crate::mapping::pipeline::Model::Shells)]
+    pub model: crate::mapping::pipeline::Model,
     /// Shells: semi-axes along a cluster's two largest principal axes are this many standard
     /// deviations (the patch's extent).
     #[arg(long, default_value_t = mema_core::shell::ShellParams::default().tangent_scale)]
@@ -302,7 +302,7 @@ pub struct MapArgs {
     /// Shells: rounds of surface following after k-means, which moves each point to the
     /// neighbouring cluster whose Gaussian explains it best (stops early once at most one point
     /// in a thousand moves); 0 keeps the k-means cells.
-    #[arg(long, value_name = "N", default_value_t = crate::surface_clusters::DEFAULT_ROUNDS)]
+    #[arg(long, value_name = "N", default_value_t = crate::mapping::surface_clusters::DEFAULT_ROUNDS)]
     pub surface_rounds: usize,
     /// The paper's method exactly: axis-aligned entities fitted by DE on eq. 12 (F 1.2, CR 0.7,
     /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
@@ -336,7 +336,7 @@ pub struct MapArgs {
         value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
         allow_hyphen_values = true
     )]
-    pub crop: Option<crate::filter::CropBox>,
+    pub crop: Option<crate::mapping::filter::CropBox>,
     /// Voxel-grid downsampling after the crop: one centroid per occupied cube of this edge.
     #[arg(long, value_name = "SIZE")]
     pub voxel: Option<f64>,
@@ -351,7 +351,7 @@ pub struct EvalArgs {
     pub map: PathBuf,
     /// Points drawn uniformly by area over the map's surface for completeness (at least 8 per
     /// entity whatever this says).
-    #[arg(long, default_value_t = crate::fidelity::DEFAULT_SAMPLES)]
+    #[arg(long, default_value_t = crate::analysis::fidelity::DEFAULT_SAMPLES)]
     pub samples: usize,
     /// Seed of the surface samples.
     #[arg(long, default_value_t = 0)]

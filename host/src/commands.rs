@@ -5,11 +5,11 @@ use mema_core::{EntityKind, Point3};
 use serde::Serialize;
 use std::path::Path;
 
+use crate::analysis::stats::{self, ErrorStats, MemoryRow};
 use crate::cli::{AblationArgs, DemoArgs, InfoArgs, MapArgs};
-use crate::mapfile::HostMap;
-use crate::pipeline::{self, EntityChoice, Model, PipelineConfig};
-use crate::read::read_cloud;
-use crate::stats::{self, ErrorStats, MemoryRow};
+use crate::io::mapfile::HostMap;
+use crate::io::read::read_cloud;
+use crate::mapping::pipeline::{self, EntityChoice, Model, PipelineConfig};
 
 /// A cloud in its local frame, ready for the core.
 pub struct LocalCloud {
@@ -102,7 +102,7 @@ pub struct MapReport {
     pub dropped_non_finite: usize,
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
-    pub filter: crate::filter::FilterCounts,
+    pub filter: crate::mapping::filter::FilterCounts,
 }
 
 /// Clusters, fits both entity types, evaluates eq. 13 for both, writes the chosen map (and the
@@ -118,7 +118,7 @@ pub fn map_cloud(
         cloud,
         config,
         Model::Paper,
-        crate::shells::ShellModel::default(),
+        crate::mapping::shells::ShellModel::default(),
         entity,
         output,
         labels,
@@ -130,7 +130,7 @@ pub fn map_cloud_with(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     model: Model,
-    shells: crate::shells::ShellModel,
+    shells: crate::mapping::shells::ShellModel,
     entity: EntityChoice,
     output: &Path,
     labels: Option<&Path>,
@@ -190,7 +190,7 @@ fn paper_report(
         entity,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
-        filter: crate::filter::FilterCounts {
+        filter: crate::mapping::filter::FilterCounts {
             read: cloud.points.len(),
             ..Default::default()
         },
@@ -202,7 +202,7 @@ fn paper_report(
 fn shells_report(
     cloud: &LocalCloud,
     config: &PipelineConfig,
-    model: crate::shells::ShellModel,
+    model: crate::mapping::shells::ShellModel,
     clusters: &pipeline::Clusters,
     output: &Path,
 ) -> Result<(MapReport, Option<Vec<u32>>)> {
@@ -223,7 +223,7 @@ fn shells_report(
         .collect();
     let surfaces = (model.surface_rounds > 0).then(|| {
         crate::progress::stage("following surfaces", || {
-            crate::surface_clusters::follow_surfaces(
+            crate::mapping::surface_clusters::follow_surfaces(
                 &cloud.points,
                 &clusters.labels,
                 &centres,
@@ -236,7 +236,7 @@ fn shells_report(
         None => (&clusters.labels[..], &centres[..]),
     };
     let map = crate::progress::stage("fitting", || {
-        crate::shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
+        crate::mapping::shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
     });
     map.write(output)?;
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
@@ -248,7 +248,7 @@ fn shells_report(
         memory: MemoryRow::with_entity_bytes(
             cloud.points.len(),
             map.entities.len(),
-            crate::shells::BYTES_PER_ENTITY,
+            crate::mapping::shells::BYTES_PER_ENTITY,
         ),
         ellipsoidal: ErrorStats::from_errors(&errors),
         spherical: None,
@@ -259,7 +259,7 @@ fn shells_report(
         entity: EntityChoice::Ellipsoid,
         dropped_non_finite: cloud.dropped_non_finite,
         output: output.display().to_string(),
-        filter: crate::filter::FilterCounts {
+        filter: crate::mapping::filter::FilterCounts {
             read: cloud.points.len(),
             ..Default::default()
         },
@@ -315,7 +315,7 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
 
 /// Fails before any work if the map could not be written where asked.
 pub fn check_output(path: &Path) -> Result<()> {
-    crate::mapfile::MapFormat::from_path(path)?;
+    crate::io::mapfile::MapFormat::from_path(path)?;
     check_output_file(path, "map")
 }
 
@@ -366,7 +366,7 @@ pub fn check_output_file(path: &Path, what: &str) -> Result<()> {
 pub const MIN_POINTS_PER_ENTITY: usize = 4;
 
 /// The shell model `mema map`'s arguments ask for, checked before any work.
-fn shell_model(args: &MapArgs) -> Result<crate::shells::ShellModel> {
+fn shell_model(args: &MapArgs) -> Result<crate::mapping::shells::ShellModel> {
     for (name, v) in [
         ("--tangent-scale", args.tangent_scale),
         ("--normal-scale", args.normal_scale),
@@ -375,7 +375,7 @@ fn shell_model(args: &MapArgs) -> Result<crate::shells::ShellModel> {
             return Err(crate::cli::UsageError(format!("{name} {v} must be positive")).into());
         }
     }
-    Ok(crate::shells::ShellModel {
+    Ok(crate::mapping::shells::ShellModel {
         shell: mema_core::shell::ShellParams {
             tangent_scale: args.tangent_scale,
             normal_scale: args.normal_scale,
@@ -411,13 +411,16 @@ pub fn map(args: &MapArgs) -> Result<()> {
         None => args.k.unwrap_or(0),
     };
     let config = args.fit.config(k)?;
-    let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
+    let voxel = args
+        .voxel
+        .map(crate::mapping::filter::check_voxel)
+        .transpose()?;
     check_output(&args.output)?;
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
     let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
-    let (cloud, filter) = crate::filter::apply(cloud, args.crop, voxel)
+    let (cloud, filter) = crate::mapping::filter::apply(cloud, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
     let mut config = config;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
@@ -449,9 +452,9 @@ pub fn map(args: &MapArgs) -> Result<()> {
 pub fn demo(args: &DemoArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     check_output(&args.output)?;
-    let scan = crate::scene::scan(
-        &crate::scene::Scene::demo(),
-        &crate::scene::ScanConfig::default(),
+    let scan = crate::io::scene::scan(
+        &crate::io::scene::Scene::demo(),
+        &crate::io::scene::ScanConfig::default(),
     );
     eprintln!(
         "demo: simulated rangefinder scan of the built-in scene (floor, trash can, box, person): {} points from {} rays",
@@ -468,7 +471,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         &cloud,
         &config,
         model,
-        crate::shells::ShellModel::default(),
+        crate::mapping::shells::ShellModel::default(),
         EntityChoice::Ellipsoid,
         &args.output,
         None,
@@ -625,15 +628,15 @@ pub fn info(args: &InfoArgs) -> Result<()> {
 
 pub fn ablation(args: &AblationArgs) -> Result<()> {
     let cloud = load_cloud(&args.input)?;
-    crate::ablation::run(&cloud, args.k, args.seed, args.json)
+    crate::bench::ablation::run(&cloud, args.k, args.seed, args.json)
         .with_context(|| args.input.display().to_string())
 }
 
 pub fn stream_bench(args: &crate::cli::StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let capacity = crate::serial::commands::capacity(args.k, &args.shape)?;
+    let capacity = crate::link::commands::capacity(args.k, &args.shape)?;
     let cloud = load_cloud(&args.input)?;
-    let r = crate::stream_bench::run(
+    let r = crate::bench::stream::run(
         &cloud,
         &config,
         capacity,
@@ -711,17 +714,20 @@ fn map_to_tolerance(
         return Err(crate::cli::UsageError("--capacity must be at least 1".into()).into());
     }
     let config = args.fit.config(1)?;
-    let voxel = args.voxel.map(crate::filter::check_voxel).transpose()?;
+    let voxel = args
+        .voxel
+        .map(crate::mapping::filter::check_voxel)
+        .transpose()?;
     check_output(&args.output)?;
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, _) = crate::filter::apply(load_cloud(&args.input)?, args.crop, voxel)
+    let (cloud, _) = crate::mapping::filter::apply(load_cloud(&args.input)?, args.crop, voxel)
         .with_context(|| args.input.display().to_string())?;
     let fit = match model {
-        Model::Paper => crate::tolerance::EntityFit::Paper(config.fit),
+        Model::Paper => crate::mapping::tolerance::EntityFit::Paper(config.fit),
         // As in shells_report: shells never degenerate.
-        Model::Shells => crate::tolerance::EntityFit::shells_for(
+        Model::Shells => crate::mapping::tolerance::EntityFit::shells_for(
             &cloud.points,
             mema_core::shell::ShellParams {
                 degeneration: mema_core::Degeneration {
@@ -732,7 +738,7 @@ fn map_to_tolerance(
             },
         ),
     };
-    let outcome = crate::tolerance::build(
+    let outcome = crate::mapping::tolerance::build(
         &cloud.points,
         tolerance,
         args.capacity,
@@ -753,8 +759,8 @@ fn map_to_tolerance(
             })
             .collect(),
         quantization: match fit {
-            crate::tolerance::EntityFit::Shells { grid, .. } => Some(grid),
-            crate::tolerance::EntityFit::Paper(_) => None,
+            crate::mapping::tolerance::EntityFit::Shells { grid, .. } => Some(grid),
+            crate::mapping::tolerance::EntityFit::Paper(_) => None,
         },
     };
     map.write(&args.output)?;
@@ -833,5 +839,5 @@ pub fn write_labels(path: &Path, labels: &[u32]) -> Result<()> {
         text.push_str(&l.to_string());
         text.push('\n');
     }
-    crate::mapfile::write_file_atomically(path, text.as_bytes(), "labels")
+    crate::io::mapfile::write_file_atomically(path, text.as_bytes(), "labels")
 }

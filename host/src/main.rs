@@ -4,7 +4,7 @@
 
 use clap::Parser;
 use mema::cli::{Cli, Command, UsageError};
-use mema::serial::commands::LinkLost;
+use mema::link::commands::LinkLost;
 use std::process::ExitCode;
 
 // Counts live and peak heap bytes, which `mema bench` reports (see `mema::heap`).
@@ -15,15 +15,15 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Map(a) => mema::commands::map(a),
-        Command::Eval(a) => mema::eval::eval(a),
+        Command::Eval(a) => mema::analysis::eval::eval(a),
         Command::Info(a) => mema::commands::info(a),
         Command::Demo(a) => mema::commands::demo(a),
         Command::Ablation(a) => mema::commands::ablation(a),
         Command::StreamBench(a) => mema::commands::stream_bench(a),
-        Command::Stream(a) => mema::serial::commands::stream(a),
-        Command::Record(a) => mema::serial::commands::record(a),
-        Command::Replay(a) => mema::serial::commands::replay(a),
-        Command::ScannerSim(a) => mema::serial::commands::scanner_sim(a),
+        Command::Stream(a) => mema::link::commands::stream(a),
+        Command::Record(a) => mema::link::commands::record(a),
+        Command::Replay(a) => mema::link::commands::replay(a),
+        Command::ScannerSim(a) => mema::link::commands::scanner_sim(a),
         Command::Query(a) => mema::query::query(a),
         Command::Transform(a) => mema::query::transform(a),
         Command::QueryBench(a) => mema::query::query_bench(a),

@@ -8,7 +8,7 @@ use serde::Serialize;
 use std::time::Instant;
 
 use crate::cli::{QueryArgs, QueryBenchArgs, TransformArgs, UsageError};
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 /// Entities an index can hold on the host (the paper's largest map has 8,880).
 pub const INDEX_CAPACITY: usize = 16_384;
@@ -274,7 +274,7 @@ pub fn random_queries(map: &HostMap, count: usize, seed: u64) -> Vec<([f64; 3], 
 pub fn run_bench(
     map: &HostMap,
     queries: usize,
-    ray_check: Option<&crate::scene::Scene>,
+    ray_check: Option<&crate::io::scene::Scene>,
 ) -> Result<QueryBench> {
     let index = build_index(map)?;
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
@@ -313,7 +313,7 @@ pub fn run_bench(
     let (mut rays, mut both, mut scene_only, mut map_only, mut sum2) = (0, 0, 0, 0, 0.0);
     let mut abs_errors = Vec::new();
     if let Some(scene) = ray_check {
-        let config = crate::scene::ScanConfig::default();
+        let config = crate::io::scene::ScanConfig::default();
         let sensor = local(map, config.sensor);
         for d in config.ray_directions() {
             rays += 1;
@@ -366,14 +366,16 @@ pub fn query_bench(args: &QueryBenchArgs) -> Result<()> {
         Some(path) => (HostMap::read(path)?, None),
         None => {
             // The demo: the built-in scene's scan, mapped, then its own rays cast at the map.
-            let scene = crate::scene::Scene::demo();
-            let scan = crate::scene::scan(&scene, &crate::scene::ScanConfig::default());
+            let scene = crate::io::scene::Scene::demo();
+            let scan = crate::io::scene::scan(&scene, &crate::io::scene::ScanConfig::default());
             let cloud = crate::commands::LocalCloud::from_world(&scan.points);
             let config = crate::cli::default_fit_args().config(args.k)?;
-            let clusters = crate::pipeline::cluster(&cloud.points, args.k, &config.kmeans)?;
-            let fitted = crate::pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
+            let clusters =
+                crate::mapping::pipeline::cluster(&cloud.points, args.k, &config.kmeans)?;
+            let fitted =
+                crate::mapping::pipeline::fit_all(&clusters.moments, config.seed, &config.fit);
             (
-                crate::pipeline::to_map(
+                crate::mapping::pipeline::to_map(
                     cloud.origin,
                     &fitted.ellipsoids,
                     config.fit.degeneration.sphere_tolerance,

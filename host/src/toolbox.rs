@@ -8,10 +8,10 @@ use std::str::FromStr;
 
 use crate::cli::{Cli, UsageError};
 use crate::commands::{KindCounts, LocalCloud, evaluate, load_cloud};
-use crate::draw::{self, Frame, LegendEntry, Raster, Style, View};
-use crate::export::{Bounds, ExportReport, Tessellation};
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 use crate::progress::stage;
+use crate::render::draw::{self, Frame, LegendEntry, Raster, Style, View};
+use crate::render::export::{Bounds, ExportReport, Tessellation};
 
 /// `--size WxH` in pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -278,7 +278,7 @@ pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
         })
         .collect();
     let centres: Vec<_> = map.entities.iter().map(|e| e.entity.center).collect();
-    let labels = crate::pipeline::nearest_centre_labels(&in_map, &centres);
+    let labels = crate::mapping::pipeline::nearest_centre_labels(&in_map, &centres);
     let all = Bounds::of_points([0.0; 3], &cloud.points);
     let mut boxes = vec![([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); centres.len()];
     let grow = |b: &mut draw::Clip, q: [f64; 3]| {
@@ -331,7 +331,7 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
         render(&cloud, &maps, args.view, args.size, args.style)
     })?;
     let png = raster.encode_png().context("PNG encoding")?;
-    crate::mapfile::write_file_atomically(&args.output, &png, "picture")
+    crate::io::mapfile::write_file_atomically(&args.output, &png, "picture")
         .with_context(|| format!("{}", args.output.display()))?;
     report.output = args.output.display().to_string();
     if args.json {
@@ -374,7 +374,7 @@ impl View {
 
 pub fn export(args: &ExportArgs) -> Result<()> {
     let t = Tessellation::checked(args.segments, args.rings)?;
-    crate::export::MeshFormat::from_path(&args.output)?;
+    crate::render::export::MeshFormat::from_path(&args.output)?;
     check_output(&args.output, &["ply", "obj", "glb"], "mesh")?;
     let map = read_map(&args.map)?;
     let (bounds, source) = match &args.cloud {
@@ -384,7 +384,8 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         }
         None => (Bounds::of_map(&map), "map"),
     };
-    let report: ExportReport = crate::export::export(&map, bounds, source, &t, &args.output)?;
+    let report: ExportReport =
+        crate::render::export::export(&map, bounds, source, &t, &args.output)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

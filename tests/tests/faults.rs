@@ -4,8 +4,8 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::commands::load_cloud;
-use mema::serial::frames::{POINTS_PER_FRAME, push_frame, quantise};
-use mema::serial::link::{Capacity, Link};
+use mema::link::frames::{POINTS_PER_FRAME, push_frame, quantise};
+use mema::link::stream::{Capacity, Link};
 
 struct Rng(u64);
 

@@ -2,7 +2,7 @@
 
 use crate::util::shared_data;
 use mema::commands::load_cloud;
-use mema::pipeline;
+use mema::mapping::pipeline;
 use mema_core::fit::FitParams;
 use mema_core::fitness::FitnessTerms;
 use mema_core::kmeans::KMeansParams;

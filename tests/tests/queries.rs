@@ -3,8 +3,8 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::commands::load_cloud;
-use mema::mapfile::HostMap;
-use mema::pipeline;
+use mema::io::mapfile::HostMap;
+use mema::mapping::pipeline;
 use mema::query::{build_index, random_queries, transform_map};
 use mema_core::fit::SemiAxisBounds;
 use mema_core::query::{brute_force, contains};
@@ -230,7 +230,7 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
             .iter()
             .map(|m| mema_core::Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
             .collect();
-        mema::shells::shell_map(
+        mema::mapping::shells::shell_map(
             local.origin,
             &local.points,
             &clusters.labels,

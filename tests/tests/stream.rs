@@ -5,8 +5,8 @@ use crate::util::{Dir, MemaCommand, mema_bin, shared};
 use clap::Parser;
 use mema::cli::{Cli, Command as MemaSub};
 use mema::commands::load_cloud;
-use mema::serial::commands::map_points_directly;
-use mema::serial::link::Capacity;
+use mema::link::commands::map_points_directly;
+use mema::link::stream::Capacity;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -261,7 +261,8 @@ fn unplugging_mid_stream_keeps_the_map_of_what_arrived() {
         !listing.iter().any(|n| n.ends_with(".tmp")),
         "temporary files left: {listing:?}"
     );
-    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("a valid map was written");
+    let map =
+        mema::io::mapfile::HostMap::read(&dir.join("map.mema")).expect("a valid map was written");
     assert!(!map.entities.is_empty() && map.entities.len() <= 100);
     // It is the map of exactly the bytes that arrived.
     let replay = MemaCommand::new(&dir)
@@ -307,7 +308,7 @@ fn ctrl_c_ends_the_stream_cleanly() {
     assert_eq!(code, 0, "{stderr}");
     assert!(stderr.contains("interrupted"), "{stderr}");
     assert_eq!(stdout.trim(), "map.mema");
-    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
+    let map = mema::io::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
     assert!(map.entities.is_empty());
 }
 

@@ -4,9 +4,9 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::commands::{LocalCloud, load_cloud};
-use mema::draw::{BACKGROUND, Camera, Frame, Raster, Style, View, draw_entities};
-use mema::export::{Bounds, Tessellation, tessellate};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
+use mema::render::draw::{BACKGROUND, Camera, Frame, Raster, Style, View, draw_entities};
+use mema::render::export::{Bounds, Tessellation, tessellate};
 use mema_core::closest_point::surface_distance;
 use mema_core::{EntityKind, MapEntity};
 
@@ -141,7 +141,7 @@ fn expected_bounds(map: &HostMap) -> Bounds {
 /// Each entity's vertices, in the order `tessellate` writes them (by kind, then map order).
 fn per_entity<'a>(
     map: &'a HostMap,
-    meshes: &'a [(EntityKind, mema::export::Mesh)],
+    meshes: &'a [(EntityKind, mema::render::export::Mesh)],
     t: &Tessellation,
 ) -> Vec<(&'a MapEntity, &'a [[f64; 3]])> {
     let mut out = Vec::new();
@@ -279,7 +279,7 @@ fn solids(
     cloud: &LocalCloud,
     map: &HostMap,
     camera: Camera,
-    clips: &[mema::draw::Clip],
+    clips: &[mema::render::draw::Clip],
 ) -> (Frame, Vec<[u8; 3]>) {
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| p.to_f64()).collect();
     let plot = [8, 8, WIDTH as u32 - 16, HEIGHT as u32 - 16];

@@ -1,5 +1,5 @@
 //! `mema bench --only fidelity`: every shared cloud at each byte budget, three maps side by side,
-//! each scored two ways (`crate::fidelity`) as read back from the file it was written to:
+//! each scored two ways (`crate::analysis::fidelity`) as read back from the file it was written to:
 //!
 //! - **default**: the shell model filling the budget (`mema map --model shells --bytes B`);
 //! - **paper**: the paper's method at the same budget (`mema map --bytes B --paper`);
@@ -9,7 +9,7 @@
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
 
-use crate::shells::ShellModel;
+use crate::mapping::shells::ShellModel;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -17,11 +17,11 @@ use std::time::Instant;
 
 use super::gmm::{self, GmmSummary};
 use super::write_npy;
+use crate::analysis::eval::{FileBytes, points_in_map_frame};
+use crate::analysis::fidelity::{FidelityScore, two_way_score};
 use crate::commands::{LocalCloud, MIN_POINTS_PER_ENTITY, load_cloud, map_cloud_with};
-use crate::eval::{FileBytes, points_in_map_frame};
-use crate::fidelity::{FidelityScore, two_way_score};
-use crate::mapfile::HostMap;
-use crate::pipeline::{EntityChoice, Model, PipelineConfig};
+use crate::io::mapfile::HostMap;
+use crate::mapping::pipeline::{EntityChoice, Model, PipelineConfig};
 
 pub use super::fidelity_report::{Summary, print_tables, summaries};
 

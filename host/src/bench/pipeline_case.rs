@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use super::{load, memory, ms};
 use crate::cli::FitArgs;
 use crate::heap;
-use crate::pipeline;
+use crate::mapping::pipeline;
 
 pub struct Case<'a> {
     pub data: &'a Path,
@@ -47,7 +47,7 @@ pub struct PipelineRow {
 impl PipelineRow {
     pub fn format(&self, threads: usize, same: bool) -> String {
         let share = |d: Duration| 100.0 * d.as_secs_f64() / self.wall.as_secs_f64();
-        let cloud = (self.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
+        let cloud = (self.points * crate::analysis::stats::CLOUD_BYTES_PER_POINT) as f64;
         let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / 1e6));
         let ratio =
             |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / cloud));

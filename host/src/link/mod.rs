@@ -3,5 +3,5 @@
 
 pub mod commands;
 pub mod frames;
-pub mod link;
 pub mod port;
+pub mod stream;

@@ -5,11 +5,11 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::Path;
 
+use crate::analysis::fidelity::{self, FidelityScore};
+use crate::analysis::stats::{self, MemoryRow};
 use crate::cli::{EvalArgs, UsageError};
 use crate::commands::{EvalReport, LocalCloud, evaluate, load_cloud};
-use crate::fidelity::{self, FidelityScore};
-use crate::mapfile::{HostMap, MapFormat};
-use crate::stats::{self, MemoryRow};
+use crate::io::mapfile::{HostMap, MapFormat};
 use mema_core::map::MapFile;
 
 /// Past this many surface samples the score costs memory and time for no added precision.

@@ -7,14 +7,14 @@ use mema_core::shell::{ShellParams, shell};
 use mema_core::{MapEntity, Point3};
 use rayon::prelude::*;
 
-use crate::mapfile::HostMap;
-use crate::pipeline::Members;
+use crate::io::mapfile::HostMap;
+use crate::mapping::pipeline::Members;
 
 /// The shell model's settings: the shell of a cluster, and how its clusters are made.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ShellModel {
     pub shell: ShellParams,
-    /// Rounds of surface following after k-means (`crate::surface_clusters`); 0 keeps the
+    /// Rounds of surface following after k-means (`crate::mapping::surface_clusters`); 0 keeps the
     /// k-means cells.
     pub surface_rounds: usize,
 }
@@ -23,7 +23,7 @@ impl Default for ShellModel {
     fn default() -> Self {
         Self {
             shell: ShellParams::default(),
-            surface_rounds: crate::surface_clusters::DEFAULT_ROUNDS,
+            surface_rounds: crate::mapping::surface_clusters::DEFAULT_ROUNDS,
         }
     }
 }

@@ -20,7 +20,7 @@ use serde::Serialize;
 use std::path::Path;
 
 use crate::cli::UsageError;
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 mod formats;
 pub use formats::{to_glb, to_obj, to_ply};
@@ -373,7 +373,7 @@ pub fn export(
         MeshFormat::Obj => to_obj(map, &meshes),
         MeshFormat::Glb => to_glb(map, &meshes)?,
     };
-    crate::mapfile::write_file_atomically(output, &bytes, "mesh")?;
+    crate::io::mapfile::write_file_atomically(output, &bytes, "mesh")?;
     let mut kinds = std::collections::BTreeMap::new();
     for kind in EntityKind::ALL {
         let entities = map.entities.iter().filter(|e| e.kind == kind).count();

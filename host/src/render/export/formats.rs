@@ -4,7 +4,7 @@ use anyhow::{Context, Result};
 use mema_core::EntityKind;
 
 use super::{Mesh, kind_colour};
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 /// Binary little-endian PLY: `double x y z` and `uchar red green blue` per vertex (the kind's
 /// colour), `list uchar int vertex_indices` per face.

@@ -5,7 +5,7 @@ use mema_core::fit::FitParams;
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::{Decoded, Decoder, DecoderStats};
 
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 /// The host's capacity: `-k` may be at most this.
 pub const MAX_CLUSTERS: usize = 2048;
@@ -70,10 +70,12 @@ pub fn stream_params(
 
 /// The command line's `--model` as the stream's: shells at the defaults and `fit`'s sphere
 /// tolerance, as `mema map` makes them.
-pub fn stream_model(model: crate::pipeline::Model, fit: &FitParams) -> StreamModel {
+pub fn stream_model(model: crate::mapping::pipeline::Model, fit: &FitParams) -> StreamModel {
     match model {
-        crate::pipeline::Model::Paper => StreamModel::Paper,
-        crate::pipeline::Model::Shells => StreamModel::shells(fit.degeneration.sphere_tolerance),
+        crate::mapping::pipeline::Model::Paper => StreamModel::Paper,
+        crate::mapping::pipeline::Model::Shells => {
+            StreamModel::shells(fit.degeneration.sphere_tolerance)
+        }
     }
 }
 

@@ -12,8 +12,8 @@
 use mema_core::{EntityKind, Rotation};
 use serde::Serialize;
 
-use crate::export::kind_colour;
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
+use crate::render::export::kind_colour;
 
 pub const BACKGROUND: [u8; 3] = [255, 255, 255];
 pub const POINT_COLOUR: [u8; 3] = [25, 25, 25];

@@ -8,12 +8,14 @@
 //! 5. fidelity (only when asked): the default map, the paper's and a Gaussian mixture at equal
 //!    bytes on every shared cloud, scored two ways (`--python`).
 
+pub mod ablation;
 pub mod fidelity;
 mod fidelity_report;
 pub mod gmm;
 mod memory;
 mod pipeline_case;
 mod scene;
+pub mod stream;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
@@ -26,7 +28,7 @@ use mema_core::rng::stream_rng;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::pipeline::{KMeansEngine, run_kmeans};
+use crate::mapping::pipeline::{KMeansEngine, run_kmeans};
 pub use pipeline_case::{Case, PipelineRow, run_case};
 pub use scene::{GAP, MEMBERS, Scene, environment};
 
@@ -395,7 +397,7 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
             mb(two.heap_before),
         );
         if let Some(stages) = two.heap_stages {
-            let cloud = (two.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
+            let cloud = (two.points * crate::analysis::stats::CLOUD_BYTES_PER_POINT) as f64;
             let [read, kmeans, fit, eval] = stages.map(|b| b as f64 / cloud);
             println!(
                 "{:<16} heap peak by stage (x cloud, 2 threads): read {read:.2}, k-means {kmeans:.2}, fit {fit:.2}, eval {eval:.2}",
@@ -521,7 +523,7 @@ fn fidelity_bench(args: &BenchArgs) -> Result<()> {
         budgets: args.budgets.clone(),
         // k is set per budget; 1 only passes the check.
         base: crate::cli::default_fit_args().config(1)?,
-        samples: crate::fidelity::DEFAULT_SAMPLES,
+        samples: crate::analysis::fidelity::DEFAULT_SAMPLES,
         seed: 0,
         gmm_cache: args.gmm_cache.clone(),
     };

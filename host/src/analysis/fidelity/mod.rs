@@ -267,7 +267,7 @@ fn eq13_labels(points: &[[f64; 3]], entities: &[Entity]) -> Vec<u32> {
         .map(|p| Point3::new(p[0] as f32, p[1] as f32, p[2] as f32))
         .collect();
     let centres: Vec<Point3> = entities.iter().map(|e| e.center).collect();
-    crate::pipeline::nearest_centre_labels(&f32_points, &centres)
+    crate::mapping::pipeline::nearest_centre_labels(&f32_points, &centres)
 }
 
 /// Each point's distance to its nearest other point (0 for a duplicate; infinite alone).

@@ -9,12 +9,12 @@ use mema_core::stream::StreamModel;
 use serde::Serialize;
 use std::time::Instant;
 
+use crate::analysis::fidelity::{DEFAULT_SAMPLES, FidelityScore, two_way_score};
 use crate::commands::{LocalCloud, evaluate};
-use crate::fidelity::{DEFAULT_SAMPLES, FidelityScore, two_way_score};
-use crate::mapfile::HostMap;
-use crate::pipeline::{self, Model, PipelineConfig};
-use crate::serial::frames::{dequantise, encode_stream, quantise};
-use crate::serial::link::{Capacity, Link, new_mapper_with, stream_model, stream_params};
+use crate::io::mapfile::HostMap;
+use crate::link::frames::{dequantise, encode_stream, quantise};
+use crate::link::stream::{Capacity, Link, new_mapper_with, stream_model, stream_params};
+use crate::mapping::pipeline::{self, Model, PipelineConfig};
 
 /// The paper's scanner rate (Section 4).
 pub const SRI_500_POINTS_PER_S: f64 = 800_000.0;
@@ -64,7 +64,7 @@ fn batch_map(cloud: &LocalCloud, config: &PipelineConfig, model: StreamModel) ->
                 .iter()
                 .map(|m| Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
                 .collect();
-            crate::shells::shell_map(
+            crate::mapping::shells::shell_map(
                 cloud.origin,
                 &cloud.points,
                 &clusters.labels,
@@ -76,7 +76,7 @@ fn batch_map(cloud: &LocalCloud, config: &PipelineConfig, model: StreamModel) ->
 }
 
 fn score(cloud: &LocalCloud, map: &HostMap) -> Result<FidelityScore> {
-    let points = crate::eval::points_in_map_frame(cloud, map);
+    let points = crate::analysis::eval::points_in_map_frame(cloud, map);
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     two_way_score(&points, &entities, 0, DEFAULT_SAMPLES)
 }

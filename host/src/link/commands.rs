@@ -9,11 +9,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::frames::{encode_stream, quantise};
-use super::link::{Capacity, Link, MAX_CLUSTERS, stream_model, stream_params};
 use super::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use super::stream::{Capacity, Link, MAX_CLUSTERS, stream_model, stream_params};
 use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs, UsageError};
 use crate::commands::{LocalCloud, load_cloud};
-use crate::mapfile::{HostMap, write_atomically};
+use crate::io::mapfile::{HostMap, write_atomically};
 
 /// How often `stream` reports progress on stderr.
 const PROGRESS_EVERY: Duration = Duration::from_secs(5);
@@ -128,7 +128,7 @@ pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, UsageErro
 
 /// The mapper's parameters from the command line.
 pub fn link_params(
-    config: &crate::pipeline::PipelineConfig,
+    config: &crate::mapping::pipeline::PipelineConfig,
     capacity: Capacity,
     shape: &StreamShapeArgs,
 ) -> mema_core::stream::StreamParams {
@@ -370,9 +370,9 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     let cloud = match &args.cloud {
         Some(path) => load_cloud(path)?,
         None => {
-            let scan = crate::scene::scan(
-                &crate::scene::Scene::demo(),
-                &crate::scene::ScanConfig::default(),
+            let scan = crate::io::scene::scan(
+                &crate::io::scene::Scene::demo(),
+                &crate::io::scene::ScanConfig::default(),
             );
             LocalCloud::from_world(&scan.points)
         }
@@ -444,12 +444,12 @@ pub fn map_points_directly_with(
         .iter()
         .map(|p| quantise(*p))
         .collect::<Result<_>>()?;
-    let mut mapper = super::link::new_mapper_with(params);
+    let mut mapper = super::stream::new_mapper_with(params);
     for q in &wire {
         mapper.add(super::frames::dequantise(*q));
     }
     mapper.finish();
-    Ok(super::link::map_of(&mapper))
+    Ok(super::stream::map_of(&mapper))
 }
 
 /// Writes a capture atomically (used by tests and tools that build captures in memory).

@@ -8,9 +8,9 @@ use mema_core::fitness::VolumeTerm;
 use mema_core::kmeans::KMeansParams;
 use serde::Serialize;
 
+use crate::analysis::stats::ErrorStats;
 use crate::commands::LocalCloud;
-use crate::pipeline;
-use crate::stats::ErrorStats;
+use crate::mapping::pipeline;
 
 #[derive(Serialize)]
 pub struct VariantRow {

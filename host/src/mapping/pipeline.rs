@@ -14,7 +14,7 @@ use mema_core::rng::stream_rng;
 use mema_core::{Entity, MapEntity, Point3};
 use rayon::prelude::*;
 
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 /// Which entity a map is made of.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -30,7 +30,7 @@ pub enum EntityChoice {
 pub enum Model {
     /// The paper: axis-aligned semi-axes fitted by DE on eq. 12 (and a sphere beside it).
     Paper,
-    /// Oriented shells of the clusters' covariances, quantized (`crate::shells`).
+    /// Oriented shells of the clusters' covariances, quantized (`crate::mapping::shells`).
     Shells,
 }
 
@@ -39,7 +39,7 @@ impl Model {
     pub fn bytes_per_entity(self) -> usize {
         match self {
             Self::Paper => mema_core::map::ENTITY_LEN,
-            Self::Shells => crate::shells::BYTES_PER_ENTITY,
+            Self::Shells => crate::mapping::shells::BYTES_PER_ENTITY,
         }
     }
 }

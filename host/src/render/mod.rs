@@ -1,0 +1,3 @@
+//! Pictures and meshes of maps.
+pub mod draw;
+pub mod export;
