@@ -3,7 +3,7 @@
 //! clean frame is used once, and the map equals the map of the clean frames alone.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::link::frames::{POINTS_PER_FRAME, push_frame, quantise};
 use mema::link::stream::{Capacity, Link};
 

@@ -4,7 +4,7 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::analysis::fidelity;
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema_core::Entity;
 use mema_core::closest_point::surface_distance;

@@ -28,7 +28,7 @@ const F: usize = 256;
 type Shape = (usize, usize);
 
 fn capture_of(cloud: &str) -> Vec<u8> {
-    let cloud = mema::commands::load_cloud(&shared(cloud)).expect("cloud reads");
+    let cloud = mema::io::load_cloud(&shared(cloud)).expect("cloud reads");
     let wire: Vec<[i32; 3]> = cloud
         .points
         .iter()

@@ -4,7 +4,7 @@
 
 use crate::util::{shared, shared_data};
 use mema::bench::environment;
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::mapping::pipeline::{self, KMeansEngine, KMeansRun, run_kmeans};
 use mema_core::Point3;
 use mema_core::kmeans::accel::{SeedList, seed_plus_plus_fast};

@@ -2,7 +2,7 @@
 //! clouds, including one whose entities degenerate (pseudocylinders).
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::mapping::pipeline;
 use mema::query::{build_index, random_queries, transform_map};
@@ -12,7 +12,9 @@ use mema_core::transform::RigidTransform;
 
 fn map_of(cloud: &str, k: usize, threshold_box: bool) -> HostMap {
     let local = load_cloud(&shared(cloud)).expect("cloud");
-    let mut config = mema::cli::default_fit_args().config(k).expect("config");
+    let mut config = mema::mapping::FitOptions::default()
+        .config(k)
+        .expect("config");
     if threshold_box {
         config.fit.bounds = SemiAxisBounds::Threshold { lower: 0.05 };
     }
@@ -223,7 +225,9 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
     // turned by a general rotation, so degenerated axes point off the world axes.
     let car = {
         let local = load_cloud(&shared("car6.pcd")).expect("cloud");
-        let config = mema::cli::default_fit_args().config(150).expect("config");
+        let config = mema::mapping::FitOptions::default()
+            .config(150)
+            .expect("config");
         let clusters = pipeline::cluster(&local.points, 150, &config.kmeans).expect("clusters");
         let centres: Vec<_> = clusters
             .moments

@@ -4,7 +4,7 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::analysis::fidelity::{FidelityScore, two_way_score};
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::query::transform_map;
 use mema_core::transform::RigidTransform;

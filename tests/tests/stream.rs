@@ -2,11 +2,9 @@
 //! scripts/test.sh): `scanner-sim` on one end, `stream` on the other.
 
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
-use clap::Parser;
-use mema::cli::{Cli, Command as MemaSub};
-use mema::commands::load_cloud;
-use mema::link::commands::map_points_directly;
+use mema::io::load_cloud;
 use mema::link::stream::Capacity;
+use mema::link::stream::map_points_directly;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -128,13 +126,13 @@ fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
     }
 }
 
-/// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them.
+/// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them (the CLI's
+/// flags default to the library's `FitOptions::default()`, checked by its own unit test).
 fn default_fit() -> mema_core::fit::FitParams {
-    let cli = Cli::parse_from(["mema", "map", "x.pcd", "-k", "150", "-o", "x.mema"]);
-    let MemaSub::Map(args) = cli.command else {
-        unreachable!("parsed as map")
-    };
-    args.fit.config(150).expect("valid defaults").fit
+    mema::mapping::FitOptions::default()
+        .config(150)
+        .expect("valid defaults")
+        .fit
 }
 
 #[test]

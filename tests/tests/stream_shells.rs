@@ -7,9 +7,9 @@
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
 
-use mema::commands::load_cloud;
-use mema::link::commands::map_points_directly_with;
+use mema::io::load_cloud;
 use mema::link::frames::{dequantise, quantise};
+use mema::link::stream::map_points_directly_with;
 use mema::link::stream::{Capacity, new_mapper_with, stream_params};
 use mema_core::Point3;
 use mema_core::stream::{Observer, StreamModel};

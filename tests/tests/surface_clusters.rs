@@ -4,7 +4,7 @@
 //! the labels do not depend on the thread count.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::mapping::surface_clusters::follow_surfaces;
 use mema_core::kmeans::KMeansParams;

@@ -4,7 +4,7 @@
 //! map's nearest surface) is then at or under T too.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
+use mema::io::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema_core::closest_point::distance_to_surface;
 

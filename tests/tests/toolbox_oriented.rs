@@ -3,8 +3,8 @@
 //! matrix are computed here, independently of core.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::{LocalCloud, load_cloud};
 use mema::io::mapfile::HostMap;
+use mema::io::{LocalCloud, load_cloud};
 use mema::render::draw::{BACKGROUND, Camera, Frame, Raster, Style, View, draw_entities};
 use mema::render::export::{Bounds, Tessellation, tessellate};
 use mema_core::closest_point::surface_distance;
@@ -341,9 +341,9 @@ fn draw_of_a_turned_scene_is_the_same_picture() {
                 up: mul(&r3, cam.up),
                 forward: mul(&r3, cam.forward),
             };
-            let clips = mema::toolbox::cluster_boxes(&cloud, &a);
+            let clips = mema::render::picture::cluster_boxes(&cloud, &a);
             let (frame, before) = solids(&cloud, &a, cam, &clips);
-            let turned_clips = mema::toolbox::cluster_boxes(&turned, &r);
+            let turned_clips = mema::render::picture::cluster_boxes(&turned, &r);
             let (turned_frame, after) = solids(&turned, &r, turned_cam, &turned_clips);
             assert!((frame.scale / turned_frame.scale - 1.0).abs() < 1e-6);
             let (differ, at_edge, total) = coverage_difference(&before, &after, WIDTH);
@@ -384,7 +384,7 @@ fn draw_of_a_turned_scene_is_the_same_picture() {
                 })
                 .collect();
             let world_clips =
-                mema::toolbox::cluster_boxes(&turned, &HostMap::new(r.origin, unturned));
+                mema::render::picture::cluster_boxes(&turned, &HostMap::new(r.origin, unturned));
             let (_, wrong) = solids(&turned, &r, turned_cam, &world_clips);
             let (wrong_differ, _, _) = coverage_difference(&before, &wrong, WIDTH);
             eprintln!("{name} {view:?}: clipped along the world's axes, {wrong_differ} differ");

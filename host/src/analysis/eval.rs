@@ -1,30 +1,20 @@
-//! `mema eval`: eq. 13 (Tables 2 and 4) and, beside it, the two-way fidelity score and the
-//! bytes the map file really takes.
+//! Any map against any cloud: eq. 13 (Tables 2 and 4) with each point joining its nearest
+//! centre, and the bytes the map file really takes. The two-way score is
+//! [`super::fidelity::two_way_score`], fed by [`points_in_map_frame`].
 
 use anyhow::{Context, Result};
+use mema_core::Point3;
+use mema_core::map::MapFile;
 use serde::Serialize;
 use std::path::Path;
 
-use crate::analysis::fidelity::{self, FidelityScore};
-use crate::analysis::stats::{self, MemoryRow};
-use crate::cli::{EvalArgs, UsageError};
-use crate::commands::{EvalReport, LocalCloud, evaluate, load_cloud};
+use super::stats::{ErrorStats, MemoryRow};
+use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::{HostMap, MapFormat};
-use mema_core::map::MapFile;
+use crate::mapping::pipeline;
 
 /// Past this many surface samples the score costs memory and time for no added precision.
 pub const MAX_SAMPLES: usize = 100_000_000;
-
-/// `mema eval --json`: eq. 13's keys first and unchanged, then the score's and the bytes'.
-#[derive(Serialize)]
-pub struct EvalJson {
-    #[serde(flatten)]
-    pub eq13: EvalReport,
-    #[serde(flatten)]
-    pub fidelity: FidelityScore,
-    #[serde(flatten)]
-    pub bytes: FileBytes,
-}
 
 /// What the map file stores, measured on disk.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -38,6 +28,7 @@ pub struct FileBytes {
 }
 
 impl FileBytes {
+    /// Measures the file at `path`, which holds `map`.
     pub fn of(path: &Path, map: &HostMap) -> Result<Self> {
         let file_bytes = std::fs::metadata(path)
             .with_context(|| format!("{}: cannot read map", path.display()))?
@@ -84,91 +75,67 @@ pub fn points_in_map_frame(cloud: &LocalCloud, map: &HostMap) -> Vec<[f64; 3]> {
         .collect()
 }
 
-pub fn eval(args: &EvalArgs) -> Result<()> {
-    if args.samples == 0 || args.samples > MAX_SAMPLES {
-        return Err(UsageError(format!(
-            "--samples {} must be between 1 and {MAX_SAMPLES}",
-            args.samples
-        ))
-        .into());
-    }
-    let cloud = crate::progress::stage("reading", || load_cloud(&args.input))?;
-    let map = HostMap::read(&args.map)?;
-    if map.entities.is_empty() {
-        anyhow::bail!("{}: the map has no entities", args.map.display());
-    }
-    let bytes = FileBytes::of(&args.map, &map)?;
-    let eq13 = crate::progress::stage("evaluating", || evaluate(&cloud, &map));
-    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
-    let score = crate::progress::stage("scoring", || {
-        fidelity::two_way_score(
-            &points_in_map_frame(&cloud, &map),
-            &entities,
-            args.seed,
-            args.samples,
-        )
-    })
-    .with_context(|| format!("{} against {}", args.map.display(), args.input.display()))?;
-    if args.json {
-        let doc = EvalJson {
-            eq13,
-            fidelity: score,
-            bytes,
-        };
-        println!("{}", serde_json::to_string(&doc)?);
-        return Ok(());
-    }
-    println!("{}", stats::MEMORY_HEADER);
-    println!(
-        "{}",
-        stats::format_memory_row(&MemoryRow::new(eq13.points, map.entities.len()))
-    );
-    println!();
-    println!(
-        "eq. 13 error over {} non-empty clusters",
-        eq13.errors.clusters
-    );
-    println!("{}", stats::ERROR_HEADER);
-    println!("{}", stats::format_error_row("map", &eq13.errors));
-    println!();
-    print_score(&score, args.seed);
-    println!(
-        "bytes: {} in the file, {:.2} per entity past its {}-byte header",
-        bytes.file_bytes, bytes.bytes_per_entity, bytes.header_bytes
-    );
-    Ok(())
+/// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,
+/// the statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes,
+/// percent`.
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub points: usize,
+    #[serde(flatten)]
+    pub errors: ErrorStats,
+    pub cloud_bytes: usize,
+    pub map_bytes: usize,
+    pub percent: f64,
 }
 
-fn print_score(s: &FidelityScore, seed: u64) {
-    // No reader learns a unit from its file, so lengths are in whatever the cloud used.
-    println!(
-        "two-way score, lengths in cloud units ({} surface samples, seed {seed}):",
-        s.samples
-    );
-    println!(
-        "{:<28} {:>12} {:>12} {:>12} {:>12}",
-        "", "mean", "rms", "p95", "max"
-    );
-    println!(
-        "{:<28} {:>12.6} {:>12.6} {:>12.6} {:>12.6}",
-        "accuracy (cloud to map)", s.accuracy.mean, s.accuracy.rms, s.accuracy.p95, s.accuracy.max
-    );
-    println!(
-        "{:<28} {:>12.6} {:>12.6} {:>12.6} {:>12}",
-        "completeness (map to cloud)",
-        s.completeness.mean,
-        s.completeness.rms,
-        s.completeness.p95,
-        "-"
-    );
-    println!(
-        "tau {:.6} (2 x median point spacing): phantom {:.1}% of {:.6} surface area; precision {:.3}, recall {:.3}, F-score {:.3}",
-        s.tau,
-        100.0 * s.phantom,
-        s.area,
-        s.precision,
-        s.recall,
-        s.f_score
-    );
-    println!("chamfer {:.6}", s.chamfer);
+/// Eq. 13 statistics of any map against any cloud; each point joins its nearest centre.
+///
+/// ```
+/// use mema::io::{HostMap, LocalCloud};
+/// use mema_core::{Entity, MapEntity, Point3};
+///
+/// // A unit sphere at the origin, and four points on it.
+/// let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
+/// let map = HostMap::new([0.0; 3], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+/// let cloud = LocalCloud::from_world(&[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]);
+/// let report = mema::analysis::eval::evaluate(&cloud, &map);
+/// assert_eq!(report.points, 4);
+/// assert!(report.errors.mean < 1e-6);
+/// ```
+pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
+    // Express the cloud in the map's frame (in f64, then f32 like the map's own centres).
+    let shift = [0, 1, 2].map(|j| cloud.origin[j] - map.origin[j]);
+    let points: Vec<Point3> = cloud
+        .points
+        .iter()
+        .map(|p| {
+            let q = p.to_f64();
+            Point3::new(
+                (q[0] + shift[0]) as f32,
+                (q[1] + shift[1]) as f32,
+                (q[2] + shift[2]) as f32,
+            )
+        })
+        .collect();
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let centres: Vec<Point3> = entities.iter().map(|e| e.center).collect();
+    let labels = pipeline::nearest_centre_labels(&points, &centres);
+    let mut members = vec![0usize; entities.len()];
+    for &l in &labels {
+        members[l as usize] += 1;
+    }
+    let errors: Vec<f64> = pipeline::cluster_errors(&points, &labels, &entities)
+        .into_iter()
+        .zip(members.iter())
+        .filter(|(_, n)| **n > 0)
+        .map(|(e, _)| e)
+        .collect();
+    let memory = MemoryRow::new(points.len(), entities.len());
+    EvalReport {
+        points: points.len(),
+        errors: ErrorStats::from_errors(&errors),
+        cloud_bytes: memory.cloud_bytes,
+        map_bytes: memory.map_bytes,
+        percent: memory.percent,
+    }
 }

@@ -9,7 +9,7 @@ use mema_core::kmeans::KMeansParams;
 use serde::Serialize;
 
 use crate::analysis::stats::ErrorStats;
-use crate::commands::LocalCloud;
+use crate::io::cloud::LocalCloud;
 use crate::mapping::pipeline;
 
 #[derive(Serialize)]

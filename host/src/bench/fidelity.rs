@@ -9,7 +9,6 @@
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
 
-use crate::mapping::shells::ShellModel;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -19,11 +18,12 @@ use super::gmm::{self, GmmSummary};
 use super::write_npy;
 use crate::analysis::eval::{FileBytes, points_in_map_frame};
 use crate::analysis::fidelity::{FidelityScore, two_way_score};
-use crate::commands::{LocalCloud, MIN_POINTS_PER_ENTITY, load_cloud, map_cloud_with};
+use crate::batch::map_cloud_with;
+use crate::io::cloud::{LocalCloud, load_cloud};
 use crate::io::mapfile::HostMap;
-use crate::mapping::pipeline::{EntityChoice, Model, PipelineConfig};
-
-pub use super::fidelity_report::{Summary, print_tables, summaries};
+use crate::mapping::options::{
+    EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel,
+};
 
 /// The budgets: 60, 240 and 960 components of 40 bytes.
 pub const DEFAULT_BUDGETS: [usize; 3] = [2_400, 9_600, 38_400];
@@ -449,4 +449,68 @@ pub fn score_map(
 ) -> Result<FidelityScore> {
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     two_way_score(&points_in_map_frame(cloud, map), &entities, seed, samples)
+}
+
+/// One budget over all clouds: how the default map compares with the GMM and the paper.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub budget: usize,
+    /// Clouds with both a default and a GMM map, and those where the default's Chamfer is
+    /// lower (strictly) than the GMM's.
+    pub versus_gmm: usize,
+    pub default_beats_gmm: usize,
+    /// Geometric means of the Chamfer ratios over those clouds (below 1: the default is closer).
+    pub chamfer_ratio_gmm: Option<f64>,
+    pub versus_paper: usize,
+    pub default_beats_paper: usize,
+    pub chamfer_ratio_paper: Option<f64>,
+}
+
+pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
+    budgets
+        .iter()
+        .map(|&budget| {
+            let of = |other: Method| {
+                let ratios: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.budget == budget)
+                    .filter_map(|r| Some((r.cell(Method::Default)?, r.cell(other)?)))
+                    .map(|(d, o)| d.score.chamfer / o.score.chamfer)
+                    .collect();
+                let beats = ratios.iter().filter(|&&q| q < 1.0).count();
+                (ratios.len(), beats, geometric_mean(&ratios))
+            };
+            let (versus_gmm, default_beats_gmm, chamfer_ratio_gmm) = of(Method::Gmm);
+            let (versus_paper, default_beats_paper, chamfer_ratio_paper) = of(Method::Paper);
+            Summary {
+                budget,
+                versus_gmm,
+                default_beats_gmm,
+                chamfer_ratio_gmm,
+                versus_paper,
+                default_beats_paper,
+                chamfer_ratio_paper,
+            }
+        })
+        .collect()
+}
+
+/// `None` for no ratios, or for any that is not a positive finite number (a zero Chamfer).
+fn geometric_mean(ratios: &[f64]) -> Option<f64> {
+    if ratios.is_empty() || !ratios.iter().all(|q| q.is_finite() && *q > 0.0) {
+        return None;
+    }
+    Some((ratios.iter().map(|q| q.ln()).sum::<f64>() / ratios.len() as f64).exp())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometric_means() {
+        assert_eq!(geometric_mean(&[0.5, 2.0]), Some(1.0));
+        assert_eq!(geometric_mean(&[]), None);
+        assert_eq!(geometric_mean(&[0.0, 1.0]), None);
+    }
 }

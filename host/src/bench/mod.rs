@@ -14,11 +14,11 @@ mod fidelity_report;
 pub mod gmm;
 mod memory;
 mod pipeline_case;
+pub mod query;
 mod scene;
 pub mod stream;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
 use mema_core::Point3;
 use mema_core::fit::{FitParams, fit_ellipsoid_paper};
 use mema_core::fitness::FitnessTerms;
@@ -28,56 +28,50 @@ use mema_core::rng::stream_rng;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use crate::io::cloud::load_cloud;
+use crate::mapping::options::FitOptions;
 use crate::mapping::pipeline::{KMeansEngine, run_kmeans};
 pub use pipeline_case::{Case, PipelineRow, run_case};
 pub use scene::{GAP, MEMBERS, Scene, environment};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+/// The benchmarks `mema bench` runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Which {
+    /// Eq. 12 from moments vs the direct per-point sum.
     Fitness,
+    /// Accelerated vs plain k-means.
     Kmeans,
+    /// The whole pipeline, stage by stage, with its peak memory, on 1 and 2 threads.
     Pipeline,
+    /// The same clouds through numpy, scikit-learn and a numpy DE.
     Python,
+    /// The default, the paper's and a Gaussian mixture's maps at equal bytes, scored two ways.
     Fidelity,
 }
 
-#[derive(Args, Debug)]
-pub struct BenchArgs {
+/// What a `mema bench` run does.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchOptions {
     /// Directory holding the shared clouds.
-    #[arg(long, default_value = "../shared/data")]
     pub data: PathBuf,
-    /// Benchmarks to run, comma-separated (default: fitness,kmeans,pipeline, plus python when
-    /// --python is given; fidelity, which takes about an hour, only when named).
-    #[arg(long, value_enum, value_delimiter = ',')]
+    /// Benchmarks to run (empty: fitness, kmeans, pipeline, plus python when `python` is given).
     pub only: Vec<Which>,
-    /// A Python with numpy and scikit-learn (scripts/bench.sh installs one) for benchmarks 4
-    /// and 5.
-    #[arg(long)]
+    /// A Python with numpy and scikit-learn, for benchmarks 4 and 5.
     pub python: Option<PathBuf>,
-    /// Fidelity: only these clouds of --data, comma-separated file names (default: every
-    /// PLY, PCD, LAS and LAZ file there).
-    #[arg(long, value_delimiter = ',')]
+    /// Fidelity: only these clouds of `data` (empty: every PLY, PCD, LAS and LAZ file there).
     pub clouds: Vec<String>,
-    /// Fidelity: map budgets in bytes, comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = fidelity::DEFAULT_BUDGETS)]
+    /// Fidelity: map budgets in bytes.
     pub budgets: Vec<usize>,
-    /// Fidelity: keep each GMM fit in this directory and reuse it for the same points and
-    /// components (the fits take most of the run).
-    #[arg(long, value_name = "DIR")]
+    /// Fidelity: where GMM fits are kept and reused.
     pub gmm_cache: Option<PathBuf>,
     /// Fidelity: print the results as one JSON object on stdout instead of the tables.
-    #[arg(long)]
     pub json: bool,
-    /// Iteration cap of the plain k-means on the environment case, and of the accelerated run
-    /// it is compared with (uncapped, the plain run would take hours).
-    #[arg(long, default_value_t = 3)]
+    /// Iteration cap of the plain k-means on the environment case.
     pub plain_cap: u32,
-    /// Timed runs per measurement; the fastest is reported (the machine is shared).
-    #[arg(long, default_value_t = 3)]
+    /// Timed runs per measurement; the fastest is reported.
     pub repeat: usize,
-    /// Internal: run one pipeline case (`NAME:K:THREADS`) in this process and print it as JSON.
-    /// Each case runs in a fresh process so that its peak memory is its own.
-    #[arg(long, hide = true)]
+    /// Run one pipeline case (`NAME:K:THREADS`) in this process and print it as JSON: each
+    /// case runs in a fresh `mema bench` process so that its peak memory is its own.
     pub case: Option<String>,
 }
 
@@ -103,10 +97,11 @@ pub fn load(data: &Path, name: &str) -> Result<Vec<Point3>> {
     if name == "environment" {
         return Ok(environment(data)?.points);
     }
-    Ok(crate::commands::load_cloud(&data.join(name))?.points)
+    Ok(load_cloud(&data.join(name))?.points)
 }
 
-pub fn run(args: &BenchArgs) -> Result<()> {
+/// Runs the benchmarks `args` asks for, printing their tables.
+pub fn run(args: &BenchOptions) -> Result<()> {
     if let Some(case) = &args.case {
         return pipeline_case::child(args, case);
     }
@@ -156,7 +151,7 @@ fn direct_fitness(points: &[[f64; 3]], mean: [f64; 3], alpha: f64, r: &[f64; 3])
         + (1.0 - alpha) * 4.0 / 3.0 * std::f64::consts::PI * r[0] * r[1] * r[2] / n
 }
 
-fn fitness(args: &BenchArgs) -> Result<()> {
+fn fitness(args: &BenchOptions) -> Result<()> {
     println!();
     println!(
         "1. fitness: eq. 12 from moments vs the direct per-point sum (five_people.pcd patches)"
@@ -256,7 +251,7 @@ fn same_bits(a: &[Point3], b: &[Point3]) -> bool {
             .all(|(p, q)| p.to_array().map(f32::to_bits) == q.to_array().map(f32::to_bits))
 }
 
-fn kmeans(args: &BenchArgs) -> Result<()> {
+fn kmeans(args: &BenchOptions) -> Result<()> {
     println!();
     println!("2. k-means: accelerated vs plain (same seed; labels and centre bits compared)");
     println!(
@@ -356,7 +351,7 @@ fn kmeans(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-fn pipeline(args: &BenchArgs) -> Result<()> {
+fn pipeline(args: &BenchOptions) -> Result<()> {
     println!();
     println!("3. pipeline: read + k-means + fit (ellipsoid and sphere) + eval (eq. 13, both maps)");
     println!(
@@ -423,7 +418,7 @@ fn pipeline(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-fn python(args: &BenchArgs) -> Result<()> {
+fn python(args: &BenchOptions) -> Result<()> {
     let Some(python) = &args.python else {
         bail!(
             "benchmark 4 needs --python PATH (a Python with numpy and scikit-learn; see scripts/bench.sh)"
@@ -505,16 +500,14 @@ fn python(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
-fn fidelity_bench(args: &BenchArgs) -> Result<()> {
+fn fidelity_bench(args: &BenchOptions) -> Result<()> {
     let Some(python) = &args.python else {
         bail!(
             "the fidelity benchmark needs --python PATH (a Python with numpy and scikit-learn; see scripts/bench.sh)"
         );
     };
     if let Some(&b) = args.budgets.iter().find(|&&b| b == 0) {
-        return Err(
-            crate::cli::UsageError(format!("--budgets {b}: a budget is at least 1 byte")).into(),
-        );
+        return Err(crate::error::ConfigError::ZeroBudget(b).into());
     }
     let opts = fidelity::FidelityOptions {
         data: args.data.clone(),
@@ -522,7 +515,7 @@ fn fidelity_bench(args: &BenchArgs) -> Result<()> {
         clouds: args.clouds.clone(),
         budgets: args.budgets.clone(),
         // k is set per budget; 1 only passes the check.
-        base: crate::cli::default_fit_args().config(1)?,
+        base: FitOptions::default().config(1)?,
         samples: crate::analysis::fidelity::DEFAULT_SAMPLES,
         seed: 0,
         gmm_cache: args.gmm_cache.clone(),
@@ -539,7 +532,7 @@ fn fidelity_bench(args: &BenchArgs) -> Result<()> {
         out,
         "5. fidelity: default (shells), paper and GMM (2-sigma shells) maps at equal bytes, two-way score as read back"
     )?;
-    fidelity::print_tables(&report, out)?;
+    fidelity_report::print_tables(&report, out)?;
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
     }

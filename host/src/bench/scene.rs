@@ -47,7 +47,7 @@ pub struct Scene {
 pub fn environment(dir: &Path) -> Result<Scene> {
     let read = |name: &str| {
         let path = dir.join(name);
-        crate::commands::load_cloud(&path)
+        crate::io::cloud::load_cloud(&path)
             .map(|c| c.points)
             .with_context(|| format!("environment scene: {}", path.display()))
     };

@@ -9,12 +9,14 @@ use mema_core::stream::StreamModel;
 use serde::Serialize;
 use std::time::Instant;
 
+use crate::analysis::eval::{evaluate, points_in_map_frame};
 use crate::analysis::fidelity::{DEFAULT_SAMPLES, FidelityScore, two_way_score};
-use crate::commands::{LocalCloud, evaluate};
+use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::HostMap;
 use crate::link::frames::{dequantise, encode_stream, quantise};
 use crate::link::stream::{Capacity, Link, new_mapper_with, stream_model, stream_params};
-use crate::mapping::pipeline::{self, Model, PipelineConfig};
+use crate::mapping::options::{Model, PipelineConfig};
+use crate::mapping::pipeline;
 
 /// The paper's scanner rate (Section 4).
 pub const SRI_500_POINTS_PER_S: f64 = 800_000.0;
@@ -76,7 +78,7 @@ fn batch_map(cloud: &LocalCloud, config: &PipelineConfig, model: StreamModel) ->
 }
 
 fn score(cloud: &LocalCloud, map: &HostMap) -> Result<FidelityScore> {
-    let points = crate::analysis::eval::points_in_map_frame(cloud, map);
+    let points = points_in_map_frame(cloud, map);
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     two_way_score(&points, &entities, 0, DEFAULT_SAMPLES)
 }

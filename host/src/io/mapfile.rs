@@ -8,6 +8,8 @@ use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::path::Path;
 
+use crate::error::ConfigError;
+
 /// A map on the host: the local frame's origin (f64, the cloud's own coordinates) and entities.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HostMap {
@@ -26,7 +28,8 @@ pub enum MapFormat {
 }
 
 impl MapFormat {
-    pub fn from_path(path: &Path) -> Result<Self, crate::cli::UsageError> {
+    /// The format of a map path's extension (`.mema`, `.csv`, `.json`, any case).
+    pub fn from_path(path: &Path) -> Result<Self, ConfigError> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -35,10 +38,29 @@ impl MapFormat {
             Some("mema") => Ok(Self::Mema),
             Some("csv") => Ok(Self::Csv),
             Some("json") => Ok(Self::Json),
-            _ => Err(crate::cli::UsageError(format!(
-                "{}: unknown map extension; consider .mema (binary), .csv or .json",
-                path.display()
-            ))),
+            _ => Err(ConfigError::MapExtension(path.to_path_buf())),
+        }
+    }
+}
+
+/// Entities per kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct KindCounts {
+    pub ellipsoid: usize,
+    pub sphere: usize,
+    pub pseudocylinder: usize,
+    pub plane_pair: usize,
+}
+
+impl KindCounts {
+    /// Counts `map`'s entities by kind.
+    pub fn of(map: &HostMap) -> Self {
+        let count = |k: EntityKind| map.entities.iter().filter(|e| e.kind == k).count();
+        Self {
+            ellipsoid: count(EntityKind::Ellipsoid),
+            sphere: count(EntityKind::Sphere),
+            pseudocylinder: count(EntityKind::Pseudocylinder),
+            plane_pair: count(EntityKind::PlanePair),
         }
     }
 }

@@ -1,11 +1,16 @@
 //! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
 
+use anyhow::Result;
 use mema_core::Point3;
 use mema_core::fit::FitParams;
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::{Decoded, Decoder, DecoderStats};
 
+use super::frames::{dequantise, quantise};
+use crate::error::ConfigError;
+use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::HostMap;
+use crate::mapping::options::{Model, PipelineConfig};
 
 /// The host's capacity: `-k` may be at most this.
 pub const MAX_CLUSTERS: usize = 2048;
@@ -27,8 +32,32 @@ pub struct Capacity {
 }
 
 impl Capacity {
+    /// All k clusters in working memory.
     pub fn all_working(k: usize) -> Self {
         Self { k, working: k }
+    }
+
+    /// k within the host mapper's fixed capacity ([`MAX_CLUSTERS`]), and `working` (all k when
+    /// `None`) within k; frozen clusters cannot merge, so they do not combine with the
+    /// tolerance mode.
+    pub fn checked(k: usize, working: Option<usize>, tolerance: bool) -> Result<Self, ConfigError> {
+        if k > MAX_CLUSTERS {
+            return Err(ConfigError::StreamCapacity {
+                k,
+                max: MAX_CLUSTERS,
+            });
+        }
+        let Some(working) = working else {
+            return Ok(Self::all_working(k));
+        };
+        if working == 0 || working > k {
+            return Err(ConfigError::Working { working, k });
+        }
+        if tolerance && working < k {
+            // Tolerance mode decides k by merging, and a frozen cluster can no longer merge.
+            return Err(ConfigError::WorkingWithTolerance);
+        }
+        Ok(Self { k, working })
     }
 }
 
@@ -68,15 +97,30 @@ pub fn stream_params(
     }
 }
 
-/// The command line's `--model` as the stream's: shells at the defaults and `fit`'s sphere
-/// tolerance, as `mema map` makes them.
-pub fn stream_model(model: crate::mapping::pipeline::Model, fit: &FitParams) -> StreamModel {
+/// A batch [`Model`] as the stream's: shells at the defaults and `fit`'s sphere tolerance, as
+/// `mema map` makes them.
+pub fn stream_model(model: Model, fit: &FitParams) -> StreamModel {
     match model {
-        crate::mapping::pipeline::Model::Paper => StreamModel::Paper,
-        crate::mapping::pipeline::Model::Shells => {
-            StreamModel::shells(fit.degeneration.sphere_tolerance)
-        }
+        Model::Paper => StreamModel::Paper,
+        Model::Shells => StreamModel::shells(fit.degeneration.sphere_tolerance),
     }
+}
+
+/// The mapper's parameters for a batch configuration (`mema stream`, `replay` and
+/// `stream-bench`): a `tolerance` turns on the tolerance mode.
+pub fn link_params(
+    config: &PipelineConfig,
+    capacity: Capacity,
+    tolerance: Option<f64>,
+    model: Model,
+) -> StreamParams {
+    stream_params(
+        capacity,
+        config.seed,
+        config.fit,
+        tolerance.unwrap_or(0.0),
+        stream_model(model, &config.fit),
+    )
 }
 
 /// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
@@ -174,4 +218,31 @@ impl Link {
     fn map(&self) -> HostMap {
         map_of(&self.mapper)
     }
+}
+
+/// The direct path the tests compare the link against: the same points, quantised as the wire
+/// carries them, straight into the mapper (the paper's model).
+pub fn map_points_directly(
+    cloud: &LocalCloud,
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+) -> Result<HostMap> {
+    let params = stream_params(capacity, seed, fit, 0.0, StreamModel::Paper);
+    map_points_directly_with(cloud, params)
+}
+
+/// [`map_points_directly`] with every parameter chosen (the model, say).
+pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
+    let wire: Vec<[i32; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| quantise(*p))
+        .collect::<Result<_>>()?;
+    let mut mapper = new_mapper_with(params);
+    for q in &wire {
+        mapper.add(dequantise(*q));
+    }
+    mapper.finish();
+    Ok(map_of(&mapper))
 }

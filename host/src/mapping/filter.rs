@@ -1,4 +1,5 @@
-//! `--crop` and `--voxel` on `mema map`, as PCL's CropBox and VoxelGrid filters do them.
+//! Cropping and voxel-grid downsampling (`mema map --crop`, `--voxel`), as PCL's CropBox and
+//! VoxelGrid filters do them.
 //!
 //! Both work in the file's own coordinates (f64): the crop box is given in them, and voxel
 //! boundaries sit at multiples of SIZE from the file's zero, so the same file cropped two ways
@@ -6,10 +7,10 @@
 
 use std::str::FromStr;
 
-use crate::cli::UsageError;
-use crate::commands::LocalCloud;
+use crate::error::ConfigError;
+use crate::io::cloud::LocalCloud;
 
-/// `--crop xmin,ymin,zmin,xmax,ymax,zmax`: an axis-aligned box, bounds included.
+/// An axis-aligned box, bounds included; parsed from `xmin,ymin,zmin,xmax,ymax,zmax`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CropBox {
     pub min: [f64; 3],
@@ -50,15 +51,38 @@ impl CropBox {
     }
 }
 
-/// Checks `--voxel SIZE`.
-pub fn check_voxel(size: f64) -> Result<f64, UsageError> {
+/// Checks a voxel grid's edge.
+pub fn check_voxel(size: f64) -> Result<f64, ConfigError> {
     if size > 0.0 && size.is_finite() {
         Ok(size)
     } else {
-        Err(UsageError(format!(
-            "--voxel {size} must be a positive length; consider --voxel 0.05 (5 cm in metres)"
-        )))
+        Err(ConfigError::Voxel(size))
     }
+}
+
+/// What the filters can leave unworkable in a given cloud.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum FilterError {
+    /// No point of the cloud lies in the crop box.
+    #[error("the crop box {min:?}..{max:?} leaves no points of the cloud")]
+    CropLeavesNothing {
+        /// The box's corners.
+        min: [f64; 3],
+        /// The box's corners.
+        max: [f64; 3],
+    },
+    /// A voxel so small that the cloud's coordinates pass 2^53 voxels from zero.
+    #[error(
+        "the voxel size {size} is too small for this cloud: its coordinates reach {reach}, more than 2^53 voxels from zero; use at least {least:e} (in the file's units)"
+    )]
+    VoxelTooSmall {
+        /// The voxel size asked for.
+        size: f64,
+        /// The largest absolute coordinate of the cloud.
+        reach: f64,
+        /// The smallest voxel that works.
+        least: f64,
+    },
 }
 
 /// Point counts through the filters, for the report: `null` where a filter was not asked for.
@@ -69,12 +93,13 @@ pub struct FilterCounts {
     pub voxelized: Option<usize>,
 }
 
-/// Applies the crop, then the voxel grid; fails if nothing is left.
+/// Applies the crop, then the voxel grid; fails if nothing is left or the voxel is too small
+/// for the cloud's coordinates.
 pub fn apply(
     cloud: LocalCloud,
     crop: Option<CropBox>,
     voxel: Option<f64>,
-) -> anyhow::Result<(LocalCloud, FilterCounts)> {
+) -> Result<(LocalCloud, FilterCounts), FilterError> {
     let mut counts = FilterCounts {
         read: cloud.points.len(),
         ..FilterCounts::default()
@@ -92,11 +117,10 @@ pub fn apply(
         points.retain(|p| b.contains(*p));
         counts.cropped = Some(points.len());
         if points.is_empty() {
-            anyhow::bail!(
-                "--crop {:?}..{:?} leaves no points of the cloud",
-                b.min,
-                b.max
-            );
+            return Err(FilterError::CropLeavesNothing {
+                min: b.min,
+                max: b.max,
+            });
         }
     }
     if let Some(size) = voxel {
@@ -108,10 +132,11 @@ pub fn apply(
             .fold(0.0f64, |m, c| m.max(c.abs()));
         let limit = (1u64 << 53) as f64;
         if reach / size >= limit {
-            anyhow::bail!(
-                "--voxel {size} is too small for this cloud: its coordinates reach {reach}, more than 2^53 voxels from zero; use at least {:e} (in the file's units)",
-                reach / limit
-            );
+            return Err(FilterError::VoxelTooSmall {
+                size,
+                reach,
+                least: reach / limit,
+            });
         }
         points = voxel_centroids(&points, size);
         counts.voxelized = Some(points.len());

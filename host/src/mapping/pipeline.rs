@@ -16,42 +16,6 @@ use rayon::prelude::*;
 
 use crate::io::mapfile::HostMap;
 
-/// Which entity a map is made of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum EntityChoice {
-    Ellipsoid,
-    Sphere,
-}
-
-/// How each cluster becomes an entity.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Model {
-    /// The paper: axis-aligned semi-axes fitted by DE on eq. 12 (and a sphere beside it).
-    Paper,
-    /// Oriented shells of the clusters' covariances, quantized (`crate::mapping::shells`).
-    Shells,
-}
-
-impl Model {
-    /// Bytes one entity takes in this model's map file.
-    pub fn bytes_per_entity(self) -> usize {
-        match self {
-            Self::Paper => mema_core::map::ENTITY_LEN,
-            Self::Shells => crate::mapping::shells::BYTES_PER_ENTITY,
-        }
-    }
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct PipelineConfig {
-    pub k: usize,
-    pub seed: u64,
-    pub kmeans: KMeansParams,
-    pub fit: FitParams,
-}
-
 /// Clusters of a cloud: labels and per-cluster central moments.
 pub struct Clusters {
     pub labels: Vec<u32>,

@@ -7,26 +7,8 @@ use mema_core::shell::{ShellParams, shell};
 use mema_core::{MapEntity, Point3};
 use rayon::prelude::*;
 
+use super::pipeline::Members;
 use crate::io::mapfile::HostMap;
-use crate::mapping::pipeline::Members;
-
-/// The shell model's settings: the shell of a cluster, and how its clusters are made.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShellModel {
-    pub shell: ShellParams,
-    /// Rounds of surface following after k-means (`crate::mapping::surface_clusters`); 0 keeps the
-    /// k-means cells.
-    pub surface_rounds: usize,
-}
-
-impl Default for ShellModel {
-    fn default() -> Self {
-        Self {
-            shell: ShellParams::default(),
-            surface_rounds: crate::mapping::surface_clusters::DEFAULT_ROUNDS,
-        }
-    }
-}
 
 /// Bytes of one entity of the shell model's file (the header and checksum aside).
 pub const BYTES_PER_ENTITY: usize = QUANTIZED_LEN;

@@ -9,7 +9,7 @@ use mema_core::Point3;
 use mema_core::shell::symmetric_eigen;
 use rayon::prelude::*;
 
-use crate::mapping::shells::{MeanCovariance, cluster_covariances};
+use super::shells::{MeanCovariance, cluster_covariances};
 
 /// Clusters a point may move to: those of its nearest k-means centres. Candidates fixed once
 /// keep a round linear in the points, and a point moves between neighbours only.

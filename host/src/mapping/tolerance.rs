@@ -248,7 +248,7 @@ fn nearest_centre_refit(
     fit: &EntityFit,
 ) -> Vec<Node> {
     let centres: Vec<Point3> = nodes.iter().map(|n| n.entity.center).collect();
-    let labels = crate::mapping::pipeline::nearest_centre_labels(points, &centres);
+    let labels = super::pipeline::nearest_centre_labels(points, &centres);
     let mut members: Vec<Vec<u32>> = vec![Vec::new(); nodes.len()];
     for (i, &l) in labels.iter().enumerate() {
         if let Some(m) = members.get_mut(l as usize) {

@@ -12,8 +12,8 @@
 use mema_core::{EntityKind, Rotation};
 use serde::Serialize;
 
+use super::export::kind_colour;
 use crate::io::mapfile::HostMap;
-use crate::render::export::kind_colour;
 
 pub const BACKGROUND: [u8; 3] = [255, 255, 255];
 pub const POINT_COLOUR: [u8; 3] = [25, 25, 25];
@@ -21,7 +21,8 @@ pub const INK: [u8; 3] = [0, 0, 0];
 /// Diffuse shading spans `[AMBIENT, 1]` times the kind's colour.
 pub const AMBIENT: f64 = 0.35;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+/// The direction a picture looks along.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum View {
     /// Along (-1, 1, -1): x and y recede to the right and left, z up.
@@ -34,7 +35,8 @@ pub enum View {
     Side,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, Serialize)]
+/// How entities are drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Style {
     /// Lambert-shaded solids in the kind's colour.
@@ -52,6 +54,17 @@ pub struct Camera {
 }
 
 impl View {
+    /// The view's name, as `--json` and the command line spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            View::Iso => "iso",
+            View::Top => "top",
+            View::Front => "front",
+            View::Side => "side",
+        }
+    }
+
+    /// The view's orthographic camera.
     pub fn camera(self) -> Camera {
         let (s2, s3, s6) = (2f64.sqrt(), 3f64.sqrt(), 6f64.sqrt());
         match self {

@@ -19,7 +19,7 @@ use mema_core::{EntityKind, MapEntity, Rotation};
 use serde::Serialize;
 use std::path::Path;
 
-use crate::cli::UsageError;
+use crate::error::ConfigError;
 use crate::io::mapfile::HostMap;
 
 mod formats;
@@ -44,7 +44,8 @@ pub enum MeshFormat {
 }
 
 impl MeshFormat {
-    pub fn from_path(path: &Path) -> Result<Self, UsageError> {
+    /// The format of a mesh path's extension (`.ply`, `.obj`, `.glb`, any case).
+    pub fn from_path(path: &Path) -> Result<Self, ConfigError> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -53,10 +54,7 @@ impl MeshFormat {
             Some("ply") => Ok(Self::Ply),
             Some("obj") => Ok(Self::Obj),
             Some("glb") => Ok(Self::Glb),
-            _ => Err(UsageError(format!(
-                "{}: unknown mesh extension; consider .ply, .obj or .glb",
-                path.display()
-            ))),
+            _ => Err(ConfigError::MeshExtension(path.to_path_buf())),
         }
     }
 }
@@ -68,11 +66,10 @@ pub struct Tessellation {
 }
 
 impl Tessellation {
-    pub fn checked(segments: u32, rings: u32) -> Result<Self, UsageError> {
+    /// Checks the counts: 3..=1024 segments and 2..=512 rings.
+    pub fn checked(segments: u32, rings: u32) -> Result<Self, ConfigError> {
         if !(3..=1024).contains(&segments) || !(2..=512).contains(&rings) {
-            return Err(UsageError(format!(
-                "--segments {segments} --rings {rings}: need 3..=1024 segments and 2..=512 rings; consider the defaults, 24 and 12"
-            )));
+            return Err(ConfigError::Tessellation { segments, rings });
         }
         Ok(Self { segments, rings })
     }
@@ -362,10 +359,7 @@ pub fn export(
         (v + dv, f + df)
     });
     if vertices > u32::MAX as usize / 2 {
-        return Err(UsageError(format!(
-            "{vertices} vertices exceed 32-bit indices; consider fewer --segments or --rings"
-        ))
-        .into());
+        return Err(ConfigError::TooManyVertices(vertices).into());
     }
     let meshes = tessellate(map, &bounds, t);
     let bytes = match format {

@@ -1,19 +1,18 @@
-//! The toolbox commands: `draw`, `export`, `completions` and `man`.
+//! `mema draw`'s picture: one panel per map, side by side on the same scale, with its title,
+//! legend and scale bar, and the geometry of each panel for `--json`.
 
-use anyhow::{Context, Result};
-use clap::{Args, CommandFactory};
 use serde::Serialize;
-use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use crate::cli::{Cli, UsageError};
-use crate::commands::{KindCounts, LocalCloud, evaluate, load_cloud};
-use crate::io::mapfile::HostMap;
-use crate::progress::stage;
-use crate::render::draw::{self, Frame, LegendEntry, Raster, Style, View};
-use crate::render::export::{Bounds, ExportReport, Tessellation};
+use super::draw::{self, Frame, LegendEntry, Raster, Style, View};
+use super::export::Bounds;
+use crate::analysis::eval::evaluate;
+use crate::error::ConfigError;
+use crate::io::cloud::LocalCloud;
+use crate::io::mapfile::{HostMap, KindCounts};
+use crate::mapping::pipeline;
 
-/// `--size WxH` in pixels.
+/// A picture's size in pixels; parsed from `WIDTHxHEIGHT`, within 160x120 ..= 8192x8192.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Size {
     pub width: u32,
@@ -37,79 +36,6 @@ impl FromStr for Size {
             None => Err(format!("'{s}' is not WIDTHxHEIGHT; consider 1200x900")),
         }
     }
-}
-
-#[derive(Args, Debug)]
-pub struct DrawArgs {
-    /// The cloud the map was made from (any readable format).
-    pub input: PathBuf,
-    pub map: PathBuf,
-    /// The picture to write (.png).
-    #[arg(short, long)]
-    pub output: PathBuf,
-    #[arg(long, value_enum, default_value_t = View::Iso)]
-    pub view: View,
-    /// Picture size in pixels; with --compare, the two panels share it side by side.
-    #[arg(long, default_value = "1200x900")]
-    pub size: Size,
-    #[arg(long, value_enum, default_value_t = Style::Shaded)]
-    pub style: Style,
-    /// A second map drawn beside the first on the same scale (the paper's Figure 12:
-    /// `mema map --entity sphere` writes the spherical one).
-    #[arg(long, value_name = "MAP")]
-    pub compare: Option<PathBuf>,
-    /// Print the picture's geometry (frames, legends) as JSON.
-    #[arg(long)]
-    pub json: bool,
-}
-
-#[derive(Args, Debug)]
-pub struct ExportArgs {
-    pub map: PathBuf,
-    /// The mesh to write: .ply, .obj or .glb.
-    #[arg(short, long)]
-    pub output: PathBuf,
-    /// Clip degenerated entities to this cloud's bounding box (default: the map's own extent).
-    #[arg(long, value_name = "CLOUD")]
-    pub cloud: Option<PathBuf>,
-    /// Vertices around each ellipsoid and tube.
-    #[arg(long, default_value_t = 24)]
-    pub segments: u32,
-    /// Latitude bands of each ellipsoid.
-    #[arg(long, default_value_t = 12)]
-    pub rings: u32,
-    #[arg(long)]
-    pub json: bool,
-}
-
-#[derive(Args, Debug)]
-pub struct CompletionsArgs {
-    pub shell: clap_complete::Shell,
-}
-
-/// Fails before any work if `path` lacks the extension or its directory cannot take it.
-fn check_output(path: &Path, ext: &[&str], what: &str) -> Result<()> {
-    let got = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    if !got.as_deref().is_some_and(|g| ext.contains(&g)) {
-        return Err(UsageError(format!(
-            "{}: a {what} needs the extension .{}",
-            path.display(),
-            ext.join(", .")
-        ))
-        .into());
-    }
-    crate::commands::check_output_file(path, what)
-}
-
-fn read_map(path: &Path) -> Result<HostMap> {
-    let map = HostMap::read(path)?;
-    if map.entities.is_empty() {
-        anyhow::bail!("{}: the map has no entities", path.display());
-    }
-    Ok(map)
 }
 
 /// One panel of `mema draw --json`.
@@ -150,14 +76,15 @@ pub struct DrawReport {
     pub panels: Vec<Panel>,
 }
 
-/// Renders the picture; the caller writes it.
+/// Renders the picture of `cloud` and one panel per named map; the caller writes it
+/// ([`Raster::encode_png`]). Fails if `size` leaves too small a plot.
 pub fn render(
     cloud: &LocalCloud,
     maps: &[(String, HostMap)],
     view: View,
     size: Size,
     style: Style,
-) -> Result<(Raster, DrawReport)> {
+) -> Result<(Raster, DrawReport), ConfigError> {
     let n = maps.len() as u32;
     let panel_w = size.width / n;
     let ts: i64 = if panel_w >= 900 { 2 } else { 1 };
@@ -176,11 +103,12 @@ pub fn render(
     let plot_h = size.height.saturating_sub(top + bottom + 4);
     let plot_w = panel_w.saturating_sub(16);
     if plot_w < 64 || plot_h < 48 {
-        return Err(UsageError(format!(
-            "--size {}x{} leaves a {plot_w}x{plot_h} plot; consider 1200x900",
-            size.width, size.height
-        ))
-        .into());
+        return Err(ConfigError::PictureTooSmall {
+            width: size.width,
+            height: size.height,
+            plot_width: plot_w,
+            plot_height: plot_h,
+        });
     }
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| p.to_f64()).collect();
     let point_size = if points.len() as u64 * 64 < u64::from(plot_w) * u64::from(plot_h) {
@@ -278,7 +206,7 @@ pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
         })
         .collect();
     let centres: Vec<_> = map.entities.iter().map(|e| e.entity.center).collect();
-    let labels = crate::mapping::pipeline::nearest_centre_labels(&in_map, &centres);
+    let labels = pipeline::nearest_centre_labels(&in_map, &centres);
     let all = Bounds::of_points([0.0; 3], &cloud.points);
     let mut boxes = vec![([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]); centres.len()];
     let grow = |b: &mut draw::Clip, q: [f64; 3]| {
@@ -318,102 +246,4 @@ pub fn cluster_boxes(cloud: &LocalCloud, map: &HostMap) -> Vec<draw::Clip> {
             turned
         })
         .collect()
-}
-
-pub fn draw(args: &DrawArgs) -> Result<()> {
-    check_output(&args.output, &["png"], "picture")?;
-    let cloud = stage("reading", || load_cloud(&args.input))?;
-    let mut maps = vec![(file_name(&args.map), read_map(&args.map)?)];
-    if let Some(other) = &args.compare {
-        maps.push((file_name(other), read_map(other)?));
-    }
-    let (raster, mut report) = stage("rendering", || {
-        render(&cloud, &maps, args.view, args.size, args.style)
-    })?;
-    let png = raster.encode_png().context("PNG encoding")?;
-    crate::io::mapfile::write_file_atomically(&args.output, &png, "picture")
-        .with_context(|| format!("{}", args.output.display()))?;
-    report.output = args.output.display().to_string();
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        for p in &report.panels {
-            println!(
-                "{}: {} entities, mean eq. 13 error {:.6}",
-                p.map, p.entities, p.mean_error
-            );
-        }
-        println!(
-            "wrote {} ({}x{}, {} view)",
-            report.output,
-            report.width,
-            report.height,
-            args.view.name()
-        );
-    }
-    Ok(())
-}
-
-fn file_name(p: &Path) -> String {
-    p.file_name().map_or_else(
-        || p.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
-}
-
-impl View {
-    fn name(self) -> &'static str {
-        match self {
-            View::Iso => "iso",
-            View::Top => "top",
-            View::Front => "front",
-            View::Side => "side",
-        }
-    }
-}
-
-pub fn export(args: &ExportArgs) -> Result<()> {
-    let t = Tessellation::checked(args.segments, args.rings)?;
-    crate::render::export::MeshFormat::from_path(&args.output)?;
-    check_output(&args.output, &["ply", "obj", "glb"], "mesh")?;
-    let map = read_map(&args.map)?;
-    let (bounds, source) = match &args.cloud {
-        Some(path) => {
-            let cloud = stage("reading", || load_cloud(path))?;
-            (Bounds::of_points(cloud.origin, &cloud.points), "cloud")
-        }
-        None => (Bounds::of_map(&map), "map"),
-    };
-    let report: ExportReport =
-        crate::render::export::export(&map, bounds, source, &t, &args.output)?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        println!(
-            "wrote {}: {} entities as {} vertices and {} triangles (degenerated ones clipped to the {}'s box)",
-            report.output, report.entities, report.vertices, report.triangles, report.bounds_source
-        );
-    }
-    Ok(())
-}
-
-pub fn completions(args: &CompletionsArgs) -> Result<()> {
-    let mut out = Vec::new();
-    clap_complete::generate(args.shell, &mut Cli::command(), "mema", &mut out);
-    print_bytes(&out)
-}
-
-pub fn man() -> Result<()> {
-    let mut out = Vec::new();
-    clap_mangen::Man::new(Cli::command()).render(&mut out)?;
-    print_bytes(&out)
-}
-
-/// A closed pipe (`mema man | head`) is not an error worth a message.
-fn print_bytes(bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    match std::io::stdout().write_all(bytes) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        other => other.context("stdout"),
-    }
 }

@@ -3,26 +3,39 @@
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use super::frames::{encode_stream, quantise};
-use super::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
-use super::stream::{Capacity, Link, MAX_CLUSTERS, stream_model, stream_params};
-use crate::cli::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs, UsageError};
-use crate::commands::{LocalCloud, load_cloud};
-use crate::io::mapfile::{HostMap, write_atomically};
+use mema::io::cloud::{LocalCloud, load_cloud};
+use mema::io::output::{check_map_output, check_output_dir};
+use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::link::capture::CaptureWriter;
+use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
+use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use mema::link::stream::{Capacity, Link, link_params};
+use mema_core::stream::StreamParams;
+
+use crate::cli::args::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs};
+use crate::cli::errors::LinkLost;
+
+/// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
+pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, mema::ConfigError> {
+    Capacity::checked(k, shape.working, shape.tolerance.is_some())
+}
+
+/// The mapper's parameters from the command line.
+fn params(
+    config: &mema::mapping::PipelineConfig,
+    capacity: Capacity,
+    shape: &StreamShapeArgs,
+) -> StreamParams {
+    link_params(config, capacity, shape.tolerance, shape.model.into())
+}
 
 /// How often `stream` reports progress on stderr.
 const PROGRESS_EVERY: Duration = Duration::from_secs(5);
-
-/// The stream ended without its end-of-stream frame (port closed, cable pulled, capture cut).
-/// The map of what arrived is written; the exit status is 3 so scripts can tell.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct LinkLost(pub String);
 
 /// Set by Ctrl-C; every loop polls it between reads.
 fn interrupted() -> Arc<AtomicBool> {
@@ -99,48 +112,6 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
-pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, UsageError> {
-    let StreamShapeArgs {
-        working, tolerance, ..
-    } = *shape;
-    if k > MAX_CLUSTERS {
-        return Err(UsageError(format!(
-            "-k {k} is over the streaming mapper's capacity of {MAX_CLUSTERS}"
-        )));
-    }
-    let Some(working) = working else {
-        return Ok(Capacity::all_working(k));
-    };
-    if working == 0 || working > k {
-        return Err(UsageError(format!(
-            "--working {working} must be between 1 and -k ({k})"
-        )));
-    }
-    if tolerance.is_some() && working < k {
-        // Tolerance mode decides k by merging, and a frozen cluster can no longer merge.
-        return Err(UsageError(
-            "--working and --tolerance do not combine: frozen clusters cannot merge".into(),
-        ));
-    }
-    Ok(Capacity { k, working })
-}
-
-/// The mapper's parameters from the command line.
-pub fn link_params(
-    config: &crate::mapping::pipeline::PipelineConfig,
-    capacity: Capacity,
-    shape: &StreamShapeArgs,
-) -> mema_core::stream::StreamParams {
-    stream_params(
-        capacity,
-        config.seed,
-        config.fit,
-        shape.tolerance.unwrap_or(0.0),
-        stream_model(shape.model, &config.fit),
-    )
-}
-
 /// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
 fn conclude(
     mut link: Link,
@@ -176,14 +147,14 @@ fn conclude(
 pub fn stream(args: &StreamArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
-    crate::commands::check_output(&args.output)?;
+    check_map_output(&args.output)?;
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut record = match &args.record {
         Some(path) => Some(CaptureWriter::create(path)?),
         None => None,
     };
     let stop = interrupted();
-    let mut link = Link::with_params(link_params(&config, capacity, &args.shape));
+    let mut link = Link::with_params(params(&config, capacity, &args.shape));
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
@@ -238,53 +209,8 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     conclude(link, &args.output, end, started, args.json)
 }
 
-/// A capture written progressively to a temporary file and renamed into place at the end, so a
-/// crash leaves no partial capture at the path.
-struct CaptureWriter {
-    tmp: PathBuf,
-    path: PathBuf,
-    file: std::io::BufWriter<std::fs::File>,
-}
-
-impl CaptureWriter {
-    fn create(path: &Path) -> Result<Self> {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let name = path
-            .file_name()
-            .with_context(|| format!("{}: not a file path", path.display()))?;
-        let tmp = dir.join(format!(
-            ".{}.{}.tmp",
-            name.to_string_lossy(),
-            std::process::id()
-        ));
-        let file = std::fs::File::create(&tmp)
-            .with_context(|| format!("cannot write capture to {}", path.display()))?;
-        Ok(Self {
-            tmp,
-            path: path.to_path_buf(),
-            file: std::io::BufWriter::new(file),
-        })
-    }
-
-    fn write(&mut self, bytes: &[u8]) -> Result<()> {
-        self.file
-            .write_all(bytes)
-            .with_context(|| format!("writing {}", self.tmp.display()))
-    }
-
-    fn finish(self) -> Result<()> {
-        let file = self.file.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&self.tmp, &self.path)
-            .with_context(|| format!("cannot write capture to {}", self.path.display()))
-    }
-}
-
 pub fn record(args: &RecordArgs) -> Result<()> {
-    crate::commands::check_output_dir(&args.output)?;
+    check_output_dir(&args.output)?;
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut capture = CaptureWriter::create(&args.output)?;
     let stop = interrupted();
@@ -338,11 +264,11 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| args.capture.with_extension("mema"));
-    crate::commands::check_output(&output)?;
+    check_map_output(&output)?;
     let bytes = std::fs::read(&args.capture)
         .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
     let stop = interrupted();
-    let mut link = Link::with_params(link_params(&config, capacity, &args.shape));
+    let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
@@ -370,10 +296,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     let cloud = match &args.cloud {
         Some(path) => load_cloud(path)?,
         None => {
-            let scan = crate::io::scene::scan(
-                &crate::io::scene::Scene::demo(),
-                &crate::io::scene::ScanConfig::default(),
-            );
+            let scan = scan(&Scene::demo(), &ScanConfig::default());
             LocalCloud::from_world(&scan.points)
         }
     };
@@ -411,48 +334,8 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     eprintln!(
         "mema: scanner-sim: sent {} points in {} frames, {sent} bytes, {:.2} s",
         wire.len(),
-        wire.len().div_ceil(super::frames::POINTS_PER_FRAME),
+        wire.len().div_ceil(POINTS_PER_FRAME),
         started.elapsed().as_secs_f64()
     );
     Ok(())
-}
-
-/// The direct path the tests compare against: the same points, straight into the mapper.
-pub fn map_points_directly(
-    cloud: &LocalCloud,
-    capacity: Capacity,
-    seed: u64,
-    fit: mema_core::fit::FitParams,
-) -> Result<HostMap> {
-    let params = stream_params(
-        capacity,
-        seed,
-        fit,
-        0.0,
-        mema_core::stream::StreamModel::Paper,
-    );
-    map_points_directly_with(cloud, params)
-}
-
-/// [`map_points_directly`] with every parameter chosen (the model, say).
-pub fn map_points_directly_with(
-    cloud: &LocalCloud,
-    params: mema_core::stream::StreamParams,
-) -> Result<HostMap> {
-    let wire: Vec<[i32; 3]> = cloud
-        .points
-        .iter()
-        .map(|p| quantise(*p))
-        .collect::<Result<_>>()?;
-    let mut mapper = super::stream::new_mapper_with(params);
-    for q in &wire {
-        mapper.add(super::frames::dequantise(*q));
-    }
-    mapper.finish();
-    Ok(super::stream::map_of(&mapper))
-}
-
-/// Writes a capture atomically (used by tests and tools that build captures in memory).
-pub fn write_capture(path: &Path, bytes: &[u8]) -> Result<()> {
-    write_atomically(path, bytes)
 }
