@@ -29,6 +29,8 @@ echo "== cargo clippy"
 cargo clippy --workspace --all-targets -- -D warnings
 echo "== core builds without std"
 cargo build -p mema-core --no-default-features
+echo "== the host library builds without the command line (no clap)"
+cargo check -p mema --lib --no-default-features
 echo "== tests (release profile: real clouds)"
 cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"
