@@ -18,7 +18,7 @@
 //! - [`batch`]: `mema map`'s whole run as one call, with its report;
 //! - [`render`], [`query`], [`link`]: pictures and meshes, the query index and transforms, the
 //!   rangefinder link and the streaming mapper;
-//! - [`bench`]: the README's benchmarks.
+//! - [`bench`](mod@bench): the README's benchmarks.
 //!
 //! A test (`tests/tests/layering.rs`) keeps it so: it fails if a library module names the
 //! command line or clap, or if two modules import each other in a circle.

@@ -18,6 +18,7 @@ pub struct MemoryRow {
 }
 
 impl MemoryRow {
+    /// The row in the paper's count: 24 bytes an entity.
     pub fn new(points: usize, entities: usize) -> Self {
         Self::with_entity_bytes(points, entities, MAP_BYTES_PER_ENTITY)
     }
@@ -81,6 +82,7 @@ impl ErrorStats {
     }
 }
 
+/// One row of Table 2 under [`MEMORY_HEADER`].
 pub fn format_memory_row(row: &MemoryRow) -> String {
     format!(
         "{:>10} {:>12} {:>10} {:>10} {:>10.4}%",
@@ -88,10 +90,13 @@ pub fn format_memory_row(row: &MemoryRow) -> String {
     )
 }
 
+/// Table 2's column headings.
 pub const MEMORY_HEADER: &str = "    points  cloud bytes   entities  map bytes    percent";
+/// Table 4's column headings.
 pub const ERROR_HEADER: &str =
     "approximation        mean        std        max        min        total";
 
+/// One row of Table 4 under [`ERROR_HEADER`], named `label`.
 pub fn format_error_row(label: &str, s: &ErrorStats) -> String {
     format!(
         "{:<13} {:>10.6} {:>10.6} {:>10.6} {:>10.6} {:>12.6}",

@@ -12,6 +12,7 @@ use crate::analysis::stats::ErrorStats;
 use crate::io::cloud::LocalCloud;
 use crate::mapping::pipeline;
 
+/// One fit variant's row of `mema ablation`.
 #[derive(Serialize)]
 pub struct VariantRow {
     pub variant: String,
@@ -31,6 +32,7 @@ pub struct VariantRow {
     pub volume_share: f64,
 }
 
+/// The variants measured, named: the default first, then one option changed at a time.
 pub fn variants() -> Vec<(&'static str, FitParams)> {
     let d = FitParams::default();
     vec![
@@ -91,6 +93,8 @@ pub fn variants() -> Vec<(&'static str, FitParams)> {
     ]
 }
 
+/// Clusters `cloud` once into `k`, fits every variant to the same clusters and prints the
+/// table (or one JSON document).
 pub fn run(cloud: &LocalCloud, k: usize, seed: u64, json: bool) -> Result<()> {
     let clusters = pipeline::cluster(
         &cloud.points,

@@ -58,8 +58,10 @@ pub enum Method {
 }
 
 impl Method {
+    /// The methods in the order of a row's cells.
     pub const ALL: [Method; 3] = [Method::Default, Method::Paper, Method::Gmm];
 
+    /// The method's name in the tables.
     pub fn name(self) -> &'static str {
         match self {
             Method::Default => "default",
@@ -98,6 +100,7 @@ pub struct Scored {
     pub gmm: Option<GmmSummary>,
 }
 
+/// A map a budget could not make, and why.
 #[derive(Clone, Debug, Serialize)]
 pub struct Failed {
     pub method: Method,
@@ -105,6 +108,7 @@ pub struct Failed {
     pub error: String,
 }
 
+/// One method's map of a row: scored, or failed.
 #[derive(Clone, Debug, Serialize)]
 #[serde(untagged)]
 pub enum Cell {
@@ -113,6 +117,7 @@ pub enum Cell {
 }
 
 impl Cell {
+    /// The scored map, if there is one.
     pub fn scored(&self) -> Option<&Scored> {
         match self {
             Cell::Scored(s) => Some(s),
@@ -131,6 +136,7 @@ pub struct Row {
 }
 
 impl Row {
+    /// The scored map of `method`, if there is one.
     pub fn cell(&self, method: Method) -> Option<&Scored> {
         self.cells
             .iter()
@@ -139,6 +145,7 @@ impl Row {
     }
 }
 
+/// A cloud the readers refused.
 #[derive(Clone, Debug, Serialize)]
 pub struct Refused {
     pub cloud: String,
@@ -161,6 +168,7 @@ pub struct Stages {
     pub total_s: f64,
 }
 
+/// A whole run: its settings, every row, the clouds refused, summaries and stage times.
 #[derive(Clone, Debug, Serialize)]
 pub struct FidelityReport {
     pub data: String,
@@ -210,6 +218,7 @@ impl Drop for Scratch {
     }
 }
 
+/// Maps and scores every cloud of `opts.data` at every budget, three ways.
 pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
     if opts.budgets.is_empty() {
         bail!("no budget to run");

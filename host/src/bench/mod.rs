@@ -88,6 +88,7 @@ pub fn fastest<T>(repeat: usize, mut f: impl FnMut() -> Result<T>) -> Result<(Du
     last.map(|v| (best, v)).context("no run")
 }
 
+/// A duration in milliseconds.
 pub fn ms(d: Duration) -> f64 {
     d.as_secs_f64() * 1e3
 }

@@ -10,6 +10,7 @@ use crate::heap;
 use crate::mapping::options::FitOptions;
 use crate::mapping::pipeline;
 
+/// One pipeline case: a cloud of the shared data (or the environment scene) and its k.
 pub struct Case<'a> {
     pub data: &'a Path,
     pub name: &'a str,
@@ -45,6 +46,8 @@ pub struct PipelineRow {
 }
 
 impl PipelineRow {
+    /// The row as the table prints it, for a run on `threads` threads; `same` tells whether its
+    /// map bits equal the 1-thread run's.
     pub fn format(&self, threads: usize, same: bool) -> String {
         let share = |d: Duration| 100.0 * d.as_secs_f64() / self.wall.as_secs_f64();
         let cloud = (self.points * crate::analysis::stats::CLOUD_BYTES_PER_POINT) as f64;

@@ -21,6 +21,7 @@ use crate::mapping::pipeline;
 /// The paper's scanner rate (Section 4).
 pub const SRI_500_POINTS_PER_S: f64 = 800_000.0;
 
+/// What `mema stream-bench` reports.
 #[derive(Serialize)]
 pub struct StreamBench {
     pub model: Model,
@@ -83,6 +84,8 @@ fn score(cloud: &LocalCloud, map: &HostMap) -> Result<FidelityScore> {
     two_way_score(&points, &entities, 0, DEFAULT_SAMPLES)
 }
 
+/// Maps `cloud` through the streaming mapper and in batch with the same k and fit, scores
+/// both two ways, and times the stream's ingest (best of `repetitions`).
 pub fn run(
     cloud: &LocalCloud,
     config: &PipelineConfig,

@@ -11,15 +11,42 @@ use std::path::Path;
 use crate::error::ConfigError;
 
 /// A map on the host: the local frame's origin (f64, the cloud's own coordinates) and entities.
+///
+/// Written and read in the format of the path's extension. `.mema` and JSON keep every bit, so
+/// a map read back equals the map written; CSV holds world coordinates, around an origin of its
+/// own:
+///
+/// ```
+/// use mema::io::HostMap;
+/// use mema_core::{Entity, MapEntity, Point3};
+///
+/// let sphere = Entity::sphere(Point3::new(0.5, 0.0, -1.0), 0.25);
+/// let map = HostMap::new([651_000.0, 4_912_000.0, 120.0], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+/// let dir = std::env::temp_dir().join(format!("mema-doc-map-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// for name in ["m.mema", "m.json"] {
+///     map.write(&dir.join(name))?;
+///     assert_eq!(HostMap::read(&dir.join(name))?, map, "{name}");
+/// }
+/// map.write(&dir.join("m.csv"))?;
+/// let csv = HostMap::read(&dir.join("m.csv"))?;
+/// assert_eq!(csv.world_center(&csv.entities[0].entity), map.world_center(&sphere));
+/// assert!(HostMap::read(&dir.join("m.txt")).is_err());
+/// # std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), anyhow::Error>(())
+/// ```
 #[derive(Clone, Debug, PartialEq)]
 pub struct HostMap {
+    /// The local frame's origin, in the cloud's own coordinates.
     pub origin: [f64; 3],
+    /// The entities, in the local frame.
     pub entities: Vec<MapEntity>,
     /// The grid of a quantized map: its `.mema` file is written on it (14 bytes an entity).
     /// `None` writes f32 records, version 1 when every entity is axis-aligned.
     pub quantization: Option<Quantization>,
 }
 
+/// The map file formats, chosen by a path's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapFormat {
     Mema,
@@ -100,6 +127,7 @@ impl HostMap {
         }
     }
 
+    /// The `.mema` bytes of the map, in its [`layout`](Self::layout).
     pub fn to_mema(&self) -> Result<Vec<u8>> {
         let layout = self.layout();
         let mut out = vec![0u8; layout.encoded_len(self.entities.len())];
@@ -108,6 +136,7 @@ impl HostMap {
         Ok(out)
     }
 
+    /// The CSV text of the map: a header line, then one entity a line in world coordinates.
     pub fn to_csv(&self) -> String {
         let mut s = String::from("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n");
         for e in &self.entities {
@@ -133,6 +162,7 @@ impl HostMap {
         s
     }
 
+    /// The JSON text of the map (`"format": "mema-map"`).
     pub fn to_json(&self) -> Result<String> {
         let doc = JsonMap {
             format: "mema-map".into(),
@@ -154,6 +184,7 @@ impl HostMap {
         Ok(serde_json::to_string_pretty(&doc)? + "\n")
     }
 
+    /// The map's bytes in `format`.
     pub fn encode_as(&self, format: MapFormat) -> Result<Vec<u8>> {
         Ok(match format {
             MapFormat::Mema => self.to_mema()?,
@@ -168,6 +199,7 @@ impl HostMap {
         write_atomically(path, &bytes)
     }
 
+    /// Reads a map file in the format of its extension.
     pub fn read(path: &Path) -> Result<Self> {
         let format = MapFormat::from_path(path)?;
         let bytes =
@@ -180,6 +212,7 @@ impl HostMap {
         parsed.with_context(|| format!("{}", path.display()))
     }
 
+    /// Decodes `.mema` bytes (any version), checking their CRC.
     pub fn from_mema(bytes: &[u8]) -> Result<Self> {
         let file = MapFile::new_checked(bytes).map_err(anyhow::Error::from)?;
         Ok(Self {

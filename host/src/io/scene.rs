@@ -72,12 +72,14 @@ pub enum Shape {
     Ellipsoid { center: V3, semi_axes: V3 },
 }
 
+/// One shape of the scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Primitive {
     pub name: &'static str,
     pub shape: Shape,
 }
 
+/// A scene of simple shapes that a simulated rangefinder can scan ([`scan`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
     pub primitives: Vec<Primitive>,

@@ -50,6 +50,7 @@ pub enum ReadOutcome {
     Gone(String),
 }
 
+/// One read from a port: bytes, nothing yet (a timeout), or the port gone.
 pub fn read_some(port: &mut dyn Read, buf: &mut [u8]) -> ReadOutcome {
     match port.read(buf) {
         Ok(0) => ReadOutcome::Gone("end of file".into()),

@@ -149,6 +149,29 @@ pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
 }
 
 /// Decoder + mapper, fed with whatever chunks of bytes arrive.
+///
+/// A cloud sent as a rangefinder sends it, in chunks of any size, becomes a map:
+///
+/// ```
+/// use mema::link::frames::{encode_stream, quantise};
+/// use mema::link::stream::{Capacity, Link};
+/// use mema_core::Point3;
+///
+/// // A 40 x 40 grid of points on a plane, 5 cm apart, as wire millimetres.
+/// let wire: Vec<[i32; 3]> = (0..1_600)
+///     .map(|i| quantise(Point3::new((i % 40) as f32 * 0.05, (i / 40) as f32 * 0.05, 0.0)))
+///     .collect::<anyhow::Result<_>>()?;
+/// let bytes = encode_stream(&wire)?;
+/// let mut link = Link::new(Capacity::all_working(16), 0, Default::default(), 0.0);
+/// for chunk in bytes.chunks(7) {
+///     link.feed(chunk);
+/// }
+/// assert!(link.end_of_stream);
+/// assert_eq!(link.stats().rejected, 0);
+/// let map = link.finish();
+/// assert!(!map.entities.is_empty() && map.entities.len() <= 16);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
 pub struct Link {
     pub decoder: Decoder,
     pub mapper: Box<HostStreamMapper>,
@@ -168,6 +191,7 @@ impl Link {
         ))
     }
 
+    /// A link whose mapper has every parameter chosen by the caller.
     pub fn with_params(params: StreamParams) -> Self {
         Self {
             decoder: Decoder::new(),
@@ -199,6 +223,7 @@ impl Link {
         }
     }
 
+    /// The decoder's counts: frames accepted, rejected, lost, repeated, bytes.
     pub fn stats(&self) -> &DecoderStats {
         self.decoder.stats()
     }

@@ -46,6 +46,7 @@ impl FromStr for CropBox {
 }
 
 impl CropBox {
+    /// Whether `p` is inside the box (bounds included).
     pub fn contains(&self, p: [f64; 3]) -> bool {
         (0..3).all(|j| self.min[j] <= p[j] && p[j] <= self.max[j])
     }

@@ -175,6 +175,7 @@ pub fn cluster(points: &[Point3], k: usize, params: &KMeansParams) -> Result<Clu
     cluster_with(points, k, params, KMeansEngine::Accelerated)
 }
 
+/// [`cluster`] with the k-means implementation chosen.
 pub fn cluster_with(
     points: &[Point3],
     k: usize,
@@ -292,6 +293,7 @@ pub fn nearest_centre_labels(points: &[Point3], centres: &[Point3]) -> Vec<u32> 
         .collect()
 }
 
+/// The fits as a map around `origin`, each entity's kind told with `sphere_tolerance`.
 pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap {
     HostMap {
         origin,

@@ -61,6 +61,7 @@ pub struct Node {
     pub error: f64,
 }
 
+/// The hierarchy's clusters and what it took to make them.
 #[derive(Clone, Debug)]
 pub struct ToleranceOutcome {
     pub nodes: Vec<Node>,

@@ -15,8 +15,11 @@ use serde::Serialize;
 use super::export::kind_colour;
 use crate::io::mapfile::HostMap;
 
+/// The picture's background.
 pub const BACKGROUND: [u8; 3] = [255, 255, 255];
+/// The cloud's points.
 pub const POINT_COLOUR: [u8; 3] = [25, 25, 25];
+/// Text and scale bar.
 pub const INK: [u8; 3] = [0, 0, 0];
 /// Diffuse shading spans `[AMBIENT, 1]` times the kind's colour.
 pub const AMBIENT: f64 = 0.35;
@@ -157,6 +160,7 @@ pub struct Raster {
 }
 
 impl Raster {
+    /// A picture of the background colour.
     pub fn new(width: u32, height: u32) -> Self {
         let n = width as usize * height as usize;
         Raster {
@@ -172,6 +176,7 @@ impl Raster {
         inside.then(|| y as usize * self.width as usize + x as usize)
     }
 
+    /// Sets one pixel; anything outside the picture is dropped.
     pub fn put(&mut self, x: i64, y: i64, colour: [u8; 3]) {
         if let Some(i) = self.index(x, y) {
             self.pixels[i] = colour;
@@ -188,6 +193,7 @@ impl Raster {
         }
     }
 
+    /// Fills the rectangle `[x, y, w, h]`, clipped to the picture.
     pub fn fill(&mut self, [x, y, w, h]: [i64; 4], colour: [u8; 3]) {
         for yy in y..y + h {
             for xx in x..x + w {
@@ -213,6 +219,7 @@ impl Raster {
         }
     }
 
+    /// The picture as PNG bytes (8-bit RGB).
     pub fn encode_png(&self) -> anyhow::Result<Vec<u8>> {
         let mut out = Vec::new();
         let mut encoder = png::Encoder::new(&mut out, self.width, self.height);

@@ -55,6 +55,7 @@ pub struct Panel {
     pub scale_bar: ScaleBar,
 }
 
+/// A panel's scale bar: its length and how many pixels it spans.
 #[derive(Serialize)]
 pub struct ScaleBar {
     /// In the cloud's units.
@@ -78,6 +79,22 @@ pub struct DrawReport {
 
 /// Renders the picture of `cloud` and one panel per named map; the caller writes it
 /// ([`Raster::encode_png`]). Fails if `size` leaves too small a plot.
+///
+/// ```
+/// use mema::io::{HostMap, LocalCloud};
+/// use mema::render::draw::{Style, View};
+/// use mema::render::picture::{Size, render};
+/// use mema_core::{Entity, MapEntity, Point3};
+///
+/// let cloud = LocalCloud::from_world(&[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]);
+/// let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
+/// let map = HostMap::new([0.0; 3], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+/// let size: Size = "400x300".parse().map_err(anyhow::Error::msg)?;
+/// let (raster, report) = render(&cloud, &[("sphere".into(), map)], View::Iso, size, Style::Shaded)?;
+/// assert_eq!(report.panels[0].entities, 1);
+/// assert!(raster.encode_png()?.starts_with(b"\x89PNG"));
+/// # Ok::<(), anyhow::Error>(())
+/// ```
 pub fn render(
     cloud: &LocalCloud,
     maps: &[(String, HostMap)],

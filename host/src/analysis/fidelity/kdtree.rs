@@ -14,6 +14,8 @@ struct Split {
     value: f64,
 }
 
+/// A kd-tree over f64 points, for nearest-point distances (the score's completeness and
+/// point spacing).
 #[derive(Clone, Debug)]
 pub struct KdTree {
     /// The points, permuted so that every subtree owns a contiguous range.
@@ -58,10 +60,12 @@ impl KdTree {
         tree
     }
 
+    /// Points in the tree.
     pub fn len(&self) -> usize {
         self.points.len()
     }
 
+    /// Whether the tree holds no point.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }

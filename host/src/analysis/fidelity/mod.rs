@@ -51,6 +51,7 @@ pub struct Completeness {
     pub p95: f64,
 }
 
+/// The two-way score of a map against a cloud (`mema eval`'s JSON keys; README, Fidelity).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct FidelityScore {
     pub accuracy: Accuracy,
@@ -77,6 +78,28 @@ pub struct SurfaceSample {
 
 /// The score of `entities` against `points` (both in the map's frame), with `samples` surface
 /// samples drawn from `seed`.
+///
+/// Accuracy is how far the points lie from the map's surface, completeness how far the map's
+/// surface lies from the points; a cloud drawn on its map scores about zero both ways:
+///
+/// ```
+/// use mema_core::{Entity, Point3};
+///
+/// // Points on the unit sphere, and the sphere.
+/// let points: Vec<[f64; 3]> = (0..2_000)
+///     .map(|i| {
+///         let z = 1.0 - 2.0 * (i as f64 + 0.5) / 2_000.0;
+///         let a = i as f64 * 2.399_963;
+///         let r = (1.0 - z * z).sqrt();
+///         [r * a.cos(), r * a.sin(), z]
+///     })
+///     .collect();
+/// let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
+/// let score = mema::analysis::fidelity::two_way_score(&points, &[sphere], 0, 5_000)?;
+/// assert!(score.accuracy.max < 1e-5);
+/// assert!(score.completeness.mean < score.tau);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
 pub fn two_way_score(
     points: &[[f64; 3]],
     entities: &[Entity],

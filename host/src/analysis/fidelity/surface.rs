@@ -76,6 +76,7 @@ impl Patch {
         }
     }
 
+    /// The patch's surface area.
     pub fn area(&self) -> f64 {
         match *self {
             Patch::Ellipsoid {

@@ -2,7 +2,7 @@
 //! (KITTI, having no header, by its extension).
 //!
 //! The contract every reader keeps:
-//! - the file is streamed through a small buffer ([`stream::Input`]), so the cloud is held
+//! - the file is streamed through a small buffer (`stream::Input`), so the cloud is held
 //!   once, as the points returned (an organized cloud's NaN slots until they are compacted in
 //!   place), never next to a copy of the file or of a decompressed body;
 //! - no input makes a reader panic: bytes are reached through `get`, `chunks_exact` and

@@ -35,6 +35,7 @@ pub fn kind_colour(kind: EntityKind) -> [u8; 3] {
     }
 }
 
+/// The mesh formats, chosen by a path's extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum MeshFormat {
@@ -59,6 +60,7 @@ impl MeshFormat {
     }
 }
 
+/// How finely entities are tessellated (see the module documentation for the counts).
 #[derive(Clone, Copy, Debug)]
 pub struct Tessellation {
     pub segments: u32,
