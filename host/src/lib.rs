@@ -21,7 +21,8 @@
 //! - [`bench`](mod@bench): the README's benchmarks.
 //!
 //! A test (`tests/tests/layering.rs`) keeps it so: it fails if a library module names the
-//! command line or clap, or if two modules import each other in a circle.
+//! command line or clap, if two modules import each other in a circle, or if a module uses one
+//! of a layer not below its own.
 //!
 //! # Example
 //!

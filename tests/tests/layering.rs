@@ -1,7 +1,8 @@
 //! The host's layers, checked on its source. The library is everything in `host/src` but the
-//! binary's `main.rs` and `cli/`; it must never name clap or the command line, and no two of
-//! its modules may import each other in a circle, at any level of the module tree (between
-//! `io` and `mapping`, say, or between `mapping::pipeline` and `mapping::shells`).
+//! binary's `main.rs` and `cli/`; it must never name clap or the command line, no two of its
+//! modules may import each other in a circle, at any level of the module tree (between `io` and
+//! `mapping`, say, or between `mapping::pipeline` and `mapping::shells`), and its top-level
+//! modules use only the layers below their own ([`LAYERS`]).
 //!
 //! References are read from the code, comments and test modules aside: `crate::a::b` paths,
 //! `super::`/`self::` paths resolved from the file's module, and `use` trees (`crate::{a, b}`).
@@ -363,6 +364,51 @@ fn no_two_library_modules_import_each_other_in_a_circle() {
         "modules import each other in a circle:\n{}",
         found.join("\n")
     );
+}
+
+/// The top-level modules from the bottom layer up, as the crate documentation and the README
+/// list them: each uses only modules of the layers below its own.
+const LAYERS: [&[&str]; 7] = [
+    &["error", "progress", "heap"],
+    &["io"],
+    &["mapping"],
+    &["analysis"],
+    &["batch"],
+    &["render", "query", "link"],
+    &["bench"],
+];
+
+/// Edges of the root module that do not go down the layers, or reach a module not in them.
+fn against_the_layers(edges: &Siblings, modules: &BTreeSet<String>) -> Vec<String> {
+    let rank = |m: &str| LAYERS.iter().position(|layer| layer.contains(&m));
+    let mut found: Vec<String> = modules
+        .iter()
+        .filter(|m| rank(m).is_none())
+        .map(|m| format!("{m} is in no layer"))
+        .collect();
+    for (from, to) in edges.get(&Vec::new()).into_iter().flatten() {
+        for (to, file) in to {
+            if let (Some(a), Some(b)) = (rank(from), rank(to))
+                && b >= a
+            {
+                found.push(format!(
+                    "{from} uses {to} (in {file}), a layer not below its own"
+                ));
+            }
+        }
+    }
+    found
+}
+
+#[test]
+fn the_top_level_modules_use_only_the_layers_below() {
+    let sources = library_sources();
+    let modules: BTreeSet<String> = sources
+        .iter()
+        .filter_map(|s| s.module.first().cloned())
+        .collect();
+    let found = against_the_layers(&sibling_edges(&sources), &modules);
+    assert!(found.is_empty(), "{}", found.join("\n"));
 }
 
 /// The checks on planted violations: each must be caught.
