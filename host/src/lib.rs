@@ -39,13 +39,13 @@
 //! let k = Model::Shells.entities_in(2_400)?;
 //! let config = FitOptions { seed: 1, ..FitOptions::default() }.config(k)?;
 //! let output = std::env::temp_dir().join(format!("mema-example-{}.mema", std::process::id()));
-//! mema::batch::map_cloud_with(
-//!     &cloud, &config, Model::Shells, ShellModel::default(), EntityChoice::Ellipsoid, &output, None,
-//! )?;
+//! let (model, shells, entity) = (Model::Shells, ShellModel::default(), EntityChoice::Ellipsoid);
+//! mema::batch::map_cloud_with(&cloud, &config, model, shells, entity, &output, None)?;
 //!
 //! let map = HostMap::read(&output)?;
 //! let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
-//! let score = fidelity::two_way_score(&eval::points_in_map_frame(&cloud, &map), &entities, 0, 20_000)?;
+//! let points = eval::points_in_map_frame(&cloud, &map);
+//! let score = fidelity::two_way_score(&points, &entities, 0, 20_000)?;
 //! assert!(score.chamfer > 0.0 && score.chamfer < 0.1);
 //!
 //! let index = mema::query::build_index(&map)?;

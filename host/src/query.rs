@@ -9,7 +9,8 @@
 //!
 //! // A map of one sphere of radius 1 at (10, 0, 0) in world coordinates.
 //! let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
-//! let map = HostMap::new([10.0, 0.0, 0.0], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+//! let entity = MapEntity { entity: sphere, kind: sphere.kind(0.01) };
+//! let map = HostMap::new([10.0, 0.0, 0.0], vec![entity]);
 //! let index = mema::query::build_index(&map)?;
 //!
 //! let nearest = index.nearest(mema::query::local(&map, [13.0, 0.0, 0.0])).expect("a map entity");

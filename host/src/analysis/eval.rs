@@ -96,8 +96,10 @@ pub struct EvalReport {
 ///
 /// // A unit sphere at the origin, and four points on it.
 /// let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
-/// let map = HostMap::new([0.0; 3], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
-/// let cloud = LocalCloud::from_world(&[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]]);
+/// let entity = MapEntity { entity: sphere, kind: sphere.kind(0.01) };
+/// let map = HostMap::new([0.0; 3], vec![entity]);
+/// let on_it = [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0]];
+/// let cloud = LocalCloud::from_world(&on_it);
 /// let report = mema::analysis::eval::evaluate(&cloud, &map);
 /// assert_eq!(report.points, 4);
 /// assert!(report.errors.mean < 1e-6);

@@ -21,7 +21,8 @@ use crate::error::ConfigError;
 /// use mema_core::{Entity, MapEntity, Point3};
 ///
 /// let sphere = Entity::sphere(Point3::new(0.5, 0.0, -1.0), 0.25);
-/// let map = HostMap::new([651_000.0, 4_912_000.0, 120.0], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+/// let entity = MapEntity { entity: sphere, kind: sphere.kind(0.01) };
+/// let map = HostMap::new([651_000.0, 4_912_000.0, 120.0], vec![entity]);
 /// let dir = std::env::temp_dir().join(format!("mema-doc-map-{}", std::process::id()));
 /// std::fs::create_dir_all(&dir)?;
 /// for name in ["m.mema", "m.json"] {

@@ -86,11 +86,14 @@ pub struct DrawReport {
 /// use mema::render::picture::{Size, render};
 /// use mema_core::{Entity, MapEntity, Point3};
 ///
-/// let cloud = LocalCloud::from_world(&[[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]]);
+/// let points = [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
+/// let cloud = LocalCloud::from_world(&points);
 /// let sphere = Entity::sphere(Point3::new(0.0, 0.0, 0.0), 1.0);
-/// let map = HostMap::new([0.0; 3], vec![MapEntity { entity: sphere, kind: sphere.kind(0.01) }]);
+/// let entity = MapEntity { entity: sphere, kind: sphere.kind(0.01) };
+/// let map = HostMap::new([0.0; 3], vec![entity]);
 /// let size: Size = "400x300".parse().map_err(anyhow::Error::msg)?;
-/// let (raster, report) = render(&cloud, &[("sphere".into(), map)], View::Iso, size, Style::Shaded)?;
+/// let maps = [("sphere".to_string(), map)];
+/// let (raster, report) = render(&cloud, &maps, View::Iso, size, Style::Shaded)?;
 /// assert_eq!(report.panels[0].entities, 1);
 /// assert!(raster.encode_png()?.starts_with(b"\x89PNG"));
 /// # Ok::<(), anyhow::Error>(())
