@@ -415,7 +415,7 @@ pub fn compare_clouds(paths: &[PathBuf], setup: &Setup) -> Summary {
             || path.display().to_string(),
             |n| n.to_string_lossy().into_owned(),
         );
-        match mema::commands::load_cloud(path) {
+        match mema::io::load_cloud(path) {
             Ok(cloud) => clouds.push(compare_points(&name, &cloud.points, setup)),
             Err(e) => unread.push((name, format!("{e:#}"))),
         }

@@ -62,6 +62,7 @@ impl Stage {
         }
     }
 
+    /// Counts `n` more steps done.
     pub fn inc(&self, n: u64) {
         self.bar.inc(n);
     }

@@ -6,7 +6,7 @@
 //! thread's allocations, so this binary runs one test and nothing else allocates meanwhile.
 
 use mema::heap::{self, Counting};
-use mema::read::{ReadError, read_cloud, read_cloud_bytes};
+use mema::io::read::{ReadError, read_cloud, read_cloud_bytes};
 use std::path::Path;
 
 #[global_allocator]
@@ -87,7 +87,7 @@ fn reading_holds_the_cloud_once() {
     let pcd = format!("FIELDS x y z\n{header}WIDTH 1\nDATA ascii\n1 2 3\n");
     let before = heap::reset_peak();
     let cloud = read_cloud_bytes("long_header.pcd", pcd.as_bytes()).expect("one point");
-    assert_eq!(cloud.format, mema::read::Format::PcdAscii);
+    assert_eq!(cloud.format, mema::io::read::Format::PcdAscii);
     let peak = heap::peak().saturating_sub(before);
     eprintln!(
         "long_header.pcd: heap peak {peak} bytes, file {} bytes",
@@ -143,7 +143,7 @@ fn reading_holds_the_cloud_once() {
             ply.len()
         );
         match read {
-            Ok(c) => assert!(cloud && c.format == mema::read::Format::PlyBinaryLittleEndian),
+            Ok(c) => assert!(cloud && c.format == mema::io::read::Format::PlyBinaryLittleEndian),
             Err(e) => assert!(!cloud && matches!(e, ReadError::TooLarge { .. }), "{e:?}"),
         }
         assert!(

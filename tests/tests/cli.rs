@@ -1,5 +1,5 @@
 use crate::util::{Dir, MemaCommand, shared};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
 
 #[test]
 fn same_seed_same_bytes_and_exactly_k_finite_entities() {

@@ -3,9 +3,9 @@
 //! clean frame is used once, and the map equals the map of the clean frames alone.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::serial::frames::{POINTS_PER_FRAME, push_frame, quantise};
-use mema::serial::link::{Capacity, Link};
+use mema::io::load_cloud;
+use mema::link::frames::{POINTS_PER_FRAME, push_frame, quantise};
+use mema::link::stream::{Capacity, Link};
 
 struct Rng(u64);
 

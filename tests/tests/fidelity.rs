@@ -3,9 +3,9 @@
 //! inequality). The sampler's uniformity by area is checked in host's `fidelity::tests`.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::fidelity;
-use mema::mapfile::HostMap;
+use mema::analysis::fidelity;
+use mema::io::load_cloud;
+use mema::io::mapfile::HostMap;
 use mema_core::Entity;
 use mema_core::closest_point::surface_distance;
 use rayon::prelude::*;

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::process::Command;
 
-use mema::serial::frames::{encode_stream, quantise};
+use mema::link::frames::{encode_stream, quantise};
 use mema_core::Point3;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::board::{Board, BoardSpec};
@@ -28,7 +28,7 @@ const F: usize = 256;
 type Shape = (usize, usize);
 
 fn capture_of(cloud: &str) -> Vec<u8> {
-    let cloud = mema::commands::load_cloud(&shared(cloud)).expect("cloud reads");
+    let cloud = mema::io::load_cloud(&shared(cloud)).expect("cloud reads");
     let wire: Vec<[i32; 3]> = cloud
         .points
         .iter()
@@ -357,7 +357,8 @@ fn readers_never_panic_on_mutated_real_files() {
             if round % 3 == 0 {
                 bytes.truncate((next() as usize) % bytes.len());
             }
-            let result = std::panic::catch_unwind(|| mema::read::read_cloud_bytes(name, &bytes));
+            let result =
+                std::panic::catch_unwind(|| mema::io::read::read_cloud_bytes(name, &bytes));
             assert!(result.is_ok(), "{name}, round {round}: the reader panicked");
         }
     }

@@ -1,8 +1,8 @@
 //! Acceptance 1: eq. 12 from moments equals the direct per-point f64 sum on real clusters.
 
 use crate::util::shared_data;
-use mema::commands::load_cloud;
-use mema::pipeline;
+use mema::io::load_cloud;
+use mema::mapping::pipeline;
 use mema_core::fit::FitParams;
 use mema_core::fitness::FitnessTerms;
 use mema_core::kmeans::KMeansParams;

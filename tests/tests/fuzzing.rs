@@ -2,7 +2,7 @@
 //! cargo-fuzz targets in `core/fuzz` check in long campaigns (`scripts/fuzz.sh`), checked here on
 //! mutations of the same seeds: maps of the shared clouds in every layout, and their captures.
 
-use mema::serial::frames::{encode_stream, quantise};
+use mema::link::frames::{encode_stream, quantise};
 use mema_core::fuzz_checks::{map_file, wire_stream};
 use mema_core::map::{Layout, MapFile, encode_as};
 
@@ -100,9 +100,7 @@ fn map_decoder_holds_its_properties_on_mutated_maps_of_every_layout() {
 fn wire_decoder_gives_the_same_frames_in_any_pieces_of_mutated_captures() {
     let mut m = Mutator(0x2545_f491_4f6c_dd1d);
     for cloud in ["car6.pcd", "lamppost.pcd"] {
-        let points = mema::commands::load_cloud(&shared(cloud))
-            .expect("cloud")
-            .points;
+        let points = mema::io::load_cloud(&shared(cloud)).expect("cloud").points;
         let wire: Vec<[i32; 3]> = points.iter().map(|p| quantise(*p).expect("fits")).collect();
         let capture = encode_stream(&wire).expect("encodes");
         assert_eq!(

@@ -3,7 +3,7 @@
 //! memory and as read back from its map file.
 
 use mema::bench::gmm::{GmmFit, gmm_map, gmm_shell};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
 use mema_core::Entity;
 use mema_core::closest_point::surface_distance;
 

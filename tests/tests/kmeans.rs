@@ -4,8 +4,8 @@
 
 use crate::util::{shared, shared_data};
 use mema::bench::environment;
-use mema::commands::load_cloud;
-use mema::pipeline::{self, KMeansEngine, KMeansRun, run_kmeans};
+use mema::io::load_cloud;
+use mema::mapping::pipeline::{self, KMeansEngine, KMeansRun, run_kmeans};
 use mema_core::Point3;
 use mema_core::kmeans::accel::{SeedList, seed_plus_plus_fast};
 use mema_core::kmeans::{BLOCK, KMeansParams, seed_plus_plus};

@@ -95,7 +95,7 @@ fn shared_lidar_files_read_with_header_counts_and_round_trip_within_the_scale() 
     for (name, _) in LIDAR {
         let bytes = std::fs::read(shared(name)).unwrap();
         let h = las_header(&bytes);
-        let cloud = mema::read::read_cloud(&shared(name)).unwrap();
+        let cloud = mema::io::read::read_cloud(&shared(name)).unwrap();
         assert_eq!(cloud.slots as u64, h.points, "{name}");
         let raw = raw_points(&bytes);
         assert_eq!(raw.len(), cloud.points.len(), "{name}");
@@ -211,7 +211,7 @@ fn crop_and_voxel_counts_match_an_independent_computation() {
     assert!(voxels.len() < inside.len() && inside.len() < raw.len());
     assert_eq!(report["memory"]["points"].as_u64(), Some(got as u64));
     // The written map sits where the crop box is.
-    let map = mema::mapfile::HostMap::read(&dir.join("v.mema")).unwrap();
+    let map = mema::io::mapfile::HostMap::read(&dir.join("v.mema")).unwrap();
     for e in &map.entities {
         let c = map.world_center(&e.entity);
         assert!(
@@ -224,7 +224,7 @@ fn crop_and_voxel_counts_match_an_independent_computation() {
 #[test]
 fn kitti_scans_map_end_to_end_and_bad_filters_are_usage_errors() {
     let dir = Dir::new("kitti");
-    let car = mema::read::read_cloud(&shared("car6.pcd")).unwrap();
+    let car = mema::io::read::read_cloud(&shared("car6.pcd")).unwrap();
     let mut bytes = Vec::new();
     for p in &car.points {
         let world = [0, 1, 2].map(|j| (car.origin[j] + f64::from(p[j])) as f32);

@@ -2,7 +2,7 @@
 //! core's module doc documents (not through the core's codec).
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
 
 fn u16_at(b: &[u8], at: usize) -> u16 {
     u16::from_le_bytes([b[at], b[at + 1]])

@@ -2,9 +2,9 @@
 //! clouds, including one whose entities degenerate (pseudocylinders).
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::mapfile::HostMap;
-use mema::pipeline;
+use mema::io::load_cloud;
+use mema::io::mapfile::HostMap;
+use mema::mapping::pipeline;
 use mema::query::{build_index, random_queries, transform_map};
 use mema_core::fit::SemiAxisBounds;
 use mema_core::query::{brute_force, contains};
@@ -12,7 +12,9 @@ use mema_core::transform::RigidTransform;
 
 fn map_of(cloud: &str, k: usize, threshold_box: bool) -> HostMap {
     let local = load_cloud(&shared(cloud)).expect("cloud");
-    let mut config = mema::cli::default_fit_args().config(k).expect("config");
+    let mut config = mema::mapping::FitOptions::default()
+        .config(k)
+        .expect("config");
     if threshold_box {
         config.fit.bounds = SemiAxisBounds::Threshold { lower: 0.05 };
     }
@@ -223,14 +225,16 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
     // turned by a general rotation, so degenerated axes point off the world axes.
     let car = {
         let local = load_cloud(&shared("car6.pcd")).expect("cloud");
-        let config = mema::cli::default_fit_args().config(150).expect("config");
+        let config = mema::mapping::FitOptions::default()
+            .config(150)
+            .expect("config");
         let clusters = pipeline::cluster(&local.points, 150, &config.kmeans).expect("clusters");
         let centres: Vec<_> = clusters
             .moments
             .iter()
             .map(|m| mema_core::Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
             .collect();
-        mema::shells::shell_map(
+        mema::mapping::shells::shell_map(
             local.origin,
             &local.points,
             &clusters.labels,

@@ -3,9 +3,9 @@
 //! which the rotation turns into oriented entities.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::fidelity::{FidelityScore, two_way_score};
-use mema::mapfile::HostMap;
+use mema::analysis::fidelity::{FidelityScore, two_way_score};
+use mema::io::load_cloud;
+use mema::io::mapfile::HostMap;
 use mema::query::transform_map;
 use mema_core::transform::RigidTransform;
 

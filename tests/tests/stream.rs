@@ -2,11 +2,9 @@
 //! scripts/test.sh): `scanner-sim` on one end, `stream` on the other.
 
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
-use clap::Parser;
-use mema::cli::{Cli, Command as MemaSub};
-use mema::commands::load_cloud;
-use mema::serial::commands::map_points_directly;
-use mema::serial::link::Capacity;
+use mema::io::load_cloud;
+use mema::link::stream::Capacity;
+use mema::link::stream::map_points_directly;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -128,13 +126,13 @@ fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
     }
 }
 
-/// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them.
+/// The CLI's default fit parameters, exactly as `mema stream -k 150` builds them (the CLI's
+/// flags default to the library's `FitOptions::default()`, checked by its own unit test).
 fn default_fit() -> mema_core::fit::FitParams {
-    let cli = Cli::parse_from(["mema", "map", "x.pcd", "-k", "150", "-o", "x.mema"]);
-    let MemaSub::Map(args) = cli.command else {
-        unreachable!("parsed as map")
-    };
-    args.fit.config(150).expect("valid defaults").fit
+    mema::mapping::FitOptions::default()
+        .config(150)
+        .expect("valid defaults")
+        .fit
 }
 
 #[test]
@@ -261,7 +259,8 @@ fn unplugging_mid_stream_keeps_the_map_of_what_arrived() {
         !listing.iter().any(|n| n.ends_with(".tmp")),
         "temporary files left: {listing:?}"
     );
-    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("a valid map was written");
+    let map =
+        mema::io::mapfile::HostMap::read(&dir.join("map.mema")).expect("a valid map was written");
     assert!(!map.entities.is_empty() && map.entities.len() <= 100);
     // It is the map of exactly the bytes that arrived.
     let replay = MemaCommand::new(&dir)
@@ -307,7 +306,7 @@ fn ctrl_c_ends_the_stream_cleanly() {
     assert_eq!(code, 0, "{stderr}");
     assert!(stderr.contains("interrupted"), "{stderr}");
     assert_eq!(stdout.trim(), "map.mema");
-    let map = mema::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
+    let map = mema::io::mapfile::HostMap::read(&dir.join("map.mema")).expect("valid empty map");
     assert!(map.entities.is_empty());
 }
 

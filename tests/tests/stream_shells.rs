@@ -7,10 +7,10 @@
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
 
-use mema::commands::load_cloud;
-use mema::serial::commands::map_points_directly_with;
-use mema::serial::frames::{dequantise, quantise};
-use mema::serial::link::{Capacity, new_mapper_with, stream_params};
+use mema::io::load_cloud;
+use mema::link::frames::{dequantise, quantise};
+use mema::link::stream::map_points_directly_with;
+use mema::link::stream::{Capacity, new_mapper_with, stream_params};
 use mema_core::Point3;
 use mema_core::stream::{Observer, StreamModel};
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
@@ -250,8 +250,8 @@ fn shells_replay_gives_the_same_bytes_for_every_chunking() {
         // Quantized version 2, 14 bytes an entity, and it reads back as the map in memory.
         assert_eq!(&expected[4..8], &[2, 0, 1, 0]);
         assert_eq!(expected.len(), 48 + 14 * direct.entities.len() + 4);
-        let read =
-            mema::mapfile::HostMap::read(&dir.join(&format!("shells-{k}-1.mema"))).expect("reads");
+        let read = mema::io::mapfile::HostMap::read(&dir.join(&format!("shells-{k}-1.mema")))
+            .expect("reads");
         assert_eq!(read, direct);
         assert!(
             direct

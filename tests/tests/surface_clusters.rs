@@ -4,9 +4,9 @@
 //! the labels do not depend on the thread count.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::mapfile::HostMap;
-use mema::surface_clusters::follow_surfaces;
+use mema::io::load_cloud;
+use mema::io::mapfile::HostMap;
+use mema::mapping::surface_clusters::follow_surfaces;
 use mema_core::kmeans::KMeansParams;
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use serde_json::Value;
@@ -167,8 +167,8 @@ fn the_labels_are_the_clusters_each_shell_was_made_from() {
 #[test]
 fn surface_following_gives_the_same_labels_on_one_and_two_threads() {
     let cloud = load_cloud(&shared("car6.pcd")).expect("cloud");
-    let clusters =
-        mema::pipeline::cluster(&cloud.points, 300, &KMeansParams::default()).expect("k-means");
+    let clusters = mema::mapping::pipeline::cluster(&cloud.points, 300, &KMeansParams::default())
+        .expect("k-means");
     let centres: Vec<mema_core::Point3> = clusters
         .moments
         .iter()

@@ -17,6 +17,8 @@ mod faults;
 mod lidar;
 // The no_std, no-panic contract of core, checked on its source.
 mod core_contract;
+// The host's layers, checked on its source: no clap or CLI in the library, no import circles.
+mod layering;
 // The core as firmware runs it: chunking, faults, resets, replay, the f64 reference, fuzzing.
 mod firmware;
 // The fidelity benchmark's GMM baseline: a component becomes its 2-sigma oriented shell.

@@ -4,8 +4,8 @@
 //! map's nearest surface) is then at or under T too.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::load_cloud;
-use mema::mapfile::HostMap;
+use mema::io::load_cloud;
+use mema::io::mapfile::HostMap;
 use mema_core::closest_point::distance_to_surface;
 
 /// Eq. 13 per cluster from the map, the written labels and the cloud, by direct per-point sums:

@@ -1,5 +1,5 @@
 use crate::util::{Dir, MemaCommand, shared};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
 use mema_core::EntityKind;
 use serde_json::Value;
 
@@ -145,7 +145,7 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
         map.entities.iter().any(|e| e.entity.degenerated_axes() > 0),
         "want tubes too"
     );
-    let cloud = mema::read::read_cloud(&shared("bun_zipper.ply")).unwrap();
+    let cloud = mema::io::read::read_cloud(&shared("bun_zipper.ply")).unwrap();
     let world: Vec<[f64; 3]> = cloud
         .points
         .iter()
@@ -245,7 +245,7 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
                     point_px += 1;
                 }
                 (Some((z, kind)), d) if d.is_none_or(|dz| dz < z - 1e-6) => {
-                    let want = mema::export::kind_colour(*kind);
+                    let want = mema::render::export::kind_colour(*kind);
                     assert!(
                         is_shade_of(got, want),
                         "pixel ({x}, {y}) is {got:?}, want a shade of {kind:?}"
@@ -447,7 +447,7 @@ fn export_ply_glb_obj_reread_by_independent_parsers() {
         assert_eq!(indices.len(), 3 * f, "{kind:?}");
         assert!(indices.iter().all(|&i| (i as usize) < v));
         let colour = p.material().pbr_metallic_roughness().base_color_factor();
-        let want = mema::export::kind_colour(*kind).map(|c| f32::from(c) / 255.0);
+        let want = mema::render::export::kind_colour(*kind).map(|c| f32::from(c) / 255.0);
         assert!((0..3).all(|j| (colour[j] - want[j]).abs() < 1e-6));
     }
     // OBJ: counted line by line.

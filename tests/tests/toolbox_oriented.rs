@@ -3,10 +3,10 @@
 //! matrix are computed here, independently of core.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::commands::{LocalCloud, load_cloud};
-use mema::draw::{BACKGROUND, Camera, Frame, Raster, Style, View, draw_entities};
-use mema::export::{Bounds, Tessellation, tessellate};
-use mema::mapfile::HostMap;
+use mema::io::mapfile::HostMap;
+use mema::io::{LocalCloud, load_cloud};
+use mema::render::draw::{BACKGROUND, Camera, Frame, Raster, Style, View, draw_entities};
+use mema::render::export::{Bounds, Tessellation, tessellate};
 use mema_core::closest_point::surface_distance;
 use mema_core::{EntityKind, MapEntity};
 
@@ -141,7 +141,7 @@ fn expected_bounds(map: &HostMap) -> Bounds {
 /// Each entity's vertices, in the order `tessellate` writes them (by kind, then map order).
 fn per_entity<'a>(
     map: &'a HostMap,
-    meshes: &'a [(EntityKind, mema::export::Mesh)],
+    meshes: &'a [(EntityKind, mema::render::export::Mesh)],
     t: &Tessellation,
 ) -> Vec<(&'a MapEntity, &'a [[f64; 3]])> {
     let mut out = Vec::new();
@@ -279,7 +279,7 @@ fn solids(
     cloud: &LocalCloud,
     map: &HostMap,
     camera: Camera,
-    clips: &[mema::draw::Clip],
+    clips: &[mema::render::draw::Clip],
 ) -> (Frame, Vec<[u8; 3]>) {
     let points: Vec<[f64; 3]> = cloud.points.iter().map(|p| p.to_f64()).collect();
     let plot = [8, 8, WIDTH as u32 - 16, HEIGHT as u32 - 16];
@@ -341,9 +341,9 @@ fn draw_of_a_turned_scene_is_the_same_picture() {
                 up: mul(&r3, cam.up),
                 forward: mul(&r3, cam.forward),
             };
-            let clips = mema::toolbox::cluster_boxes(&cloud, &a);
+            let clips = mema::render::picture::cluster_boxes(&cloud, &a);
             let (frame, before) = solids(&cloud, &a, cam, &clips);
-            let turned_clips = mema::toolbox::cluster_boxes(&turned, &r);
+            let turned_clips = mema::render::picture::cluster_boxes(&turned, &r);
             let (turned_frame, after) = solids(&turned, &r, turned_cam, &turned_clips);
             assert!((frame.scale / turned_frame.scale - 1.0).abs() < 1e-6);
             let (differ, at_edge, total) = coverage_difference(&before, &after, WIDTH);
@@ -384,7 +384,7 @@ fn draw_of_a_turned_scene_is_the_same_picture() {
                 })
                 .collect();
             let world_clips =
-                mema::toolbox::cluster_boxes(&turned, &HostMap::new(r.origin, unturned));
+                mema::render::picture::cluster_boxes(&turned, &HostMap::new(r.origin, unturned));
             let (_, wrong) = solids(&turned, &r, turned_cam, &world_clips);
             let (wrong_differ, _, _) = coverage_difference(&before, &wrong, WIDTH);
             eprintln!("{name} {view:?}: clipped along the world's axes, {wrong_differ} differ");

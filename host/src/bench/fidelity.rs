@@ -1,5 +1,5 @@
 //! `mema bench --only fidelity`: every shared cloud at each byte budget, three maps side by side,
-//! each scored two ways (`crate::fidelity`) as read back from the file it was written to:
+//! each scored two ways (`crate::analysis::fidelity`) as read back from the file it was written to:
 //!
 //! - **default**: the shell model filling the budget (`mema map --model shells --bytes B`);
 //! - **paper**: the paper's method at the same budget (`mema map --bytes B --paper`);
@@ -9,7 +9,6 @@
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
 
-use crate::shells::ShellModel;
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -17,13 +16,14 @@ use std::time::Instant;
 
 use super::gmm::{self, GmmSummary};
 use super::write_npy;
-use crate::commands::{LocalCloud, MIN_POINTS_PER_ENTITY, load_cloud, map_cloud_with};
-use crate::eval::{FileBytes, points_in_map_frame};
-use crate::fidelity::{FidelityScore, two_way_score};
-use crate::mapfile::HostMap;
-use crate::pipeline::{EntityChoice, Model, PipelineConfig};
-
-pub use super::fidelity_report::{Summary, print_tables, summaries};
+use crate::analysis::eval::{FileBytes, points_in_map_frame};
+use crate::analysis::fidelity::{FidelityScore, two_way_score};
+use crate::batch::map_cloud_with;
+use crate::io::cloud::{LocalCloud, load_cloud};
+use crate::io::mapfile::HostMap;
+use crate::mapping::options::{
+    EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel,
+};
 
 /// The budgets: 60, 240 and 960 components of 40 bytes.
 pub const DEFAULT_BUDGETS: [usize; 3] = [2_400, 9_600, 38_400];
@@ -58,8 +58,10 @@ pub enum Method {
 }
 
 impl Method {
+    /// The methods in the order of a row's cells.
     pub const ALL: [Method; 3] = [Method::Default, Method::Paper, Method::Gmm];
 
+    /// The method's name in the tables.
     pub fn name(self) -> &'static str {
         match self {
             Method::Default => "default",
@@ -98,6 +100,7 @@ pub struct Scored {
     pub gmm: Option<GmmSummary>,
 }
 
+/// A map a budget could not make, and why.
 #[derive(Clone, Debug, Serialize)]
 pub struct Failed {
     pub method: Method,
@@ -105,6 +108,7 @@ pub struct Failed {
     pub error: String,
 }
 
+/// One method's map of a row: scored, or failed.
 #[derive(Clone, Debug, Serialize)]
 #[serde(untagged)]
 pub enum Cell {
@@ -113,6 +117,7 @@ pub enum Cell {
 }
 
 impl Cell {
+    /// The scored map, if there is one.
     pub fn scored(&self) -> Option<&Scored> {
         match self {
             Cell::Scored(s) => Some(s),
@@ -131,6 +136,7 @@ pub struct Row {
 }
 
 impl Row {
+    /// The scored map of `method`, if there is one.
     pub fn cell(&self, method: Method) -> Option<&Scored> {
         self.cells
             .iter()
@@ -139,6 +145,7 @@ impl Row {
     }
 }
 
+/// A cloud the readers refused.
 #[derive(Clone, Debug, Serialize)]
 pub struct Refused {
     pub cloud: String,
@@ -161,6 +168,7 @@ pub struct Stages {
     pub total_s: f64,
 }
 
+/// A whole run: its settings, every row, the clouds refused, summaries and stage times.
 #[derive(Clone, Debug, Serialize)]
 pub struct FidelityReport {
     pub data: String,
@@ -210,6 +218,7 @@ impl Drop for Scratch {
     }
 }
 
+/// Maps and scores every cloud of `opts.data` at every budget, three ways.
 pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
     if opts.budgets.is_empty() {
         bail!("no budget to run");
@@ -449,4 +458,68 @@ pub fn score_map(
 ) -> Result<FidelityScore> {
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     two_way_score(&points_in_map_frame(cloud, map), &entities, seed, samples)
+}
+
+/// One budget over all clouds: how the default map compares with the GMM and the paper.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    pub budget: usize,
+    /// Clouds with both a default and a GMM map, and those where the default's Chamfer is
+    /// lower (strictly) than the GMM's.
+    pub versus_gmm: usize,
+    pub default_beats_gmm: usize,
+    /// Geometric means of the Chamfer ratios over those clouds (below 1: the default is closer).
+    pub chamfer_ratio_gmm: Option<f64>,
+    pub versus_paper: usize,
+    pub default_beats_paper: usize,
+    pub chamfer_ratio_paper: Option<f64>,
+}
+
+pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
+    budgets
+        .iter()
+        .map(|&budget| {
+            let of = |other: Method| {
+                let ratios: Vec<f64> = rows
+                    .iter()
+                    .filter(|r| r.budget == budget)
+                    .filter_map(|r| Some((r.cell(Method::Default)?, r.cell(other)?)))
+                    .map(|(d, o)| d.score.chamfer / o.score.chamfer)
+                    .collect();
+                let beats = ratios.iter().filter(|&&q| q < 1.0).count();
+                (ratios.len(), beats, geometric_mean(&ratios))
+            };
+            let (versus_gmm, default_beats_gmm, chamfer_ratio_gmm) = of(Method::Gmm);
+            let (versus_paper, default_beats_paper, chamfer_ratio_paper) = of(Method::Paper);
+            Summary {
+                budget,
+                versus_gmm,
+                default_beats_gmm,
+                chamfer_ratio_gmm,
+                versus_paper,
+                default_beats_paper,
+                chamfer_ratio_paper,
+            }
+        })
+        .collect()
+}
+
+/// `None` for no ratios, or for any that is not a positive finite number (a zero Chamfer).
+fn geometric_mean(ratios: &[f64]) -> Option<f64> {
+    if ratios.is_empty() || !ratios.iter().all(|q| q.is_finite() && *q > 0.0) {
+        return None;
+    }
+    Some((ratios.iter().map(|q| q.ln()).sum::<f64>() / ratios.len() as f64).exp())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn geometric_means() {
+        assert_eq!(geometric_mean(&[0.5, 2.0]), Some(1.0));
+        assert_eq!(geometric_mean(&[]), None);
+        assert_eq!(geometric_mean(&[0.0, 1.0]), None);
+    }
 }

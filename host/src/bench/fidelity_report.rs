@@ -1,61 +1,8 @@
-//! The fidelity benchmark's tables (markdown, one per budget) and per-budget summaries.
+//! The fidelity benchmark's tables: markdown, one per budget, with its summary.
 
-use serde::Serialize;
 use std::io::Write;
 
-use super::fidelity::{Cell, FidelityReport, Method, Row};
-
-/// One budget over all clouds: how the default map compares with the GMM and the paper.
-#[derive(Clone, Debug, Serialize)]
-pub struct Summary {
-    pub budget: usize,
-    /// Clouds with both a default and a GMM map, and those where the default's Chamfer is
-    /// lower (strictly) than the GMM's.
-    pub versus_gmm: usize,
-    pub default_beats_gmm: usize,
-    /// Geometric means of the Chamfer ratios over those clouds (below 1: the default is closer).
-    pub chamfer_ratio_gmm: Option<f64>,
-    pub versus_paper: usize,
-    pub default_beats_paper: usize,
-    pub chamfer_ratio_paper: Option<f64>,
-}
-
-pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
-    budgets
-        .iter()
-        .map(|&budget| {
-            let of = |other: Method| {
-                let ratios: Vec<f64> = rows
-                    .iter()
-                    .filter(|r| r.budget == budget)
-                    .filter_map(|r| Some((r.cell(Method::Default)?, r.cell(other)?)))
-                    .map(|(d, o)| d.score.chamfer / o.score.chamfer)
-                    .collect();
-                let beats = ratios.iter().filter(|&&q| q < 1.0).count();
-                (ratios.len(), beats, geometric_mean(&ratios))
-            };
-            let (versus_gmm, default_beats_gmm, chamfer_ratio_gmm) = of(Method::Gmm);
-            let (versus_paper, default_beats_paper, chamfer_ratio_paper) = of(Method::Paper);
-            Summary {
-                budget,
-                versus_gmm,
-                default_beats_gmm,
-                chamfer_ratio_gmm,
-                versus_paper,
-                default_beats_paper,
-                chamfer_ratio_paper,
-            }
-        })
-        .collect()
-}
-
-/// `None` for no ratios, or for any that is not a positive finite number (a zero Chamfer).
-fn geometric_mean(ratios: &[f64]) -> Option<f64> {
-    if ratios.is_empty() || !ratios.iter().all(|q| q.is_finite() && *q > 0.0) {
-        return None;
-    }
-    Some((ratios.iter().map(|q| q.ln()).sum::<f64>() / ratios.len() as f64).exp())
-}
+use super::fidelity::{Cell, FidelityReport, Method};
 
 /// Three significant digits, without an exponent for the lengths the clouds have.
 pub fn sig(x: f64) -> String {
@@ -215,8 +162,5 @@ mod tests {
         assert_eq!(sig(12.34), "12.3");
         assert_eq!(sig(1234.4), "1234");
         assert_eq!(sig(0.0), "0");
-        assert_eq!(geometric_mean(&[0.5, 2.0]), Some(1.0));
-        assert_eq!(geometric_mean(&[]), None);
-        assert_eq!(geometric_mean(&[0.0, 1.0]), None);
     }
 }

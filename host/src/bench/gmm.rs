@@ -8,7 +8,7 @@ use mema_core::{Degeneration, Entity, EntityKind, MapEntity, Point3, Rotation};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-use crate::mapfile::HostMap;
+use crate::io::mapfile::HostMap;
 
 /// Bytes of one component as the issue counts them: mean 3, covariance 6 and weight 1, f32.
 pub const BYTES_PER_COMPONENT: usize = 40;
@@ -173,7 +173,7 @@ pub fn fit_gmm(
     let fit = serde_json::from_slice(&out.stdout)
         .with_context(|| format!("{} printed no mixture", script.display()))?;
     if let Some(path) = &cached {
-        crate::mapfile::write_atomically(path, &out.stdout)?;
+        crate::io::mapfile::write_atomically(path, &out.stdout)?;
     }
     Ok((fit, false))
 }

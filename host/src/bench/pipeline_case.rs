@@ -6,10 +6,11 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use super::{load, memory, ms};
-use crate::cli::FitArgs;
 use crate::heap;
-use crate::pipeline;
+use crate::mapping::options::FitOptions;
+use crate::mapping::pipeline;
 
+/// One pipeline case: a cloud of the shared data (or the environment scene) and its k.
 pub struct Case<'a> {
     pub data: &'a Path,
     pub name: &'a str,
@@ -45,9 +46,11 @@ pub struct PipelineRow {
 }
 
 impl PipelineRow {
+    /// The row as the table prints it, for a run on `threads` threads; `same` tells whether its
+    /// map bits equal the 1-thread run's.
     pub fn format(&self, threads: usize, same: bool) -> String {
         let share = |d: Duration| 100.0 * d.as_secs_f64() / self.wall.as_secs_f64();
-        let cloud = (self.points * crate::stats::CLOUD_BYTES_PER_POINT) as f64;
+        let cloud = (self.points * crate::analysis::stats::CLOUD_BYTES_PER_POINT) as f64;
         let mb = |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / 1e6));
         let ratio =
             |b: Option<u64>| b.map_or("-".to_string(), |b| format!("{:.2}", b as f64 / cloud));
@@ -74,19 +77,9 @@ impl PipelineRow {
     }
 }
 
-/// The fit options exactly as `mema map` defaults them.
-fn default_fit_args() -> Result<FitArgs> {
-    #[derive(clap::Parser)]
-    struct Defaults {
-        #[command(flatten)]
-        fit: FitArgs,
-    }
-    Ok(<Defaults as clap::Parser>::try_parse_from(["mema"])?.fit)
-}
-
 /// Read, cluster, fit both entity kinds, evaluate both maps: `mema map`'s work, timed.
 pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
-    let config = default_fit_args()?.config(case.k)?;
+    let config = FitOptions::default().config(case.k)?;
     let mut best: Option<PipelineRow> = None;
     let counting = heap::counting();
     for _ in 0..repeat.max(1) {
@@ -163,7 +156,7 @@ pub fn run_case(case: &Case<'_>, repeat: usize) -> Result<PipelineRow> {
 }
 
 /// `mema bench --case NAME:K:THREADS`: one case in this fresh process, printed as JSON.
-pub fn child(args: &super::BenchArgs, spec: &str) -> Result<()> {
+pub fn child(args: &super::BenchOptions, spec: &str) -> Result<()> {
     let mut parts = spec.rsplitn(3, ':');
     let (Some(threads), Some(k), Some(name)) = (parts.next(), parts.next(), parts.next()) else {
         anyhow::bail!("--case wants NAME:K:THREADS, got {spec}");
@@ -182,7 +175,12 @@ pub fn child(args: &super::BenchArgs, spec: &str) -> Result<()> {
 }
 
 /// Runs one case in a child `mema bench` process and reads its row back.
-pub fn spawn(args: &super::BenchArgs, name: &str, k: usize, threads: usize) -> Result<PipelineRow> {
+pub fn spawn(
+    args: &super::BenchOptions,
+    name: &str,
+    k: usize,
+    threads: usize,
+) -> Result<PipelineRow> {
     let out = std::process::Command::new(std::env::current_exe()?)
         .arg("bench")
         .arg("--data")

@@ -27,6 +27,7 @@ pub const MEMBERS: [&str; 9] = [
 /// Space between neighbouring clouds, in the clouds' units (metres for most).
 pub const GAP: f64 = 1.0;
 
+/// One cloud of the scene.
 pub struct Member {
     pub name: &'static str,
     pub points: usize,
@@ -34,6 +35,7 @@ pub struct Member {
     pub offset_x: f64,
 }
 
+/// The scene's points and where each member went.
 pub struct Scene {
     pub points: Vec<Point3>,
     pub members: Vec<Member>,
@@ -47,7 +49,7 @@ pub struct Scene {
 pub fn environment(dir: &Path) -> Result<Scene> {
     let read = |name: &str| {
         let path = dir.join(name);
-        crate::commands::load_cloud(&path)
+        crate::io::cloud::load_cloud(&path)
             .map(|c| c.points)
             .with_context(|| format!("environment scene: {}", path.display()))
     };

@@ -1,0 +1,376 @@
+//! `mema map`'s work as library calls: cluster, fit, write the map (and the points' labels),
+//! and report eq. 13 and the memory of what was written.
+//!
+//! The steps live in [`crate::mapping`] and the measures in [`crate::analysis`]; this layer only
+//! puts them together, so both stay free of each other's reports.
+
+use anyhow::Result;
+use mema_core::shell::ShellParams;
+use mema_core::{Degeneration, MapEntity, Point3};
+use serde::Serialize;
+use std::path::Path;
+
+use crate::analysis::stats::{ErrorStats, MemoryRow};
+use crate::error::ConfigError;
+use crate::io::cloud::LocalCloud;
+use crate::io::mapfile::{HostMap, KindCounts};
+use crate::io::output::write_labels;
+use crate::mapping::filter::FilterCounts;
+use crate::mapping::options::{EntityChoice, Model, PipelineConfig, ShellModel};
+use crate::mapping::tolerance::{self, EntityFit, ToleranceOutcome};
+use crate::mapping::{pipeline, shells, surface_clusters};
+use crate::progress::stage;
+
+/// What `mema map` and `mema demo` report.
+#[derive(Clone, Debug, Serialize)]
+pub struct MapReport {
+    pub model: Model,
+    pub memory: MemoryRow,
+    /// Eq. 13 of the written map's entities (the shells, or the paper's ellipsoids).
+    pub ellipsoidal: ErrorStats,
+    /// The paper's spherical comparison (null for shells).
+    pub spherical: Option<ErrorStats>,
+    pub kinds: KindCounts,
+    pub kmeans_iterations: u32,
+    pub kmeans_converged: bool,
+    /// Rounds of surface following run after k-means (null for the paper's maps and for
+    /// `--surface-rounds 0`).
+    pub surface_rounds: Option<usize>,
+    pub entity: EntityChoice,
+    pub dropped_non_finite: usize,
+    pub output: String,
+    /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
+    pub filter: FilterCounts,
+}
+
+/// The paper's model: clusters, fits both entity types, evaluates eq. 13 for both, writes the
+/// chosen map (and the points' cluster labels if asked).
+pub fn map_cloud(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    entity: EntityChoice,
+    output: &Path,
+    labels: Option<&Path>,
+) -> Result<MapReport> {
+    map_cloud_with(
+        cloud,
+        config,
+        Model::Paper,
+        ShellModel::default(),
+        entity,
+        output,
+        labels,
+    )
+}
+
+/// [`map_cloud`] in either model (`shells` for shells; their degeneration is `config`'s).
+///
+/// The map is written to `output` in the format of its extension (`.mema`, `.csv`, `.json`),
+/// atomically; `labels`, if given, gets each point's cluster, one a line.
+///
+/// A cloud mapped with shells at a budget of 2,400 bytes, as `mema map --bytes 2400` does it:
+///
+/// ```
+/// use mema::mapping::{EntityChoice, FitOptions, Model, ShellModel, most_entities};
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/car6.pcd");
+/// let cloud = mema::io::load_cloud(path.as_ref())?;
+/// let k = Model::Shells.entities_in(2_400)?.min(most_entities(cloud.points.len()));
+/// let config = FitOptions::default().config(k)?;
+/// let output = std::env::temp_dir().join(format!("mema-doc-{}.mema", std::process::id()));
+/// let report = mema::batch::map_cloud_with(
+///     &cloud,
+///     &config,
+///     Model::Shells,
+///     ShellModel::default(),
+///     EntityChoice::Ellipsoid,
+///     &output,
+///     None,
+/// )?;
+/// assert!(report.memory.entities <= 171);
+/// let map = mema::io::HostMap::read(&output)?;
+/// assert_eq!(map.entities.len(), report.memory.entities);
+/// // The budget counts entities; the file adds its header and checksum.
+/// assert!(std::fs::metadata(&output)?.len() <= 2_400 + 52);
+/// # std::fs::remove_file(&output)?;
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub fn map_cloud_with(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    model: Model,
+    shells: ShellModel,
+    entity: EntityChoice,
+    output: &Path,
+    labels: Option<&Path>,
+) -> Result<MapReport> {
+    let clusters = stage("k-means", || {
+        pipeline::cluster(&cloud.points, config.k, &config.kmeans)
+    })?;
+    let (report, refined) = match model {
+        Model::Shells => shells_report(cloud, config, shells, &clusters, output)?,
+        Model::Paper => (
+            paper_report(cloud, config, entity, &clusters, output)?,
+            None,
+        ),
+    };
+    // After the map: labels never describe a map that was not written.
+    if let Some(path) = labels {
+        write_labels(path, refined.as_deref().unwrap_or(&clusters.labels))?;
+    }
+    Ok(report)
+}
+
+/// The paper's maps of the clusters (ellipsoids and spheres by DE on eq. 12), the chosen one
+/// written, and their report.
+fn paper_report(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    entity: EntityChoice,
+    clusters: &pipeline::Clusters,
+    output: &Path,
+) -> Result<MapReport> {
+    let fitted = stage("fitting", || {
+        pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
+    });
+    let tolerance = config.fit.degeneration.sphere_tolerance;
+    let ellipsoids = pipeline::to_map(cloud.origin, &fitted.ellipsoids, tolerance);
+    let spheres = pipeline::to_map(cloud.origin, &fitted.spheres, tolerance);
+    let errors = |map: &HostMap| {
+        let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+        ErrorStats::from_errors(&stage("evaluating", || {
+            pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
+        }))
+    };
+    let chosen = match entity {
+        EntityChoice::Ellipsoid => &ellipsoids,
+        EntityChoice::Sphere => &spheres,
+    };
+    chosen.write(output)?;
+    Ok(MapReport {
+        model: Model::Paper,
+        memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
+        ellipsoidal: errors(&ellipsoids),
+        spherical: Some(errors(&spheres)),
+        kinds: KindCounts::of(chosen),
+        kmeans_iterations: clusters.outcome.iterations,
+        kmeans_converged: clusters.outcome.converged,
+        surface_rounds: None,
+        entity,
+        dropped_non_finite: cloud.dropped_non_finite,
+        output: output.display().to_string(),
+        filter: FilterCounts {
+            read: cloud.points.len(),
+            ..Default::default()
+        },
+    })
+}
+
+/// Shells never degenerate: a shell spans its cluster's points, which are bounded, so an
+/// infinite axis would only add surface where there are no points (the threshold is the
+/// paper's).
+fn shell_params(shell: ShellParams, config: &PipelineConfig) -> ShellParams {
+    ShellParams {
+        degeneration: Degeneration {
+            threshold: f64::INFINITY,
+            ..config.fit.degeneration
+        },
+        ..shell
+    }
+}
+
+/// The shell model's map of the clusters, written, its report, and the points' labels when
+/// surface following changed them.
+fn shells_report(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    model: ShellModel,
+    clusters: &pipeline::Clusters,
+    output: &Path,
+) -> Result<(MapReport, Option<Vec<u32>>)> {
+    let params = shell_params(model.shell, config);
+    let centres: Vec<Point3> = clusters
+        .moments
+        .iter()
+        .map(|m| Point3::new(m.mean[0] as f32, m.mean[1] as f32, m.mean[2] as f32))
+        .collect();
+    let surfaces = (model.surface_rounds > 0).then(|| {
+        stage("following surfaces", || {
+            surface_clusters::follow_surfaces(
+                &cloud.points,
+                &clusters.labels,
+                &centres,
+                model.surface_rounds,
+            )
+        })
+    });
+    let (labels, anchors) = match &surfaces {
+        Some(s) => (&s.labels[..], &s.anchors[..]),
+        None => (&clusters.labels[..], &centres[..]),
+    };
+    let map = stage("fitting", || {
+        shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
+    });
+    map.write(output)?;
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let errors = stage("evaluating", || {
+        pipeline::cluster_errors(&cloud.points, labels, &entities)
+    });
+    let report = MapReport {
+        model: Model::Shells,
+        memory: MemoryRow::with_entity_bytes(
+            cloud.points.len(),
+            map.entities.len(),
+            shells::BYTES_PER_ENTITY,
+        ),
+        ellipsoidal: ErrorStats::from_errors(&errors),
+        spherical: None,
+        kinds: KindCounts::of(&map),
+        kmeans_iterations: clusters.outcome.iterations,
+        kmeans_converged: clusters.outcome.converged,
+        surface_rounds: surfaces.as_ref().map(|s| s.rounds),
+        entity: EntityChoice::Ellipsoid,
+        dropped_non_finite: cloud.dropped_non_finite,
+        output: output.display().to_string(),
+        filter: FilterCounts {
+            read: cloud.points.len(),
+            ..Default::default()
+        },
+    };
+    Ok((report, surfaces.map(|s| s.labels)))
+}
+
+/// The tolerance mode's settings (`mema map --tolerance`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToleranceOptions {
+    /// T: the most eq. 13 error a cluster may keep, in the cloud's units.
+    pub tolerance: f64,
+    /// Most clusters the hierarchy may make.
+    pub capacity: usize,
+    /// Rounds of re-checking T with nearest-centre membership, splitting clusters that fail.
+    pub voronoi_rounds: usize,
+}
+
+impl ToleranceOptions {
+    /// Fails unless T is a positive length and the capacity at least 1.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        if !(self.tolerance > 0.0 && self.tolerance.is_finite()) {
+            return Err(ConfigError::Tolerance(self.tolerance));
+        }
+        if self.capacity == 0 {
+            return Err(ConfigError::ToleranceCapacity);
+        }
+        Ok(())
+    }
+}
+
+/// A map of the tolerance mode and the hierarchy it came from (not yet written).
+pub struct ToleranceMap {
+    pub map: HostMap,
+    pub outcome: ToleranceOutcome,
+    pub model: Model,
+    pub tolerance: f64,
+}
+
+/// What `mema map --tolerance` reports.
+#[derive(Clone, Debug, Serialize)]
+pub struct ToleranceReport {
+    pub tolerance: f64,
+    pub model: Model,
+    /// The k the hierarchy chose.
+    pub k: usize,
+    pub memory: MemoryRow,
+    pub ellipsoidal: ErrorStats,
+    pub clusters_over_tolerance: usize,
+    pub splits: usize,
+    pub merges: usize,
+    pub capacity_reached: bool,
+    pub kinds: KindCounts,
+    /// Eq. 13 error of each cluster, in map order.
+    pub errors: Vec<f64>,
+    pub output: String,
+}
+
+/// Builds the map whose every cluster meets `options.tolerance` (see
+/// [`crate::mapping::tolerance`]); `config` gives the fit (and seed), `shell` the shells.
+pub fn map_to_tolerance(
+    cloud: &LocalCloud,
+    options: &ToleranceOptions,
+    config: &PipelineConfig,
+    model: Model,
+    shell: ShellParams,
+) -> Result<ToleranceMap> {
+    options.check()?;
+    let fit = match model {
+        Model::Paper => EntityFit::Paper(config.fit),
+        Model::Shells => EntityFit::shells_for(&cloud.points, shell_params(shell, config)),
+    };
+    let outcome = tolerance::build(
+        &cloud.points,
+        options.tolerance,
+        options.capacity,
+        options.voronoi_rounds,
+        config.seed,
+        &fit,
+    )?;
+    let sphere_tolerance = config.fit.degeneration.sphere_tolerance;
+    let map = HostMap {
+        origin: cloud.origin,
+        entities: outcome
+            .nodes
+            .iter()
+            .map(|n| MapEntity {
+                entity: n.entity,
+                kind: n.entity.kind(sphere_tolerance),
+            })
+            .collect(),
+        quantization: match fit {
+            EntityFit::Shells { grid, .. } => Some(grid),
+            EntityFit::Paper(_) => None,
+        },
+    };
+    Ok(ToleranceMap {
+        map,
+        outcome,
+        model,
+        tolerance: options.tolerance,
+    })
+}
+
+impl ToleranceMap {
+    /// Each of the cloud's `points` points labelled with its cluster, in map order.
+    pub fn labels(&self, points: usize) -> Vec<u32> {
+        let mut labels = vec![0u32; points];
+        for (c, node) in self.outcome.nodes.iter().enumerate() {
+            for &i in &node.members {
+                if let Some(l) = labels.get_mut(i as usize) {
+                    *l = c as u32;
+                }
+            }
+        }
+        labels
+    }
+
+    /// The report of this map of a cloud of `points` points, written to `output`.
+    pub fn report(&self, points: usize, output: &Path) -> ToleranceReport {
+        let errors: Vec<f64> = self.outcome.nodes.iter().map(|n| n.error).collect();
+        ToleranceReport {
+            tolerance: self.tolerance,
+            k: self.map.entities.len(),
+            model: self.model,
+            memory: MemoryRow::with_entity_bytes(
+                points,
+                self.map.entities.len(),
+                self.model.bytes_per_entity(),
+            ),
+            ellipsoidal: ErrorStats::from_errors(&errors),
+            clusters_over_tolerance: errors.iter().filter(|&&e| e > self.tolerance).count(),
+            splits: self.outcome.splits,
+            merges: self.outcome.merges,
+            capacity_reached: self.outcome.capacity_reached,
+            kinds: KindCounts::of(&self.map),
+            errors,
+            output: output.display().to_string(),
+        }
+    }
+}

@@ -1,0 +1,117 @@
+//! `stream`, `record`, `replay`, `scanner-sim` and `stream-bench`: the rangefinder link.
+
+use clap::Args;
+use std::path::PathBuf;
+
+use super::{FitArgs, ModelArg};
+
+#[derive(Args, Debug)]
+pub struct StreamArgs {
+    /// Serial device or pty, e.g. /dev/ttyUSB0.
+    #[arg(long)]
+    pub port: PathBuf,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    /// Most ellipsoids the map may hold (at most 2,048).
+    #[arg(short)]
+    pub k: usize,
+    /// Map file (.mema, .csv or .json), written atomically at each snapshot and at the end.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Write the map so far every this many seconds.
+    #[arg(long)]
+    pub snapshot_every: Option<f64>,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
+    /// Also save the raw bytes received, as `mema record` would.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    /// Print the summary as JSON on stdout (instead of the map path).
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// How a streaming mapper holds its k ellipsoids (`stream`, `replay`, `stream-bench`).
+#[derive(Args, Debug)]
+pub struct StreamShapeArgs {
+    /// The entity model: `shells` (each cluster's oriented covariance shell, as `mema map`
+    /// makes them; written quantized, 14 bytes an entity) or `paper` (the paper's axis-aligned
+    /// DE fit of eq. 12, refitted as points arrive; written as version 1).
+    #[arg(long, value_enum, default_value_t = ModelArg::Shells)]
+    pub model: ModelArg,
+    /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    #[arg(long, value_name = "W")]
+    pub working: Option<usize>,
+    /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
+    /// k follows from T (-k is then the capacity).
+    #[arg(long)]
+    pub tolerance: Option<f64>,
+}
+
+#[derive(Args, Debug)]
+pub struct RecordArgs {
+    #[arg(long)]
+    pub port: PathBuf,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    pub capture: PathBuf,
+    #[arg(short, default_value_t = 150)]
+    pub k: usize,
+    /// Map file; default: the capture's path with the extension .mema.
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+    /// Deliver at most this many points per second (default: as fast as possible).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Bytes per delivery, as a UART would hand them over.
+    #[arg(long, default_value_t = 4096)]
+    pub chunk_bytes: usize,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ScannerSimArgs {
+    /// Serial device or pty to write to; a path that is not a device becomes a capture file.
+    #[arg(long)]
+    pub port: PathBuf,
+    /// The cloud to play (PLY, PCD, XYZ/CSV); default: the built-in demo scene's scan.
+    pub cloud: Option<PathBuf>,
+    /// Points per second (default: as fast as the port takes them).
+    #[arg(long)]
+    pub rate: Option<f64>,
+    /// Bytes per write.
+    #[arg(long, default_value_t = 256)]
+    pub chunk_bytes: usize,
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+}
+
+#[derive(Args, Debug)]
+pub struct StreamBenchArgs {
+    pub input: PathBuf,
+    #[arg(short)]
+    pub k: usize,
+    /// Timed repetitions of the ingest (the best is reported).
+    #[arg(long, default_value_t = 3)]
+    pub repetitions: usize,
+    #[command(flatten)]
+    pub shape: StreamShapeArgs,
+    #[command(flatten)]
+    pub fit: FitArgs,
+    #[arg(long)]
+    pub json: bool,
+}

@@ -1,0 +1,219 @@
+//! `query`, `transform`, `query-bench`, `draw`, `export`, `completions` and `bench`.
+
+use clap::{Args, ValueEnum};
+use mema::bench::{BenchOptions, Which};
+use mema::render::draw::{Style, View};
+use mema::render::picture::Size;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct QueryArgs {
+    pub map: PathBuf,
+    /// x,y,z in the map's world coordinates.
+    #[arg(long, allow_hyphen_values = true)]
+    pub point: Option<String>,
+    /// ox,oy,oz,dx,dy,dz: origin and direction (any length).
+    #[arg(long, allow_hyphen_values = true)]
+    pub ray: Option<String>,
+    #[arg(long, default_value_t = 1e6)]
+    pub max_range: f64,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TransformArgs {
+    pub map: PathBuf,
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// tx,ty,tz, applied after the rotation.
+    #[arg(long, allow_hyphen_values = true)]
+    pub translate: Option<String>,
+    /// Degrees about x, then y, then z.
+    #[arg(long, allow_hyphen_values = true)]
+    pub rotate: Option<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct QueryBenchArgs {
+    /// A map to query; default: the demo scene's map, with its scan re-cast against it.
+    pub map: Option<PathBuf>,
+    /// Entities of the demo map.
+    #[arg(short, default_value_t = 250)]
+    pub k: usize,
+    /// Random points (each asked nearest and occupancy, and a ray from it).
+    #[arg(long, default_value_t = 100_000)]
+    pub queries: usize,
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// `--view`: [`View`] for the command line (its help text is the variants' docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ViewArg {
+    /// Along (-1, 1, -1): x and y recede to the right and left, z up.
+    Iso,
+    /// Down the z axis: x right, y up.
+    Top,
+    /// Along +y: x right, z up.
+    Front,
+    /// Along -x: y right, z up.
+    Side,
+}
+
+/// `--style`: [`Style`] for the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StyleArg {
+    /// Lambert-shaded solids in the kind's colour.
+    Shaded,
+    /// Silhouettes only, over the points.
+    Outline,
+}
+
+impl From<ViewArg> for View {
+    fn from(v: ViewArg) -> Self {
+        match v {
+            ViewArg::Iso => View::Iso,
+            ViewArg::Top => View::Top,
+            ViewArg::Front => View::Front,
+            ViewArg::Side => View::Side,
+        }
+    }
+}
+
+impl From<StyleArg> for Style {
+    fn from(s: StyleArg) -> Self {
+        match s {
+            StyleArg::Shaded => Style::Shaded,
+            StyleArg::Outline => Style::Outline,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct DrawArgs {
+    /// The cloud the map was made from (any readable format).
+    pub input: PathBuf,
+    pub map: PathBuf,
+    /// The picture to write (.png).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[arg(long, value_enum, default_value_t = ViewArg::Iso)]
+    pub view: ViewArg,
+    /// Picture size in pixels; with --compare, the two panels share it side by side.
+    #[arg(long, default_value = "1200x900")]
+    pub size: Size,
+    #[arg(long, value_enum, default_value_t = StyleArg::Shaded)]
+    pub style: StyleArg,
+    /// A second map drawn beside the first on the same scale (the paper's Figure 12:
+    /// `mema map --entity sphere` writes the spherical one).
+    #[arg(long, value_name = "MAP")]
+    pub compare: Option<PathBuf>,
+    /// Print the picture's geometry (frames, legends) as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    pub map: PathBuf,
+    /// The mesh to write: .ply, .obj or .glb.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Clip degenerated entities to this cloud's bounding box (default: the map's own extent).
+    #[arg(long, value_name = "CLOUD")]
+    pub cloud: Option<PathBuf>,
+    /// Vertices around each ellipsoid and tube.
+    #[arg(long, default_value_t = 24)]
+    pub segments: u32,
+    /// Latitude bands of each ellipsoid.
+    #[arg(long, default_value_t = 12)]
+    pub rings: u32,
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct CompletionsArgs {
+    pub shell: clap_complete::Shell,
+}
+
+/// `--only`: [`Which`] for the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum WhichArg {
+    Fitness,
+    Kmeans,
+    Pipeline,
+    Python,
+    Fidelity,
+}
+
+impl From<WhichArg> for Which {
+    fn from(w: WhichArg) -> Self {
+        match w {
+            WhichArg::Fitness => Which::Fitness,
+            WhichArg::Kmeans => Which::Kmeans,
+            WhichArg::Pipeline => Which::Pipeline,
+            WhichArg::Python => Which::Python,
+            WhichArg::Fidelity => Which::Fidelity,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Directory holding the shared clouds.
+    #[arg(long, default_value = "../shared/data")]
+    pub data: PathBuf,
+    /// Benchmarks to run, comma-separated (default: fitness,kmeans,pipeline, plus python when
+    /// --python is given; fidelity, which takes about an hour, only when named).
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub only: Vec<WhichArg>,
+    /// A Python with numpy and scikit-learn (scripts/bench.sh installs one) for benchmarks 4
+    /// and 5.
+    #[arg(long)]
+    pub python: Option<PathBuf>,
+    /// Fidelity: only these clouds of --data, comma-separated file names (default: every
+    /// PLY, PCD, LAS and LAZ file there).
+    #[arg(long, value_delimiter = ',')]
+    pub clouds: Vec<String>,
+    /// Fidelity: map budgets in bytes, comma-separated.
+    #[arg(long, value_delimiter = ',', default_values_t = mema::bench::fidelity::DEFAULT_BUDGETS)]
+    pub budgets: Vec<usize>,
+    /// Fidelity: keep each GMM fit in this directory and reuse it for the same points and
+    /// components (the fits take most of the run).
+    #[arg(long, value_name = "DIR")]
+    pub gmm_cache: Option<PathBuf>,
+    /// Fidelity: print the results as one JSON object on stdout instead of the tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Iteration cap of the plain k-means on the environment case, and of the accelerated run
+    /// it is compared with (uncapped, the plain run would take hours).
+    #[arg(long, default_value_t = 3)]
+    pub plain_cap: u32,
+    /// Timed runs per measurement; the fastest is reported (the machine is shared).
+    #[arg(long, default_value_t = 3)]
+    pub repeat: usize,
+    /// Internal: run one pipeline case (`NAME:K:THREADS`) in this process and print it as JSON.
+    /// Each case runs in a fresh process so that its peak memory is its own.
+    #[arg(long, hide = true)]
+    pub case: Option<String>,
+}
+
+impl BenchArgs {
+    /// The library's options.
+    pub fn options(&self) -> BenchOptions {
+        BenchOptions {
+            data: self.data.clone(),
+            only: self.only.iter().map(|&w| w.into()).collect(),
+            python: self.python.clone(),
+            clouds: self.clouds.clone(),
+            budgets: self.budgets.clone(),
+            gmm_cache: self.gmm_cache.clone(),
+            json: self.json,
+            plain_cap: self.plain_cap,
+            repeat: self.repeat,
+            case: self.case.clone(),
+        }
+    }
+}

@@ -1,0 +1,114 @@
+//! `mema eval`: eq. 13 (Tables 2 and 4) and, beside it, the two-way fidelity score and the
+//! bytes the map file really takes.
+
+use anyhow::{Context, Result};
+use mema::analysis::eval::{EvalReport, FileBytes, MAX_SAMPLES, evaluate, points_in_map_frame};
+use mema::analysis::fidelity::{self, FidelityScore};
+use mema::analysis::stats::{self, MemoryRow};
+use mema::io::cloud::load_cloud;
+use mema::io::mapfile::HostMap;
+use mema::progress::stage;
+use serde::Serialize;
+
+use crate::cli::args::EvalArgs;
+use crate::cli::errors::UsageError;
+
+/// `mema eval --json`: eq. 13's keys first and unchanged, then the score's and the bytes'.
+#[derive(Serialize)]
+pub struct EvalJson {
+    #[serde(flatten)]
+    pub eq13: EvalReport,
+    #[serde(flatten)]
+    pub fidelity: FidelityScore,
+    #[serde(flatten)]
+    pub bytes: FileBytes,
+}
+
+pub fn eval(args: &EvalArgs) -> Result<()> {
+    if args.samples == 0 || args.samples > MAX_SAMPLES {
+        return Err(UsageError(format!(
+            "--samples {} must be between 1 and {MAX_SAMPLES}",
+            args.samples
+        ))
+        .into());
+    }
+    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let map = HostMap::read(&args.map)?;
+    if map.entities.is_empty() {
+        anyhow::bail!("{}: the map has no entities", args.map.display());
+    }
+    let bytes = FileBytes::of(&args.map, &map)?;
+    let eq13 = stage("evaluating", || evaluate(&cloud, &map));
+    let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
+    let score = stage("scoring", || {
+        fidelity::two_way_score(
+            &points_in_map_frame(&cloud, &map),
+            &entities,
+            args.seed,
+            args.samples,
+        )
+    })
+    .with_context(|| format!("{} against {}", args.map.display(), args.input.display()))?;
+    if args.json {
+        let doc = EvalJson {
+            eq13,
+            fidelity: score,
+            bytes,
+        };
+        println!("{}", serde_json::to_string(&doc)?);
+        return Ok(());
+    }
+    println!("{}", stats::MEMORY_HEADER);
+    println!(
+        "{}",
+        stats::format_memory_row(&MemoryRow::new(eq13.points, map.entities.len()))
+    );
+    println!();
+    println!(
+        "eq. 13 error over {} non-empty clusters",
+        eq13.errors.clusters
+    );
+    println!("{}", stats::ERROR_HEADER);
+    println!("{}", stats::format_error_row("map", &eq13.errors));
+    println!();
+    print_score(&score, args.seed);
+    println!(
+        "bytes: {} in the file, {:.2} per entity past its {}-byte header",
+        bytes.file_bytes, bytes.bytes_per_entity, bytes.header_bytes
+    );
+    Ok(())
+}
+
+fn print_score(s: &FidelityScore, seed: u64) {
+    // No reader learns a unit from its file, so lengths are in whatever the cloud used.
+    println!(
+        "two-way score, lengths in cloud units ({} surface samples, seed {seed}):",
+        s.samples
+    );
+    println!(
+        "{:<28} {:>12} {:>12} {:>12} {:>12}",
+        "", "mean", "rms", "p95", "max"
+    );
+    println!(
+        "{:<28} {:>12.6} {:>12.6} {:>12.6} {:>12.6}",
+        "accuracy (cloud to map)", s.accuracy.mean, s.accuracy.rms, s.accuracy.p95, s.accuracy.max
+    );
+    println!(
+        "{:<28} {:>12.6} {:>12.6} {:>12.6} {:>12}",
+        "completeness (map to cloud)",
+        s.completeness.mean,
+        s.completeness.rms,
+        s.completeness.p95,
+        "-"
+    );
+    println!(
+        "tau {:.6} (2 x median point spacing): phantom {:.1}% of {:.6} surface area; precision {:.3}, recall {:.3}, F-score {:.3}",
+        s.tau,
+        100.0 * s.phantom,
+        s.area,
+        s.precision,
+        s.recall,
+        s.f_score
+    );
+    println!("chamfer {:.6}", s.chamfer);
+}

@@ -1,0 +1,103 @@
+//! `mema info`: a map's entities per kind, bounds, layout and bytes.
+
+use anyhow::Result;
+use mema::analysis::stats;
+use mema::io::mapfile::{HostMap, KindCounts};
+use mema_core::map::Layout;
+use serde::Serialize;
+
+use crate::cli::args::InfoArgs;
+
+#[derive(Serialize)]
+struct InfoReport {
+    entities: usize,
+    kinds: KindCounts,
+    origin: [f64; 3],
+    /// World bounding box of the entity centres.
+    center_min: [f64; 3],
+    center_max: [f64; 3],
+    /// Smallest and largest finite semi-axis.
+    semi_axis_min: f64,
+    semi_axis_max: f64,
+    /// The paper's count: 24 bytes per entity.
+    map_bytes: usize,
+    file_bytes: u64,
+    /// How `.mema` stores (or would store) these entities, and its bytes per entity.
+    layout: String,
+    record_bytes: usize,
+    /// Entities with a rotation other than the identity.
+    oriented: usize,
+}
+
+fn layout_name(layout: &Layout) -> &'static str {
+    match layout {
+        Layout::AxisAligned => "version 1, axis-aligned f32",
+        Layout::Oriented => "version 2, oriented f32",
+        Layout::Quantized(_) => "version 2, oriented, quantized",
+    }
+}
+
+pub fn info(args: &InfoArgs) -> Result<()> {
+    let map = HostMap::read(&args.map)?;
+    let file_bytes = std::fs::metadata(&args.map).map(|m| m.len()).unwrap_or(0);
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    let (mut rmin, mut rmax) = (f64::INFINITY, 0.0f64);
+    for e in &map.entities {
+        let c = map.world_center(&e.entity);
+        for j in 0..3 {
+            lo[j] = lo[j].min(c[j]);
+            hi[j] = hi[j].max(c[j]);
+        }
+        for r in e.entity.semi_axes().into_iter().filter(|r| r.is_finite()) {
+            rmin = rmin.min(r as f64);
+            rmax = rmax.max(r as f64);
+        }
+    }
+    let r = InfoReport {
+        entities: map.entities.len(),
+        kinds: KindCounts::of(&map),
+        origin: map.origin,
+        center_min: lo,
+        center_max: hi,
+        semi_axis_min: rmin,
+        semi_axis_max: rmax,
+        map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
+        file_bytes,
+        layout: layout_name(&map.layout()).into(),
+        oriented: map
+            .entities
+            .iter()
+            .filter(|e| !e.entity.rotation.is_identity())
+            .count(),
+        record_bytes: map.layout().record_len(),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        println!("{}: {} entities", args.map.display(), r.entities);
+        println!(
+            "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+            r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
+        );
+        println!("origin: {:?}", r.origin);
+        if r.entities == 0 {
+            println!("centres: none; finite semi-axes: none (the map is empty)");
+        } else {
+            println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
+            println!(
+                "finite semi-axes: {} .. {}",
+                r.semi_axis_min, r.semi_axis_max
+            );
+        }
+        println!(
+            "layout: {} ({} bytes an entity), {} of {} entities oriented",
+            r.layout, r.record_bytes, r.oriented, r.entities
+        );
+        println!(
+            "bytes: {} on disk ({} at the paper's 24 per entity)",
+            r.file_bytes, r.map_bytes
+        );
+    }
+    Ok(())
+}

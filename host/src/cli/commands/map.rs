@@ -1,0 +1,220 @@
+//! `mema map` and `mema demo`: the arguments checked in the order the user reads them, the
+//! library's [`mema::batch`] run, and Tables 2 and 4 (or one JSON object).
+
+use anyhow::{Context, Result};
+use mema::analysis::stats;
+use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance};
+use mema::io::cloud::{LocalCloud, load_cloud};
+use mema::io::output::{check_map_output, check_output_file, write_labels};
+use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::mapping::filter::{self, check_voxel};
+use mema::mapping::{EntityChoice, MIN_POINTS_PER_ENTITY, Model, ShellModel, most_entities};
+use mema::progress::stage;
+use mema_core::shell::ShellParams;
+
+use crate::cli::args::{DemoArgs, EntityArg, MapArgs};
+use crate::cli::errors::UsageError;
+
+/// The shell model `mema map`'s arguments ask for, checked before any work.
+fn shell_model(args: &MapArgs) -> Result<ShellModel> {
+    let model = ShellModel {
+        shell: ShellParams {
+            tangent_scale: args.tangent_scale,
+            normal_scale: args.normal_scale,
+            ..Default::default()
+        },
+        surface_rounds: args.surface_rounds,
+    };
+    model.check()?;
+    Ok(model)
+}
+
+pub fn map(args: &MapArgs) -> Result<()> {
+    let model = if args.paper {
+        Model::Paper
+    } else {
+        args.model.into()
+    };
+    if model == Model::Shells && args.entity == EntityArg::Sphere {
+        return Err(UsageError(
+            "--entity sphere is the paper's comparison; add --paper (or --model paper)".into(),
+        )
+        .into());
+    }
+    let shells = shell_model(args)?;
+    if let Some(t) = args.tolerance {
+        return tolerance(args, t, model, shells.shell);
+    }
+    let k = match args.bytes {
+        Some(bytes) => model.entities_in(bytes)?,
+        None => args.k.unwrap_or(0),
+    };
+    let mut config = args.fit.config(k)?;
+    let voxel = args.voxel.map(check_voxel).transpose()?;
+    check_map_output(&args.output)?;
+    if let Some(labels) = &args.labels {
+        check_output_file(labels, "labels")?;
+    }
+    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let (cloud, counts) =
+        filter::apply(cloud, args.crop, voxel).with_context(|| args.input.display().to_string())?;
+    // A budget is an upper bound: past a quarter of the points, clusters of one to three points
+    // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
+    let most = most_entities(cloud.points.len());
+    if args.bytes.is_some() && config.k > most {
+        eprintln!(
+            "mema: {} bytes hold {} entities, but {} points make at most {most} clusters of {MIN_POINTS_PER_ENTITY}; mapping with k = {most}",
+            args.bytes.unwrap_or(0),
+            config.k,
+            cloud.points.len()
+        );
+        config.k = most;
+    }
+    let mut report = map_cloud_with(
+        &cloud,
+        &config,
+        model,
+        shells,
+        args.entity.into(),
+        &args.output,
+        args.labels.as_deref(),
+    )
+    .with_context(|| args.input.display().to_string())?;
+    report.filter = counts;
+    print_map_report(&report, args.json)
+}
+
+pub fn demo(args: &DemoArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    check_map_output(&args.output)?;
+    let scan = scan(&Scene::demo(), &ScanConfig::default());
+    eprintln!(
+        "demo: simulated rangefinder scan of the built-in scene (floor, trash can, box, person): {} points from {} rays",
+        scan.points.len(),
+        scan.rays
+    );
+    let cloud = LocalCloud::from_world(&scan.points);
+    let model = if args.paper {
+        Model::Paper
+    } else {
+        Model::Shells
+    };
+    let report = map_cloud_with(
+        &cloud,
+        &config,
+        model,
+        ShellModel::default(),
+        EntityChoice::Ellipsoid,
+        &args.output,
+        None,
+    )
+    .context("demo scene")?;
+    print_map_report(&report, args.json)
+}
+
+/// `mema map --tolerance T`.
+fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -> Result<()> {
+    let options = ToleranceOptions {
+        tolerance,
+        capacity: args.capacity,
+        voronoi_rounds: args.voronoi_rounds,
+    };
+    options.check()?;
+    let config = args.fit.config(1)?;
+    let voxel = args.voxel.map(check_voxel).transpose()?;
+    check_map_output(&args.output)?;
+    if let Some(labels) = &args.labels {
+        check_output_file(labels, "labels")?;
+    }
+    let (cloud, _) = filter::apply(load_cloud(&args.input)?, args.crop, voxel)
+        .with_context(|| args.input.display().to_string())?;
+    let built = map_to_tolerance(&cloud, &options, &config, model, shell)
+        .with_context(|| args.input.display().to_string())?;
+    built.map.write(&args.output)?;
+    if let Some(path) = &args.labels {
+        write_labels(path, &built.labels(cloud.points.len()))?;
+    }
+    let report = built.report(cloud.points.len(), &args.output);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "tolerance {tolerance}: k = {} ({} splits, {} merges{})",
+        report.k,
+        report.splits,
+        report.merges,
+        if report.capacity_reached {
+            ", capacity reached"
+        } else {
+            ""
+        }
+    );
+    println!("{}", stats::MEMORY_HEADER);
+    println!("{}", stats::format_memory_row(&report.memory));
+    println!();
+    println!(
+        "eq. 13 error per cluster, {} over the tolerance",
+        report.clusters_over_tolerance
+    );
+    println!("{}", stats::ERROR_HEADER);
+    println!(
+        "{}",
+        stats::format_error_row("ellipsoidal", &report.ellipsoidal)
+    );
+    println!(
+        "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+        report.kinds.ellipsoid,
+        report.kinds.sphere,
+        report.kinds.pseudocylinder,
+        report.kinds.plane_pair
+    );
+    eprintln!("wrote {}", report.output);
+    Ok(())
+}
+
+fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
+    if json {
+        println!("{}", serde_json::to_string_pretty(r)?);
+        return Ok(());
+    }
+    println!(
+        "Table 2: memory (12 bytes per point, {} per entity)",
+        r.memory.map_bytes / r.memory.entities.max(1)
+    );
+    println!("{}", stats::MEMORY_HEADER);
+    println!("{}", stats::format_memory_row(&r.memory));
+    println!();
+    println!(
+        "Table 4: eq. 13 error per cluster (cloud units), over {} clusters",
+        r.ellipsoidal.clusters
+    );
+    println!("{}", stats::ERROR_HEADER);
+    match &r.spherical {
+        Some(spherical) => {
+            println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
+            println!("{}", stats::format_error_row("spherical", spherical));
+        }
+        None => println!("{}", stats::format_error_row("shells", &r.ellipsoidal)),
+    }
+    println!();
+    println!(
+        "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+        r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
+    );
+    let surfaces = match r.surface_rounds {
+        Some(n) => format!("; surface following: {n} rounds"),
+        None => String::new(),
+    };
+    eprintln!(
+        "k-means: {} iterations{}{surfaces}; wrote {}",
+        r.kmeans_iterations,
+        if r.kmeans_converged {
+            ", converged"
+        } else {
+            ", iteration cap reached"
+        },
+        r.output
+    );
+    Ok(())
+}

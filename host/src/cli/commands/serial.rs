@@ -1,0 +1,341 @@
+//! `mema stream`, `record`, `replay` and `scanner-sim`: the link from wire to map file.
+
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use mema::io::cloud::{LocalCloud, load_cloud};
+use mema::io::output::{check_map_output, check_output_dir};
+use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::link::capture::CaptureWriter;
+use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
+use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use mema::link::stream::{Capacity, Link, link_params};
+use mema_core::stream::StreamParams;
+
+use crate::cli::args::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs};
+use crate::cli::errors::LinkLost;
+
+/// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
+pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, mema::ConfigError> {
+    Capacity::checked(k, shape.working, shape.tolerance.is_some())
+}
+
+/// The mapper's parameters from the command line.
+fn params(
+    config: &mema::mapping::PipelineConfig,
+    capacity: Capacity,
+    shape: &StreamShapeArgs,
+) -> StreamParams {
+    link_params(config, capacity, shape.tolerance, shape.model.into())
+}
+
+/// How often `stream` reports progress on stderr.
+const PROGRESS_EVERY: Duration = Duration::from_secs(5);
+
+/// Set by Ctrl-C; every loop polls it between reads.
+fn interrupted() -> Arc<AtomicBool> {
+    let flag = Arc::new(AtomicBool::new(false));
+    let handler_flag = flag.clone();
+    // Only the first command in a process can install it; later calls keep the first flag's
+    // meaning (a process runs one command).
+    let _ = ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst));
+    flag
+}
+
+#[derive(Serialize)]
+pub struct StreamSummary {
+    pub map: String,
+    pub end: String,
+    pub points: u64,
+    pub frames_accepted: u64,
+    pub frames_rejected: u64,
+    pub frames_lost: u64,
+    pub frames_duplicated: u64,
+    pub bytes: u64,
+    pub ellipsoids: usize,
+    pub elapsed_s: f64,
+    pub points_per_s: f64,
+}
+
+fn summary(
+    link: &Link,
+    map: &Path,
+    end: &str,
+    ellipsoids: usize,
+    started: Instant,
+) -> StreamSummary {
+    let s = link.stats();
+    let elapsed = started.elapsed().as_secs_f64();
+    let points = link.mapper.stats().points;
+    StreamSummary {
+        map: map.display().to_string(),
+        end: end.into(),
+        points,
+        frames_accepted: s.accepted,
+        frames_rejected: s.rejected,
+        frames_lost: s.lost,
+        frames_duplicated: s.duplicates,
+        bytes: s.bytes,
+        ellipsoids,
+        elapsed_s: elapsed,
+        points_per_s: if elapsed > 0.0 {
+            points as f64 / elapsed
+        } else {
+            0.0
+        },
+    }
+}
+
+fn report(s: &StreamSummary, json: bool) -> Result<()> {
+    eprintln!(
+        "mema: {}: {} points, frames {} accepted / {} rejected / {} lost / {} repeated, {} ellipsoids, {:.2} s, {:.0} points/s",
+        s.end,
+        s.points,
+        s.frames_accepted,
+        s.frames_rejected,
+        s.frames_lost,
+        s.frames_duplicated,
+        s.ellipsoids,
+        s.elapsed_s,
+        s.points_per_s
+    );
+    if json {
+        println!("{}", serde_json::to_string(s)?);
+    } else {
+        println!("{}", s.map);
+    }
+    Ok(())
+}
+
+/// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
+fn conclude(
+    mut link: Link,
+    output: &Path,
+    end: Option<String>,
+    started: Instant,
+    json: bool,
+) -> Result<()> {
+    let map = link.finish();
+    map.write(output)?;
+    let (end_text, lost) = match (&end, link.end_of_stream) {
+        (_, true) => ("end of stream".to_string(), false),
+        (Some(reason), false) if reason == "interrupted" => {
+            ("interrupted (Ctrl-C)".to_string(), false)
+        }
+        (Some(reason), false) => (format!("link lost before end of stream ({reason})"), true),
+        (None, false) => ("input ended before end of stream".to_string(), true),
+    };
+    report(
+        &summary(&link, output, &end_text, map.entities.len(), started),
+        json,
+    )?;
+    if lost {
+        return Err(LinkLost(format!(
+            "{end_text}; the map of what arrived is in {}",
+            output.display()
+        ))
+        .into());
+    }
+    Ok(())
+}
+
+pub fn stream(args: &StreamArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    let capacity = capacity(args.k, &args.shape)?;
+    check_map_output(&args.output)?;
+    let mut port = open_for_reading(&args.port, args.baud)?;
+    let mut record = match &args.record {
+        Some(path) => Some(CaptureWriter::create(path)?),
+        None => None,
+    };
+    let stop = interrupted();
+    let mut link = Link::with_params(params(&config, capacity, &args.shape));
+    eprintln!("mema: listening on {}", args.port.display());
+    let started = Instant::now();
+    let mut last_snapshot = Instant::now();
+    let mut last_progress = Instant::now();
+    let mut buf = [0u8; 4096];
+    let end = loop {
+        if last_progress.elapsed() >= PROGRESS_EVERY {
+            let s = link.stats();
+            eprintln!(
+                "mema: {:.0} s: {} points, frames {} accepted / {} rejected / {} lost, {} clusters",
+                started.elapsed().as_secs_f64(),
+                link.mapper.stats().points,
+                s.accepted,
+                s.rejected,
+                s.lost,
+                link.mapper.clusters().len()
+            );
+            last_progress = Instant::now();
+        }
+        if stop.load(Ordering::SeqCst) {
+            break Some("interrupted".to_string());
+        }
+        match read_some(port.as_mut(), &mut buf) {
+            ReadOutcome::Bytes(n) => {
+                let bytes = buf.get(..n).unwrap_or(&[]);
+                if let Some(r) = record.as_mut() {
+                    r.write(bytes)?;
+                }
+                link.feed(bytes);
+                if link.end_of_stream {
+                    break None;
+                }
+            }
+            ReadOutcome::Idle => {}
+            ReadOutcome::Gone(reason) => break Some(reason),
+        }
+        if let Some(every) = args.snapshot_every
+            && last_snapshot.elapsed() >= Duration::from_secs_f64(every)
+        {
+            link.snapshot().write(&args.output)?;
+            eprintln!(
+                "mema: snapshot: {} points, {} ellipsoids",
+                link.mapper.stats().points,
+                link.mapper.clusters().len()
+            );
+            last_snapshot = Instant::now();
+        }
+    };
+    if let Some(r) = record {
+        r.finish()?;
+    }
+    conclude(link, &args.output, end, started, args.json)
+}
+
+pub fn record(args: &RecordArgs) -> Result<()> {
+    check_output_dir(&args.output)?;
+    let mut port = open_for_reading(&args.port, args.baud)?;
+    let mut capture = CaptureWriter::create(&args.output)?;
+    let stop = interrupted();
+    // The decoder only watches for the end-of-stream frame; the capture keeps every byte.
+    let mut watch = mema_core::wire::Decoder::new();
+    eprintln!("mema: listening on {}", args.port.display());
+    let mut seen_end = false;
+    let mut bytes = 0u64;
+    let mut buf = [0u8; 4096];
+    let reason = loop {
+        if stop.load(Ordering::SeqCst) {
+            break "interrupted (Ctrl-C)".to_string();
+        }
+        match read_some(port.as_mut(), &mut buf) {
+            ReadOutcome::Bytes(n) => {
+                let chunk = buf.get(..n).unwrap_or(&[]);
+                capture.write(chunk)?;
+                bytes += n as u64;
+                let mut window = chunk;
+                loop {
+                    match watch.feed(window) {
+                        mema_core::wire::Decoded::Consumed => break,
+                        mema_core::wire::Decoded::Rejected { remaining, .. } => window = remaining,
+                        mema_core::wire::Decoded::Frame { frame, remaining } => {
+                            seen_end |= frame.end_of_stream();
+                            window = remaining;
+                        }
+                    }
+                }
+                if seen_end {
+                    break "end of stream".to_string();
+                }
+            }
+            ReadOutcome::Idle => {}
+            ReadOutcome::Gone(reason) => break format!("port closed ({reason})"),
+        }
+    };
+    capture.finish()?;
+    eprintln!(
+        "mema: {reason}: {bytes} bytes, {} frames",
+        watch.stats().accepted
+    );
+    println!("{}", args.output.display());
+    Ok(())
+}
+
+pub fn replay(args: &ReplayArgs) -> Result<()> {
+    let config = args.fit.config(args.k)?;
+    let capacity = capacity(args.k, &args.shape)?;
+    let output = args
+        .output
+        .clone()
+        .unwrap_or_else(|| args.capture.with_extension("mema"));
+    check_map_output(&output)?;
+    let bytes = std::fs::read(&args.capture)
+        .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
+    let stop = interrupted();
+    let mut link = Link::with_params(params(&config, capacity, &args.shape));
+    let started = Instant::now();
+    let mut end = None;
+    for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
+        if stop.load(Ordering::SeqCst) {
+            end = Some("interrupted".to_string());
+            break;
+        }
+        link.feed(chunk);
+        if let Some(rate) = args.rate {
+            // Pace by points delivered, as the scanner would have.
+            let due = link.mapper.stats().points as f64 / rate;
+            let ahead = due - started.elapsed().as_secs_f64();
+            if ahead > 0.0 {
+                std::thread::sleep(Duration::from_secs_f64(ahead));
+            }
+        }
+        if link.end_of_stream {
+            break;
+        }
+    }
+    conclude(link, &output, end, started, args.json)
+}
+
+pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
+    let cloud = match &args.cloud {
+        Some(path) => load_cloud(path)?,
+        None => {
+            let scan = scan(&Scene::demo(), &ScanConfig::default());
+            LocalCloud::from_world(&scan.points)
+        }
+    };
+    if cloud.points.is_empty() {
+        bail!("the cloud has no points to send");
+    }
+    let wire: Vec<[i32; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| quantise(*p))
+        .collect::<Result<_>>()?;
+    let bytes = encode_stream(&wire)?;
+    let mut port = open_for_writing(&args.port, args.baud)?;
+    let stop = interrupted();
+    let started = Instant::now();
+    let bytes_per_point = bytes.len() as f64 / wire.len() as f64;
+    let mut sent = 0usize;
+    for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
+        if stop.load(Ordering::SeqCst) {
+            break;
+        }
+        port.write_all(chunk)
+            .with_context(|| format!("{}: write failed", args.port.display()))?;
+        sent += chunk.len();
+        if let Some(rate) = args.rate {
+            let due = sent as f64 / bytes_per_point / rate;
+            let ahead = due - started.elapsed().as_secs_f64();
+            if ahead > 0.0 {
+                std::thread::sleep(Duration::from_secs_f64(ahead));
+            }
+        }
+    }
+    port.flush()
+        .with_context(|| format!("{}: flush failed", args.port.display()))?;
+    eprintln!(
+        "mema: scanner-sim: sent {} points in {} frames, {sent} bytes, {:.2} s",
+        wire.len(),
+        wire.len().div_ceil(POINTS_PER_FRAME),
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}

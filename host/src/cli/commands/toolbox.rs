@@ -1,0 +1,131 @@
+//! The toolbox commands: `draw`, `export`, `completions` and `man`.
+
+use anyhow::{Context, Result};
+use clap::CommandFactory;
+use mema::io::cloud::load_cloud;
+use mema::io::mapfile::{HostMap, write_file_atomically};
+use mema::io::output::check_output_file;
+use mema::progress::stage;
+use mema::render::export::{self as mesh, Bounds, ExportReport, MeshFormat, Tessellation};
+use mema::render::picture::render;
+use std::path::Path;
+
+use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs};
+use crate::cli::errors::UsageError;
+
+/// Fails before any work if `path` lacks the extension or its directory cannot take it.
+fn check_output(path: &Path, ext: &[&str], what: &str) -> Result<()> {
+    let got = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !got.as_deref().is_some_and(|g| ext.contains(&g)) {
+        return Err(UsageError(format!(
+            "{}: a {what} needs the extension .{}",
+            path.display(),
+            ext.join(", .")
+        ))
+        .into());
+    }
+    check_output_file(path, what)
+}
+
+fn read_map(path: &Path) -> Result<HostMap> {
+    let map = HostMap::read(path)?;
+    if map.entities.is_empty() {
+        anyhow::bail!("{}: the map has no entities", path.display());
+    }
+    Ok(map)
+}
+
+pub fn draw(args: &DrawArgs) -> Result<()> {
+    check_output(&args.output, &["png"], "picture")?;
+    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let mut maps = vec![(file_name(&args.map), read_map(&args.map)?)];
+    if let Some(other) = &args.compare {
+        maps.push((file_name(other), read_map(other)?));
+    }
+    let (raster, mut report) = stage("rendering", || {
+        render(
+            &cloud,
+            &maps,
+            args.view.into(),
+            args.size,
+            args.style.into(),
+        )
+    })?;
+    let png = raster.encode_png().context("PNG encoding")?;
+    write_file_atomically(&args.output, &png, "picture")
+        .with_context(|| format!("{}", args.output.display()))?;
+    report.output = args.output.display().to_string();
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        for p in &report.panels {
+            println!(
+                "{}: {} entities, mean eq. 13 error {:.6}",
+                p.map, p.entities, p.mean_error
+            );
+        }
+        println!(
+            "wrote {} ({}x{}, {} view)",
+            report.output,
+            report.width,
+            report.height,
+            report.view.name()
+        );
+    }
+    Ok(())
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(
+        || p.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+pub fn export(args: &ExportArgs) -> Result<()> {
+    let t = Tessellation::checked(args.segments, args.rings)?;
+    MeshFormat::from_path(&args.output)?;
+    check_output(&args.output, &["ply", "obj", "glb"], "mesh")?;
+    let map = read_map(&args.map)?;
+    let (bounds, source) = match &args.cloud {
+        Some(path) => {
+            let cloud = stage("reading", || load_cloud(path))?;
+            (Bounds::of_points(cloud.origin, &cloud.points), "cloud")
+        }
+        None => (Bounds::of_map(&map), "map"),
+    };
+    let report: ExportReport = mesh::export(&map, bounds, source, &t, &args.output)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "wrote {}: {} entities as {} vertices and {} triangles (degenerated ones clipped to the {}'s box)",
+            report.output, report.entities, report.vertices, report.triangles, report.bounds_source
+        );
+    }
+    Ok(())
+}
+
+pub fn completions(args: &CompletionsArgs) -> Result<()> {
+    let mut out = Vec::new();
+    clap_complete::generate(args.shell, &mut Cli::command(), "mema", &mut out);
+    print_bytes(&out)
+}
+
+pub fn man() -> Result<()> {
+    let mut out = Vec::new();
+    clap_mangen::Man::new(Cli::command()).render(&mut out)?;
+    print_bytes(&out)
+}
+
+/// A closed pipe (`mema man | head`) is not an error worth a message.
+fn print_bytes(bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    match std::io::stdout().write_all(bytes) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        other => other.context("stdout"),
+    }
+}

@@ -1,0 +1,144 @@
+//! How a failed command reads and exits. The library's errors name its own terms; here they
+//! become the flags the user typed, and the exit status says what kind of failure it was:
+//! 1 bad input or I/O, 2 bad usage (clap's own status for its errors), 3 a stream that ended
+//! before its end-of-stream frame.
+
+use mema::ConfigError;
+use mema::mapping::filter::FilterError;
+
+/// A value the user gave that cannot work; reported with exit status 2, like clap's own errors.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UsageError(pub String);
+
+/// The stream ended without its end-of-stream frame (port closed, cable pulled, capture cut).
+/// The map of what arrived is written; the exit status is 3 so scripts can tell.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct LinkLost(pub String);
+
+/// The exit status for `e`.
+pub fn exit_status(e: &anyhow::Error) -> u8 {
+    if e.downcast_ref::<UsageError>().is_some() || e.downcast_ref::<ConfigError>().is_some() {
+        2
+    } else if e.downcast_ref::<LinkLost>().is_some() {
+        3
+    } else {
+        1
+    }
+}
+
+/// `e` as one line, `{e:#}` with the library's errors in the command line's words.
+pub fn message(e: &anyhow::Error) -> String {
+    let causes: Vec<String> = e
+        .chain()
+        .map(|cause| {
+            if let Some(c) = cause.downcast_ref::<ConfigError>() {
+                config_message(c)
+            } else if let Some(f) = cause.downcast_ref::<FilterError>() {
+                filter_message(f)
+            } else {
+                cause.to_string()
+            }
+        })
+        .collect();
+    causes.join(": ")
+}
+
+fn config_message(e: &ConfigError) -> String {
+    match e {
+        ConfigError::NoClusters => {
+            "k must be at least 1; consider -k 150 (about one entity per 100 points)".into()
+        }
+        ConfigError::Alpha(a) => format!("--alpha {a} is outside [0, 1]; the paper uses 0.8"),
+        ConfigError::Threshold(t) => format!("--threshold {t} must be a positive length"),
+        ConfigError::SphereTolerance(s) => format!("--sphere-tolerance {s} must be >= 0"),
+        ConfigError::TangentScale(v) => format!("--tangent-scale {v} must be positive"),
+        ConfigError::NormalScale(v) => format!("--normal-scale {v} must be positive"),
+        ConfigError::BudgetTooSmall { bytes, per } => {
+            format!("--bytes {bytes} holds no entity; one takes {per} bytes in this model")
+        }
+        ConfigError::Tolerance(t) => {
+            format!("--tolerance {t} must be a positive length in the cloud's units")
+        }
+        ConfigError::ToleranceCapacity => "--capacity must be at least 1".into(),
+        ConfigError::Voxel(size) => format!(
+            "--voxel {size} must be a positive length; consider --voxel 0.05 (5 cm in metres)"
+        ),
+        ConfigError::Tessellation { segments, rings } => format!(
+            "--segments {segments} --rings {rings}: need 3..=1024 segments and 2..=512 rings; consider the defaults, 24 and 12"
+        ),
+        ConfigError::TooManyVertices(v) => {
+            format!("{v} vertices exceed 32-bit indices; consider fewer --segments or --rings")
+        }
+        ConfigError::PictureTooSmall {
+            width,
+            height,
+            plot_width,
+            plot_height,
+        } => format!(
+            "--size {width}x{height} leaves a {plot_width}x{plot_height} plot; consider 1200x900"
+        ),
+        ConfigError::StreamCapacity { k, max } => {
+            format!("-k {k} is over the streaming mapper's capacity of {max}")
+        }
+        ConfigError::Working { working, k } => {
+            format!("--working {working} must be between 1 and -k ({k})")
+        }
+        ConfigError::WorkingWithTolerance => {
+            "--working and --tolerance do not combine: frozen clusters cannot merge".into()
+        }
+        ConfigError::ZeroBudget(b) => format!("--budgets {b}: a budget is at least 1 byte"),
+        // The extensions' messages name no flag; any variant added later reads as the library
+        // words it until it gets its flags here.
+        other => other.to_string(),
+    }
+}
+
+fn filter_message(e: &FilterError) -> String {
+    match e {
+        FilterError::CropLeavesNothing { min, max } => {
+            format!("--crop {min:?}..{max:?} leaves no points of the cloud")
+        }
+        FilterError::VoxelTooSmall { size, reach, least } => format!(
+            "--voxel {size} is too small for this cloud: its coordinates reach {reach}, more than 2^53 voxels from zero; use at least {least:e} (in the file's units)"
+        ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use anyhow::Context;
+
+    #[test]
+    fn library_errors_read_as_flags_inside_their_context() {
+        let e = Err::<(), _>(ConfigError::Alpha(2.0))
+            .context("car6.pcd")
+            .unwrap_err();
+        assert_eq!(
+            message(&e),
+            "car6.pcd: --alpha 2 is outside [0, 1]; the paper uses 0.8"
+        );
+        assert_eq!(exit_status(&e), 2);
+        let e = anyhow::Error::from(FilterError::CropLeavesNothing {
+            min: [0.0; 3],
+            max: [1.0; 3],
+        })
+        .context("x.pcd");
+        assert_eq!(
+            message(&e),
+            "x.pcd: --crop [0.0, 0.0, 0.0]..[1.0, 1.0, 1.0] leaves no points of the cloud"
+        );
+        assert_eq!(exit_status(&e), 1);
+        let e = anyhow::Error::from(ConfigError::MapExtension("m.txt".into())).context("a");
+        assert_eq!(
+            message(&e),
+            format!("{e:#}"),
+            "no flag to name: the library's words"
+        );
+        assert_eq!(exit_status(&e), 2);
+        assert_eq!(exit_status(&anyhow::Error::from(LinkLost("cut".into()))), 3);
+        assert_eq!(exit_status(&anyhow::anyhow!("broken file")), 1);
+    }
+}

@@ -1,0 +1,83 @@
+//! A cloud as the pipeline takes it: f32 points in a local frame around an f64 origin.
+
+use anyhow::Result;
+use mema_core::Point3;
+use std::path::Path;
+
+use super::read::read_cloud;
+
+/// A cloud in its local frame, ready for the core.
+///
+/// The core works in f32; survey coordinates (hundreds of kilometres, millimetre detail) do
+/// not fit f32, so every point is stored relative to `origin`, kept in f64.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LocalCloud {
+    /// The local frame's origin, in the file's own coordinates.
+    pub origin: [f64; 3],
+    /// The points, relative to `origin`.
+    pub points: Vec<Point3>,
+    /// Points the reader skipped because a coordinate was NaN or infinite.
+    pub dropped_non_finite: usize,
+}
+
+impl LocalCloud {
+    /// From world coordinates: the bounding-box centre becomes the origin.
+    ///
+    /// ```
+    /// use mema::io::LocalCloud;
+    ///
+    /// let cloud = LocalCloud::from_world(&[[100.0, 0.0, 0.0], [102.0, 4.0, 1.0]]);
+    /// assert_eq!(cloud.origin, [101.0, 2.0, 0.5]);
+    /// assert_eq!(cloud.points[1].to_array(), [1.0, 2.0, 0.5]);
+    /// ```
+    pub fn from_world(points: &[[f64; 3]]) -> Self {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for p in points {
+            for j in 0..3 {
+                lo[j] = lo[j].min(p[j]);
+                hi[j] = hi[j].max(p[j]);
+            }
+        }
+        let origin = [0, 1, 2].map(|j| {
+            if points.is_empty() {
+                0.0
+            } else {
+                0.5 * (lo[j] + hi[j])
+            }
+        });
+        let points = points
+            .iter()
+            .map(|p| {
+                Point3::new(
+                    (p[0] - origin[0]) as f32,
+                    (p[1] - origin[1]) as f32,
+                    (p[2] - origin[2]) as f32,
+                )
+            })
+            .collect();
+        Self {
+            origin,
+            points,
+            dropped_non_finite: 0,
+        }
+    }
+}
+
+/// Reads any cloud file the readers know (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI `.bin`; see
+/// [`crate::io::read`]) into its local frame.
+///
+/// ```
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/car6.pcd");
+/// let cloud = mema::io::load_cloud(path.as_ref())?;
+/// assert!(cloud.points.len() > 1000);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
+    let cloud = read_cloud(path)?;
+    Ok(LocalCloud {
+        origin: cloud.origin,
+        points: cloud.points.into_iter().map(Point3::from).collect(),
+        dropped_non_finite: cloud.dropped_non_finite,
+    })
+}

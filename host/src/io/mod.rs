@@ -1,0 +1,12 @@
+//! Input and output: point clouds from files, map files, and the built-in demo scene.
+//!
+//! Nothing here depends on the rest of the crate but [`crate::error`]: every other layer reads
+//! and writes through it.
+pub mod cloud;
+pub mod mapfile;
+pub mod output;
+pub mod read;
+pub mod scene;
+
+pub use cloud::{LocalCloud, load_cloud};
+pub use mapfile::{HostMap, MapFormat};

@@ -1,0 +1,415 @@
+//! Point-cloud readers: PLY, PCD, LAS/LAZ, XYZ/CSV text and KITTI `.bin`, recognised by content
+//! (KITTI, having no header, by its extension).
+//!
+//! The contract every reader keeps:
+//! - the file is streamed through a small buffer (`stream::Input`), so the cloud is held
+//!   once, as the points returned (an organized cloud's NaN slots until they are compacted in
+//!   place), never next to a copy of the file or of a decompressed body;
+//! - no input makes a reader panic: bytes are reached through `get`, `chunks_exact` and
+//!   iterators, never through indexing that the file controls;
+//! - a size taken from a header is checked against the bytes actually present (the file's
+//!   length) before it is allocated or looped over, so a header claiming 10^18 points is an
+//!   error, not an allocation; where the length cannot settle it (LZF may expand 88×), memory
+//!   comes as the data is decoded; and an allocation the machine refuses is
+//!   [`ReadError::OutOfMemory`], not an abort;
+//! - coordinates are parsed as f64 and only cast to f32 after moving to the bounding-box centre,
+//!   because real captures (airborne lidar in UTM metres, say) sit far from zero and would lose
+//!   centimetres in f32.
+//!
+//! Format detection looks at the first bytes (`ply` magic line, a PCD header, the `LASF`
+//! signature, then text with a line of at least three numbers); the file extension only sharpens
+//! the error message, except for headerless KITTI `.bin` scans, which it selects.
+
+mod kitti;
+mod las;
+mod lzf;
+mod pcd;
+mod ply;
+mod points;
+mod stream;
+mod xyz;
+
+use std::fmt;
+use std::fs::File;
+use std::io::{Read, Seek};
+use std::path::{Path, PathBuf};
+
+pub(crate) use points::{Endian, Points, Scalar};
+use stream::{Input, Line};
+
+/// A cloud read from a file: coordinates moved to a local origin so they survive the trip to f32.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Cloud {
+    /// The bounding-box centre of the finite points, in the file's own coordinates (f64).
+    pub origin: [f64; 3],
+    /// Finite points minus `origin`, as f32.
+    pub points: Vec<[f32; 3]>,
+    /// Point slots the file declares (including NaN/inf ones), e.g. WIDTH*HEIGHT of an organized PCD.
+    pub slots: usize,
+    /// Slots dropped because a coordinate was NaN or infinite.
+    pub dropped_non_finite: usize,
+    /// The encoding the points were read from.
+    pub format: Format,
+}
+
+/// The file formats and encodings the readers understand.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Format {
+    PlyAscii,
+    PlyBinaryLittleEndian,
+    PlyBinaryBigEndian,
+    PcdAscii,
+    PcdBinary,
+    PcdBinaryCompressed,
+    Xyz,
+    Las,
+    Laz,
+    KittiBin,
+}
+
+impl fmt::Display for Format {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Format::PlyAscii => "PLY ascii",
+            Format::PlyBinaryLittleEndian => "PLY binary_little_endian",
+            Format::PlyBinaryBigEndian => "PLY binary_big_endian",
+            Format::PcdAscii => "PCD ascii",
+            Format::PcdBinary => "PCD binary",
+            Format::PcdBinaryCompressed => "PCD binary_compressed",
+            Format::Xyz => "XYZ text",
+            Format::Las => "LAS",
+            Format::Laz => "LAZ",
+            Format::KittiBin => "KITTI bin",
+        })
+    }
+}
+
+/// Where in a file a problem sits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum At {
+    /// The header as a whole (a missing field, an inconsistency between lines).
+    Header,
+    /// A 1-based line of a text header or text body.
+    Line(usize),
+    /// A byte offset from the start of the file.
+    Offset(u64),
+}
+
+impl fmt::Display for At {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            At::Header => f.write_str("header"),
+            At::Line(n) => write!(f, "line {n}"),
+            At::Offset(n) => write!(f, "offset {n}"),
+        }
+    }
+}
+
+/// Why a file could not be read as a point cloud. Each Display is one line that starts with
+/// the file's name.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ReadError {
+    /// The file could not be read from disk. The OS error is part of the message rather than a
+    /// `source`, so a `{:#}` chain does not print it twice.
+    #[error("{}: {cause}", path.display())]
+    Io {
+        path: PathBuf,
+        cause: std::io::Error,
+    },
+    /// The file has no bytes at all.
+    #[error("{name}: empty file")]
+    Empty { name: String },
+    /// The bytes are none of the formats above.
+    #[error("{name}: not a point cloud ({why})")]
+    NotAPointCloud { name: String, why: String },
+    /// The file ends before the header or the data it declares.
+    #[error("{name}: truncated: {what}")]
+    Truncated { name: String, what: String },
+    /// The header is malformed or inconsistent.
+    #[error("{name}: {at}: {what}")]
+    BadHeader { name: String, at: At, what: String },
+    /// A value in the data cannot be used (not a number, a negative list count, corrupt LZF).
+    #[error("{name}: {at}: {what}")]
+    BadValue { name: String, at: At, what: String },
+    /// Every declared slot has a NaN or infinite coordinate, or none is declared.
+    #[error("{name}: {}", no_finite_points(.slots))]
+    NoFinitePoints { name: String, slots: usize },
+    /// A valid file that uses something these readers do not handle.
+    #[error("{name}: unsupported: {what}")]
+    Unsupported { name: String, what: String },
+    /// The memory for the points the file declares could not be had.
+    #[error("{name}: out of memory: {what}")]
+    OutOfMemory { name: String, what: String },
+    /// The input is past a limit these readers set (a pipe's bytes, a header's size).
+    #[error("{name}: too large: {what}")]
+    TooLarge { name: String, what: String },
+}
+
+fn no_finite_points(slots: &usize) -> String {
+    match slots {
+        0 => "no points (the file declares 0)".to_owned(),
+        n => format!("no finite points ({n} slots, all NaN or infinite)"),
+    }
+}
+
+/// The most bytes read from a pipe or a device. Such an input is held whole, since a header's
+/// sizes can only be checked against a known length; 4 GiB is far more than any cloud these
+/// readers are used on (the largest shared one is 3 MB), and past it the input is an error,
+/// where `/dev/zero` would otherwise be read until memory ran out.
+pub const UNSIZED_LIMIT: u64 = 4 << 30;
+
+/// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file.
+pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
+    let io = |cause| ReadError::Io {
+        path: path.to_owned(),
+        cause,
+    };
+    let mut file = File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    let name = path.display().to_string();
+    if !meta.is_file() {
+        return read_unsized(path, file, UNSIZED_LIMIT);
+    }
+    let ctx = Ctx(&name);
+    let kind = {
+        let mut input = Input::new(ctx, &mut file, meta.len());
+        match detect(&mut input)? {
+            Kind::Las => None,
+            Kind::Stream(read) => Some(read(&mut input)?),
+        }
+    };
+    match kind {
+        Some(cloud) => Ok(cloud),
+        None => {
+            // `las` wants an owned, seekable source: the file itself, from its start.
+            file.rewind().map_err(io)?;
+            las::read(ctx, std::io::BufReader::new(file), meta.len())
+        }
+    }
+}
+
+/// Reads a source without a length (a pipe, a device) whole, up to `limit` bytes.
+fn read_unsized(path: &Path, source: impl Read, limit: u64) -> Result<Cloud, ReadError> {
+    let name = path.display().to_string();
+    let mut bytes = Vec::new();
+    // One byte past the limit tells an input of exactly `limit` bytes from a longer one.
+    let read = source.take(limit.saturating_add(1)).read_to_end(&mut bytes);
+    read.map_err(|cause| ReadError::Io {
+        path: path.to_owned(),
+        cause,
+    })?;
+    if bytes.len() as u64 > limit {
+        let what = format!(
+            "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
+        );
+        return Err(ReadError::TooLarge { name, what });
+    }
+    read_cloud_bytes(&name, &bytes)
+}
+
+/// Same from bytes already in memory; `name` is used in error messages.
+pub fn read_cloud_bytes(name: &str, bytes: &[u8]) -> Result<Cloud, ReadError> {
+    let ctx = Ctx(name);
+    let mut source = bytes;
+    let mut input = Input::new(ctx, &mut source, bytes.len() as u64);
+    match detect(&mut input)? {
+        // `las` wants an owned source; one copy is cheap next to decoding the points.
+        Kind::Las => las::read(
+            ctx,
+            std::io::Cursor::new(bytes.to_vec()),
+            bytes.len() as u64,
+        ),
+        Kind::Stream(read) => read(&mut input),
+    }
+}
+
+/// What the first bytes of a file say it is: LAS/LAZ, which the `las` crate reads from a
+/// seekable source, or a format with a reader over the stream.
+enum Kind {
+    Las,
+    Stream(fn(&mut Input) -> Result<Cloud, ReadError>),
+}
+
+/// Bytes of the file's start that detection looks at; more only while leading comment lines
+/// leave it open whether a PCD header follows them.
+const HEAD: usize = 4096;
+
+/// The most detection reads past [`HEAD`] for leading comments: 16 times the longest banner
+/// seen before a real PCD header (62 KB). Comments running on past it make the file not a PCD,
+/// as if it ended there; otherwise a gigabyte with no newline would be read whole to find the
+/// end of its first line.
+const HEAD_LIMIT: usize = 1 << 20;
+
+/// Whether a PCD header starts the input, after any comment lines.
+fn starts_pcd(input: &mut Input) -> Result<bool, ReadError> {
+    let (mut want, len) = (HEAD, input.remaining());
+    loop {
+        let head = input.peek(want)?;
+        // Fewer bytes than asked for: the input ended (early, if it shrank since it was opened).
+        let whole = head.len() as u64 >= len || head.len() < want || head.len() >= HEAD_LIMIT;
+        match pcd::has_header(head, whole) {
+            Some(is_pcd) => return Ok(is_pcd),
+            None => want = head.len().saturating_mul(2).min(HEAD_LIMIT),
+        }
+    }
+}
+
+fn detect(input: &mut Input) -> Result<Kind, ReadError> {
+    let ctx = input.ctx();
+    let is_pcd = starts_pcd(input)?;
+    let head = input.peek(HEAD)?;
+    if head.is_empty() {
+        let name = ctx.name();
+        return Err(ReadError::Empty { name });
+    }
+    Ok(
+        if head.starts_with(b"ply\n") || head.starts_with(b"ply\r\n") {
+            Kind::Stream(ply::read)
+        } else if is_pcd {
+            Kind::Stream(pcd::read)
+        } else if las::has_signature(head) {
+            Kind::Las
+        } else if kitti::is_named_bin(ctx.0) {
+            Kind::Stream(kitti::read)
+        } else if xyz::looks_like_text(head) {
+            Kind::Stream(xyz::read)
+        } else {
+            return Err(ctx.not_a_cloud("no PLY/PCD/LAS header, and not XYZ/CSV text"));
+        },
+    )
+}
+
+/// The file name, carried by every reader to build its errors.
+#[derive(Clone, Copy)]
+pub(crate) struct Ctx<'a>(&'a str);
+
+impl Ctx<'_> {
+    fn name(self) -> String {
+        self.0.to_owned()
+    }
+
+    fn truncated(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::Truncated { name, what }
+    }
+
+    fn bad_header(self, at: At, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::BadHeader { name, at, what }
+    }
+
+    fn bad_value(self, at: At, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::BadValue { name, at, what }
+    }
+
+    fn unsupported(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::Unsupported { name, what }
+    }
+
+    fn too_large(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::TooLarge { name, what }
+    }
+
+    fn out_of_memory(self, what: impl Into<String>) -> ReadError {
+        let (name, what) = (self.name(), what.into());
+        ReadError::OutOfMemory { name, what }
+    }
+
+    /// A bad value on the last line of a file that lacks its newline is a cut file, and saying
+    /// so is more useful than naming the half-written value.
+    fn cut_short(self, line: &Line, e: ReadError) -> ReadError {
+        if line.terminated {
+            return e;
+        }
+        self.truncated(format!("the file ends inside line {}", line.number))
+    }
+
+    /// The extension is only a hint, so it shapes the message but never the decision.
+    fn not_a_cloud(self, why: &str) -> ReadError {
+        let ext = Path::new(self.0)
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        let why = match ext.as_deref() {
+            Some("ply") => format!("{why}; named .ply but does not start with a 'ply' line"),
+            Some("pcd") => format!("{why}; named .pcd but has no VERSION/FIELDS header"),
+            _ => why.to_owned(),
+        };
+        let name = self.name();
+        ReadError::NotAPointCloud { name, why }
+    }
+}
+
+/// Helpers shared by the readers' tests.
+#[cfg(test)]
+pub(crate) mod testkit {
+    use super::{Cloud, ReadError, read_cloud_bytes};
+
+    /// The real clouds; read in place, never copied into the repository.
+    pub const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data");
+
+    pub fn shared(name: &str) -> Vec<u8> {
+        std::fs::read(format!("{DATA}/{name}")).unwrap_or_else(|e| panic!("{DATA}/{name}: {e}"))
+    }
+
+    /// The number after `keyword` in a text header, e.g. `POINTS` or `element vertex`.
+    pub fn header_count(bytes: &[u8], keyword: &str) -> usize {
+        let head = String::from_utf8_lossy(bytes.get(..4096).unwrap_or(bytes));
+        let line = head
+            .lines()
+            .find(|l| l.starts_with(keyword))
+            .expect(keyword);
+        line[keyword.len()..].trim().parse().expect(line)
+    }
+
+    /// Requires reading `bytes` to fail with the `variant` (its Debug name), and the message to
+    /// be one line starting with the file's name.
+    pub fn expect_err(name: &str, bytes: &[u8], variant: &str) -> ReadError {
+        let e = read_cloud_bytes(name, bytes).expect_err(name);
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("{name}: ")) && !msg.contains('\n'),
+            "{msg}"
+        );
+        assert!(
+            format!("{e:?}").starts_with(variant),
+            "want {variant}: {e:?}"
+        );
+        e
+    }
+
+    /// Requires `cloud` to hold exactly `want`, in order, to 1e-6 of the cloud's extent.
+    pub fn assert_same(cloud: &Cloud, want: &[[f64; 3]], what: &str) {
+        assert_eq!(cloud.points.len(), want.len(), "{what}: point count");
+        let axis = |k: usize| want.iter().map(move |p| p[k]);
+        let span = |k| axis(k).fold(f64::MIN, f64::max) - axis(k).fold(f64::MAX, f64::min);
+        let tolerance = 1e-6 * span(0).max(span(1)).max(span(2));
+        for (i, (p, w)) in cloud.points.iter().zip(want).enumerate() {
+            let got: [f64; 3] = std::array::from_fn(|k| cloud.origin[k] + f64::from(p[k]));
+            let err = (0..3).map(|k| (got[k] - w[k]).abs()).fold(0.0, f64::max);
+            assert!(err <= tolerance, "{what}: point {i} is {got:?}, want {w:?}");
+        }
+    }
+
+    /// xorshift64: enough randomness for mutation tests, and the same on every machine.
+    pub struct XorShift(pub u64);
+
+    impl XorShift {
+        pub fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+
+        pub fn below(&mut self, n: usize) -> usize {
+            (self.next() % n.max(1) as u64) as usize
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,10 @@
+//! The rangefinder link on the host: frames from a cloud (the scanner side, [`frames`]), bytes
+//! into the decoder and the streaming mapper (the robot side, [`stream`]), serial ports and
+//! pseudo-terminals ([`port`]) and capture files ([`capture`]).
+//!
+//! The loops that run a link until its end (`mema stream`, `record`, `replay`, `scanner-sim`)
+//! are the command line's: they own Ctrl-C, progress lines and exit statuses.
+pub mod capture;
+pub mod frames;
+pub mod port;
+pub mod stream;

@@ -1,0 +1,273 @@
+//! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
+
+use anyhow::Result;
+use mema_core::Point3;
+use mema_core::fit::FitParams;
+use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
+use mema_core::wire::{Decoded, Decoder, DecoderStats};
+
+use super::frames::{dequantise, quantise};
+use crate::error::ConfigError;
+use crate::io::cloud::LocalCloud;
+use crate::io::mapfile::HostMap;
+use crate::mapping::options::{Model, PipelineConfig};
+
+/// The host's capacity: `-k` may be at most this.
+pub const MAX_CLUSTERS: usize = 2048;
+/// Buckets of the centre hash: twice the capacity keeps chains short.
+pub const GRID_BUCKETS: usize = 4096;
+/// One cluster refit (about 600 fitness evaluations, ~0.1 ms) per this many points.
+pub const REFIT_INTERVAL: u32 = 1024;
+
+/// Working clusters and frozen entities share the host's bound: k <= `MAX_CLUSTERS` in all.
+pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS, MAX_CLUSTERS>;
+
+/// How a stream holds its k ellipsoids: all in working memory (merging when full), or `working`
+/// of them there and the rest frozen once the scan has left them (`--working`), as a small
+/// device must (README, "Streaming").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capacity {
+    pub k: usize,
+    pub working: usize,
+}
+
+impl Capacity {
+    /// All k clusters in working memory.
+    pub fn all_working(k: usize) -> Self {
+        Self { k, working: k }
+    }
+
+    /// k within the host mapper's fixed capacity ([`MAX_CLUSTERS`]), and `working` (all k when
+    /// `None`) within k; frozen clusters cannot merge, so they do not combine with the
+    /// tolerance mode.
+    pub fn checked(k: usize, working: Option<usize>, tolerance: bool) -> Result<Self, ConfigError> {
+        if k > MAX_CLUSTERS {
+            return Err(ConfigError::StreamCapacity {
+                k,
+                max: MAX_CLUSTERS,
+            });
+        }
+        let Some(working) = working else {
+            return Ok(Self::all_working(k));
+        };
+        if working == 0 || working > k {
+            return Err(ConfigError::Working { working, k });
+        }
+        if tolerance && working < k {
+            // Tolerance mode decides k by merging, and a frozen cluster can no longer merge.
+            return Err(ConfigError::WorkingWithTolerance);
+        }
+        Ok(Self { k, working })
+    }
+}
+
+/// A boxed mapper of the paper's model: at 2,048 clusters it is too large for a test thread's
+/// stack. `tolerance` > 0 turns on the tolerance mode (k follows from it, `k` is the capacity).
+pub fn new_mapper(
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+    tolerance: f64,
+) -> Box<HostStreamMapper> {
+    new_mapper_with(stream_params(
+        capacity,
+        seed,
+        fit,
+        tolerance,
+        StreamModel::Paper,
+    ))
+}
+
+/// The parameters `stream`, `replay` and `stream-bench` map with.
+pub fn stream_params(
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+    tolerance: f64,
+    model: StreamModel,
+) -> StreamParams {
+    StreamParams {
+        fit,
+        seed,
+        max_clusters: capacity.working,
+        max_frozen: capacity.k.saturating_sub(capacity.working),
+        refit_interval: REFIT_INTERVAL,
+        tolerance,
+        model,
+    }
+}
+
+/// A batch [`Model`] as the stream's: shells at the defaults and `fit`'s sphere tolerance, as
+/// `mema map` makes them.
+pub fn stream_model(model: Model, fit: &FitParams) -> StreamModel {
+    match model {
+        Model::Paper => StreamModel::Paper,
+        Model::Shells => StreamModel::shells(fit.degeneration.sphere_tolerance),
+    }
+}
+
+/// The mapper's parameters for a batch configuration (`mema stream`, `replay` and
+/// `stream-bench`): a `tolerance` turns on the tolerance mode.
+pub fn link_params(
+    config: &PipelineConfig,
+    capacity: Capacity,
+    tolerance: Option<f64>,
+    model: Model,
+) -> StreamParams {
+    stream_params(
+        capacity,
+        config.seed,
+        config.fit,
+        tolerance.unwrap_or(0.0),
+        stream_model(model, &config.fit),
+    )
+}
+
+/// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
+/// quantized grid (the entities already on it, so the map in memory is its file read back).
+pub fn map_of(mapper: &HostStreamMapper) -> HostMap {
+    let layout = mapper.layout();
+    HostMap {
+        origin: [0.0; 3],
+        entities: mapper.stored_entities(layout).collect(),
+        quantization: match layout {
+            mema_core::map::Layout::Quantized(grid) => Some(grid),
+            _ => None,
+        },
+    }
+}
+
+/// A boxed mapper with every parameter chosen by the caller (tolerance mode, say).
+pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
+    // Built on a thread with a large stack, then moved into the box by pointer.
+    std::thread::Builder::new()
+        .stack_size(64 << 20)
+        .spawn(move || Box::new(HostStreamMapper::new(params)))
+        .ok()
+        .and_then(|h| h.join().ok())
+        .unwrap_or_else(|| Box::new(HostStreamMapper::new(params)))
+}
+
+/// Decoder + mapper, fed with whatever chunks of bytes arrive.
+///
+/// A cloud sent as a rangefinder sends it, in chunks of any size, becomes a map:
+///
+/// ```
+/// use mema::link::frames::{encode_stream, quantise};
+/// use mema::link::stream::{Capacity, Link};
+/// use mema_core::Point3;
+///
+/// // A 40 x 40 grid of points on a plane, 5 cm apart, as wire millimetres.
+/// let wire: Vec<[i32; 3]> = (0..1_600)
+///     .map(|i| quantise(Point3::new((i % 40) as f32 * 0.05, (i / 40) as f32 * 0.05, 0.0)))
+///     .collect::<anyhow::Result<_>>()?;
+/// let bytes = encode_stream(&wire)?;
+/// let mut link = Link::new(Capacity::all_working(16), 0, Default::default(), 0.0);
+/// for chunk in bytes.chunks(7) {
+///     link.feed(chunk);
+/// }
+/// assert!(link.end_of_stream);
+/// assert_eq!(link.stats().rejected, 0);
+/// let map = link.finish();
+/// assert!(!map.entities.is_empty() && map.entities.len() <= 16);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub struct Link {
+    pub decoder: Decoder,
+    pub mapper: Box<HostStreamMapper>,
+    pub end_of_stream: bool,
+    pub frames_after_end: u64,
+}
+
+impl Link {
+    /// A link of the paper's model.
+    pub fn new(capacity: Capacity, seed: u64, fit: FitParams, tolerance: f64) -> Self {
+        Self::with_params(stream_params(
+            capacity,
+            seed,
+            fit,
+            tolerance,
+            StreamModel::Paper,
+        ))
+    }
+
+    /// A link whose mapper has every parameter chosen by the caller.
+    pub fn with_params(params: StreamParams) -> Self {
+        Self {
+            decoder: Decoder::new(),
+            mapper: new_mapper_with(params),
+            end_of_stream: false,
+            frames_after_end: 0,
+        }
+    }
+
+    /// Feeds one chunk; frames go straight into the mapper.
+    pub fn feed(&mut self, chunk: &[u8]) {
+        let mut window = chunk;
+        loop {
+            match self.decoder.feed(window) {
+                Decoded::Consumed => break,
+                Decoded::Rejected { remaining, .. } => window = remaining,
+                Decoded::Frame { frame, remaining } => {
+                    if self.end_of_stream {
+                        self.frames_after_end += 1;
+                    }
+                    for p in frame.points_metres() {
+                        self.mapper
+                            .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+                    }
+                    self.end_of_stream |= frame.end_of_stream();
+                    window = remaining;
+                }
+            }
+        }
+    }
+
+    /// The decoder's counts: frames accepted, rejected, lost, repeated, bytes.
+    pub fn stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+
+    /// The map so far: stale clusters refitted first (a snapshot).
+    pub fn snapshot(&mut self) -> HostMap {
+        self.mapper.refit_stale();
+        self.map()
+    }
+
+    /// The final map: every cluster refitted from its final moments.
+    pub fn finish(&mut self) -> HostMap {
+        self.mapper.finish();
+        self.map()
+    }
+
+    fn map(&self) -> HostMap {
+        map_of(&self.mapper)
+    }
+}
+
+/// The direct path the tests compare the link against: the same points, quantised as the wire
+/// carries them, straight into the mapper (the paper's model).
+pub fn map_points_directly(
+    cloud: &LocalCloud,
+    capacity: Capacity,
+    seed: u64,
+    fit: FitParams,
+) -> Result<HostMap> {
+    let params = stream_params(capacity, seed, fit, 0.0, StreamModel::Paper);
+    map_points_directly_with(cloud, params)
+}
+
+/// [`map_points_directly`] with every parameter chosen (the model, say).
+pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
+    let wire: Vec<[i32; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| quantise(*p))
+        .collect::<Result<_>>()?;
+    let mut mapper = new_mapper_with(params);
+    for q in &wire {
+        mapper.add(dequantise(*q));
+    }
+    mapper.finish();
+    Ok(map_of(&mapper))
+}
