@@ -5,6 +5,7 @@ use mema_core::Point3;
 use std::path::Path;
 
 use super::read::read_cloud;
+use super::units::{FileUnit, LengthUnit, Units, resolve};
 
 /// A cloud in its local frame, ready for the core.
 ///
@@ -18,6 +19,9 @@ pub struct LocalCloud {
     pub points: Vec<Point3>,
     /// Points the reader skipped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
+    /// The unit the file says `origin` and `points` are in (`None`: it says nothing); see
+    /// [`LocalCloud::to_metres`].
+    pub unit: Option<FileUnit>,
 }
 
 impl LocalCloud {
@@ -60,12 +64,54 @@ impl LocalCloud {
             origin,
             points,
             dropped_non_finite: 0,
+            unit: None,
         }
+    }
+
+    /// The cloud in metres: scaled by the unit `given` (`--units`), else the one the file
+    /// says, else taken as metres already. A cloud in metres is returned untouched, bit for
+    /// bit. Fails for geographic coordinates (degrees) or a unit mema does not know, unless a
+    /// unit is given; `name` starts the message. Call it once: the result says metres.
+    ///
+    /// ```
+    /// use mema::io::{LengthUnit, LocalCloud};
+    ///
+    /// let mm = LocalCloud::from_world(&[[0.0, 0.0, 0.0], [1000.0, 2000.0, 0.0]]);
+    /// let (m, units) = mm.to_metres("scan", LengthUnit::parse("mm").as_ref())?;
+    /// assert_eq!(m.origin, [0.5, 1.0, 0.0]);
+    /// assert_eq!(m.points[1].to_array(), [0.5, 1.0, 0.0]);
+    /// assert_eq!(units.to_string(), "millimetre (--units)");
+    /// # Ok::<(), anyhow::Error>(())
+    /// ```
+    pub fn to_metres(
+        mut self,
+        name: &str,
+        given: Option<&LengthUnit>,
+    ) -> Result<(Self, Units), super::units::UnitError> {
+        let units = resolve(name, self.unit.as_ref(), given)?;
+        let scale = units.unit.metres;
+        if !units.unit.is_metre() {
+            self.origin = self.origin.map(|c| c * scale);
+            for p in &mut self.points {
+                let q = p.to_f64();
+                *p = Point3::new(
+                    (q[0] * scale) as f32,
+                    (q[1] * scale) as f32,
+                    (q[2] * scale) as f32,
+                );
+            }
+        }
+        self.unit = Some(FileUnit::Length {
+            unit: LengthUnit::metre(),
+            source: "scaled to metres",
+        });
+        Ok((self, units))
     }
 }
 
 /// Reads any cloud file the readers know (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI `.bin`; see
-/// [`crate::io::read`]) into its local frame.
+/// [`crate::io::read`]) into its local frame, in the file's own coordinates and unit (see
+/// [`load_cloud_in_metres`] for the cloud as maps take it).
 ///
 /// ```
 /// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/car6.pcd");
@@ -79,5 +125,13 @@ pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
         origin: cloud.origin,
         points: cloud.points.into_iter().map(Point3::from).collect(),
         dropped_non_finite: cloud.dropped_non_finite,
+        unit: cloud.unit,
     })
+}
+
+/// [`load_cloud`], then [`LocalCloud::to_metres`]: the cloud as maps take it, and the unit it
+/// was read in.
+pub fn load_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<(LocalCloud, Units)> {
+    let cloud = load_cloud(path)?;
+    Ok(cloud.to_metres(&path.display().to_string(), given)?)
 }

@@ -7,6 +7,8 @@ pub mod mapfile;
 pub mod output;
 pub mod read;
 pub mod scene;
+pub mod units;
 
-pub use cloud::{LocalCloud, load_cloud};
+pub use cloud::{LocalCloud, load_cloud, load_cloud_in_metres};
 pub use mapfile::{HostMap, MapFormat};
+pub use units::{FileUnit, LengthUnit, Units};

@@ -10,6 +10,7 @@
 use std::io::{Read, Seek, SeekFrom};
 
 use super::{At, Cloud, Ctx, Format, Points, ReadError};
+use crate::io::units::{FileUnit, from_geokeys, from_wkt};
 
 mod guard;
 
@@ -37,6 +38,7 @@ where
     source.rewind().map_err(io_error(ctx))?;
     let mut reader = las::Reader::new(source).map_err(|e| header_error(ctx, e))?;
     let header = reader.header();
+    let unit = file_unit(header);
     let declared = header.number_of_points();
     let compressed = header.point_format().is_compressed;
     let format = if compressed { Format::Laz } else { Format::Las };
@@ -77,7 +79,27 @@ where
             )));
         }
     }
-    points.finish(ctx, format)
+    let mut cloud = points.finish(ctx, format)?;
+    cloud.unit = unit;
+    Ok(cloud)
+}
+
+/// The unit the header's coordinate system gives: the WKT where the header's flag says the
+/// CRS is WKT (LAS 1.4), else the GeoKeys, else any WKT record.
+fn file_unit(header: &las::Header) -> Option<FileUnit> {
+    let record = |id: u16| {
+        header
+            .all_vlrs()
+            .find(|v| v.user_id.eq_ignore_ascii_case("LASF_Projection") && v.record_id == id)
+            .map(|v| v.data.as_slice())
+    };
+    let wkt = || from_wkt(&String::from_utf8_lossy(record(2112)?));
+    let geokeys = || from_geokeys(record(34735)?, record(34736));
+    if header.has_wkt_crs() {
+        wkt().or_else(geokeys)
+    } else {
+        geokeys().or_else(wkt)
+    }
 }
 
 /// The header's offset to point data (bytes 96..100 in every LAS version; 0 if the file is

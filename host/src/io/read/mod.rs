@@ -50,6 +50,9 @@ pub struct Cloud {
     pub dropped_non_finite: usize,
     /// The encoding the points were read from.
     pub format: Format,
+    /// The unit the file says its coordinates are in (LAS GeoKeys or WKT); `None` where it
+    /// says nothing, as PLY, PCD, XYZ and KITTI never do. The coordinates are not scaled.
+    pub unit: Option<crate::io::units::FileUnit>,
 }
 
 /// The file formats and encodings the readers understand.

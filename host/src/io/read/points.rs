@@ -276,6 +276,7 @@ impl Points {
             slots: self.slots,
             dropped_non_finite: self.dropped,
             format,
+            unit: None,
         })
     }
 }
