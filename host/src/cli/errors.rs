@@ -59,7 +59,7 @@ fn config_message(e: &ConfigError) -> String {
             format!("--bytes {bytes} holds no entity; one takes {per} bytes in this model")
         }
         ConfigError::Tolerance(t) => {
-            format!("--tolerance {t} must be a positive length in the cloud's units")
+            format!("--tolerance {t} must be a positive length in metres")
         }
         ConfigError::ToleranceCapacity => "--capacity must be at least 1".into(),
         ConfigError::Voxel(size) => format!(

@@ -131,7 +131,10 @@ pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
 
 /// [`load_cloud`], then [`LocalCloud::to_metres`]: the cloud as maps take it, and the unit it
 /// was read in.
-pub fn load_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<(LocalCloud, Units)> {
+pub fn load_cloud_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+) -> Result<(LocalCloud, Units)> {
     let cloud = load_cloud(path)?;
     Ok(cloud.to_metres(&path.display().to_string(), given)?)
 }

@@ -73,10 +73,7 @@ pub enum FileUnit {
     },
     /// Angles: a geographic CRS (longitude and latitude in degrees, say), which no map of
     /// ellipsoids can take as lengths.
-    Geographic {
-        unit: String,
-        source: &'static str,
-    },
+    Geographic { unit: String, source: &'static str },
     /// A unit these readers do not know (an EPSG unit code without a size, say).
     Unknown { what: String, source: &'static str },
 }
@@ -133,7 +130,9 @@ pub enum UnitError {
         unit: String,
         from: &'static str,
     },
-    #[error("{name}: the coordinates are in {what} ({from}), a unit mema does not know; give --units")]
+    #[error(
+        "{name}: the coordinates are in {what} ({from}), a unit mema does not know; give --units"
+    )]
     Unknown {
         name: String,
         what: String,
@@ -308,19 +307,27 @@ pub fn from_wkt(wkt: &str) -> Option<FileUnit> {
     const SOURCE: &str = "LAS WKT";
     let wkt = wkt.trim_matches(|c: char| c == '\0' || c.is_whitespace());
     let top = Node::parse(wkt)?;
-    let system = top.find(&["PROJCS", "PROJCRS", "PROJECTEDCRS"]).or_else(|| {
-        top.find(&["GEOCCS", "GEODCRS", "GEODETICCRS", "GEOGCS", "GEOGCRS", "GEOGRAPHICCRS"])
-    })?;
+    let system = top
+        .find(&["PROJCS", "PROJCRS", "PROJECTEDCRS"])
+        .or_else(|| {
+            top.find(&[
+                "GEOCCS",
+                "GEODCRS",
+                "GEODETICCRS",
+                "GEOGCS",
+                "GEOGCRS",
+                "GEOGRAPHICCRS",
+            ])
+        })?;
     let kind = system.keyword.to_ascii_uppercase();
     let unit = system.own_unit();
     let geographic = match kind.as_str() {
         "GEOGCS" | "GEOGCRS" | "GEOGRAPHICCRS" => true,
         // WKT2 geodetic CRSs are geocentric with a Cartesian CS, geographic with an
         // ellipsoidal one.
-        "GEODCRS" | "GEODETICCRS" => !system
-            .children
-            .iter()
-            .any(|c| c.keyword.eq_ignore_ascii_case("CS") && c.text_arg(0).eq_ignore_ascii_case("cartesian")),
+        "GEODCRS" | "GEODETICCRS" => !system.children.iter().any(|c| {
+            c.keyword.eq_ignore_ascii_case("CS") && c.text_arg(0).eq_ignore_ascii_case("cartesian")
+        }),
         _ => false,
     };
     if geographic {
@@ -403,7 +410,10 @@ impl Node {
             None => return Some(node),
         };
         loop {
-            while chars.next_if(|(_, c)| c.is_whitespace() || *c == ',').is_some() {}
+            while chars
+                .next_if(|(_, c)| c.is_whitespace() || *c == ',')
+                .is_some()
+            {}
             let &(at, c) = chars.peek()?;
             if c == close {
                 chars.next();
@@ -513,7 +523,10 @@ mod tests {
         };
         assert_eq!(unit.metres, 1200.0 / 3937.0);
         let user = geokeys(&[[1024, 0, 1, 1], [3076, 0, 1, 32767], [3077, 34736, 1, 1]]);
-        let doubles: Vec<u8> = [0.0f64, 0.25].iter().flat_map(|d| d.to_le_bytes()).collect();
+        let doubles: Vec<u8> = [0.0f64, 0.25]
+            .iter()
+            .flat_map(|d| d.to_le_bytes())
+            .collect();
         let Some(FileUnit::Length { unit, .. }) = from_geokeys(&user, Some(&doubles)) else {
             panic!()
         };
@@ -566,7 +579,10 @@ mod tests {
             source: "LAS WKT",
         };
         let e = resolve("a.las", Some(&geo), None).unwrap_err().to_string();
-        assert!(e.starts_with("a.las: the coordinates are geographic"), "{e}");
+        assert!(
+            e.starts_with("a.las: the coordinates are geographic"),
+            "{e}"
+        );
         for c in LengthUnit::CHOICES {
             assert!(LengthUnit::parse(c).is_some(), "{c}");
         }

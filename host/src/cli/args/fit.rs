@@ -47,7 +47,7 @@ pub struct FitArgs {
     /// Seed of k-means++ and DE; the same seed gives the same map bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Semi-axis length at which an axis degenerates (infinite); the paper: 4 m.
+    /// Semi-axis length in metres at which an axis degenerates (infinite); the paper: 4 m.
     #[arg(long, default_value_t = 4.0)]
     pub threshold: f64,
     /// Relative tolerance within which three semi-axes make a sphere.

@@ -3,7 +3,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
-use super::{FitArgs, ModelArg};
+use super::{FitArgs, ModelArg, UnitsArg};
 
 #[derive(Args, Debug)]
 pub struct StreamArgs {
@@ -46,7 +46,7 @@ pub struct StreamShapeArgs {
     #[arg(long, value_name = "W")]
     pub working: Option<usize>,
     /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and
-    /// k follows from T (-k is then the capacity).
+    /// k follows from T, in metres (-k is then the capacity).
     #[arg(long)]
     pub tolerance: Option<f64>,
 }
@@ -98,6 +98,8 @@ pub struct ScannerSimArgs {
     pub chunk_bytes: usize,
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
+    #[command(flatten)]
+    pub units: UnitsArg,
 }
 
 #[derive(Args, Debug)]
@@ -110,6 +112,8 @@ pub struct StreamBenchArgs {
     pub repetitions: usize,
     #[command(flatten)]
     pub shape: StreamShapeArgs,
+    #[command(flatten)]
+    pub units: UnitsArg,
     #[command(flatten)]
     pub fit: FitArgs,
     #[arg(long)]

@@ -4,7 +4,7 @@ use clap::{Args, ValueEnum};
 use mema::mapping::{EntityChoice, Model};
 use std::path::PathBuf;
 
-use super::FitArgs;
+use super::{FitArgs, UnitsArg};
 
 /// `--model`: [`Model`] for the command line (its help text is the variants' docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -75,7 +75,7 @@ pub struct MapArgs {
     /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
     #[arg(long)]
     pub paper: bool,
-    /// Instead of k: split clusters until each one's eq. 13 error is at most T (cloud units),
+    /// Instead of k: split clusters until each one's eq. 13 error is at most T (metres),
     /// then merge neighbours that stay under T.
     #[arg(long)]
     pub tolerance: Option<f64>,
@@ -97,14 +97,17 @@ pub struct MapArgs {
     pub entity: EntityArg,
     #[command(flatten)]
     pub fit: FitArgs,
-    /// Keep only the points inside this box, in the file's coordinates (PCL's CropBox).
+    #[command(flatten)]
+    pub units: UnitsArg,
+    /// Keep only the points inside this box, in metres in the file's frame (PCL's CropBox).
     #[arg(
         long,
         value_name = "XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
         allow_hyphen_values = true
     )]
     pub crop: Option<mema::mapping::filter::CropBox>,
-    /// Voxel-grid downsampling after the crop: one centroid per occupied cube of this edge.
+    /// Voxel-grid downsampling after the crop: one centroid per occupied cube of this edge
+    /// (metres).
     #[arg(long, value_name = "SIZE")]
     pub voxel: Option<f64>,
     /// Print one JSON object instead of the tables.
@@ -123,6 +126,8 @@ pub struct EvalArgs {
     /// Seed of the surface samples.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    #[command(flatten)]
+    pub units: UnitsArg,
     #[arg(long)]
     pub json: bool,
 }
@@ -157,6 +162,8 @@ pub struct AblationArgs {
     pub k: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    #[command(flatten)]
+    pub units: UnitsArg,
     #[arg(long)]
     pub json: bool,
 }

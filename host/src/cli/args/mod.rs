@@ -5,6 +5,7 @@ pub mod fit;
 pub mod link;
 pub mod map;
 pub mod tools;
+pub mod units;
 
 pub use fit::FitArgs;
 pub use link::{
@@ -14,6 +15,7 @@ pub use map::{AblationArgs, DemoArgs, EntityArg, EvalArgs, InfoArgs, MapArgs, Mo
 pub use tools::{
     BenchArgs, CompletionsArgs, DrawArgs, ExportArgs, QueryArgs, QueryBenchArgs, TransformArgs,
 };
+pub use units::UnitsArg;
 
 use clap::{Parser, Subcommand};
 

@@ -6,15 +6,18 @@ use mema::render::draw::{Style, View};
 use mema::render::picture::Size;
 use std::path::PathBuf;
 
+use super::UnitsArg;
+
 #[derive(Args, Debug)]
 pub struct QueryArgs {
     pub map: PathBuf,
-    /// x,y,z in the map's world coordinates.
+    /// x,y,z in the map's world coordinates (metres).
     #[arg(long, allow_hyphen_values = true)]
     pub point: Option<String>,
-    /// ox,oy,oz,dx,dy,dz: origin and direction (any length).
+    /// ox,oy,oz,dx,dy,dz: origin (metres) and direction (any length).
     #[arg(long, allow_hyphen_values = true)]
     pub ray: Option<String>,
+    /// How far a ray looks (metres).
     #[arg(long, default_value_t = 1e6)]
     pub max_range: f64,
     #[arg(long)]
@@ -26,7 +29,7 @@ pub struct TransformArgs {
     pub map: PathBuf,
     #[arg(short, long)]
     pub output: PathBuf,
-    /// tx,ty,tz, applied after the rotation.
+    /// tx,ty,tz in metres, applied after the rotation.
     #[arg(long, allow_hyphen_values = true)]
     pub translate: Option<String>,
     /// Degrees about x, then y, then z.
@@ -109,6 +112,8 @@ pub struct DrawArgs {
     /// `mema map --entity sphere` writes the spherical one).
     #[arg(long, value_name = "MAP")]
     pub compare: Option<PathBuf>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Print the picture's geometry (frames, legends) as JSON.
     #[arg(long)]
     pub json: bool,
@@ -123,6 +128,8 @@ pub struct ExportArgs {
     /// Clip degenerated entities to this cloud's bounding box (default: the map's own extent).
     #[arg(long, value_name = "CLOUD")]
     pub cloud: Option<PathBuf>,
+    #[command(flatten)]
+    pub units: UnitsArg,
     /// Vertices around each ellipsoid and tube.
     #[arg(long, default_value_t = 24)]
     pub segments: u32,

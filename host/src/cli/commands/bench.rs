@@ -3,8 +3,8 @@
 
 use anyhow::{Context, Result};
 use mema::bench::{ablation, stream};
-use mema::io::cloud::load_cloud;
 
+use super::read_in_metres;
 use super::serial::capacity;
 use crate::cli::args::{AblationArgs, BenchArgs, StreamBenchArgs};
 
@@ -13,7 +13,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 }
 
 pub fn ablation(args: &AblationArgs) -> Result<()> {
-    let cloud = load_cloud(&args.input)?;
+    let (cloud, _) = read_in_metres(&args.input, &args.units)?;
     ablation::run(&cloud, args.k, args.seed, args.json)
         .with_context(|| args.input.display().to_string())
 }
@@ -21,7 +21,7 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
-    let cloud = load_cloud(&args.input)?;
+    let (cloud, _) = read_in_metres(&args.input, &args.units)?;
     let r = stream::run(
         &cloud,
         &config,

@@ -5,11 +5,11 @@ use anyhow::{Context, Result};
 use mema::analysis::eval::{EvalReport, FileBytes, MAX_SAMPLES, evaluate, points_in_map_frame};
 use mema::analysis::fidelity::{self, FidelityScore};
 use mema::analysis::stats::{self, MemoryRow};
-use mema::io::cloud::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::progress::stage;
 use serde::Serialize;
 
+use super::read_in_metres;
 use crate::cli::args::EvalArgs;
 use crate::cli::errors::UsageError;
 
@@ -32,7 +32,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         ))
         .into());
     }
-    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
     let map = HostMap::read(&args.map)?;
     if map.entities.is_empty() {
         anyhow::bail!("{}: the map has no entities", args.map.display());
@@ -55,9 +55,12 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             fidelity: score,
             bytes,
         };
+        let mut doc = serde_json::to_value(&doc)?;
+        doc["unit"] = serde_json::to_value(&units)?;
         println!("{}", serde_json::to_string(&doc)?);
         return Ok(());
     }
+    println!("cloud unit: {units}, scaled to metres; lengths below in metres");
     println!("{}", stats::MEMORY_HEADER);
     println!(
         "{}",
@@ -65,7 +68,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     );
     println!();
     println!(
-        "eq. 13 error over {} non-empty clusters",
+        "eq. 13 error (m) over {} non-empty clusters",
         eq13.errors.clusters
     );
     println!("{}", stats::ERROR_HEADER);
@@ -80,9 +83,8 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
 }
 
 fn print_score(s: &FidelityScore, seed: u64) {
-    // No reader learns a unit from its file, so lengths are in whatever the cloud used.
     println!(
-        "two-way score, lengths in cloud units ({} surface samples, seed {seed}):",
+        "two-way score, lengths in metres ({} surface samples, seed {seed}):",
         s.samples
     );
     println!(
@@ -102,7 +104,7 @@ fn print_score(s: &FidelityScore, seed: u64) {
         "-"
     );
     println!(
-        "tau {:.6} (2 x median point spacing): phantom {:.1}% of {:.6} surface area; precision {:.3}, recall {:.3}, F-score {:.3}",
+        "tau {:.6} m (2 x median point spacing): phantom {:.1}% of {:.6} m^2 surface area; precision {:.3}, recall {:.3}, F-score {:.3}",
         s.tau,
         100.0 * s.phantom,
         s.area,
@@ -110,5 +112,5 @@ fn print_score(s: &FidelityScore, seed: u64) {
         s.recall,
         s.f_score
     );
-    println!("chamfer {:.6}", s.chamfer);
+    println!("chamfer {:.6} m", s.chamfer);
 }

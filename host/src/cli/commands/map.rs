@@ -4,14 +4,15 @@
 use anyhow::{Context, Result};
 use mema::analysis::stats;
 use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance};
-use mema::io::cloud::{LocalCloud, load_cloud};
+use mema::io::Units;
+use mema::io::cloud::LocalCloud;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::mapping::filter::{self, check_voxel};
 use mema::mapping::{EntityChoice, MIN_POINTS_PER_ENTITY, Model, ShellModel, most_entities};
-use mema::progress::stage;
 use mema_core::shell::ShellParams;
 
+use super::read_in_metres;
 use crate::cli::args::{DemoArgs, EntityArg, MapArgs};
 use crate::cli::errors::UsageError;
 
@@ -55,7 +56,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| args.input.display().to_string())?;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
@@ -81,7 +82,21 @@ pub fn map(args: &MapArgs) -> Result<()> {
     )
     .with_context(|| args.input.display().to_string())?;
     report.filter = counts;
-    print_map_report(&report, args.json)
+    warn_if_degenerate(&report, args.fit.threshold, &units);
+    print_map_report(&report, Some(&units), args.json)
+}
+
+/// A warning on stderr when most entities degenerated: clusters wider than the threshold
+/// (the paper's 4 m) everywhere mostly mean coordinates in millimetres or feet read as metres.
+fn warn_if_degenerate(r: &MapReport, threshold: f64, units: &Units) {
+    let degenerate = r.kinds.pseudocylinder + r.kinds.plane_pair;
+    let all = r.memory.entities;
+    if all > 0 && 2 * degenerate > all {
+        eprintln!(
+            "mema: warning: {degenerate} of {all} entities degenerated (an axis past the {threshold} m threshold); \
+             the cloud was read in {units}: if its coordinates are not in that unit, give --units (e.g. --units mm)"
+        );
+    }
 }
 
 pub fn demo(args: &DemoArgs) -> Result<()> {
@@ -109,7 +124,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         None,
     )
     .context("demo scene")?;
-    print_map_report(&report, args.json)
+    print_map_report(&report, None, args.json)
 }
 
 /// `mema map --tolerance T`.
@@ -126,8 +141,9 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, _) = filter::apply(load_cloud(&args.input)?, args.crop, voxel)
-        .with_context(|| args.input.display().to_string())?;
+    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
+    let (cloud, _) =
+        filter::apply(cloud, args.crop, voxel).with_context(|| args.input.display().to_string())?;
     let built = map_to_tolerance(&cloud, &options, &config, model, shell)
         .with_context(|| args.input.display().to_string())?;
     built.map.write(&args.output)?;
@@ -136,11 +152,14 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     }
     let report = built.report(cloud.points.len(), &args.output);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        let mut doc = serde_json::to_value(&report)?;
+        doc["unit"] = serde_json::to_value(&units)?;
+        println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
+    println!("unit: {units}, scaled to metres");
     println!(
-        "tolerance {tolerance}: k = {} ({} splits, {} merges{})",
+        "tolerance {tolerance} m: k = {} ({} splits, {} merges{})",
         report.k,
         report.splits,
         report.merges,
@@ -154,7 +173,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     println!("{}", stats::format_memory_row(&report.memory));
     println!();
     println!(
-        "eq. 13 error per cluster, {} over the tolerance",
+        "eq. 13 error per cluster (m), {} over the tolerance",
         report.clusters_over_tolerance
     );
     println!("{}", stats::ERROR_HEADER);
@@ -173,10 +192,18 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     Ok(())
 }
 
-fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
+fn print_map_report(r: &MapReport, units: Option<&Units>, json: bool) -> Result<()> {
     if json {
-        println!("{}", serde_json::to_string_pretty(r)?);
+        let mut doc = serde_json::to_value(r)?;
+        if let Some(units) = units {
+            doc["unit"] = serde_json::to_value(units)?;
+        }
+        println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
+    }
+    match units {
+        Some(units) => println!("unit: {units}, scaled to metres; map in metres"),
+        None => println!("unit: metre (the simulated scene)"),
     }
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
@@ -186,7 +213,7 @@ fn print_map_report(r: &MapReport, json: bool) -> Result<()> {
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
     println!(
-        "Table 4: eq. 13 error per cluster (cloud units), over {} clusters",
+        "Table 4: eq. 13 error per cluster (m), over {} clusters",
         r.ellipsoidal.clusters
     );
     println!("{}", stats::ERROR_HEADER);

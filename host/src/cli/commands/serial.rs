@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::{LocalCloud, load_cloud};
+use mema::io::cloud::LocalCloud;
 use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::link::capture::CaptureWriter;
@@ -294,7 +294,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     let cloud = match &args.cloud {
-        Some(path) => load_cloud(path)?,
+        Some(path) => super::read_in_metres(path, &args.units)?.0,
         None => {
             let scan = scan(&Scene::demo(), &ScanConfig::default());
             LocalCloud::from_world(&scan.points)

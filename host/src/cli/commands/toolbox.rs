@@ -2,7 +2,6 @@
 
 use anyhow::{Context, Result};
 use clap::CommandFactory;
-use mema::io::cloud::load_cloud;
 use mema::io::mapfile::{HostMap, write_file_atomically};
 use mema::io::output::check_output_file;
 use mema::progress::stage;
@@ -10,6 +9,7 @@ use mema::render::export::{self as mesh, Bounds, ExportReport, MeshFormat, Tesse
 use mema::render::picture::render;
 use std::path::Path;
 
+use super::read_in_metres;
 use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs};
 use crate::cli::errors::UsageError;
 
@@ -40,7 +40,7 @@ fn read_map(path: &Path) -> Result<HostMap> {
 
 pub fn draw(args: &DrawArgs) -> Result<()> {
     check_output(&args.output, &["png"], "picture")?;
-    let cloud = stage("reading", || load_cloud(&args.input))?;
+    let (cloud, _) = read_in_metres(&args.input, &args.units)?;
     let mut maps = vec![(file_name(&args.map), read_map(&args.map)?)];
     if let Some(other) = &args.compare {
         maps.push((file_name(other), read_map(other)?));
@@ -92,7 +92,7 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     let map = read_map(&args.map)?;
     let (bounds, source) = match &args.cloud {
         Some(path) => {
-            let cloud = stage("reading", || load_cloud(path))?;
+            let (cloud, _) = read_in_metres(path, &args.units)?;
             (Bounds::of_points(cloud.origin, &cloud.points), "cloud")
         }
         None => (Bounds::of_map(&map), "map"),

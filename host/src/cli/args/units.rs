@@ -1,0 +1,24 @@
+//! `--units`: the unit of a cloud's coordinates where its file does not say.
+
+use clap::Args;
+use mema::io::LengthUnit;
+
+/// `--units` for every command that reads a cloud.
+#[derive(Args, Debug, Clone, Default)]
+pub struct UnitsArg {
+    /// The unit of the cloud's coordinates: m, mm, cm, km, in, ft (0.3048 m) or us-ft
+    /// (1200/3937 m). Needed where the file does not say (PLY, PCD, XYZ, KITTI, LAS without a
+    /// CRS: metres assumed); overrides what a LAS file's CRS says. The cloud is scaled to
+    /// metres on reading, so maps and every length on the command line are in metres.
+    #[arg(long, value_name = "UNIT", value_parser = parse_unit)]
+    pub units: Option<LengthUnit>,
+}
+
+fn parse_unit(s: &str) -> Result<LengthUnit, String> {
+    LengthUnit::parse(s).ok_or_else(|| {
+        format!(
+            "unknown unit '{s}'; one of {}",
+            LengthUnit::CHOICES.join(", ")
+        )
+    })
+}
