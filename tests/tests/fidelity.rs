@@ -4,7 +4,7 @@
 
 use crate::util::{Dir, MemaCommand, shared};
 use mema::analysis::fidelity;
-use mema::io::load_cloud;
+use mema::io::load_cloud_in_metres;
 use mema::io::mapfile::HostMap;
 use mema_core::Entity;
 use mema_core::closest_point::surface_distance;
@@ -36,9 +36,10 @@ fn eval_json(dir: &Dir, cloud: &Path, map: &Path, extra: &[&str]) -> Value {
         .json()
 }
 
-/// The cloud's points in the map's frame, from the two f64 origins.
+/// The cloud's points in the map's frame, from the two f64 origins; in metres, as `mema map`
+/// reads them.
 fn points_and_entities(cloud: &Path, map: &Path) -> (Vec<[f64; 3]>, Vec<Entity>) {
-    let cloud = load_cloud(cloud).expect("cloud");
+    let (cloud, _) = load_cloud_in_metres(cloud, None).expect("cloud");
     let map = HostMap::read(map).expect("map");
     let points = cloud
         .points
@@ -220,7 +221,7 @@ fn eval_score_equals_a_brute_force_computation_on_real_clouds() {
 #[test]
 fn accuracy_equals_the_scan_of_every_entity_on_subsampled_points() {
     let dir = Dir::new("fidelity-subsampled");
-    // Bunny scan, people in a room, an aerial LAZ whose map is all plane pairs, and oriented
+    // Bunny scan, people in a room, an aerial LAZ (in feet, mapped in metres), and oriented
     // shells of the people.
     for (cloud, k, step, model) in [
         ("bun000.ply", 400, 23, "paper"),

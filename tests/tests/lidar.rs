@@ -2,7 +2,7 @@ use crate::util::{Dir, MemaCommand, shared};
 use std::io::{Cursor, Seek, SeekFrom};
 
 /// The fields of a LAS header that the checks need, read as the specification lays them out.
-struct LasHeader {
+pub(crate) struct LasHeader {
     points: u64,
     data_at: u64,
     record_len: usize,
@@ -23,7 +23,7 @@ fn f64_at(b: &[u8], at: usize) -> f64 {
     f64::from_le_bytes(b[at..at + 8].try_into().unwrap())
 }
 
-fn las_header(b: &[u8]) -> LasHeader {
+pub(crate) fn las_header(b: &[u8]) -> LasHeader {
     assert_eq!(&b[..4], b"LASF");
     let legacy = u64::from(u32_at(b, 107));
     let points = if b[25] >= 4 && legacy == 0 {
@@ -50,7 +50,7 @@ fn las_header(b: &[u8]) -> LasHeader {
 
 /// Every point's scaled coordinates from the raw i32 records; LAZ records are decompressed
 /// with the `laz` crate directly, bypassing the `las` crate that mema reads through.
-fn raw_points(b: &[u8]) -> Vec<[f64; 3]> {
+pub(crate) fn raw_points(b: &[u8]) -> Vec<[f64; 3]> {
     let h = las_header(b);
     let scaled = |r: &[u8]| {
         std::array::from_fn(|j| {

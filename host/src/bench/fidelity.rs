@@ -19,7 +19,7 @@ use super::write_npy;
 use crate::analysis::eval::{FileBytes, points_in_map_frame};
 use crate::analysis::fidelity::{FidelityScore, two_way_score};
 use crate::batch::map_cloud_with;
-use crate::io::cloud::{LocalCloud, load_cloud};
+use crate::io::cloud::{LocalCloud, load_cloud_in_metres};
 use crate::io::mapfile::HostMap;
 use crate::mapping::options::{
     EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel,
@@ -237,7 +237,8 @@ pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
     let mut clouds = Vec::new();
     for name in &names {
         let t = Instant::now();
-        let cloud = load_cloud(&opts.data.join(name));
+        // In metres, as `mema map` reads it (autzen_trim.laz is in feet).
+        let cloud = load_cloud_in_metres(&opts.data.join(name), None).map(|(c, _)| c);
         stages.read_s += t.elapsed().as_secs_f64();
         let error = match cloud {
             Ok(c) if !c.points.is_empty() => {

@@ -29,7 +29,7 @@ use mema_core::rng::stream_rng;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::io::cloud::load_cloud;
+use crate::io::cloud::load_cloud_in_metres;
 use crate::mapping::options::FitOptions;
 use crate::mapping::pipeline::{KMeansEngine, run_kmeans};
 pub use pipeline_case::{Case, PipelineRow, run_case};
@@ -99,7 +99,7 @@ pub fn load(data: &Path, name: &str) -> Result<Vec<Point3>> {
     if name == "environment" {
         return Ok(environment(data)?.points);
     }
-    Ok(load_cloud(&data.join(name))?.points)
+    Ok(load_cloud_in_metres(&data.join(name), None)?.0.points)
 }
 
 /// Runs the benchmarks `args` asks for, printing their tables.

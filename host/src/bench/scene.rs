@@ -49,8 +49,8 @@ pub struct Scene {
 pub fn environment(dir: &Path) -> Result<Scene> {
     let read = |name: &str| {
         let path = dir.join(name);
-        crate::io::cloud::load_cloud(&path)
-            .map(|c| c.points)
+        crate::io::cloud::load_cloud_in_metres(&path, None)
+            .map(|(c, _)| c.points)
             .with_context(|| format!("environment scene: {}", path.display()))
     };
     let mut cursor = 0.0;

@@ -4,7 +4,7 @@ use anyhow::Result;
 use mema_core::Point3;
 use std::path::Path;
 
-use super::read::read_cloud;
+use super::read::{Cloud, read_cloud, read_cloud_in_metres};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
 /// A cloud in its local frame, ready for the core.
@@ -70,7 +70,8 @@ impl LocalCloud {
 
     /// The cloud in metres: scaled by the unit `given` (`--units`), else the one the file
     /// says, else taken as metres already. A cloud in metres is returned untouched, bit for
-    /// bit. Fails for geographic coordinates (degrees) or a unit mema does not know, unless a
+    /// bit. The points were cast to f32 in the file's unit, so this rounds twice; reading
+    /// with [`load_cloud_in_metres`] scales before the cast. Fails for geographic coordinates (degrees) or a unit mema does not know, unless a
     /// unit is given; `name` starts the message. Call it once: the result says metres.
     ///
     /// ```
@@ -120,21 +121,40 @@ impl LocalCloud {
 /// # Ok::<(), anyhow::Error>(())
 /// ```
 pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
-    let cloud = read_cloud(path)?;
-    Ok(LocalCloud {
+    Ok(local(read_cloud(path)?))
+}
+
+fn local(cloud: Cloud) -> LocalCloud {
+    LocalCloud {
         origin: cloud.origin,
         points: cloud.points.into_iter().map(Point3::from).collect(),
         dropped_non_finite: cloud.dropped_non_finite,
         unit: cloud.unit,
-    })
+    }
 }
 
-/// [`load_cloud`], then [`LocalCloud::to_metres`]: the cloud as maps take it, and the unit it
-/// was read in.
+/// The cloud as maps take it: in metres, scaled by `given` (`--units`), else by the unit the
+/// file says, else taken as metres; and the unit it was read in. The scale is applied in f64
+/// before the cast to f32 (see [`crate::io::read::read_cloud_in_metres`]), so it costs no
+/// precision, and a cloud in metres reads bit for bit as [`load_cloud`] reads it.
+///
+/// ```
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/autzen_trim.laz");
+/// let (cloud, units) = mema::io::load_cloud_in_metres(path.as_ref(), None)?;
+/// assert_eq!(units.to_string(), "foot (LAS GeoKeys)");
+/// assert!(cloud.origin[0] > 0.3 * 637_000.0 && cloud.origin[0] < 0.31 * 637_000.0);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
 pub fn load_cloud_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
-    let cloud = load_cloud(path)?;
-    Ok(cloud.to_metres(&path.display().to_string(), given)?)
+    let mut cloud = read_cloud_in_metres(path, given)?;
+    let units = cloud.units.take().unwrap_or_else(Units::assumed);
+    let mut cloud = local(cloud);
+    cloud.unit = Some(FileUnit::Length {
+        unit: LengthUnit::metre(),
+        source: "scaled to metres",
+    });
+    Ok((cloud, units))
 }

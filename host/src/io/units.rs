@@ -107,6 +107,20 @@ pub enum UnitSource {
 pub struct Units {
     pub unit: LengthUnit,
     pub source: UnitSource,
+    /// What the file said, where the unit given overrode a different one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub overrides: Option<String>,
+}
+
+impl Units {
+    /// Metres, nobody having said.
+    pub fn assumed() -> Self {
+        Self {
+            unit: LengthUnit::metre(),
+            source: UnitSource::Assumed,
+            overrides: None,
+        }
+    }
 }
 
 impl fmt::Display for Units {
@@ -149,19 +163,20 @@ pub fn resolve(
     given: Option<&LengthUnit>,
 ) -> Result<Units, UnitError> {
     if let Some(unit) = given {
+        let same =
+            matches!(file, Some(FileUnit::Length { unit: u, .. }) if u.metres == unit.metres);
         return Ok(Units {
             unit: unit.clone(),
             source: UnitSource::Given,
+            overrides: file.filter(|_| !same).map(FileUnit::to_string),
         });
     }
     match file {
-        None => Ok(Units {
-            unit: LengthUnit::metre(),
-            source: UnitSource::Assumed,
-        }),
+        None => Ok(Units::assumed()),
         Some(FileUnit::Length { unit, source }) => Ok(Units {
             unit: unit.clone(),
             source: UnitSource::File(source),
+            overrides: None,
         }),
         Some(FileUnit::Geographic { unit, source }) => Err(UnitError::Geographic {
             name: name.to_owned(),

@@ -80,13 +80,13 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
             r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
         );
-        println!("origin: {:?}", r.origin);
+        println!("origin (m): {:?}", r.origin);
         if r.entities == 0 {
             println!("centres: none; finite semi-axes: none (the map is empty)");
         } else {
-            println!("centres: {:?} .. {:?}", r.center_min, r.center_max);
+            println!("centres (m): {:?} .. {:?}", r.center_min, r.center_max);
             println!(
-                "finite semi-axes: {} .. {}",
+                "finite semi-axes (m): {} .. {}",
                 r.semi_axis_min, r.semi_axis_max
             );
         }

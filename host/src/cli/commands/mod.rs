@@ -8,8 +8,8 @@ pub mod serial;
 pub mod toolbox;
 
 use anyhow::Result;
-use mema::io::cloud::{LocalCloud, load_cloud};
-use mema::io::{FileUnit, Units};
+use mema::io::Units;
+use mema::io::cloud::{LocalCloud, load_cloud_in_metres};
 use mema::progress::stage;
 use std::path::Path;
 
@@ -19,16 +19,15 @@ use crate::cli::args::UnitsArg;
 /// unit its file gives (see `mema::io::units`). Says on stderr when `--units` overrides a
 /// different unit the file gives.
 pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Units)> {
-    let cloud = stage("reading", || load_cloud(path))?;
-    if let (Some(given), Some(file)) = (&units.units, &cloud.unit) {
-        let same = matches!(file, FileUnit::Length { unit, .. } if unit.metres == given.metres);
-        if !same {
-            eprintln!(
-                "mema: {}: --units {} overrides the file's {file}",
-                path.display(),
-                given.name
-            );
-        }
+    let (cloud, units) = stage("reading", || {
+        load_cloud_in_metres(path, units.units.as_ref())
+    })?;
+    if let Some(file) = &units.overrides {
+        eprintln!(
+            "mema: {}: --units {} overrides the file's {file}",
+            path.display(),
+            units.unit.name
+        );
     }
-    Ok(cloud.to_metres(&path.display().to_string(), units.units.as_ref())?)
+    Ok((cloud, units))
 }

@@ -86,7 +86,7 @@ pub fn query(args: &QueryArgs) -> Result<()> {
                     signed_distance,
                     entity,
                 }) => println!(
-                    "point {:?}: {} the map; nearest surface {:.6} away, entity {entity} ({})",
+                    "point {:?}: {} the map; nearest surface {:.6} m away, entity {entity} ({})",
                     p,
                     if signed_distance < 0.0 {
                         "inside"
@@ -121,11 +121,11 @@ pub fn query(args: &QueryArgs) -> Result<()> {
         } else {
             match hit {
                 Some(RayHit { t, entity, point }) => println!(
-                    "ray from {o:?}: hits entity {entity} ({}) at range {t:.6}, point {:?}",
+                    "ray from {o:?}: hits entity {entity} ({}) at range {t:.6} m, point {:?}",
                     kind(entity).unwrap_or("?"),
                     world(&map, point)
                 ),
-                None => println!("ray from {o:?}: no hit within {}", args.max_range),
+                None => println!("ray from {o:?}: no hit within {} m", args.max_range),
             }
         }
     }

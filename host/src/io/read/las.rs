@@ -39,6 +39,8 @@ where
     let mut reader = las::Reader::new(source).map_err(|e| header_error(ctx, e))?;
     let header = reader.header();
     let unit = file_unit(header);
+    // A cloud that cannot be had in metres is refused before its points are decoded.
+    ctx.units(unit.as_ref())?;
     let declared = header.number_of_points();
     let compressed = header.point_format().is_compressed;
     let format = if compressed { Format::Laz } else { Format::Las };
@@ -79,9 +81,7 @@ where
             )));
         }
     }
-    let mut cloud = points.finish(ctx, format)?;
-    cloud.unit = unit;
-    Ok(cloud)
+    points.finish_in(ctx, format, unit)
 }
 
 /// The unit the header's coordinate system gives: the WKT where the header's flag says the

@@ -34,6 +34,8 @@ use std::fs::File;
 use std::io::{Read, Seek};
 use std::path::{Path, PathBuf};
 
+use crate::io::units::{self, FileUnit, LengthUnit, Units};
+
 pub(crate) use points::{Endian, Points, Scalar};
 use stream::{Input, Line};
 
@@ -51,8 +53,11 @@ pub struct Cloud {
     /// The encoding the points were read from.
     pub format: Format,
     /// The unit the file says its coordinates are in (LAS GeoKeys or WKT); `None` where it
-    /// says nothing, as PLY, PCD, XYZ and KITTI never do. The coordinates are not scaled.
-    pub unit: Option<crate::io::units::FileUnit>,
+    /// says nothing, as PLY, PCD, XYZ and KITTI never do.
+    pub unit: Option<FileUnit>,
+    /// The unit the coordinates were scaled from to metres ([`read_cloud_in_metres`]); `None`
+    /// where they are the file's own ([`read_cloud`]).
+    pub units: Option<Units>,
 }
 
 /// The file formats and encodings the readers understand.
@@ -147,6 +152,9 @@ pub enum ReadError {
     /// The input is past a limit these readers set (a pipe's bytes, a header's size).
     #[error("{name}: too large: {what}")]
     TooLarge { name: String, what: String },
+    /// The coordinates cannot be taken to metres: geographic, or in a unit not known.
+    #[error(transparent)]
+    Units(units::UnitError),
 }
 
 fn no_finite_points(slots: &usize) -> String {
@@ -162,8 +170,21 @@ fn no_finite_points(slots: &usize) -> String {
 /// where `/dev/zero` would otherwise be read until memory ran out.
 pub const UNSIZED_LIMIT: u64 = 4 << 30;
 
-/// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file.
+/// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file, in its own coordinates.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
+    read_scaled(path, Scaling::File)
+}
+
+/// Reads a cloud file in metres: scaled by `given` (`--units`), else by the unit the file
+/// says (LAS GeoKeys or WKT), else taken as metres. The scale is applied in f64, before the
+/// points are cast to f32, and a scale of 1 is not applied at all, so a cloud in metres reads
+/// bit for bit as [`read_cloud`] reads it. Geographic coordinates or a unit not known are
+/// [`ReadError::Units`] unless a unit is given.
+pub fn read_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<Cloud, ReadError> {
+    read_scaled(path, Scaling::Metres(given))
+}
+
+fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
     let io = |cause| ReadError::Io {
         path: path.to_owned(),
         cause,
@@ -172,9 +193,9 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
     let meta = file.metadata().map_err(io)?;
     let name = path.display().to_string();
     if !meta.is_file() {
-        return read_unsized(path, file, UNSIZED_LIMIT);
+        return read_unsized(path, file, UNSIZED_LIMIT, scaling);
     }
-    let ctx = Ctx(&name);
+    let ctx = Ctx(&name, scaling);
     let kind = {
         let mut input = Input::new(ctx, &mut file, meta.len());
         match detect(&mut input)? {
@@ -193,7 +214,12 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
 }
 
 /// Reads a source without a length (a pipe, a device) whole, up to `limit` bytes.
-fn read_unsized(path: &Path, source: impl Read, limit: u64) -> Result<Cloud, ReadError> {
+fn read_unsized(
+    path: &Path,
+    source: impl Read,
+    limit: u64,
+    scaling: Scaling,
+) -> Result<Cloud, ReadError> {
     let name = path.display().to_string();
     let mut bytes = Vec::new();
     // One byte past the limit tells an input of exactly `limit` bytes from a longer one.
@@ -208,12 +234,15 @@ fn read_unsized(path: &Path, source: impl Read, limit: u64) -> Result<Cloud, Rea
         );
         return Err(ReadError::TooLarge { name, what });
     }
-    read_cloud_bytes(&name, &bytes)
+    read_bytes(Ctx(&name, scaling), &bytes)
 }
 
 /// Same from bytes already in memory; `name` is used in error messages.
 pub fn read_cloud_bytes(name: &str, bytes: &[u8]) -> Result<Cloud, ReadError> {
-    let ctx = Ctx(name);
+    read_bytes(Ctx::new(name), bytes)
+}
+
+fn read_bytes(ctx: Ctx, bytes: &[u8]) -> Result<Cloud, ReadError> {
     let mut source = bytes;
     let mut input = Input::new(ctx, &mut source, bytes.len() as u64);
     match detect(&mut input)? {
@@ -283,9 +312,35 @@ fn detect(input: &mut Input) -> Result<Kind, ReadError> {
     )
 }
 
-/// The file name, carried by every reader to build its errors.
+/// The file name, carried by every reader to build its errors, and whether the cloud is to be
+/// scaled to metres.
 #[derive(Clone, Copy)]
-pub(crate) struct Ctx<'a>(&'a str);
+pub(crate) struct Ctx<'a>(&'a str, Scaling<'a>);
+
+/// Whether a reader keeps the file's coordinates or brings them to metres, and by which unit.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Scaling<'a> {
+    /// The file's own coordinates.
+    File,
+    /// Metres: by the unit given, else the file's, else none (see [`units::resolve`]).
+    Metres(Option<&'a LengthUnit>),
+}
+
+impl<'a> Ctx<'a> {
+    pub(crate) const fn new(name: &'a str) -> Self {
+        Ctx(name, Scaling::File)
+    }
+
+    /// The unit to scale by, if the cloud is to be in metres, given what the file says.
+    fn units(self, file: Option<&FileUnit>) -> Result<Option<Units>, ReadError> {
+        match self.1 {
+            Scaling::File => Ok(None),
+            Scaling::Metres(given) => units::resolve(self.0, file, given)
+                .map(Some)
+                .map_err(ReadError::Units),
+        }
+    }
+}
 
 impl Ctx<'_> {
     fn name(self) -> String {

@@ -2,6 +2,7 @@
 //! turns a reader's coordinates into a centred f32 cloud.
 
 use super::{Cloud, Ctx, Format, ReadError};
+use crate::io::units::FileUnit;
 
 /// A binary number type, as PLY and PCD declare them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -242,21 +243,38 @@ impl Points {
     }
 
     pub fn finish(self, ctx: Ctx, format: Format) -> Result<Cloud, ReadError> {
+        self.finish_in(ctx, format, None)
+    }
+
+    /// [`Self::finish`] for a file that says its unit (`None`: it says nothing); the points are
+    /// scaled to metres here if `ctx` asks for metres.
+    pub fn finish_in(
+        self,
+        ctx: Ctx,
+        format: Format,
+        unit: Option<FileUnit>,
+    ) -> Result<Cloud, ReadError> {
         if self.wide.is_empty() && self.narrow.is_empty() {
             let (name, slots) = (ctx.name(), self.slots);
             return Err(ReadError::NoFinitePoints { name, slots });
         }
+        let units = ctx.units(unit.as_ref())?;
+        // A scale of 1 is skipped, not multiplied by, so metres read bit for bit as before.
+        let scale = units.as_ref().map(|u| u.unit.metres).filter(|&s| s != 1.0);
+        let scaled = |c: f64| scale.map_or(c, |s| c * s);
+        // Positive scales keep the order, so the scaled bounds are the bounds scaled.
+        let (lo, hi) = (self.lo.map(scaled), self.hi.map(scaled));
         // Halving before adding keeps the centre and the half-extent finite even for
         // coordinates near f64::MAX.
-        let origin: [f64; 3] = std::array::from_fn(|i| self.lo[i] / 2.0 + self.hi[i] / 2.0);
-        for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(self.lo.iter().zip(&self.hi)) {
-            if hi / 2.0 - lo / 2.0 > f64::from(f32::MAX) {
+        let origin: [f64; 3] = std::array::from_fn(|i| lo[i] / 2.0 + hi[i] / 2.0);
+        for (axis, (lo, hi)) in ["x", "y", "z"].iter().zip(lo.iter().zip(&hi)) {
+            if !(lo.is_finite() && hi.is_finite()) || hi / 2.0 - lo / 2.0 > f64::from(f32::MAX) {
                 return Err(ctx.unsupported(format!(
                     "{axis} spans {lo:e} to {hi:e}, beyond f32 even after centring"
                 )));
             }
         }
-        let local = |p: [f64; 3]| std::array::from_fn(|i| (p[i] - origin[i]) as f32);
+        let local = |p: [f64; 3]| std::array::from_fn(|i| (scaled(p[i]) - origin[i]) as f32);
         let mut points = if self.wide.is_empty() {
             let mut points = self.narrow;
             for p in points.iter_mut() {
@@ -276,7 +294,8 @@ impl Points {
             slots: self.slots,
             dropped_non_finite: self.dropped,
             format,
-            unit: None,
+            unit,
+            units,
         })
     }
 }

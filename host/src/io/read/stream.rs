@@ -259,7 +259,7 @@ mod tests {
 
     fn lines_of(bytes: &[u8], step: usize) -> Vec<(usize, Vec<u8>, bool)> {
         let mut source = Dribble(bytes, step);
-        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let mut input = Input::new(Ctx::new("t"), &mut source, bytes.len() as u64);
         let mut out = Vec::new();
         while let Some(l) = input.next_line().unwrap() {
             out.push((l.number, l.text.to_vec(), l.terminated));
@@ -286,7 +286,7 @@ mod tests {
     fn the_buffer_never_outgrows_the_input() {
         let bytes = vec![b'x'; 50_000];
         let mut source = Dribble(&bytes, 999);
-        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let mut input = Input::new(Ctx::new("t"), &mut source, bytes.len() as u64);
         assert!(input.peek(40_000).unwrap().len() >= 40_000);
         assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
         assert_eq!(input.skip(45_000).unwrap(), 45_000);
@@ -294,7 +294,7 @@ mod tests {
         assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
         // A line as long as the input, read through a buffer that has to grow for it.
         let mut source = Dribble(&bytes, 4096);
-        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let mut input = Input::new(Ctx::new("t"), &mut source, bytes.len() as u64);
         let line = input.next_line().unwrap().unwrap();
         assert_eq!((line.text.len(), line.terminated), (50_000, false));
         assert!(input.buf.len() <= 50_000, "{} bytes", input.buf.len());
@@ -307,7 +307,7 @@ mod tests {
         let bytes: Vec<u8> = (0..1003u32).map(|i| i as u8).collect();
         for step in [1, 7, 5000] {
             let mut source = Dribble(&bytes, step);
-            let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+            let mut input = Input::new(Ctx::new("t"), &mut source, bytes.len() as u64);
             let mut seen = Vec::new();
             assert_eq!(
                 input.records(10, 50, |r| seen.push(r.to_vec())).unwrap(),
@@ -324,7 +324,7 @@ mod tests {
     fn peek_skip_and_positions() {
         let bytes: Vec<u8> = (0..100_000u32).map(|i| i as u8).collect();
         let mut source = Dribble(&bytes, 1000);
-        let mut input = Input::new(Ctx("t"), &mut source, bytes.len() as u64);
+        let mut input = Input::new(Ctx::new("t"), &mut source, bytes.len() as u64);
         assert_eq!(input.peek(5000).unwrap()[..5000], bytes[..5000]);
         input.consume(10);
         assert_eq!(input.skip(50_000).unwrap(), 50_000);

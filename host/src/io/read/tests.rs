@@ -44,7 +44,7 @@ impl<R: Read> Read for Counted<R> {
 fn detection_reads(start: &[u8], fill: u8, len: u64) -> (usize, bool) {
     let inner = start.chain(std::io::repeat(fill));
     let mut source = Counted { inner, read: 0 };
-    let mut input = Input::new(Ctx("x.dat"), &mut source, len);
+    let mut input = Input::new(Ctx::new("x.dat"), &mut source, len);
     let pcd = starts_pcd(&mut input).unwrap();
     (source.read, pcd)
 }
@@ -110,10 +110,10 @@ fn pipes_are_read_up_to_a_limit() {
 /// shrank while being read.
 fn read_shrunk(name: &str, bytes: &[u8], extra: u64) -> Result<Cloud, ReadError> {
     let mut source = bytes;
-    let mut input = Input::new(Ctx(name), &mut source, bytes.len() as u64 + extra);
+    let mut input = Input::new(Ctx::new(name), &mut source, bytes.len() as u64 + extra);
     match detect(&mut input)? {
         Kind::Stream(read) => read(&mut input),
-        Kind::Las => las::read(Ctx(name), std::io::Cursor::new(bytes.to_vec()), 0),
+        Kind::Las => las::read(Ctx::new(name), std::io::Cursor::new(bytes.to_vec()), 0),
     }
 }
 

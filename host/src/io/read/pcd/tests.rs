@@ -203,7 +203,7 @@ fn header_fields<'a>(fields: &[Field<'a>]) -> Vec<super::Field<'a>> {
 }
 
 fn coords(fields: &[super::Field]) -> [Coord; 3] {
-    ["x", "y", "z"].map(|axis| coord(Ctx("t"), fields, axis).unwrap())
+    ["x", "y", "z"].map(|axis| coord(Ctx::new("t"), fields, axis).unwrap())
 }
 
 /// LZF's 88× bound lets 49 MB of data claim 358 million points of f64 slots: before the data
@@ -233,7 +233,7 @@ fn claimed_slots_come_with_the_data() {
     assert!((columns.slots.iter().map(x)).eq((0..1000).map(|i| f64::from(i - 500))));
     // A reservation the machine cannot make is an error, not an abort.
     assert!(Columns::<Wide>::new(coords(&fields), usize::MAX / 8, usize::MAX).is_err());
-    let e = Points::with_capacity(Ctx("big.pcd"), usize::MAX / 8)
+    let e = Points::with_capacity(Ctx::new("big.pcd"), usize::MAX / 8)
         .err()
         .unwrap();
     assert!(matches!(e, ReadError::OutOfMemory { .. }), "{e:?}");
