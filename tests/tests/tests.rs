@@ -50,5 +50,7 @@ mod toolbox_oriented;
 // .mema versions: a version-1 file written here by hand still loads; --paper writes version 1,
 // shells version 2 quantized, both within --bytes, decoded here from the documented layout.
 mod map_versions;
+// Units: LAS CRS units (autzen in feet), --units, geographic clouds refused, the warning.
+mod units;
 // Exact rotation: a cloud and its map turned by the same random rotation score the same.
 mod rotation_invariance;

@@ -80,10 +80,16 @@ fn detection_reads_a_bounded_head() {
 #[test]
 fn pipes_are_read_up_to_a_limit() {
     let text = b"1 2 3\n4 5 6\n";
-    let at_limit = read_unsized(Path::new("pipe"), &text[..], text.len() as u64).unwrap();
+    let at_limit = read_unsized(
+        Path::new("pipe"),
+        &text[..],
+        text.len() as u64,
+        Scaling::File,
+    )
+    .unwrap();
     assert_eq!((at_limit.format, at_limit.slots), (Format::Xyz, 2));
     let zeros = std::io::repeat(0);
-    let e = read_unsized(Path::new("/dev/zero"), zeros, 1 << 20).unwrap_err();
+    let e = read_unsized(Path::new("/dev/zero"), zeros, 1 << 20, Scaling::File).unwrap_err();
     assert!(matches!(e, ReadError::TooLarge { .. }), "{e:?}");
     let want = "/dev/zero: too large: a pipe or device giving more than 1048576 bytes";
     assert!(e.to_string().starts_with(want), "{e}");
