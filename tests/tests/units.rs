@@ -230,11 +230,12 @@ fn geographic_las_is_refused_for_mapping() {
             .arg(dir.join("none.mema"))
             .run()
             .assert_error(1, "geographic");
-        let forced = map(&dir, &path, "out.mema", &["-k", "10", "--units", "m"])
+        let forced = map(&dir, &path, "forced.mema", &["-k", "10", "--units", "m"])
             .run()
             .assert_ok();
         assert!(forced.stderr().contains("overrides"), "{}", forced.stderr());
         assert!(forced.stdout().contains("unit: metre (--units)"));
+        std::fs::remove_file(dir.join("forced.mema")).expect("forced map written");
     }
 }
 
