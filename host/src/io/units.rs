@@ -494,7 +494,7 @@ impl Node {
     fn own_unit(&self) -> Option<(String, f64)> {
         const UNITS: [&str; 3] = ["UNIT", "LENGTHUNIT", "ANGLEUNIT"];
         let is_unit = |n: &&Node| UNITS.iter().any(|k| n.keyword.eq_ignore_ascii_case(k));
-        let unit = self.children.iter().filter(is_unit).last().or_else(|| {
+        let unit = self.children.iter().rev().find(is_unit).or_else(|| {
             self.children
                 .iter()
                 .filter(|c| c.keyword.eq_ignore_ascii_case("AXIS"))
