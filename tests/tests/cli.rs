@@ -132,6 +132,8 @@ fn eval_json_has_the_documented_keys_and_consistent_figures() {
         "file_bytes",
         "header_bytes",
         "bytes_per_entity",
+        // The unit the cloud was read in (issue 15).
+        "unit",
     ];
     let mut got = keys.clone();
     want.sort();
