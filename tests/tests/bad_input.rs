@@ -263,3 +263,45 @@ fn a_cloud_too_wide_for_f32_distances() {
     }
     assert_nothing_written(&dir, &["wide.xyz"]);
 }
+
+/// Inputs that never end: a link to /dev/zero is read only up to a stated limit, and a FIFO that
+/// nobody writes to ends in an error after the idle timeout (it used to hang `map` and `info`
+/// forever, and `info`/`replay` on /dev/zero grew until memory ran out).
+#[test]
+fn endless_and_silent_inputs_end_in_one_line_errors() {
+    let dir = Dir::new("endless");
+    let zero_map = dir.join("zero.mema");
+    std::os::unix::fs::symlink("/dev/zero", &zero_map).expect("symlink");
+    MemaCommand::new(&dir)
+        .arg("info")
+        .arg(&zero_map)
+        .run()
+        .assert_error(1, "too large");
+    let zero_capture = dir.join("zero.bin");
+    std::os::unix::fs::symlink("/dev/zero", &zero_capture).expect("symlink");
+    MemaCommand::new(&dir)
+        .args(["replay", "-k", "10", "-o"])
+        .arg(dir.join("replayed.mema"))
+        .arg(&zero_capture)
+        .run()
+        .assert_error(1, "too large");
+    for (name, command) in [("quiet.mema", "info"), ("quiet.xyz", "map")] {
+        let fifo = dir.join(name);
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo runs");
+        assert!(made.success());
+        let started = std::time::Instant::now();
+        let mut run = MemaCommand::new(&dir).arg(command).arg(&fifo);
+        if command == "map" {
+            run = run.args(["-k", "2", "-o"]).arg(dir.join("out.mema"));
+        }
+        run.run().assert_error(1, "nothing arrived");
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(60),
+            "{command} waited {:?}",
+            started.elapsed()
+        );
+    }
+}
