@@ -1,5 +1,6 @@
 use super::testkit::{XorShift, expect_err, shared};
 use super::*;
+use std::io::Read;
 
 #[test]
 fn content_decides_the_format_not_the_extension() {
