@@ -305,3 +305,16 @@ fn endless_and_silent_inputs_end_in_one_line_errors() {
         );
     }
 }
+
+/// A /proc file reports length 0 but has bytes: it is read, and judged by what it holds (it was
+/// "an empty file"); a truly empty file is still one.
+#[test]
+fn a_proc_file_is_read_for_what_it_holds() {
+    let dir = Dir::new("proc-file");
+    let ran = map(&dir, std::path::Path::new("/proc/cpuinfo"), "2")
+        .run()
+        .assert_error(1, "/proc/cpuinfo: not a point cloud");
+    assert!(!ran.stderr().contains("empty"), "{}", ran.stderr());
+    let empty = dir.write("empty.xyz", b"");
+    map(&dir, &empty, "2").run().assert_error(1, "empty file");
+}

@@ -166,9 +166,11 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
         path: path.to_owned(),
         cause,
     };
-    // The type first: opening a FIFO blocks until a writer comes.
+    // The type first: opening a FIFO blocks until a writer comes. A regular file of length 0
+    // may still have bytes (/proc, /sys): it is read as a pipe is, to its end.
     let name = path.display().to_string();
-    if !std::fs::metadata(path).map_err(io)?.is_file() {
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() || meta.len() == 0 {
         return match crate::io::input::read_bounded(path, UNSIZED_LIMIT, "point cloud") {
             Ok(bytes) => read_cloud_bytes(&name, &bytes),
             Err(crate::io::input::InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
