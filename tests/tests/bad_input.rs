@@ -318,3 +318,20 @@ fn a_proc_file_is_read_for_what_it_holds() {
     let empty = dir.write("empty.xyz", b"");
     map(&dir, &empty, "2").run().assert_error(1, "empty file");
 }
+
+/// A map past the query index's 16,384 entities names its file in the error (it did not).
+#[test]
+fn a_map_too_large_for_the_query_index_is_named() {
+    let dir = Dir::new("big-query");
+    let mut csv = String::from("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n");
+    for i in 0..16_385 {
+        csv.push_str(&format!("{i},0,0,0.1,0.1,0.1,0,0,0,1,ellipsoid\n"));
+    }
+    let big = dir.write("big.csv", csv.as_bytes());
+    MemaCommand::new(&dir)
+        .arg("query")
+        .arg(&big)
+        .args(["--point", "0,0,0"])
+        .run()
+        .assert_error(1, "big.csv: ");
+}
