@@ -12,6 +12,25 @@ use std::process::ExitCode;
 static HEAP: mema::heap::Counting = mema::heap::Counting;
 
 fn main() -> ExitCode {
+    // A bug must still read as one line, not a backtrace (RUST_BACKTRACE is often set).
+    std::panic::set_hook(Box::new(|info| {
+        let payload = info.payload();
+        let what = payload
+            .downcast_ref::<&str>()
+            .copied()
+            .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
+            .unwrap_or("a panic");
+        match info.location() {
+            Some(at) => eprintln!("mema: internal error: {what} ({}:{})", at.file(), at.line()),
+            None => eprintln!("mema: internal error: {what}"),
+        }
+    }));
+    // The worker threads start here, where a limit on threads or memory is one line and exit
+    // 1, rather than a panic in the first parallel step.
+    if let Err(e) = rayon::ThreadPoolBuilder::new().build_global() {
+        eprintln!("mema: cannot start the worker threads: {e}");
+        return ExitCode::from(1);
+    }
     let cli = cli::Cli::parse();
     match cli::run(&cli) {
         Ok(()) => ExitCode::SUCCESS,

@@ -47,18 +47,21 @@ impl Stage {
         bar.set_message(name.to_owned());
         let (done, wait) = mpsc::channel::<()>();
         let shown = bar.clone();
-        let reveal = std::thread::spawn(move || {
-            if wait.recv_timeout(DELAY) == Err(mpsc::RecvTimeoutError::Timeout)
-                && let Some(t) = target()
-            {
-                shown.set_draw_target(t);
-                shown.enable_steady_tick(Duration::from_millis(120));
-            }
-        });
+        // No thread to spare (a memory or process limit) only means no progress bar.
+        let reveal = std::thread::Builder::new()
+            .spawn(move || {
+                if wait.recv_timeout(DELAY) == Err(mpsc::RecvTimeoutError::Timeout)
+                    && let Some(t) = target()
+                {
+                    shown.set_draw_target(t);
+                    shown.enable_steady_tick(Duration::from_millis(120));
+                }
+            })
+            .ok();
         Stage {
             bar,
             done: Some(done),
-            reveal: Some(reveal),
+            reveal,
         }
     }
 

@@ -263,3 +263,75 @@ fn a_cloud_too_wide_for_f32_distances() {
     }
     assert_nothing_written(&dir, &["wide.xyz"]);
 }
+
+/// Inputs that never end: a link to /dev/zero is read only up to a stated limit, and a FIFO that
+/// nobody writes to ends in an error after the idle timeout (it used to hang `map` and `info`
+/// forever, and `info`/`replay` on /dev/zero grew until memory ran out).
+#[test]
+fn endless_and_silent_inputs_end_in_one_line_errors() {
+    let dir = Dir::new("endless");
+    let zero_map = dir.join("zero.mema");
+    std::os::unix::fs::symlink("/dev/zero", &zero_map).expect("symlink");
+    MemaCommand::new(&dir)
+        .arg("info")
+        .arg(&zero_map)
+        .run()
+        .assert_error(1, "too large");
+    let zero_capture = dir.join("zero.bin");
+    std::os::unix::fs::symlink("/dev/zero", &zero_capture).expect("symlink");
+    MemaCommand::new(&dir)
+        .args(["replay", "-k", "10", "-o"])
+        .arg(dir.join("replayed.mema"))
+        .arg(&zero_capture)
+        .run()
+        .assert_error(1, "too large");
+    for (name, command) in [("quiet.mema", "info"), ("quiet.xyz", "map")] {
+        let fifo = dir.join(name);
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo runs");
+        assert!(made.success());
+        let started = std::time::Instant::now();
+        let mut run = MemaCommand::new(&dir).arg(command).arg(&fifo);
+        if command == "map" {
+            run = run.args(["-k", "2", "-o"]).arg(dir.join("out.mema"));
+        }
+        run.run().assert_error(1, "nothing arrived");
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(60),
+            "{command} waited {:?}",
+            started.elapsed()
+        );
+    }
+}
+
+/// A /proc file reports length 0 but has bytes: it is read, and judged by what it holds (it was
+/// "an empty file"); a truly empty file is still one.
+#[test]
+fn a_proc_file_is_read_for_what_it_holds() {
+    let dir = Dir::new("proc-file");
+    let ran = map(&dir, std::path::Path::new("/proc/cpuinfo"), "2")
+        .run()
+        .assert_error(1, "/proc/cpuinfo: not a point cloud");
+    assert!(!ran.stderr().contains("empty"), "{}", ran.stderr());
+    let empty = dir.write("empty.xyz", b"");
+    map(&dir, &empty, "2").run().assert_error(1, "empty file");
+}
+
+/// A map past the query index's 16,384 entities names its file in the error (it did not).
+#[test]
+fn a_map_too_large_for_the_query_index_is_named() {
+    let dir = Dir::new("big-query");
+    let mut csv = String::from("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n");
+    for i in 0..16_385 {
+        csv.push_str(&format!("{i},0,0,0.1,0.1,0.1,0,0,0,1,ellipsoid\n"));
+    }
+    let big = dir.write("big.csv", csv.as_bytes());
+    MemaCommand::new(&dir)
+        .arg("query")
+        .arg(&big)
+        .args(["--point", "0,0,0"])
+        .run()
+        .assert_error(1, "big.csv: ");
+}

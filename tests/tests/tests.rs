@@ -25,6 +25,8 @@ mod firmware;
 mod gmm_shell;
 // The fuzz targets' properties on mutated maps of every layout and mutated captures.
 mod fuzzing;
+// A memory limit: one line and exit 1, never an abort or a backtrace.
+mod memory_limit;
 // Eq. 12 from moments against the direct per-point f64 sum on real clusters.
 mod fitness;
 // Accelerated k-means against the plain reference on real clouds, on 1 and 2 threads.

@@ -93,6 +93,10 @@ impl KindCounts {
     }
 }
 
+/// The largest map file read: 1 GiB is 76 million quantized entities, far past any map the
+/// pipeline makes; `mema info` on a link to /dev/zero used to read until memory ran out.
+pub const MAP_LIMIT: u64 = 1 << 30;
+
 impl HostMap {
     /// Centre of entity `i` in the cloud's own coordinates.
     pub fn world_center(&self, e: &Entity) -> [f64; 3] {
@@ -201,10 +205,11 @@ impl HostMap {
     }
 
     /// Reads a map file in the format of its extension.
+    /// Reads a map of at most [`MAP_LIMIT`] bytes (a pipe or a device included, within
+    /// `io::input`'s idle timeout).
     pub fn read(path: &Path) -> Result<Self> {
         let format = MapFormat::from_path(path)?;
-        let bytes =
-            std::fs::read(path).with_context(|| format!("{}: cannot read map", path.display()))?;
+        let bytes = crate::io::input::read_bounded(path, MAP_LIMIT, "map")?;
         let parsed = match format {
             MapFormat::Mema => Self::from_mema(&bytes),
             MapFormat::Csv => Self::from_csv(&String::from_utf8_lossy(&bytes)),

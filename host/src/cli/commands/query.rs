@@ -65,7 +65,7 @@ pub fn query(args: &QueryArgs) -> Result<()> {
         .into());
     }
     let map = HostMap::read(&args.map)?;
-    let index = build_index(&map)?;
+    let index = build_index(&map).with_context(|| args.map.display().to_string())?;
     let kind = |i: usize| map.entities.get(i).map(|e| e.kind.name());
     if let Some(text) = &args.point {
         let p = parse_numbers::<3>(text, "--point")?;

@@ -257,6 +257,10 @@ pub fn record(args: &RecordArgs) -> Result<()> {
     Ok(())
 }
 
+/// The largest capture replayed: 1 GiB is about 88 million points on the wire (12.1 bytes a
+/// point); `mema replay /dev/zero` used to read until memory ran out.
+const CAPTURE_LIMIT: u64 = 1 << 30;
+
 pub fn replay(args: &ReplayArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
@@ -265,8 +269,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| args.capture.with_extension("mema"));
     check_map_output(&output)?;
-    let bytes = std::fs::read(&args.capture)
-        .with_context(|| format!("{}: cannot read capture", args.capture.display()))?;
+    let bytes = mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?;
     let stop = interrupted();
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();

@@ -31,7 +31,7 @@ mod xyz;
 
 use std::fmt;
 use std::fs::File;
-use std::io::{Read, Seek};
+use std::io::Seek;
 use std::path::{Path, PathBuf};
 
 use crate::io::units::{self, FileUnit, LengthUnit, Units};
@@ -165,10 +165,11 @@ fn no_finite_points(slots: &usize) -> String {
 }
 
 /// The most bytes read from a pipe or a device. Such an input is held whole, since a header's
-/// sizes can only be checked against a known length; 4 GiB is far more than any cloud these
+/// sizes can only be checked against a known length; 1 GiB is far more than any cloud these
 /// readers are used on (the largest shared one is 3 MB), and past it the input is an error,
-/// where `/dev/zero` would otherwise be read until memory ran out.
-pub const UNSIZED_LIMIT: u64 = 4 << 30;
+/// where `/dev/zero` would otherwise be read until memory ran out. A pipe that stays quiet for
+/// [`crate::io::input::IDLE_TIMEOUT`] is an error too (a FIFO nobody writes to).
+pub const UNSIZED_LIMIT: u64 = 1 << 30;
 
 /// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file, in its own coordinates.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
@@ -189,12 +190,28 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
         path: path.to_owned(),
         cause,
     };
+    // The type first: opening a FIFO blocks until a writer comes. A regular file of length 0
+    // may still have bytes (/proc, /sys): it is read as a pipe is, to its end.
+    let name = path.display().to_string();
+    let meta = std::fs::metadata(path).map_err(io)?;
+    if !meta.is_file() || meta.len() == 0 {
+        return match crate::io::input::read_bounded(path, UNSIZED_LIMIT, "point cloud") {
+            Ok(bytes) => read_bytes(Ctx(&name, scaling), &bytes),
+            Err(crate::io::input::InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
+                name,
+                what: format!(
+                    "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
+                ),
+            }),
+            Err(crate::io::input::InputError::Io { cause, .. }) => Err(io(cause)),
+            Err(idle @ crate::io::input::InputError::Idle { .. }) => Err(io(std::io::Error::new(
+                std::io::ErrorKind::TimedOut,
+                idle.to_string(),
+            ))),
+        };
+    }
     let mut file = File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
-    let name = path.display().to_string();
-    if !meta.is_file() {
-        return read_unsized(path, file, UNSIZED_LIMIT, scaling);
-    }
     let ctx = Ctx(&name, scaling);
     let kind = {
         let mut input = Input::new(ctx, &mut file, meta.len());
@@ -211,30 +228,6 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
             las::read(ctx, std::io::BufReader::new(file), meta.len())
         }
     }
-}
-
-/// Reads a source without a length (a pipe, a device) whole, up to `limit` bytes.
-fn read_unsized(
-    path: &Path,
-    source: impl Read,
-    limit: u64,
-    scaling: Scaling,
-) -> Result<Cloud, ReadError> {
-    let name = path.display().to_string();
-    let mut bytes = Vec::new();
-    // One byte past the limit tells an input of exactly `limit` bytes from a longer one.
-    let read = source.take(limit.saturating_add(1)).read_to_end(&mut bytes);
-    read.map_err(|cause| ReadError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    if bytes.len() as u64 > limit {
-        let what = format!(
-            "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
-        );
-        return Err(ReadError::TooLarge { name, what });
-    }
-    read_bytes(Ctx(&name, scaling), &bytes)
 }
 
 /// Same from bytes already in memory; `name` is used in error messages.

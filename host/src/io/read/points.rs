@@ -121,7 +121,7 @@ pub(crate) struct Points {
 /// an abort, since `n` comes from a header (bounded by the file's bytes, but a large file may
 /// still declare more than the machine has).
 fn reserve<T>(ctx: Ctx, v: &mut Vec<T>, n: usize, what: &str) -> Result<(), ReadError> {
-    v.try_reserve_exact(n)
+    crate::heap::fallible(|| v.try_reserve_exact(n))
         .map_err(|_| ctx.out_of_memory(format!("{n} {what} of {} bytes", size_of::<T>())))
 }
 

@@ -258,7 +258,7 @@ impl<S: Slot> Columns<S> {
             held: 0,
         });
         let mut slots = Vec::new();
-        slots.try_reserve_exact(n.min(upfront / size_of::<S>().max(1)))?;
+        crate::heap::fallible(|| slots.try_reserve_exact(n.min(upfront / size_of::<S>().max(1))))?;
         Ok(Columns {
             axes,
             n,
@@ -282,7 +282,7 @@ impl<S: Slot> Columns<S> {
         if upto > slots.capacity() {
             // Doubling keeps the copies few; the declared count bounds it.
             let target = upto.max(len.saturating_mul(2)).min(n);
-            slots.try_reserve_exact(target - len)?;
+            crate::heap::fallible(|| slots.try_reserve_exact(target - len))?;
         }
         slots.resize(upto, S::default());
         Ok(())

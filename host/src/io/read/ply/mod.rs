@@ -246,7 +246,7 @@ fn parse_header(input: &mut Input) -> Result<(Option<Endian>, Vec<Element>), Rea
                     continue;
                 };
                 let more = name.len() + 1;
-                if element.names.try_reserve(more).is_err() {
+                if crate::heap::fallible(|| element.names.try_reserve(more)).is_err() {
                     let what = format!(
                         "{more} bytes more for the names of element {}",
                         element.name
