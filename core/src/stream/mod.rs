@@ -345,10 +345,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
         crate::num::insertion_sort_by(absorbed, |x, y| x > y);
         for &b in absorbed.iter() {
-            // In range by construction; the check keeps `swap_remove`'s panic out of the build.
+            // In range by construction.
             if b < self.clusters.len() {
                 observer.removed(b);
-                self.clusters.swap_remove(b);
+                crate::num::swap_remove(&mut self.clusters, b);
             }
         }
         self.stats.merges += count as u64;
