@@ -150,6 +150,10 @@ impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
 
 impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// A `const fn`: the state can be a `static` initialiser.
+    // Always inlined, down to the core's constructors: the image builds its state in place in
+    // a static, and a constructor left out of line (crates built for size) returns it through a
+    // stack temporary as large as the state (48 KiB of stack at boot, measured).
+    #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
         Self {
             rx: heapless::Deque::new(),

@@ -128,6 +128,8 @@ fn center_of(m: &Moments) -> Point3 {
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// A `const fn`, so firmware can place the mapper in a `static`.
+    // Inlined so a caller can build the mapper in place (the firmware image, in a static).
+    #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
         Self {
             clusters: heapless::Vec::new(),

@@ -55,6 +55,7 @@ impl Default for Decoder {
 }
 
 impl Decoder {
+    #[inline(always)]
     pub const fn new() -> Self {
         Self {
             buf: [0; MAX_FRAME_LEN],
