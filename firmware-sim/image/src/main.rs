@@ -145,12 +145,27 @@ fn run() -> Result<(), &'static str> {
         io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
 
     let mut chunk = [0u8; 256];
+    // The longest tick that only mapped points, the longest that also froze, merged or refitted
+    // (at most one of those per tick), and how many did.
+    let (mut plain_max, mut unit_max, mut units) = (0, 0, 0);
+    let work = |s: &mema_core::stream::StreamStats| (s.frozen, s.merges, s.refits);
     let t0 = now();
     loop {
         match uart.deliver(&mut chunk) {
             Ok(Delivery::Bytes(n)) => {
                 firmware.on_receive(chunk.get(..n).unwrap_or(&[]));
-                firmware.tick(|_| {});
+                while firmware.busy() {
+                    let before = work(firmware.mapper_stats());
+                    let t = now();
+                    firmware.tick(|_| {});
+                    let dt = now() - t;
+                    if work(firmware.mapper_stats()) == before {
+                        plain_max = plain_max.max(dt);
+                    } else {
+                        unit_max = unit_max.max(dt);
+                        units += 1;
+                    }
+                }
                 if firmware.stats().end_of_stream {
                     break;
                 }
@@ -181,7 +196,7 @@ fn run() -> Result<(), &'static str> {
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 17] = [
+    let fields: [(&[u8], u64); 22] = [
         (b"k", (K + F) as u64),
         (b"shells", u64::from(model != StreamModel::Paper)),
         (b"points", mapper.points),
@@ -199,6 +214,11 @@ fn run() -> Result<(), &'static str> {
         (b"stack_tick", stack_tick as u64),
         (b"stack_finish", stack_finish as u64),
         (b"refits", mapper.refits),
+        (b"tick_plain_max_ticks", plain_max),
+        (b"tick_unit_max_ticks", unit_max),
+        (b"unit_ticks", units),
+        (b"ticks", fw.ticks),
+        (b"tick_points_peak", fw.tick_points_peak as u64),
     ];
     io::print(&[b"mema-image:"]);
     for (key, value) in fields {
