@@ -160,9 +160,11 @@ impl Entity {
     ) -> Self {
         let mut weights = [0.0f32; 3];
         let mut thinnest = 0;
+        let mut smallest = semi_axes[0];
         for (j, &r) in semi_axes.iter().enumerate() {
-            if r < semi_axes[thinnest] {
+            if r < smallest {
                 thinnest = j;
+                smallest = r;
             }
         }
         for (j, (w, &r)) in weights.iter_mut().zip(semi_axes.iter()).enumerate() {
@@ -176,13 +178,15 @@ impl Entity {
         if weights.iter().all(|&w| w == 0.0) {
             // Every axis was non-positive or the thinnest is itself over the threshold: keep
             // the thinnest one as a finite surface rather than store an entity with none.
-            let r = semi_axes[thinnest];
+            let r = smallest;
             let r = if r > 0.0 && r.is_finite() {
                 r
             } else {
                 degeneration.threshold
             };
-            weights[thinnest] = weight_of(r);
+            if let Some(w) = weights.get_mut(thinnest) {
+                *w = weight_of(r);
+            }
         }
         Self {
             center,

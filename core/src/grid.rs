@@ -25,6 +25,7 @@ fn cell_coordinate(v: f32, cell: f32) -> i32 {
 }
 
 impl<const K: usize, const G: usize> CentreGrid<K, G> {
+    #[inline(always)]
     pub const fn new(cell: f32) -> Self {
         const { assert!(K < NONE as usize, "indices are u16") };
         const { assert!(G > 0) };

@@ -134,6 +134,9 @@ impl Moments {
             ];
         }
         for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            // `min(2)` leaves the pair as it is; it only lets the compiler drop the bounds check
+            // when the loop is not unrolled (opt-level "s").
+            let (j, k) = (j.min(2), k.min(2));
             let [uv, u2v, uv2, u2v2] = self.pair[p];
             let (u1, u2) = (self.axis[j][0], self.axis[j][1]);
             let (v1, v2) = (self.axis[k][0], self.axis[k][1]);
@@ -219,17 +222,22 @@ impl Moments {
         }
         let n = self.count as f64;
         let e = |s: f64| s / n;
-        let a = [0, 1, 2].map(|j| e(self.axis[j][0]));
+        let a = self.axis.map(|sums| e(sums[0]));
         let mut cov = [[0.0; 3]; 3];
         for j in 0..3 {
             cov[j][j] = (e(self.axis[j][1]) - a[j] * a[j]).max(0.0);
         }
         for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            let (j, k) = (j.min(2), k.min(2));
             let value = e(self.pair[p][0]) - a[j] * a[k];
             cov[j][k] = value;
             cov[k][j] = value;
         }
-        let mean = [0, 1, 2].map(|j| self.shift[j] + a[j]);
+        let mean = [
+            self.shift[0] + a[0],
+            self.shift[1] + a[1],
+            self.shift[2] + a[2],
+        ];
         Some((mean, cov))
     }
 
@@ -253,6 +261,7 @@ impl Moments {
                 (e(s4) - 4.0 * m * e(s3) + 6.0 * m * m * e(s2) - 3.0 * m * m * m * m).max(0.0);
         }
         for (p, &(j, k)) in PAIRS.iter().enumerate() {
+            let (j, k) = (j.min(2), k.min(2));
             let [uv, u2v, uv2, u2v2] = self.pair[p].map(e);
             let (ma, mb) = (a[j], a[k]);
             let (u2, v2) = (e(self.axis[j][1]), e(self.axis[k][1]));

@@ -36,6 +36,22 @@ pub(crate) fn insertion_sort_by<T: Copy>(v: &mut [T], before: impl Fn(&T, &T) ->
     }
 }
 
+/// `v.swap_remove(i)` without its `assert!`: removes element `i`, moving the last one into its
+/// place, and returns false (changing nothing) if `i` is out of range. The callers' own range
+/// checks do not always reach heapless's assert at opt-level "s", which then keeps a panic.
+pub(crate) fn swap_remove<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usize) -> bool {
+    if i >= v.len() {
+        return false;
+    }
+    let Some(last) = v.pop() else {
+        return false;
+    };
+    if let Some(slot) = v.get_mut(i) {
+        *slot = last;
+    }
+    true
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -64,5 +80,18 @@ mod tests {
         assert_eq!(v, [(3, 'a'), (3, 'c'), (2, 'd'), (1, 'b'), (1, 'e')]);
         let mut w: [usize; 0] = [];
         insertion_sort_by(&mut w, |a, b| a < b);
+    }
+
+    #[test]
+    fn swap_remove_matches_heapless() {
+        for i in 0..5 {
+            let mut ours: heapless::Vec<u8, 4> = heapless::Vec::from_slice(&[1, 2, 3, 4]).unwrap();
+            let mut theirs = ours.clone();
+            assert_eq!(swap_remove(&mut ours, i), i < 4);
+            if i < 4 {
+                theirs.swap_remove(i);
+            }
+            assert_eq!(ours, theirs);
+        }
     }
 }

@@ -102,10 +102,10 @@ pub fn symmetric_eigen(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
         }
     }
     // Right-handed, so the columns are a rotation: the third axis is the cross product.
-    let (x, y) = (
-        [0, 1, 2].map(|r| vectors[r][0]),
-        [0, 1, 2].map(|r| vectors[r][1]),
-    );
+    // Spelled out, not `[0, 1, 2].map(..)`: at opt-level "s" that map stays a loop whose
+    // indexing keeps a bounds check.
+    let [r0, r1, r2] = vectors;
+    let (x, y) = ([r0[0], r1[0], r2[0]], [r0[1], r1[1], r2[1]]);
     let z = [
         x[1] * y[2] - x[2] * y[1],
         x[2] * y[0] - x[0] * y[2],

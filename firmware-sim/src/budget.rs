@@ -90,6 +90,36 @@ impl QemuReport {
         )
     }
 
+    /// Instructions of a SysTick count the image reported under `key`.
+    pub fn instructions(&self, key: &str) -> Option<f64> {
+        Some(self.get(key)? as f64 * self.per_tick()?)
+    }
+
+    /// The tick lines: the longest ticks against the ring's fill time, and the costs per point,
+    /// per freeze/merge/refit and per wire byte (the prices of the paced ring test).
+    pub fn tick_text(&self) -> Option<String> {
+        let ins = |k: &str| self.instructions(k);
+        let (plain, unit) = (ins("tick_plain_max_ticks")?, ins("tick_unit_max_ticks")?);
+        let per_point = ins("tick_plain_sum_ticks")? / self.get("tick_plain_points")?.max(1) as f64;
+        let units = self.get("unit_ticks")?;
+        let per_unit = (ins("tick_unit_sum_ticks")?
+            - per_point * self.get("tick_unit_points")? as f64)
+            / units.max(1) as f64;
+        let per_byte = ins("ingest_ticks")? / self.get("bytes")?.max(1) as f64;
+        let fill_s = RX_CAPACITY as f64 / crate::pacing::LINK_BYTES_PER_S;
+        let fill = fill_s * crate::pacing::CPU_HZ / 1.5;
+        let cycles_per_byte = crate::pacing::CPU_HZ / crate::pacing::LINK_BYTES_PER_S;
+        Some(format!(
+            "  ticks: {}; longest {plain:.0} instructions mapping points only (at most {}), {unit:.0} with a freeze, merge pass or refit ({units} such ticks)\n\
+             \x20 the {RX_CAPACITY}-byte ring fills in {:.1} ms at 921,600 baud: {fill:.0} instructions at 168 MHz and 1.5 cycles each, {:.1}x the longest tick\n\
+             \x20 per point (point-only ticks) {per_point:.0} instructions, per freeze/merge/refit {per_unit:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n",
+            self.get("ticks")?,
+            crate::firmware::TICK_POINTS,
+            fill_s * 1e3,
+            fill / plain.max(unit),
+        ))
+    }
+
     /// Instructions of `finish` (every cluster refitted) and the map's encoding.
     pub fn finish_instructions(&self) -> Option<f64> {
         Some(self.get("finish_ticks")? as f64 * self.per_tick()?)
@@ -279,6 +309,7 @@ impl Report {
                 g("entities").saturating_sub(g("frozen")),
                 q.finish_instructions().unwrap_or(0.0),
             );
+            s += &q.tick_text().unwrap_or_default();
         }
         s
     }

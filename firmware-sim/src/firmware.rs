@@ -38,6 +38,10 @@ pub const IMAGE_FROZEN: usize = 250;
 /// cost, so the layout stays under 64 KiB beside an 8 KiB stack.
 pub const IMAGE_BUCKETS: usize = 256;
 
+/// Most points one tick maps: with at most one fit or merge pass on top, the tick's length is
+/// bounded whatever the ring holds (a frame carries up to 128).
+pub const TICK_POINTS: usize = 32;
+
 /// One cluster refit per this many points: the host's `REFIT_INTERVAL`, so both map alike.
 pub const REFIT_INTERVAL: u32 = 1024;
 
@@ -99,6 +103,8 @@ pub struct FirmwareStats {
     pub ring_overruns: u64,
     /// Most bytes the ring held at a tick.
     pub ring_peak: usize,
+    /// Most points one tick mapped.
+    pub tick_points_peak: usize,
     pub restarts: u64,
     pub end_of_stream: bool,
 }
@@ -117,6 +123,10 @@ pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
     rx: heapless::Deque<u8, RX_CAPACITY>,
     decoder: Decoder,
     mapper: StreamMapper<K, G, F>,
+    /// The next point to map of the decoder's held frame, while a frame is part mapped.
+    cursor: Option<usize>,
+    /// A periodic refit fell due at a point that already fitted: the next tick runs it.
+    refit_due: bool,
     stats: FirmwareStats,
 }
 
@@ -150,16 +160,23 @@ impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
 
 impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// A `const fn`: the state can be a `static` initialiser.
+    // Always inlined, down to the core's constructors: the image builds its state in place in
+    // a static, and a constructor left out of line (crates built for size) returns it through a
+    // stack temporary as large as the state (48 KiB of stack at boot, measured).
+    #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
         Self {
             rx: heapless::Deque::new(),
             decoder: Decoder::new(),
             mapper: StreamMapper::new(params),
+            cursor: None,
+            refit_due: false,
             stats: FirmwareStats {
                 ticks: 0,
                 frames: 0,
                 ring_overruns: 0,
                 ring_peak: 0,
+                tick_points_peak: 0,
                 restarts: 0,
                 end_of_stream: false,
             },
@@ -180,36 +197,83 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         kept
     }
 
-    /// One main-loop pass: the ring drained through the decoder, each accepted frame's points
-    /// into the mapper (the same conversion as the host's `Link`), `on_frame` told of each frame.
+    /// One main-loop pass, one bounded unit of work: at most [`TICK_POINTS`] points of one
+    /// frame, and it ends right after a point whose mapping fitted an entity (a freeze, a merge
+    /// pass, or the periodic refit), so no tick holds two fits. A refit falling due at a point that already
+    /// fitted waits for the next tick, the rest of the frame and of the ring too: the main loop
+    /// ticks while [`Firmware::busy`]. Ticks never change the map, only when its work is done:
+    /// the points go into the mapper in the same order, with the same refits between them.
     pub fn tick(&mut self, mut on_frame: impl FnMut(AcceptedFrame)) {
         self.stats.ticks += 1;
         self.stats.ring_peak = self.stats.ring_peak.max(self.rx.len());
-        let (front, back) = self.rx.as_slices();
-        for piece in [front, back] {
-            let mut window = piece;
-            loop {
-                match self.decoder.feed(window) {
-                    Decoded::Consumed => break,
-                    Decoded::Rejected { remaining, .. } => window = remaining,
-                    Decoded::Frame { frame, remaining } => {
-                        for p in frame.points_metres() {
-                            self.mapper
-                                .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
-                        }
-                        self.stats.frames += 1;
-                        self.stats.end_of_stream |= frame.end_of_stream();
-                        on_frame(AcceptedFrame {
-                            sequence: frame.sequence(),
-                            points: frame.point_count(),
-                            end_of_stream: frame.end_of_stream(),
-                        });
-                        window = remaining;
-                    }
-                }
+        if core::mem::take(&mut self.refit_due) {
+            self.mapper.refit_stalest();
+            return;
+        }
+        if self.cursor.is_none() && !self.decode_next() {
+            return;
+        }
+        let Some(frame) = self.decoder.held_frame() else {
+            self.cursor = None;
+            return;
+        };
+        let start = self.cursor.unwrap_or(0);
+        let fitted = |s: &StreamStats| (s.frozen, s.merges, s.refits);
+        let before = fitted(self.mapper.stats());
+        let mut next = start;
+        for p in frame.points_metres().skip(start) {
+            next += 1;
+            let point = Point3::new(p[0] as f32, p[1] as f32, p[2] as f32);
+            let refit = self.mapper.ingest_observed(point, &mut ());
+            let fitted_now = fitted(self.mapper.stats()) != before;
+            if refit && fitted_now {
+                self.refit_due = true;
+            } else if refit {
+                self.mapper.refit_stalest();
+            }
+            if refit || fitted_now || next - start == TICK_POINTS {
+                break;
             }
         }
-        self.rx.clear();
+        self.stats.tick_points_peak = self.stats.tick_points_peak.max(next - start);
+        if next < usize::from(frame.point_count()) {
+            self.cursor = Some(next);
+            return;
+        }
+        self.cursor = None;
+        self.stats.frames += 1;
+        self.stats.end_of_stream |= frame.end_of_stream();
+        on_frame(AcceptedFrame {
+            sequence: frame.sequence(),
+            points: frame.point_count(),
+            end_of_stream: frame.end_of_stream(),
+        });
+    }
+
+    /// Feeds the ring to the decoder until it accepts a frame (true) or the ring is empty.
+    fn decode_next(&mut self) -> bool {
+        loop {
+            let pending = self.rx.len();
+            let (front, _) = self.rx.as_slices();
+            if front.is_empty() {
+                return false;
+            }
+            let (taken, accepted) = match self.decoder.feed(front) {
+                Decoded::Consumed => (front.len(), false),
+                Decoded::Rejected { remaining, .. } => (front.len() - remaining.len(), false),
+                Decoded::Frame { remaining, .. } => (front.len() - remaining.len(), true),
+            };
+            self.rx.retain_back(pending - taken);
+            if accepted {
+                self.cursor = Some(0);
+                return true;
+            }
+        }
+    }
+
+    /// Whether work is waiting: bytes in the ring, a part-mapped frame or a deferred refit.
+    pub fn busy(&self) -> bool {
+        self.refit_due || self.cursor.is_some() || !self.rx.is_empty()
     }
 
     /// Ends the stream: every cluster refitted from its final moments.
@@ -229,7 +293,8 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         self.mapper.encode_pieces([0.0; 3], sink)
     }
 
-    /// Copies the mapper into `snapshot` (the memory that survives a reset).
+    /// Copies the mapper into `snapshot` (the memory that survives a reset). Meant for an idle
+    /// moment (not [`Firmware::busy`]): a part-mapped frame or a deferred refit is not saved.
     pub fn save(&self, snapshot: &mut Snapshot<K, G, F>) {
         snapshot.mapper.clone_from(&self.mapper);
         snapshot.frames = self.stats.frames;
@@ -240,6 +305,8 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// back from `snapshot` (or starts empty if none was saved).
     pub fn restart_from(&mut self, snapshot: &Snapshot<K, G, F>) {
         self.rx.clear();
+        self.cursor = None;
+        self.refit_due = false;
         self.decoder = Decoder::new();
         self.mapper.clone_from(&snapshot.mapper);
         self.stats.frames = snapshot.frames;

@@ -134,8 +134,10 @@ fn drive<
             Delivery::Bytes(n) => {
                 firmware.on_receive(buf.get(..n).unwrap_or(&[]));
                 board.observe(firmware.pending(), firmware.mapper().clusters().len());
-                board.tick(|| firmware.tick(|f| accepted.push(f.sequence)))?;
-                board.observe(firmware.pending(), firmware.mapper().clusters().len());
+                while firmware.busy() {
+                    board.tick(|| firmware.tick(|f| accepted.push(f.sequence)))?;
+                    board.observe(firmware.pending(), firmware.mapper().clusters().len());
+                }
                 let since = firmware.stats().frames - snapshot.frames();
                 if config.snapshot_every > 0 && since >= config.snapshot_every {
                     firmware.save(snapshot);

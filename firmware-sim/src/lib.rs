@@ -28,5 +28,7 @@ pub mod budget;
 pub mod compare;
 #[cfg(feature = "std")]
 pub mod harness;
+#[cfg(feature = "std")]
+pub mod pacing;
 #[cfg(feature = "reference")]
 pub mod reference;

@@ -104,7 +104,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
         observer.frozen(i);
         observer.removed(i);
-        self.clusters.swap_remove(i);
+        crate::num::swap_remove(&mut self.clusters, i);
         self.stats.frozen += 1;
         // The last cluster took slot `i`: refile the centres under their new indices.
         let cell = self.grid.cell();

@@ -128,6 +128,8 @@ fn center_of(m: &Moments) -> Point3 {
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// A `const fn`, so firmware can place the mapper in a `static`.
+    // Inlined so a caller can build the mapper in place (the firmware image, in a static).
+    #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
         Self {
             clusters: heapless::Vec::new(),
@@ -171,9 +173,19 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// [`StreamMapper::add`], telling `observer` where the point went and what moved.
     pub fn add_observed(&mut self, p: Point3, observer: &mut impl Observer) {
+        if self.ingest_observed(p, observer) {
+            self.refit_stalest();
+        }
+    }
+
+    /// [`StreamMapper::add_observed`] without the periodic refit it may end with: returns whether
+    /// that refit is due, for a caller that spreads its work over time (the firmware's tick) and
+    /// runs it by [`StreamMapper::refit_stalest`] before the next point. The map is the same: a
+    /// refit writes one cluster's entity and staleness, which no clustering decision reads.
+    pub fn ingest_observed(&mut self, p: Point3, observer: &mut impl Observer) -> bool {
         if !p.is_finite() {
             self.stats.non_finite += 1;
-            return;
+            return false;
         }
         self.stats.points += 1;
         match self.nearest_within_radius(p) {
@@ -189,9 +201,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
         }
         let interval = self.params.refit_interval as u64;
-        if interval > 0 && self.stats.points.is_multiple_of(interval) {
-            self.refit_stalest();
-        }
+        interval > 0 && self.stats.points.is_multiple_of(interval)
     }
 
     pub fn add_all(&mut self, points: &[Point3]) {
@@ -203,18 +213,30 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
         let mut best: Option<(usize, f32)> = None;
-        self.grid.for_each_within_half_cell(p, |i| {
-            if let Some(c) = self.clusters.get(i) {
-                let d = p.distance_squared(c.center);
-                let better = match best {
-                    None => true,
-                    Some((bi, bd)) => d < bd || (d == bd && i < bi),
-                };
-                if d <= r2 && better {
-                    best = Some((i, d));
-                }
+        let mut offer = |i: usize, c: &StreamCluster| {
+            let d = p.distance_squared(c.center);
+            let better = match best {
+                None => true,
+                Some((bi, bd)) => d < bd || (d == bd && i < bi),
+            };
+            if d <= r2 && better {
+                best = Some((i, d));
             }
-        });
+        };
+        if r2 == 0.0 {
+            // Until the first merge the radius is 0 and the cells so small that every centre
+            // is filed in one saturated cell: the grid would walk that whole chain 8 times, so
+            // one pass over the centres is cheaper, and finds the same (coincident) centres.
+            for (i, c) in self.clusters.iter().enumerate() {
+                offer(i, c);
+            }
+        } else {
+            self.grid.for_each_within_half_cell(p, |i| {
+                if let Some(c) = self.clusters.get(i) {
+                    offer(i, c);
+                }
+            });
+        }
         best.map(|(i, _)| i)
     }
 
@@ -251,7 +273,15 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn candidate_pairs(&self, wanted: usize) -> ClosestPairs {
         let mut closest = ClosestPairs::new(wanted);
         let cell2 = self.grid.cell() * self.grid.cell();
-        for (a, ca) in self.clusters.iter().enumerate() {
+        // Before the join radius has grown, the cell is so small that its square is 0 and no
+        // pair can qualify: skip the 27-cell queries, which then walk every centre filed in one
+        // saturated cell (27 K^2 steps, the firmware's longest tick).
+        let near = if cell2 > 0.0 {
+            self.clusters.as_slice()
+        } else {
+            &[]
+        };
+        for (a, ca) in near.iter().enumerate() {
             self.grid.for_each_near(ca.center, |b| {
                 if let Some(cb) = self.clusters.get(b) {
                     let d = ca.center.distance_squared(cb.center);
@@ -345,10 +375,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
         crate::num::insertion_sort_by(absorbed, |x, y| x > y);
         for &b in absorbed.iter() {
-            // In range by construction; the check keeps `swap_remove`'s panic out of the build.
+            // In range by construction.
             if b < self.clusters.len() {
                 observer.removed(b);
-                self.clusters.swap_remove(b);
+                crate::num::swap_remove(&mut self.clusters, b);
             }
         }
         self.stats.merges += count as u64;
@@ -399,7 +429,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Refits the cluster with the most points added since its last fit (ties: lowest index).
     /// Shells need no refit: they are read off the moments whenever the map is.
-    fn refit_stalest(&mut self) {
+    pub fn refit_stalest(&mut self) {
         if self.is_shells() {
             return;
         }

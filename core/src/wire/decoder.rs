@@ -45,6 +45,8 @@ pub struct Decoder {
     /// Set when a block outgrew the buffer: bytes are dropped until the next delimiter.
     overflowed: bool,
     last_sequence: Option<u32>,
+    /// Length of the frame last returned, still in `buf` until the next `feed` (0: none).
+    held: usize,
     stats: DecoderStats,
 }
 
@@ -55,12 +57,14 @@ impl Default for Decoder {
 }
 
 impl Decoder {
+    #[inline(always)]
     pub const fn new() -> Self {
         Self {
             buf: [0; MAX_FRAME_LEN],
             len: 0,
             overflowed: false,
             last_sequence: None,
+            held: 0,
             stats: DecoderStats {
                 bytes: 0,
                 accepted: 0,
@@ -80,8 +84,18 @@ impl Decoder {
         &self.stats
     }
 
+    /// The frame the last [`Decoder::feed`] returned, until the next `feed` overwrites it: a
+    /// caller can map its points over several calls without a copy of its own.
+    pub fn held_frame(&self) -> Option<Frame<&[u8]>> {
+        match self.held {
+            0 => None,
+            len => self.buf.get(..len).map(Frame::new_unchecked),
+        }
+    }
+
     /// Takes bytes until a frame ends (delimiter) or the input runs out.
     pub fn feed<'d, 'i>(&'d mut self, input: &'i [u8]) -> Decoded<'d, 'i> {
+        self.held = 0;
         // Bytes before `counted` are in the stats already (idle delimiters skipped in place:
         // recursing once per idle byte overflowed a small stack on a run of zeros).
         let mut counted = 0;
@@ -130,6 +144,7 @@ impl Decoder {
             }
             self.last_sequence = Some(sequence);
             self.stats.accepted += 1;
+            self.held = raw_len;
             let raw = self.buf.get(..raw_len).unwrap_or(&[]);
             return Decoded::Frame {
                 frame: Frame::new_unchecked(raw),

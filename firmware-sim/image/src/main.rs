@@ -92,6 +92,15 @@ fn boot(
     slot.write(Firmware::new(model_params(SEED, K, F, model)))
 }
 
+/// SysTick times of one kind of tick.
+#[derive(Default)]
+struct TickTimes {
+    max: u64,
+    sum: u64,
+    ticks: u64,
+    points: u64,
+}
+
 /// The model `model.txt` asks for: the paper's if it begins with `paper`, else shells.
 fn configured_model() -> StreamModel {
     let mut text = [0u8; 8];
@@ -145,12 +154,32 @@ fn run() -> Result<(), &'static str> {
         io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
 
     let mut chunk = [0u8; 256];
+    // Ticks that only mapped points, and ticks that also froze, merged or refitted (at most one
+    // of those per tick): the longest, and the sums the per-point and per-unit costs come from.
+    let (mut plain, mut unit) = (TickTimes::default(), TickTimes::default());
+    let work = |s: &mema_core::stream::StreamStats| (s.frozen, s.merges, s.refits);
     let t0 = now();
     loop {
         match uart.deliver(&mut chunk) {
             Ok(Delivery::Bytes(n)) => {
                 firmware.on_receive(chunk.get(..n).unwrap_or(&[]));
-                firmware.tick(|_| {});
+                while firmware.busy() {
+                    let before = work(firmware.mapper_stats());
+                    let points = firmware.mapper_stats().points;
+                    let t = now();
+                    firmware.tick(|_| {});
+                    let dt = now() - t;
+                    let mapped = firmware.mapper_stats().points - points;
+                    let kind = if work(firmware.mapper_stats()) == before {
+                        &mut plain
+                    } else {
+                        &mut unit
+                    };
+                    kind.max = kind.max.max(dt);
+                    kind.sum += dt;
+                    kind.ticks += 1;
+                    kind.points += mapped;
+                }
                 if firmware.stats().end_of_stream {
                     break;
                 }
@@ -181,7 +210,7 @@ fn run() -> Result<(), &'static str> {
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 17] = [
+    let fields: [(&[u8], u64); 27] = [
         (b"k", (K + F) as u64),
         (b"shells", u64::from(model != StreamModel::Paper)),
         (b"points", mapper.points),
@@ -199,6 +228,16 @@ fn run() -> Result<(), &'static str> {
         (b"stack_tick", stack_tick as u64),
         (b"stack_finish", stack_finish as u64),
         (b"refits", mapper.refits),
+        (b"bytes", decoder.bytes),
+        (b"tick_plain_max_ticks", plain.max),
+        (b"tick_plain_sum_ticks", plain.sum),
+        (b"tick_plain_points", plain.points),
+        (b"tick_unit_max_ticks", unit.max),
+        (b"tick_unit_sum_ticks", unit.sum),
+        (b"tick_unit_points", unit.points),
+        (b"unit_ticks", unit.ticks),
+        (b"ticks", fw.ticks),
+        (b"tick_points_peak", fw.tick_points_peak as u64),
     ];
     io::print(&[b"mema-image:"]);
     for (key, value) in fields {
