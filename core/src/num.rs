@@ -85,7 +85,10 @@ mod tests {
     #[test]
     fn swap_remove_matches_heapless() {
         for i in 0..5 {
-            let mut ours: heapless::Vec<u8, 4> = heapless::Vec::from_slice(&[1, 2, 3, 4]).unwrap();
+            let mut ours: heapless::Vec<u8, 4> = heapless::Vec::new();
+            for b in 1..=4 {
+                assert!(ours.push(b).is_ok());
+            }
             let mut theirs = ours.clone();
             assert_eq!(swap_remove(&mut ours, i), i < 4);
             if i < 4 {
