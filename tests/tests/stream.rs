@@ -12,14 +12,14 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// A socat-made pty pair, killed on drop.
-struct PtyPair {
+pub(crate) struct PtyPair {
     child: Child,
     pub a: PathBuf,
     pub b: PathBuf,
 }
 
 impl PtyPair {
-    fn new(dir: &Dir) -> Self {
+    pub(crate) fn new(dir: &Dir) -> Self {
         let (a, b) = (dir.join("ttyA"), dir.join("ttyB"));
         let child = Command::new("socat")
             .arg(format!("pty,raw,echo=0,link={}", a.display()))
@@ -36,7 +36,7 @@ impl PtyPair {
         Self { child, a, b }
     }
 
-    fn unplug(&mut self) {
+    pub(crate) fn unplug(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -49,13 +49,13 @@ impl Drop for PtyPair {
 }
 
 /// A running `mema` whose stderr is collected as it arrives.
-struct Running {
+pub(crate) struct Running {
     child: Child,
     stderr: Arc<Mutex<String>>,
     reader: Option<std::thread::JoinHandle<()>>,
 }
 
-fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
+pub(crate) fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
     let mut child = Command::new(mema_bin())
         .args(args)
         .current_dir(&dir.path)
@@ -86,7 +86,7 @@ fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
 
 impl Running {
     /// Blocks until the command has opened its port (it says so on stderr).
-    fn wait_until_listening(&self) {
+    pub(crate) fn wait_until_listening(&self) {
         let deadline = Instant::now() + Duration::from_secs(30);
         while !self.stderr.lock().expect("lock").contains("listening on") {
             assert!(
@@ -98,13 +98,26 @@ impl Running {
         }
     }
 
-    fn id(&self) -> u32 {
+    pub(crate) fn id(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Blocks until stderr holds `needle` (a hang is a failure).
+    pub(crate) fn wait_for(&self, needle: &str) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !self.stderr.lock().expect("lock").contains(needle) {
+            assert!(
+                Instant::now() < deadline,
+                "mema never said {needle:?}: {}",
+                self.stderr.lock().expect("lock")
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
     }
 }
 
 /// Waits for the command up to `limit`; a hang is a failure, never a stuck test run.
-fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
+pub(crate) fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
     let deadline = Instant::now() + limit;
     loop {
         if let Some(status) = running.child.try_wait().expect("wait") {

@@ -39,6 +39,9 @@ mod queries;
 mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
+// The link's faults (issue 12): frames after the end, a sender that starts again, units out of
+// range, points 2,000 km out, SIGTERM and SIGHUP, the idle timeout, a failed snapshot.
+mod link_faults;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,

@@ -1,6 +1,9 @@
 //! The raw frame: a checked view over bytes (`Frame`) and the valid content it carries (`FrameRepr`).
 
-use super::{CRC_LEN, HEADER_LEN, MAX_POINTS, POINT_LEN, VERSION, field};
+use super::{
+    CRC_LEN, HEADER_LEN, MAX_POINTS, MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, POINT_LEN, VERSION,
+    field,
+};
 use crate::crc32::crc32;
 
 /// Why a raw frame was refused. Each kind is counted separately by the decoder.
@@ -23,6 +26,10 @@ pub enum FrameError {
     },
     /// Reserved bits or bytes are not zero.
     Reserved,
+    /// A unit exponent outside [`MIN_UNIT_EXPONENT`]`..=`[`MAX_UNIT_EXPONENT`].
+    UnitOutOfRange {
+        exponent: i8,
+    },
     BadCrc {
         stored: u32,
         computed: u32,
@@ -31,7 +38,7 @@ pub enum FrameError {
     BadCobs,
     /// More bytes than [`super::MAX_FRAME_LEN`] before a delimiter (only the decoder reports this).
     Oversized,
-    /// A sequence number at or behind the last accepted one: a repeat, used once only.
+    /// A repeat of the last accepted frame (same sequence number and CRC), used once only.
     Duplicate {
         sequence: u32,
     },
@@ -47,6 +54,10 @@ impl core::fmt::Display for FrameError {
             Self::TooManyPoints { count } => write!(f, "{count} points, at most {MAX_POINTS}"),
             Self::UnsupportedVersion { version } => write!(f, "protocol version {version}"),
             Self::Reserved => write!(f, "reserved bits set"),
+            Self::UnitOutOfRange { exponent } => write!(
+                f,
+                "unit exponent {exponent} outside {MIN_UNIT_EXPONENT}..={MAX_UNIT_EXPONENT}"
+            ),
             Self::BadCrc { stored, computed } => {
                 write!(
                     f,
@@ -121,6 +132,10 @@ impl<T: AsRef<[u8]>> Frame<T> {
         }
         if self.flags() & !super::FLAG_END_OF_STREAM != 0 || byte_at(bytes, field::RESERVED) != 0 {
             return Err(FrameError::Reserved);
+        }
+        let exponent = self.unit_exponent();
+        if !(MIN_UNIT_EXPONENT..=MAX_UNIT_EXPONENT).contains(&exponent) {
+            return Err(FrameError::UnitOutOfRange { exponent });
         }
         let (stored, computed) = (self.stored_crc(), self.computed_crc());
         if stored != computed && !cfg!(fuzzing) {
@@ -338,6 +353,30 @@ mod tests {
         let mut f = good;
         f[1] = 0x80;
         assert_eq!(check(&f[..n]), Err(FrameError::Reserved));
+        // Units: nanometres and kilometres are the ends; past them points would vanish or
+        // overflow in f32 (the CRC is recomputed, so only the exponent is wrong).
+        for (exponent, ok) in [
+            (-9i8, true),
+            (3, true),
+            (-10, false),
+            (4, false),
+            (38, false),
+            (-45, false),
+        ] {
+            let mut u = [0u8; 64];
+            let m = FrameRepr {
+                unit_exponent: exponent,
+                ..repr
+            }
+            .emit(&mut u)
+            .or_fail("fits")?;
+            let want = if ok {
+                Ok(())
+            } else {
+                Err(FrameError::UnitOutOfRange { exponent })
+            };
+            assert_eq!(check(&u[..m]), want, "exponent {exponent}");
+        }
         let mut crc = good;
         crc[20] ^= 4;
         assert!(matches!(check(&crc[..n]), Err(FrameError::BadCrc { .. })));

@@ -32,7 +32,7 @@ mod decoder;
 mod frame;
 
 pub use cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
-pub use decoder::{Decoded, Decoder, DecoderStats};
+pub use decoder::{Decoded, Decoder, DecoderStats, MAX_GAP};
 pub use frame::{Frame, FrameError, FrameRepr};
 
 pub const VERSION: u8 = 1;
@@ -43,6 +43,14 @@ pub const CRC_LEN: usize = 4;
 pub const POINT_LEN: usize = 12;
 /// Flag bit 0: the sender has nothing more to send.
 pub const FLAG_END_OF_STREAM: u8 = 1;
+/// The smallest unit exponent a receiver takes: nanometres (`10^-9` m).
+///
+/// Outside `MIN_UNIT_EXPONENT..=MAX_UNIT_EXPONENT` a frame is refused: at `10^-45` every
+/// coordinate rounds to 0 in f32 and a cloud collapses into one point, at `10^38` every
+/// coordinate overflows, and neither is a unit a length sensor reports in.
+pub const MIN_UNIT_EXPONENT: i8 = -9;
+/// The largest unit exponent a receiver takes: kilometres (`10^3` m).
+pub const MAX_UNIT_EXPONENT: i8 = 3;
 /// The largest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + POINT_LEN * MAX_POINTS + CRC_LEN;
 /// The largest frame on the wire, COBS overhead and delimiter included: size UART buffers from it.

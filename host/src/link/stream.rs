@@ -1,10 +1,10 @@
 //! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
 
 use anyhow::Result;
-use mema_core::Point3;
 use mema_core::fit::FitParams;
+use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
-use mema_core::wire::{Decoded, Decoder, DecoderStats};
+use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
 use crate::error::ConfigError;
@@ -124,11 +124,12 @@ pub fn link_params(
 }
 
 /// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
-/// quantized grid (the entities already on it, so the map in memory is its file read back).
-pub fn map_of(mapper: &HostStreamMapper) -> HostMap {
+/// quantized grid (the entities already on it, so the map in memory is its file read back),
+/// around `origin`, the receiver's (the mapper's points are relative to it).
+pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
     let layout = mapper.layout();
     HostMap {
-        origin: [0.0; 3],
+        origin,
         entities: mapper.stored_entities(layout).collect(),
         quantization: match layout {
             mema_core::map::Layout::Quantized(grid) => Some(grid),
@@ -148,7 +149,7 @@ pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
         .unwrap_or_else(|| Box::new(HostStreamMapper::new(params)))
 }
 
-/// Decoder + mapper, fed with whatever chunks of bytes arrive.
+/// Receiver + mapper, fed with whatever chunks of bytes arrive.
 ///
 /// A cloud sent as a rangefinder sends it, in chunks of any size, becomes a map:
 ///
@@ -166,17 +167,15 @@ pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
 /// for chunk in bytes.chunks(7) {
 ///     link.feed(chunk);
 /// }
-/// assert!(link.end_of_stream);
+/// assert!(link.end_of_stream());
 /// assert_eq!(link.stats().rejected, 0);
 /// let map = link.finish();
 /// assert!(!map.entities.is_empty() && map.entities.len() <= 16);
 /// # Ok::<(), anyhow::Error>(())
 /// ```
 pub struct Link {
-    pub decoder: Decoder,
+    pub receiver: Receiver,
     pub mapper: Box<HostStreamMapper>,
-    pub end_of_stream: bool,
-    pub frames_after_end: u64,
 }
 
 impl Link {
@@ -194,38 +193,47 @@ impl Link {
     /// A link whose mapper has every parameter chosen by the caller.
     pub fn with_params(params: StreamParams) -> Self {
         Self {
-            decoder: Decoder::new(),
+            receiver: Receiver::new(),
             mapper: new_mapper_with(params),
-            end_of_stream: false,
-            frames_after_end: 0,
         }
     }
 
-    /// Feeds one chunk; frames go straight into the mapper.
+    /// Feeds one chunk; the points of its frames go straight into the mapper (frames after the
+    /// end of stream are only counted, so any chunking gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
         let mut window = chunk;
         loop {
-            match self.decoder.feed(window) {
-                Decoded::Consumed => break,
-                Decoded::Rejected { remaining, .. } => window = remaining,
-                Decoded::Frame { frame, remaining } => {
-                    if self.end_of_stream {
-                        self.frames_after_end += 1;
+            match self.receiver.feed(window) {
+                Received::Consumed => break,
+                Received::Skipped { remaining, .. } => window = remaining,
+                Received::Points {
+                    frame,
+                    placement,
+                    remaining,
+                } => {
+                    for p in placement.points(&frame) {
+                        self.mapper.add(p);
                     }
-                    for p in frame.points_metres() {
-                        self.mapper
-                            .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
-                    }
-                    self.end_of_stream |= frame.end_of_stream();
                     window = remaining;
                 }
             }
         }
     }
 
-    /// The decoder's counts: frames accepted, rejected, lost, repeated, bytes.
+    /// Whether the end-of-stream frame has arrived.
+    pub fn end_of_stream(&self) -> bool {
+        self.receiver.ended()
+    }
+
+    /// The decoder's counts: frames accepted, rejected (by reason), lost, repeated, sessions,
+    /// bytes.
     pub fn stats(&self) -> &DecoderStats {
-        self.decoder.stats()
+        self.receiver.decoder_stats()
+    }
+
+    /// The receiver's counts: frames after the end.
+    pub fn receiver_stats(&self) -> &ReceiverStats {
+        self.receiver.stats()
     }
 
     /// The map so far: stale clusters refitted first (a snapshot).
@@ -241,7 +249,7 @@ impl Link {
     }
 
     fn map(&self) -> HostMap {
-        map_of(&self.mapper)
+        map_of(&self.mapper, self.receiver.origin())
     }
 }
 
@@ -269,5 +277,6 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
         mapper.add(dequantise(*q));
     }
     mapper.finish();
-    Ok(map_of(&mapper))
+    // Clouds are centred on their bounding box, so the receiver's origin is 0 (ORIGIN_CELL).
+    Ok(map_of(&mapper, [0.0; 3]))
 }

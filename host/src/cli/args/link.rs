@@ -21,6 +21,10 @@ pub struct StreamArgs {
     /// Write the map so far every this many seconds.
     #[arg(long)]
     pub snapshot_every: Option<f64>,
+    /// End the stream when no frame has arrived for this many seconds (a lost end-of-stream
+    /// frame, a sender that hung): the map of what arrived is written, exit status 4.
+    #[arg(long, value_name = "SECONDS")]
+    pub idle_timeout: Option<f64>,
     #[command(flatten)]
     pub shape: StreamShapeArgs,
     /// Also save the raw bytes received, as `mema record` would.

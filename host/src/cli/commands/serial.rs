@@ -16,9 +16,10 @@ use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
 use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
+use mema_core::wire::DecoderStats;
 
 use crate::cli::args::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs};
-use crate::cli::errors::LinkLost;
+use crate::cli::errors::{LinkIdle, LinkLost, UsageError};
 
 /// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
 pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, mema::ConfigError> {
@@ -37,7 +38,8 @@ fn params(
 /// How often `stream` reports progress on stderr.
 const PROGRESS_EVERY: Duration = Duration::from_secs(5);
 
-/// Set by Ctrl-C; every loop polls it between reads.
+/// Set by Ctrl-C, SIGTERM or SIGHUP (ctrlc's `termination` feature); every loop polls it
+/// between reads, so a service manager's stop or a closed terminal writes the map as Ctrl-C does.
 fn interrupted() -> Arc<AtomicBool> {
     let flag = Arc::new(AtomicBool::new(false));
     let handler_flag = flag.clone();
@@ -47,6 +49,53 @@ fn interrupted() -> Arc<AtomicBool> {
     flag
 }
 
+/// Frames refused, by reason (they add up to `frames_rejected`).
+#[derive(Serialize)]
+pub struct Rejections {
+    pub bad_crc: u64,
+    pub bad_cobs: u64,
+    pub bad_length: u64,
+    /// An unknown version, or reserved bits set.
+    pub bad_version: u64,
+    pub oversized: u64,
+    /// A unit exponent outside the range PROTOCOL.md gives.
+    pub bad_unit: u64,
+}
+
+impl Rejections {
+    fn of(s: &DecoderStats) -> Self {
+        Self {
+            bad_crc: s.bad_crc,
+            bad_cobs: s.bad_cobs,
+            bad_length: s.bad_length,
+            bad_version: s.bad_version,
+            oversized: s.oversized,
+            bad_unit: s.bad_unit,
+        }
+    }
+
+    /// The non-zero reasons, for the summary line: " (2 bad CRC, 1 bad unit)", or nothing.
+    fn text(&self) -> String {
+        let reasons: Vec<String> = [
+            (self.bad_crc, "bad CRC"),
+            (self.bad_cobs, "bad COBS"),
+            (self.bad_length, "bad length"),
+            (self.bad_version, "bad version"),
+            (self.oversized, "oversized"),
+            (self.bad_unit, "bad unit"),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        if reasons.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", reasons.join(", "))
+        }
+    }
+}
+
 #[derive(Serialize)]
 pub struct StreamSummary {
     pub map: String,
@@ -54,8 +103,15 @@ pub struct StreamSummary {
     pub points: u64,
     pub frames_accepted: u64,
     pub frames_rejected: u64,
+    pub rejected: Rejections,
     pub frames_lost: u64,
     pub frames_duplicated: u64,
+    /// Valid frames after the end-of-stream frame: counted, not mapped.
+    pub frames_after_end: u64,
+    /// Sessions the sender began (more than 1: it started again mid-stream).
+    pub sessions: u64,
+    /// The map's origin (metres): the first point's 1,024 m cell.
+    pub origin: [f64; 3],
     pub bytes: u64,
     pub ellipsoids: usize,
     pub elapsed_s: f64,
@@ -78,8 +134,12 @@ fn summary(
         points,
         frames_accepted: s.accepted,
         frames_rejected: s.rejected,
+        rejected: Rejections::of(s),
         frames_lost: s.lost,
         frames_duplicated: s.duplicates,
+        frames_after_end: link.receiver_stats().after_end,
+        sessions: s.sessions,
+        origin: link.receiver.origin(),
         bytes: s.bytes,
         ellipsoids,
         elapsed_s: elapsed,
@@ -92,12 +152,23 @@ fn summary(
 }
 
 fn report(s: &StreamSummary, json: bool) -> Result<()> {
+    let mut extra = String::new();
+    if s.frames_after_end > 0 {
+        extra.push_str(&format!(
+            ", {} after the end (not mapped)",
+            s.frames_after_end
+        ));
+    }
+    if s.sessions > 1 {
+        extra.push_str(&format!(", {} sessions", s.sessions));
+    }
     eprintln!(
-        "mema: {}: {} points, frames {} accepted / {} rejected / {} lost / {} repeated, {} ellipsoids, {:.2} s, {:.0} points/s",
+        "mema: {}: {} points, frames {} accepted / {} rejected{} / {} lost / {} repeated{extra}, {} ellipsoids, {:.2} s, {:.0} points/s",
         s.end,
         s.points,
         s.frames_accepted,
         s.frames_rejected,
+        s.rejected.text(),
         s.frames_lost,
         s.frames_duplicated,
         s.ellipsoids,
@@ -112,42 +183,63 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
+/// How a link loop ended, before the end-of-stream frame.
+enum Stop {
+    /// Ctrl-C, SIGTERM or SIGHUP.
+    Signal,
+    /// `--idle-timeout`: no frame for this long.
+    Idle(f64),
+    /// The port closed or vanished, or the capture ended.
+    Lost(String),
+}
+
+/// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`] or
+/// [`LinkIdle`].
 fn conclude(
     mut link: Link,
     output: &Path,
-    end: Option<String>,
+    end: Option<Stop>,
     started: Instant,
     json: bool,
 ) -> Result<()> {
     let map = link.finish();
     map.write(output)?;
-    let (end_text, lost) = match (&end, link.end_of_stream) {
-        (_, true) => ("end of stream".to_string(), false),
-        (Some(reason), false) if reason == "interrupted" => {
-            ("interrupted (Ctrl-C)".to_string(), false)
+    let end_text = match (&end, link.end_of_stream()) {
+        (_, true) => "end of stream".to_string(),
+        (Some(Stop::Signal), false) => "interrupted (Ctrl-C, SIGTERM or SIGHUP)".to_string(),
+        (Some(Stop::Idle(seconds)), false) => {
+            format!("no frame for {seconds} s (--idle-timeout), before end of stream")
         }
-        (Some(reason), false) => (format!("link lost before end of stream ({reason})"), true),
-        (None, false) => ("input ended before end of stream".to_string(), true),
+        (Some(Stop::Lost(reason)), false) => format!("link lost before end of stream ({reason})"),
+        (None, false) => "input ended before end of stream".to_string(),
     };
     report(
         &summary(&link, output, &end_text, map.entities.len(), started),
         json,
     )?;
-    if lost {
-        return Err(LinkLost(format!(
-            "{end_text}; the map of what arrived is in {}",
-            output.display()
-        ))
-        .into());
+    let lost = format!(
+        "{end_text}; the map of what arrived is in {}",
+        output.display()
+    );
+    match (end, link.end_of_stream()) {
+        (_, true) | (Some(Stop::Signal), _) => Ok(()),
+        (Some(Stop::Idle(_)), _) => Err(LinkIdle(lost).into()),
+        _ => Err(LinkLost(lost).into()),
     }
-    Ok(())
 }
 
 pub fn stream(args: &StreamArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
     check_map_output(&args.output)?;
+    if let Some(t) = args.idle_timeout
+        && !(t > 0.0 && t.is_finite())
+    {
+        return Err(UsageError(format!(
+            "--idle-timeout {t} must be a positive number of seconds"
+        ))
+        .into());
+    }
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut record = match &args.record {
         Some(path) => Some(CaptureWriter::create(path)?),
@@ -159,6 +251,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
     let mut last_progress = Instant::now();
+    let mut last_frame = Instant::now();
     let mut buf = [0u8; 4096];
     let end = loop {
         if last_progress.elapsed() >= PROGRESS_EVERY {
@@ -175,7 +268,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
             last_progress = Instant::now();
         }
         if stop.load(Ordering::SeqCst) {
-            break Some("interrupted".to_string());
+            break Some(Stop::Signal);
         }
         match read_some(port.as_mut(), &mut buf) {
             ReadOutcome::Bytes(n) => {
@@ -183,23 +276,36 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 if let Some(r) = record.as_mut() {
                     r.write(bytes)?;
                 }
+                let frames = link.stats().accepted;
                 link.feed(bytes);
-                if link.end_of_stream {
+                if link.stats().accepted > frames {
+                    last_frame = Instant::now();
+                }
+                if link.end_of_stream() {
                     break None;
                 }
             }
             ReadOutcome::Idle => {}
-            ReadOutcome::Gone(reason) => break Some(reason),
+            ReadOutcome::Gone(reason) => break Some(Stop::Lost(reason)),
+        }
+        if let Some(seconds) = args.idle_timeout
+            && last_frame.elapsed() >= Duration::from_secs_f64(seconds)
+        {
+            break Some(Stop::Idle(seconds));
         }
         if let Some(every) = args.snapshot_every
             && last_snapshot.elapsed() >= Duration::from_secs_f64(every)
         {
-            link.snapshot().write(&args.output)?;
-            eprintln!(
-                "mema: snapshot: {} points, {} ellipsoids",
-                link.mapper.stats().points,
-                link.mapper.clusters().len()
-            );
+            // A full disk or a vanished directory must not end the stream: the map in memory
+            // is the only copy of what arrived, and the next snapshot or the end may succeed.
+            match link.snapshot().write(&args.output) {
+                Ok(()) => eprintln!(
+                    "mema: snapshot: {} points, {} ellipsoids",
+                    link.mapper.stats().points,
+                    link.mapper.clusters().len()
+                ),
+                Err(e) => eprintln!("mema: snapshot failed, the stream goes on: {e:#}"),
+            }
             last_snapshot = Instant::now();
         }
     };
@@ -276,20 +382,20 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
         if stop.load(Ordering::SeqCst) {
-            end = Some("interrupted".to_string());
+            end = Some(Stop::Signal);
             break;
         }
+        // Past the end-of-stream frame the rest is still fed: it is only counted, and then
+        // counted whole whatever the chunk size.
+        let paced = !link.end_of_stream();
         link.feed(chunk);
-        if let Some(rate) = args.rate {
+        if let Some(rate) = args.rate.filter(|_| paced) {
             // Pace by points delivered, as the scanner would have.
             let due = link.mapper.stats().points as f64 / rate;
             let ahead = due - started.elapsed().as_secs_f64();
             if ahead > 0.0 {
                 std::thread::sleep(Duration::from_secs_f64(ahead));
             }
-        }
-        if link.end_of_stream {
-            break;
         }
     }
     conclude(link, &output, end, started, args.json)
