@@ -15,55 +15,53 @@ use crate::geometry::Point3;
 use crate::wire::{Decoded, Decoder, DecoderStats, Frame, FrameError};
 
 /// The map origin is the first mapped point rounded to a multiple of this (metres): a power of
-/// two, so the origin and every subtraction from it are exact in f64 and the same on every
-/// target.
+/// two, so the origin is exact in f64 and the same on every target.
 pub const ORIGIN_CELL: f64 = 1024.0;
 
-/// Where a frame's points go: the map's origin (and, with poses, the sensor's pose).
+/// Where a frame's points go: the map's origin (and, with poses, the sensor's pose), with the
+/// frame's unit, worked out once per frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Placement {
     origin: [f64; 3],
+    /// Metres per unit of the frame.
+    scale: f64,
+    /// Added to a point in metres: minus the origin.
+    offset: [f64; 3],
+    /// The origin is 0: a point reaches the mapper as `(v * 10^e) as f32`, the bits it had
+    /// before there was an origin, and without three soft-float additions on a device.
+    at_zero: bool,
 }
 
 impl Placement {
+    fn new(origin: [f64; 3], exponent: i8) -> Self {
+        Self {
+            origin,
+            scale: crate::wire::unit_scale(exponent).unwrap_or(f64::NAN),
+            offset: origin.map(|o| -o),
+            at_zero: origin == [0.0; 3],
+        }
+    }
+
     /// The map's origin, in the world frame (metres).
     pub const fn origin(&self) -> [f64; 3] {
         self.origin
     }
 
     /// Point `i` of `frame` in the map's frame (metres from the origin), or `None` past its
-    /// points.
+    /// points. `frame` is the frame this placement was made for.
     pub fn point<T: AsRef<[u8]>>(&self, frame: &Frame<T>, i: usize) -> Option<Point3> {
-        let raw = frame.point(i)?;
-        let exponent = frame.unit_exponent();
-        let scale = libm::pow(10.0, exponent as f64);
-        // The origin as a whole number of the frame's units, when it is one: the subtraction
-        // is then exact, on integers, so points moved by whole cells reach the mapper with
-        // the same bits (and near 0, with the bits `v * 10^e` had before there was an origin).
-        if let Some([ox, oy, oz]) = self.origin_in_units(exponent) {
-            let [x, y, z] = raw;
-            let local = |v: i32, o: i64| ((i64::from(v) - o) as f64 * scale) as f32;
-            return Some(Point3::new(local(x, ox), local(y, oy), local(z, oz)));
+        let [x, y, z] = frame.point(i)?;
+        let s = self.scale;
+        if self.at_zero {
+            return Some(Point3::new(
+                (x as f64 * s) as f32,
+                (y as f64 * s) as f32,
+                (z as f64 * s) as f32,
+            ));
         }
-        Some(self.local(raw.map(|v| v as f64 * scale)))
-    }
-
-    /// The origin in units of `10^exponent` metres, if that is a whole number in i64.
-    fn origin_in_units(&self, exponent: i8) -> Option<[i64; 3]> {
-        if exponent > 0 {
-            return None;
-        }
-        let per_cell = 10i64.checked_pow(u32::from(exponent.unsigned_abs()))? * ORIGIN_CELL as i64;
-        let cells = self.origin.map(|o| o / ORIGIN_CELL);
-        let [x, y, z] = cells.map(|c| {
-            // Cells are whole by construction; the first bound keeps the cast exact, the last
-            // keeps `v - origin` within i64 for any i32 coordinate v.
-            (c.abs() < 9.0e15)
-                .then(|| (c as i64).checked_mul(per_cell))
-                .flatten()
-                .filter(|o| o.unsigned_abs() < 1 << 62)
-        });
-        Some([x?, y?, z?])
+        let [ox, oy, oz] = self.offset;
+        let local = |v: i32, o: f64| (v as f64 * s + o) as f32;
+        Some(Point3::new(local(x, ox), local(y, oy), local(z, oz)))
     }
 
     /// Every point of `frame`, as [`Placement::point`] gives them.
@@ -72,12 +70,6 @@ impl Placement {
         frame: &'a Frame<T>,
     ) -> impl Iterator<Item = Point3> + 'a {
         (0..usize::from(frame.point_count())).filter_map(move |i| self.point(frame, i))
-    }
-
-    fn local(&self, world: [f64; 3]) -> Point3 {
-        let [x, y, z] = world;
-        let [ox, oy, oz] = self.origin;
-        Point3::new((x - ox) as f32, (y - oy) as f32, (z - oz) as f32)
     }
 }
 
@@ -174,18 +166,15 @@ impl Receiver {
         Received::Points {
             frame,
             // Fields, not methods: the frame still borrows the decoder.
-            placement: Placement {
-                origin: self.origin.unwrap_or([0.0; 3]),
-            },
+            placement: Placement::new(self.origin.unwrap_or([0.0; 3]), frame.unit_exponent()),
             remaining,
         }
     }
 
     /// Where the points of the frame [`Receiver::held_frame`] holds go.
     pub fn placement(&self) -> Placement {
-        Placement {
-            origin: self.origin(),
-        }
+        let exponent = self.held_frame().map_or(0, |f| f.unit_exponent());
+        Placement::new(self.origin(), exponent)
     }
 
     /// The frame of points the last [`Receiver::feed`] returned, until the next `feed`: a caller
@@ -221,7 +210,7 @@ impl Receiver {
 /// The origin for a stream whose first point is point 0 of `frame`: that point in the world,
 /// rounded to [`ORIGIN_CELL`].
 fn origin_for<T: AsRef<[u8]>>(frame: &Frame<T>) -> [f64; 3] {
-    let scale = libm::pow(10.0, frame.unit_exponent() as f64);
+    let scale = frame.unit_scale();
     let first = frame.point(0).unwrap_or([0; 3]);
     // `+ 0.0` turns the -0 that rounding a small negative value gives into 0: the origin is
     // written in the map file, and 0 is what a map near 0 had before.

@@ -104,6 +104,7 @@ fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
     assert_eq!(placement.origin().map(f64::to_bits), [0.0f64.to_bits(); 3]);
     for (i, q) in near.iter().enumerate() {
         let want = q.map(|v| (v as f64 * libm::pow(10.0, -3.0)) as f32);
+        // Bits, so a -0 would show.
         assert_eq!(
             placement.point(&frame, i).or_fail("point")?.to_array(),
             want

@@ -183,9 +183,15 @@ impl<T: AsRef<[u8]>> Frame<T> {
         Some([v(0), v(1), v(2)])
     }
 
-    /// The points, in metres, as the mapper takes them (`value * 10^e`, computed in f64).
+    /// The metres in one unit of this frame (`10^e`); NaN for an exponent out of range, which
+    /// [`Frame::check`] refuses.
+    pub fn unit_scale(&self) -> f64 {
+        super::unit_scale(self.unit_exponent()).unwrap_or(f64::NAN)
+    }
+
+    /// The points, in metres (`value * 10^e`, computed in f64).
     pub fn points_metres(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
-        let scale = libm::pow(10.0, self.unit_exponent() as f64);
+        let scale = self.unit_scale();
         (0..self.point_count() as usize)
             .filter_map(move |i| self.point(i))
             .map(move |p| p.map(|v| v as f64 * scale))

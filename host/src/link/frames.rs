@@ -20,7 +20,7 @@ pub fn quantise(p: Point3) -> Result<[i32; 3]> {
 
 /// What the robot's mapper receives for a wire point: exactly the decoder's conversion.
 pub fn dequantise(q: [i32; 3]) -> Point3 {
-    let scale = libm::pow(10.0, UNIT_EXPONENT as f64);
+    let scale = mema_core::wire::unit_scale(UNIT_EXPONENT).unwrap_or(f64::NAN);
     Point3::new(
         (q[0] as f64 * scale) as f32,
         (q[1] as f64 * scale) as f32,
