@@ -2,76 +2,33 @@
 //! "What the receiver does" says, in fixed memory and the same on the host and the device.
 //!
 //! [`Receiver`] owns the frame [`Decoder`] and adds what a stream means beyond one frame:
+//! - **Poses** (version 2). A pose frame sets the sensor's pose, sensor to world; a points
+//!   frame names the pose its points were measured at, and they are mapped through it into the
+//!   world frame. A points frame whose pose never arrived (its frame lost, or a session that
+//!   began since) is counted and not mapped: a wrong pose would invent a surface. Each session
+//!   starts at pose 0, the identity; version 1 frames are always at the identity.
+//! - **Sessions.** When the decoder sees the sender start again (a session-start flag, or its
+//!   sequence numbers), the pose goes back to the identity; the map goes on.
 //! - **The end.** Frames after the end-of-stream frame are counted and never mapped, so the map
 //!   does not depend on how many of them arrived in the same chunk as the end.
 //! - **The map's frame.** The mapper works in f32, which near 2,000 km resolves only 0.25 m. The
-//!   receiver therefore keeps an f64 origin, taken from the first point mapped and rounded to
-//!   [`ORIGIN_CELL`], and hands the mapper points relative to it: millimetres stay millimetres
-//!   within 16 km of the origin, wherever on the link's range the map lies. A cloud within
-//!   512 m of 0 keeps origin 0, so its points reach the mapper with the same bits as before
-//!   there was an origin.
+//!   receiver therefore keeps an f64 origin, taken from the first point mapped (in the world)
+//!   and rounded to [`ORIGIN_CELL`], and hands the mapper points relative to it: millimetres
+//!   stay millimetres within 16 km of the origin, wherever on the link's range the map lies. A
+//!   stream within 512 m of 0 keeps origin 0, so its points reach the mapper with the same bits
+//!   as before there was an origin.
 
-use crate::geometry::Point3;
-use crate::wire::{Decoded, Decoder, DecoderStats, Frame, FrameError};
+mod placement;
+
+pub use placement::{Placement, Pose};
+
+use crate::wire::{
+    Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
+};
 
 /// The map origin is the first mapped point rounded to a multiple of this (metres): a power of
 /// two, so the origin is exact in f64 and the same on every target.
 pub const ORIGIN_CELL: f64 = 1024.0;
-
-/// Where a frame's points go: the map's origin (and, with poses, the sensor's pose), with the
-/// frame's unit, worked out once per frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Placement {
-    origin: [f64; 3],
-    /// Metres per unit of the frame.
-    scale: f64,
-    /// Added to a point in metres: minus the origin.
-    offset: [f64; 3],
-    /// The origin is 0: a point reaches the mapper as `(v * 10^e) as f32`, the bits it had
-    /// before there was an origin, and without three soft-float additions on a device.
-    at_zero: bool,
-}
-
-impl Placement {
-    fn new(origin: [f64; 3], exponent: i8) -> Self {
-        Self {
-            origin,
-            scale: crate::wire::unit_scale(exponent).unwrap_or(f64::NAN),
-            offset: origin.map(|o| -o),
-            at_zero: origin == [0.0; 3],
-        }
-    }
-
-    /// The map's origin, in the world frame (metres).
-    pub const fn origin(&self) -> [f64; 3] {
-        self.origin
-    }
-
-    /// Point `i` of `frame` in the map's frame (metres from the origin), or `None` past its
-    /// points. `frame` is the frame this placement was made for.
-    pub fn point<T: AsRef<[u8]>>(&self, frame: &Frame<T>, i: usize) -> Option<Point3> {
-        let [x, y, z] = frame.point(i)?;
-        let s = self.scale;
-        if self.at_zero {
-            return Some(Point3::new(
-                (x as f64 * s) as f32,
-                (y as f64 * s) as f32,
-                (z as f64 * s) as f32,
-            ));
-        }
-        let [ox, oy, oz] = self.offset;
-        let local = |v: i32, o: f64| (v as f64 * s + o) as f32;
-        Some(Point3::new(local(x, ox), local(y, oy), local(z, oz)))
-    }
-
-    /// Every point of `frame`, as [`Placement::point`] gives them.
-    pub fn points<'a, T: AsRef<[u8]>>(
-        &'a self,
-        frame: &'a Frame<T>,
-    ) -> impl Iterator<Item = Point3> + 'a {
-        (0..usize::from(frame.point_count())).filter_map(move |i| self.point(frame, i))
-    }
-}
 
 /// Why a frame was not mapped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,6 +37,8 @@ pub enum Skip {
     Rejected(FrameError),
     /// It came after the end-of-stream frame.
     AfterEnd,
+    /// Its points name a pose the receiver does not hold.
+    NoPose { pose: u32 },
 }
 
 /// What one call to [`Receiver::feed`] produced; every variant but `Consumed` carries the rest
@@ -94,6 +53,8 @@ pub enum Received<'r, 'i> {
         placement: Placement,
         remaining: &'i [u8],
     },
+    /// A pose frame: pose `number` now holds.
+    Pose { number: u32, remaining: &'i [u8] },
     /// A frame that ended and is not mapped.
     Skipped { why: Skip, remaining: &'i [u8] },
 }
@@ -103,13 +64,32 @@ pub enum Received<'r, 'i> {
 pub struct ReceiverStats {
     /// Valid frames after the end-of-stream frame, not mapped.
     pub after_end: u64,
+    /// Pose frames taken.
+    pub poses: u64,
+    /// Points frames not mapped because the receiver did not hold their pose.
+    pub no_pose: u64,
 }
 
-/// Decoder, end of stream and the map's frame, in fixed memory.
+/// What the receiver needs of a frame the decoder accepted, read before the frame's borrow of
+/// the decoder ends.
+struct Accepted {
+    end_of_stream: bool,
+    posed: bool,
+    kind: Option<FrameKind>,
+    pose_number: u32,
+    pose: Option<WirePose>,
+    exponent: i8,
+    first: Option<[i32; 3]>,
+}
+
+/// Decoder, poses, sessions, end of stream and the map's frame, in fixed memory.
 #[derive(Clone, Debug)]
 pub struct Receiver {
     decoder: Decoder,
     origin: Option<[f64; 3]>,
+    pose: Pose,
+    /// The decoder's session count when the pose was last reset.
+    session: u64,
     ended: bool,
     stats: ReceiverStats,
 }
@@ -126,22 +106,28 @@ impl Receiver {
         Self::resuming(None)
     }
 
-    /// A receiver after a reset of the device: the decoder and the stream start afresh, but the
-    /// map kept in memory that survived (a snapshot) lies around `origin`
-    /// ([`Receiver::map_origin`] when the snapshot was taken), so points keep going there.
+    /// A receiver after a reset of the device: the decoder and the stream start afresh (the
+    /// pose too: points wait for the next pose frame), but the map kept in memory that survived
+    /// (a snapshot) lies around `origin` ([`Receiver::map_origin`] when the snapshot was taken),
+    /// so points keep going there.
     #[inline(always)]
     pub const fn resuming(origin: Option<[f64; 3]>) -> Self {
         Self {
             decoder: Decoder::new(),
             origin,
+            pose: Pose::START,
+            session: 0,
             ended: false,
-            stats: ReceiverStats { after_end: 0 },
+            stats: ReceiverStats {
+                after_end: 0,
+                poses: 0,
+                no_pose: 0,
+            },
         }
     }
 
     /// Takes bytes until a frame ends or the input runs out, like [`Decoder::feed`].
     pub fn feed<'r, 'i>(&'r mut self, input: &'i [u8]) -> Received<'r, 'i> {
-        let ended = self.ended;
         let (frame, remaining) = match self.decoder.feed(input) {
             Decoded::Consumed => return Received::Consumed,
             Decoded::Rejected { error, remaining } => {
@@ -150,35 +136,84 @@ impl Receiver {
                     remaining,
                 };
             }
-            Decoded::Frame { frame, remaining } => (frame, remaining),
+            Decoded::Frame { frame, remaining } => (
+                Accepted {
+                    end_of_stream: frame.end_of_stream(),
+                    posed: frame.version() != VERSION_1,
+                    kind: frame.kind(),
+                    pose_number: frame.pose_number(),
+                    pose: frame.pose(),
+                    exponent: frame.unit_exponent(),
+                    first: frame.point(0),
+                },
+                remaining,
+            ),
         };
-        if ended {
+        let sessions = self.decoder.stats().sessions;
+        if sessions != self.session {
+            self.session = sessions;
+            self.pose = Pose::START;
+        }
+        if self.ended {
             self.stats.after_end += 1;
             return Received::Skipped {
                 why: Skip::AfterEnd,
                 remaining,
             };
         }
-        self.ended = frame.end_of_stream();
-        if self.origin.is_none() && frame.point_count() > 0 {
-            self.origin = Some(origin_for(&frame));
+        self.ended = frame.end_of_stream;
+        if frame.kind == Some(FrameKind::Pose) {
+            if let Some(wire) = frame.pose {
+                let scale = crate::wire::unit_scale(frame.exponent).unwrap_or(f64::NAN);
+                self.pose = Pose::of_wire(frame.pose_number, &wire, scale);
+                self.stats.poses += 1;
+            }
+            return Received::Pose {
+                number: frame.pose_number,
+                remaining,
+            };
         }
-        Received::Points {
-            frame,
-            // Fields, not methods: the frame still borrows the decoder.
-            placement: Placement::new(self.origin.unwrap_or([0.0; 3]), frame.unit_exponent()),
-            remaining,
+        if frame.posed && frame.pose_number != self.pose.number {
+            self.stats.no_pose += 1;
+            return Received::Skipped {
+                why: Skip::NoPose {
+                    pose: frame.pose_number,
+                },
+                remaining,
+            };
+        }
+        let pose = if frame.posed { self.pose } else { Pose::START };
+        if self.origin.is_none()
+            && let Some(first) = frame.first
+        {
+            let world = Placement::new([0.0; 3], frame.exponent, &pose).world(first);
+            // `+ 0.0` turns the -0 that rounding a small negative value gives into 0: the
+            // origin is written in the map file, and 0 is what a map near 0 had before.
+            self.origin = Some(world.map(|v| libm::round(v / ORIGIN_CELL) * ORIGIN_CELL + 0.0));
+        }
+        let placement = Placement::new(self.origin(), frame.exponent, &pose);
+        match self.decoder.held_frame() {
+            Some(frame) => Received::Points {
+                frame,
+                placement,
+                remaining,
+            },
+            // The decoder holds the frame it just accepted until the next feed.
+            None => Received::Consumed,
         }
     }
 
     /// Where the points of the frame [`Receiver::held_frame`] holds go.
     pub fn placement(&self) -> Placement {
-        let exponent = self.held_frame().map_or(0, |f| f.unit_exponent());
-        Placement::new(self.origin(), exponent)
+        let (exponent, posed) = self.held_frame().map_or((0, false), |f| {
+            (f.unit_exponent(), f.version() != VERSION_1)
+        });
+        let pose = if posed { self.pose } else { Pose::START };
+        Placement::new(self.origin(), exponent, &pose)
     }
 
-    /// The frame of points the last [`Receiver::feed`] returned, until the next `feed`: a caller
-    /// can map its points over several calls (the firmware's bounded ticks).
+    /// The frame the last [`Receiver::feed`] returned, until the next `feed`: a caller can map
+    /// its points over several calls (the firmware's bounded ticks).
     pub fn held_frame(&self) -> Option<Frame<&[u8]>> {
         self.decoder.held_frame()
     }
@@ -193,6 +228,11 @@ impl Receiver {
         self.origin
     }
 
+    /// The pose that holds now (sensor to world).
+    pub const fn pose(&self) -> &Pose {
+        &self.pose
+    }
+
     /// Whether the end-of-stream frame has arrived.
     pub const fn ended(&self) -> bool {
         self.ended
@@ -205,16 +245,6 @@ impl Receiver {
     pub const fn decoder_stats(&self) -> &DecoderStats {
         self.decoder.stats()
     }
-}
-
-/// The origin for a stream whose first point is point 0 of `frame`: that point in the world,
-/// rounded to [`ORIGIN_CELL`].
-fn origin_for<T: AsRef<[u8]>>(frame: &Frame<T>) -> [f64; 3] {
-    let scale = frame.unit_scale();
-    let first = frame.point(0).unwrap_or([0; 3]);
-    // `+ 0.0` turns the -0 that rounding a small negative value gives into 0: the origin is
-    // written in the map file, and 0 is what a map near 0 had before.
-    first.map(|v| libm::round(v as f64 * scale / ORIGIN_CELL) * ORIGIN_CELL + 0.0)
 }
 
 #[cfg(test)]

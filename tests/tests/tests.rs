@@ -42,6 +42,8 @@ mod stream;
 // The link's faults (issue 12): frames after the end, a sender that starts again, units out of
 // range, points 2,000 km out, SIGTERM and SIGHUP, the idle timeout, a failed snapshot.
 mod link_faults;
+// Protocol version 2: poses and sessions through the real binary; version 1 maps as it did.
+mod poses;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,

@@ -1,6 +1,8 @@
 use super::*;
 use crate::test_support::{OrFail, TestResult};
-use crate::wire::{FrameRepr, MAX_RAW_LEN, cobs_encode};
+use crate::wire::{
+    Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose, cobs_encode,
+};
 
 /// Appends frame `sequence` (COBS and delimiter) to `out` at `at`; returns the new end.
 fn push(
@@ -36,7 +38,9 @@ fn receive(r: &mut Receiver, input: &[u8], chunk: usize) -> ([f64; 3], usize, us
         loop {
             match r.feed(window) {
                 Received::Consumed => break,
-                Received::Skipped { remaining, .. } => window = remaining,
+                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                    window = remaining
+                }
                 Received::Points {
                     frame,
                     placement,
@@ -139,5 +143,132 @@ fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
         return Err("a frame of points");
     };
     assert_eq!(placement.origin(), o);
+    Ok(())
+}
+
+/// Appends version 2 frame `repr` (COBS and delimiter) to `out` at `at`; returns the new end.
+fn push_v2(out: &mut [u8], at: usize, repr: &FrameReprV2<'_>) -> Result<usize, &'static str> {
+    let mut raw = [0u8; MAX_RAW_LEN];
+    let len = repr.emit(&mut raw).or_fail("emit")?;
+    let room = out.get_mut(at..).or_fail("room")?;
+    let n = cobs_encode(raw.get(..len).or_fail("raw")?, room).or_fail("encode")?;
+    *out.get_mut(at + n).or_fail("room")? = 0;
+    Ok(at + n + 1)
+}
+
+fn pose_frame(sequence: u32, number: u32, pose: WirePose) -> FrameReprV2<'static> {
+    FrameReprV2 {
+        sequence,
+        end_of_stream: false,
+        session_start: sequence == 0,
+        unit_exponent: -3,
+        content: Content::Pose { number, pose },
+    }
+}
+
+fn points_frame<'a>(sequence: u32, pose: u32, points: &'a [[i32; 3]]) -> FrameReprV2<'a> {
+    FrameReprV2 {
+        sequence,
+        end_of_stream: false,
+        session_start: sequence == 0,
+        unit_exponent: -3,
+        content: Content::Points { pose, points },
+    }
+}
+
+/// Feeds `input` whole; returns the mapped points in order (at most 16).
+fn mapped(r: &mut Receiver, input: &[u8]) -> ([[f32; 3]; 16], usize) {
+    let mut out = [[0.0f32; 3]; 16];
+    let mut n = 0;
+    let mut window = input;
+    loop {
+        match r.feed(window) {
+            Received::Consumed => break,
+            Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                window = remaining
+            }
+            Received::Points {
+                frame,
+                placement,
+                remaining,
+            } => {
+                for p in placement.points(&frame) {
+                    if let Some(slot) = out.get_mut(n) {
+                        *slot = p.to_array();
+                        n += 1;
+                    }
+                }
+                window = remaining;
+            }
+        }
+    }
+    (out, n)
+}
+
+/// A pose frame carries the sensor into the world: the points frames after it that name it
+/// are mapped at `R(q) x + t`, computed here by hand for a quarter turn about z.
+#[test]
+fn a_pose_takes_sensor_points_into_the_world() -> TestResult {
+    let half = libm::sqrt(0.5);
+    let q = (half * QUATERNION_ONE as f64).round() as i32;
+    let pose = WirePose {
+        translation: [1000, -2000, 500],
+        rotation: [0, 0, q, q],
+    };
+    let sensor = [[1000, 0, 0], [0, 2000, -1], [250, -250, 30]];
+    let mut wire = [0u8; 1024];
+    let mut at = push_v2(&mut wire, 1, &pose_frame(0, 1, pose))?;
+    at = push_v2(&mut wire, at, &points_frame(1, 1, &sensor))?;
+    let mut r = Receiver::new();
+    let (got, n) = mapped(&mut r, wire.get(..at).or_fail("wire")?);
+    assert_eq!(n, 3);
+    assert_eq!(r.stats().poses, 1);
+    assert_eq!(r.origin(), [0.0; 3]);
+    for (p, s) in got.iter().zip(sensor) {
+        let [x, y, z] = s.map(|v| v as f64 / 1000.0);
+        // A quarter turn about z: (x, y, z) -> (-y, x, z).
+        let want = [-y + 1.0, x - 2.0, z + 0.5];
+        for j in 0..3 {
+            assert!((p[j] as f64 - want[j]).abs() < 1e-6, "{p:?} vs {want:?}");
+        }
+    }
+    Ok(())
+}
+
+/// Points whose pose the receiver does not hold are counted and not mapped: its frame was lost,
+/// or a new session began and took the receiver back to pose 0. Version 1 frames, and version 2
+/// frames at pose 0, are at the identity with the bits a version 1 frame always had.
+#[test]
+fn points_without_their_pose_are_counted_not_mapped() -> TestResult {
+    let shift = WirePose {
+        translation: [5000, 0, 0],
+        rotation: [0, 0, 0, QUATERNION_ONE],
+    };
+    let pts = [[1, 2, 3]];
+    let mut wire = [0u8; 2048];
+    let mut at = 1;
+    at = push_v2(&mut wire, at, &points_frame(0, 0, &pts))?; // identity: mapped
+    at = push_v2(&mut wire, at, &points_frame(1, 2, &pts))?; // pose 2 unknown
+    at = push_v2(&mut wire, at, &pose_frame(2, 2, shift))?;
+    at = push_v2(&mut wire, at, &points_frame(3, 2, &pts))?; // mapped at +5 m
+    at = push(&mut wire, at, 4, false, -3, &pts)?; // version 1: the identity
+    // The sender restarts: pose 2 is gone with its session.
+    at = push_v2(&mut wire, at, &points_frame(0, 2, &pts))?;
+    let mut r = Receiver::new();
+    let (got, n) = mapped(&mut r, wire.get(..at).or_fail("wire")?);
+    assert_eq!(n, 3);
+    assert_eq!(
+        (
+            r.stats().no_pose,
+            r.stats().poses,
+            r.decoder_stats().sessions
+        ),
+        (2, 1, 2)
+    );
+    let plain = [1, 2, 3].map(|v: i32| (v as f64 * 1e-3) as f32);
+    let bits = |p: [f32; 3]| p.map(f32::to_bits);
+    assert_eq!(bits(got[0]), bits(plain));
+    assert_eq!(bits(got[2]), bits(plain));
+    assert!((got[1][0] - 5.001).abs() < 1e-6 && got[1][1] == plain[1]);
     Ok(())
 }

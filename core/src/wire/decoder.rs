@@ -8,7 +8,7 @@ use super::{Frame, FrameError, MAX_FRAME_LEN, cobs_decode_in_place};
 pub struct DecoderStats {
     pub bytes: u64,
     pub accepted: u64,
-    /// Frames refused (CRC, COBS, length, version, reserved bits, oversize, unit).
+    /// Frames refused (CRC, COBS, length, version or kind, reserved bits, oversize, unit, pose).
     pub rejected: u64,
     pub bad_crc: u64,
     pub bad_cobs: u64,
@@ -17,14 +17,16 @@ pub struct DecoderStats {
     pub oversized: u64,
     /// Frames whose unit exponent is outside the range a receiver takes.
     pub bad_unit: u64,
+    /// Pose frames numbered 0, with points, or whose quaternion is not a unit one.
+    pub bad_pose: u64,
     /// Valid frames that repeat the last accepted one, sequence number and CRC (not counted as
     /// rejected).
     pub duplicates: u64,
     /// Frames never seen: gaps in the sequence numbers of accepted frames.
     pub lost: u64,
-    /// Sessions begun: the first frame, and every frame that shows the sender started again
-    /// (a sequence number behind the last, or the same one on other content, or a jump of more
-    /// than [`MAX_GAP`] frames).
+    /// Sessions begun: the first frame, a version 2 frame flagged session start, and every
+    /// frame that shows the sender started again (a sequence number behind the last, or the
+    /// same one on other content, or a jump of more than [`MAX_GAP`] frames).
     pub sessions: u64,
 }
 
@@ -88,6 +90,7 @@ impl Decoder {
                 bad_version: 0,
                 oversized: 0,
                 bad_unit: 0,
+                bad_pose: 0,
                 duplicates: 0,
                 lost: 0,
                 sessions: 0,
@@ -153,6 +156,7 @@ impl Decoder {
                         remaining,
                     };
                 }
+                Some(_) if frame.session_start() => self.stats.sessions += 1,
                 Some((last, _)) => {
                     // A serial link neither reorders nor replays old frames: a number behind
                     // the last, the last number on other content, or a long jump means the
@@ -186,7 +190,10 @@ impl Decoder {
             FrameError::BadCrc { .. } => s.bad_crc += 1,
             FrameError::BadCobs => s.bad_cobs += 1,
             FrameError::Oversized => s.oversized += 1,
-            FrameError::UnsupportedVersion { .. } | FrameError::Reserved => s.bad_version += 1,
+            FrameError::UnsupportedVersion { .. }
+            | FrameError::UnknownKind { .. }
+            | FrameError::Reserved => s.bad_version += 1,
+            FrameError::BadPose => s.bad_pose += 1,
             FrameError::UnitOutOfRange { .. } => s.bad_unit += 1,
             FrameError::Truncated { .. }
             | FrameError::LengthMismatch { .. }

@@ -198,14 +198,17 @@ impl Link {
         }
     }
 
-    /// Feeds one chunk; the points of its frames go straight into the mapper (frames after the
-    /// end of stream are only counted, so any chunking gives the same map).
+    /// Feeds one chunk; the points of its frames go straight into the mapper, through their
+    /// pose into the world (frames after the end of stream are only counted, so any chunking
+    /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
         let mut window = chunk;
         loop {
             match self.receiver.feed(window) {
                 Received::Consumed => break,
-                Received::Skipped { remaining, .. } => window = remaining,
+                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                    window = remaining
+                }
                 Received::Points {
                     frame,
                     placement,
@@ -231,7 +234,7 @@ impl Link {
         self.receiver.decoder_stats()
     }
 
-    /// The receiver's counts: frames after the end.
+    /// The receiver's counts: frames after the end, poses, points frames without their pose.
     pub fn receiver_stats(&self) -> &ReceiverStats {
         self.receiver.stats()
     }

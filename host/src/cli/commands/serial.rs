@@ -60,6 +60,8 @@ pub struct Rejections {
     pub oversized: u64,
     /// A unit exponent outside the range PROTOCOL.md gives.
     pub bad_unit: u64,
+    /// A pose frame numbered 0, with points, or whose quaternion is not a unit one.
+    pub bad_pose: u64,
 }
 
 impl Rejections {
@@ -71,6 +73,7 @@ impl Rejections {
             bad_version: s.bad_version,
             oversized: s.oversized,
             bad_unit: s.bad_unit,
+            bad_pose: s.bad_pose,
         }
     }
 
@@ -83,6 +86,7 @@ impl Rejections {
             (self.bad_version, "bad version"),
             (self.oversized, "oversized"),
             (self.bad_unit, "bad unit"),
+            (self.bad_pose, "bad pose"),
         ]
         .iter()
         .filter(|(n, _)| *n > 0)
@@ -110,6 +114,10 @@ pub struct StreamSummary {
     pub frames_after_end: u64,
     /// Sessions the sender began (more than 1: it started again mid-stream).
     pub sessions: u64,
+    /// Pose frames received.
+    pub poses: u64,
+    /// Points frames not mapped: the pose they name never arrived.
+    pub frames_without_pose: u64,
     /// The map's origin (metres): the first point's 1,024 m cell.
     pub origin: [f64; 3],
     pub bytes: u64,
@@ -139,6 +147,8 @@ fn summary(
         frames_duplicated: s.duplicates,
         frames_after_end: link.receiver_stats().after_end,
         sessions: s.sessions,
+        poses: link.receiver_stats().poses,
+        frames_without_pose: link.receiver_stats().no_pose,
         origin: link.receiver.origin(),
         bytes: s.bytes,
         ellipsoids,
@@ -161,6 +171,15 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     }
     if s.sessions > 1 {
         extra.push_str(&format!(", {} sessions", s.sessions));
+    }
+    if s.poses > 0 {
+        extra.push_str(&format!(", {} poses", s.poses));
+    }
+    if s.frames_without_pose > 0 {
+        extra.push_str(&format!(
+            ", {} without their pose (not mapped)",
+            s.frames_without_pose
+        ));
     }
     eprintln!(
         "mema: {}: {} points, frames {} accepted / {} rejected{} / {} lost / {} repeated{extra}, {} ellipsoids, {:.2} s, {:.0} points/s",
