@@ -64,6 +64,7 @@ fn version_1_and_version_2_at_the_identity_map_alike() {
         .collect();
     let identity = [PosedScan {
         pose: WirePose::IDENTITY,
+        pose_exponent: -3,
         points: &wire,
     }];
     let captures = [
@@ -149,6 +150,7 @@ fn posed_capture(views: &[View]) -> (Vec<u8>, Vec<Vec<[i32; 3]>>) {
         .zip(&sensor)
         .map(|((q, t, _), points)| PosedScan {
             pose: wire_pose([t.x, t.y, t.z], [q.i, q.j, q.k, q.w], -4).expect("pose"),
+            pose_exponent: -4,
             points,
         })
         .collect();

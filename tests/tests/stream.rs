@@ -4,7 +4,8 @@
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
 use mema::io::load_cloud;
 use mema::link::stream::Capacity;
-use mema::link::stream::map_points_directly;
+use mema::link::stream::{map_sent_directly_with, stream_params};
+use mema_core::stream::StreamModel;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -182,7 +183,8 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     assert_eq!(code, 0, "{stderr}");
     assert_eq!(stdout.trim(), "stream.mema", "the map path on stdout");
     assert!(
-        stderr.contains("10031 points") && stderr.contains("101 accepted / 0 rejected / 0 lost"),
+        // 101 frames of points after the pose frame of the sensor at the car's centre.
+        stderr.contains("10031 points") && stderr.contains("102 accepted / 0 rejected / 0 lost"),
         "{stderr}"
     );
     pty.unplug();
@@ -200,8 +202,9 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     );
 
     let cloud = load_cloud(&car).expect("car6");
-    let direct = map_points_directly(&cloud, Capacity::all_working(150), 0, default_fit())
-        .expect("direct map");
+    let paper = |capacity| stream_params(capacity, 0, default_fit(), 0.0, StreamModel::Paper);
+    let direct =
+        map_sent_directly_with(&cloud, paper(Capacity::all_working(150))).expect("direct map");
     assert_eq!(
         streamed,
         direct.to_mema().expect("encode"),
@@ -398,7 +401,8 @@ fn working_memory_smaller_than_k_freezes_and_stays_within_k() {
         k: 400,
         working: 150,
     };
-    let direct = map_points_directly(&cloud, capacity, 0, default_fit()).expect("direct map");
+    let params = stream_params(capacity, 0, default_fit(), 0.0, StreamModel::Paper);
+    let direct = map_sent_directly_with(&cloud, params).expect("direct map");
     assert_eq!(replayed, direct.to_mema().expect("encode"));
     let n = direct.entities.len();
     assert!(150 < n && n <= 400, "{n} entities");

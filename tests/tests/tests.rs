@@ -44,6 +44,8 @@ mod stream;
 mod link_faults;
 // Protocol version 2: poses and sessions through the real binary; version 1 maps as it did.
 mod poses;
+// Multi-view data: the bunny scans of bun.conf registered, streamed with their poses, mapped.
+mod multiview;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,

@@ -73,11 +73,12 @@ pub fn encode_stream(points: &[[i32; 3]]) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// One scan as a moving sensor sends it (version 2): its pose, sensor to world, then its points
-/// in the sensor frame, both in units of `10^unit_exponent` metres.
+/// One scan as a moving sensor sends it (version 2): its pose, sensor to world, with the
+/// translation in units of `10^pose_exponent` m, then its points in the sensor frame.
 #[derive(Clone, Copy, Debug)]
 pub struct PosedScan<'a> {
     pub pose: WirePose,
+    pub pose_exponent: i8,
     pub points: &'a [[i32; 3]],
 }
 
@@ -99,7 +100,8 @@ pub fn push_frame_v2(out: &mut Vec<u8>, repr: &FrameReprV2<'_>) -> Result<()> {
 
 /// The whole version 2 byte stream of a moving sensor: a leading delimiter, then per scan its
 /// pose frame (numbered 1, 2, ...) and its points in frames of [`POINTS_PER_FRAME`] naming that
-/// pose. The first frame starts the session; the last frame ends the stream.
+/// pose, in units of `10^unit_exponent` m. The first frame starts the session; the last frame
+/// ends the stream.
 pub fn encode_posed_stream(scans: &[PosedScan<'_>], unit_exponent: i8) -> Result<Vec<u8>> {
     let mut frames: Vec<FrameReprV2<'_>> = Vec::new();
     for (i, scan) in scans.iter().enumerate() {
@@ -108,7 +110,7 @@ pub fn encode_posed_stream(scans: &[PosedScan<'_>], unit_exponent: i8) -> Result
             sequence: 0,
             end_of_stream: false,
             session_start: false,
-            unit_exponent,
+            unit_exponent: scan.pose_exponent,
             content: Content::Pose {
                 number,
                 pose: scan.pose,

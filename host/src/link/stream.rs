@@ -7,6 +7,7 @@ use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
+use super::scanner::{SensorScan, quantise_scans};
 use crate::error::ConfigError;
 use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::HostMap;
@@ -256,8 +257,9 @@ impl Link {
     }
 }
 
-/// The direct path the tests compare the link against: the same points, quantised as the wire
-/// carries them, straight into the mapper (the paper's model).
+/// The direct path the tests compare a version 1 link against: the same points, quantised to
+/// millimetres as a version 1 capture carries them, straight into the mapper as
+/// `(v * 10^-3) as f32` (the paper's model).
 pub fn map_points_directly(
     cloud: &LocalCloud,
     capacity: Capacity,
@@ -282,4 +284,33 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
     mapper.finish();
     // Clouds are centred on their bounding box, so the receiver's origin is 0 (ORIGIN_CELL).
     Ok(map_of(&mapper, [0.0; 3]))
+}
+
+/// The direct path the tests compare `scanner-sim` into `stream` against: the integers
+/// scanner-sim sends of `cloud` (its unit, its sensor at the cloud's centre in whole metres),
+/// taken to the map's frame here, `v * 10^e + (t - origin)` in f64 with the origin the first
+/// point's 1,024 m cell, and fed to the mapper: no bytes, frames or receiver.
+pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
+    let wire = quantise_scans(&[SensorScan::of_cloud(cloud)?])?;
+    let unit = |e: i8| mema_core::wire::unit_scale(e).unwrap_or(f64::NAN);
+    let (s, ps) = (unit(wire.unit_exponent), unit(wire.pose_exponent));
+    let mut mapper = new_mapper_with(params);
+    let mut origin: Option<[f64; 3]> = None;
+    for scan in &wire.scans {
+        anyhow::ensure!(
+            scan.pose.rotation[..3] == [0, 0, 0],
+            "a cloud is sent unturned"
+        );
+        let t = scan.pose.translation.map(|v| v as f64 * ps);
+        for p in &scan.points {
+            let w = p.map(|v| v as f64 * s);
+            let o = *origin.get_or_insert_with(|| {
+                [0, 1, 2].map(|j| ((w[j] + t[j]) / 1024.0).round() * 1024.0 + 0.0)
+            });
+            let local = |j: usize| (w[j] + (t[j] - o[j])) as f32;
+            mapper.add(mema_core::Point3::new(local(0), local(1), local(2)));
+        }
+    }
+    mapper.finish();
+    Ok(map_of(&mapper, origin.unwrap_or([0.0; 3])))
 }

@@ -92,8 +92,13 @@ pub struct ScannerSimArgs {
     /// Serial device or pty to write to; a path that is not a device becomes a capture file.
     #[arg(long)]
     pub port: PathBuf,
-    /// The cloud to play (PLY, PCD, XYZ/CSV); default: the built-in demo scene's scan.
+    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: the
+    /// built-in demo scene's scan.
     pub cloud: Option<PathBuf>,
+    /// Play the scans of a registration file (`bmesh FILE tx ty tz qx qy qz qw` lines, as
+    /// Stanford's bun.conf): each in its own sensor frame after its pose frame.
+    #[arg(long, value_name = "SCANS.conf", conflicts_with = "cloud")]
+    pub conf: Option<PathBuf>,
     /// Points per second (default: as fast as the port takes them).
     #[arg(long)]
     pub rate: Option<f64>,

@@ -110,6 +110,14 @@ pub struct MapArgs {
     /// (metres).
     #[arg(long, value_name = "SIZE")]
     pub voxel: Option<f64>,
+    /// Map with the streaming mapper instead, exactly as `mema stream` maps what
+    /// `mema scanner-sim` sends of the same file (the same bytes, so the same map): each scan
+    /// of a .conf in its sensor frame after its pose, in the unit scanner-sim picks.
+    #[arg(long, conflicts_with_all = ["tolerance", "bytes", "crop", "voxel", "labels"])]
+    pub stream: bool,
+    /// With --stream: at most W clusters in working memory, the rest frozen (as `stream`).
+    #[arg(long, value_name = "W", requires = "stream")]
+    pub working: Option<usize>,
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     pub json: bool,

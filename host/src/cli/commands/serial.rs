@@ -8,12 +8,12 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::LocalCloud;
+use mema::io::cloud::is_registration;
 use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::link::capture::CaptureWriter;
-use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
 use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use mema::link::scanner::{SensorScan, scans_of, send_scans, unit_name};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
 use mema_core::wire::DecoderStats;
@@ -173,7 +173,8 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(", {} sessions", s.sessions));
     }
     if s.poses > 0 {
-        extra.push_str(&format!(", {} poses", s.poses));
+        let plural = if s.poses == 1 { "" } else { "s" };
+        extra.push_str(&format!(", {} pose{plural}", s.poses));
     }
     if s.frames_without_pose > 0 {
         extra.push_str(&format!(
@@ -421,26 +422,43 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
-    let cloud = match &args.cloud {
-        Some(path) => super::read_in_metres(path, &args.units)?.0,
-        None => {
+    let scans = match (&args.conf, &args.cloud) {
+        (Some(conf), _) => {
+            if !is_registration(conf) {
+                bail!(
+                    "{}: not a registration file (lines `bmesh FILE tx ty tz qx qy qz qw`)",
+                    conf.display()
+                );
+            }
+            scans_of(conf, args.units.units.as_ref())?
+        }
+        (None, Some(path)) => vec![SensorScan::of_cloud(
+            &super::read_in_metres(path, &args.units)?.0,
+        )?],
+        (None, None) => {
             let scan = scan(&Scene::demo(), &ScanConfig::default());
-            LocalCloud::from_world(&scan.points)
+            vec![SensorScan::of_world(&scan.points)?]
         }
     };
-    if cloud.points.is_empty() {
+    if scans.iter().all(|s| s.points.is_empty()) {
         bail!("the cloud has no points to send");
     }
-    let wire: Vec<[i32; 3]> = cloud
-        .points
-        .iter()
-        .map(|p| quantise(*p))
-        .collect::<Result<_>>()?;
-    let bytes = encode_stream(&wire)?;
+    let sending = send_scans(&scans)?;
+    let half = 0.5 * mema_core::wire::unit_scale(sending.unit_exponent).unwrap_or(f64::NAN);
+    eprintln!(
+        "mema: scanner-sim: {} scan{}, unit {} (10^{} m) for a point spacing of {:.3} mm: rounding moves a coordinate by at most {:.3} mm",
+        sending.scans,
+        if sending.scans == 1 { "" } else { "s" },
+        unit_name(sending.unit_exponent),
+        sending.unit_exponent,
+        sending.spacing * 1e3,
+        half * 1e3
+    );
+    let bytes = sending.bytes;
     let mut port = open_for_writing(&args.port, args.baud)?;
     let stop = interrupted();
     let started = Instant::now();
-    let bytes_per_point = bytes.len() as f64 / wire.len() as f64;
+    let bytes_per_point = bytes.len() as f64 / sending.points.max(1) as f64;
     let mut sent = 0usize;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
         if stop.load(Ordering::SeqCst) {
@@ -461,8 +479,8 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
         .with_context(|| format!("{}: flush failed", args.port.display()))?;
     eprintln!(
         "mema: scanner-sim: sent {} points in {} frames, {sent} bytes, {:.2} s",
-        wire.len(),
-        wire.len().div_ceil(POINTS_PER_FRAME),
+        sending.points,
+        sending.frames,
         started.elapsed().as_secs_f64()
     );
     Ok(())
