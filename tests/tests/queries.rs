@@ -196,29 +196,6 @@ fn query_command_answers_in_world_coordinates() {
         .assert_error(2, "--point");
 }
 
-/// The rotation matrix of a unit quaternion (x, y, z, w), written out here rather than taken
-/// from the core, so the surface check below does not trust the code it checks.
-fn matrix_of(q: [f32; 4]) -> [[f64; 3]; 3] {
-    let [x, y, z, w] = q.map(f64::from);
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 #[test]
 fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
     // Shells of car6 (every entity turned), and the bunny's threshold-box map (pseudocylinders)
@@ -280,7 +257,10 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
                 hits += 1;
                 // On the surface in the entity's own frame: sum w (R^T (x - c))^2 = 1.
                 let e = &entities[hit.entity];
-                let (c, m) = (e.center.to_f64(), matrix_of(e.rotation.to_array()));
+                let (c, m) = (
+                    e.center.to_f64(),
+                    crate::util::quaternion_matrix(e.rotation.to_array().map(f64::from)),
+                );
                 let d = [0, 1, 2].map(|j| hit.point[j] - c[j]);
                 let s: f64 = (0..3)
                     .map(|j| {
