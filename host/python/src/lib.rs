@@ -1,0 +1,194 @@
+//! `mema._mema`, the extension module under the Python package `mema`: the host library's
+//! reading, mapping, map files, evaluation and queries on numpy arrays.
+//!
+//! Every function that works for long (reading, mapping, scoring, queries) copies its input out
+//! of Python first and then releases the GIL ([`Python::detach`]), so other Python threads run
+//! meanwhile. Errors become exceptions through [`errors::to_py`]; nothing here panics on input.
+
+mod arrays;
+mod cloud;
+mod errors;
+mod map;
+mod options;
+
+use mema::batch::ToleranceOptions;
+use mema::io::LengthUnit;
+use mema::mapping::{FitOptions, ShellModel};
+use mema_core::shell::ShellParams;
+use pyo3::exceptions::PyUserWarning;
+use pyo3::prelude::*;
+use std::ffi::CString;
+use std::path::PathBuf;
+
+use crate::arrays::{array_n, rows};
+use crate::errors::{IntoPy, MemaError, bad_value};
+use crate::map::{Entities, Map};
+use crate::options::{MapOptions, Size};
+
+/// `units=`: one of `--units`' names.
+pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
+    LengthUnit::parse(given).ok_or_else(|| {
+        bad_value(
+            "units",
+            format!("'{given}' is not one of {}", LengthUnit::CHOICES.join(", ")),
+        )
+    })
+}
+
+/// Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI `.bin`: whatever `mema map`
+/// reads) as an `(N, 3)` float64 array of its finite points in world coordinates, in metres:
+/// scaled by `units` (`m`, `mm`, `cm`, `km`, `in`, `ft`, `us-ft`) if given, else by the unit
+/// the file says (a LAS file's CRS), else taken as metres, as the command line reads it.
+#[pyfunction]
+#[pyo3(signature = (path, units = None))]
+fn read_cloud<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    units: Option<&str>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let given = units.map(parse_units).transpose()?;
+    let points = py
+        .detach(|| {
+            mema::io::load_cloud_in_metres(&path, given.as_ref())
+                .map(|(cloud, _)| cloud::world_points(&cloud))
+        })
+        .into_py()?;
+    array_n(py, &points)
+}
+
+/// Maps an `(N, 3)` array of points in metres (float32 or float64; rows with a NaN or infinite
+/// coordinate are dropped) into a `Map`, with every option of `mema map` under its name
+/// (`--tangent-scale` is `tangent_scale=`). Give exactly one of `k` (entities), `bytes` (as many
+/// entities as that many bytes of `.mema` file hold) or `tolerance` (metres of eq. 13 error per
+/// cluster). The same points and options give the same map bytes as `mema map` on the file
+/// `read_cloud` read them from. The GIL is released while mapping.
+#[pyfunction(name = "map")]
+#[pyo3(signature = (
+    points, k = None, bytes = None, seed = 0, paper = false, *,
+    model = "shells", tangent_scale = 2.0, normal_scale = 0.7, surface_rounds = 30,
+    tolerance = None, capacity = 16384, voronoi_rounds = 0, entity = "ellipsoid",
+    alpha = 0.8, threshold = 4.0, sphere_tolerance = 0.01, bounds = "spread",
+    out_of_bounds = "clamp", volume = "exact", init = "seeded", generations = 50,
+    max_iterations = 100, crop = None, voxel = None
+))]
+// One keyword an option, as Python callers expect (and as `mema map` has them).
+#[allow(clippy::too_many_arguments)]
+fn map_points<'py>(
+    py: Python<'py>,
+    points: &Bound<'py, PyAny>,
+    k: Option<usize>,
+    bytes: Option<usize>,
+    seed: u64,
+    paper: bool,
+    model: &str,
+    tangent_scale: f64,
+    normal_scale: f64,
+    surface_rounds: usize,
+    tolerance: Option<f64>,
+    capacity: usize,
+    voronoi_rounds: usize,
+    entity: &str,
+    alpha: f64,
+    threshold: f64,
+    sphere_tolerance: f64,
+    bounds: &str,
+    out_of_bounds: &str,
+    volume: &str,
+    init: &str,
+    generations: u32,
+    max_iterations: u32,
+    crop: Option<Vec<f64>>,
+    voxel: Option<f64>,
+) -> PyResult<Map> {
+    let size = match (k, bytes, tolerance) {
+        (Some(k), None, None) => Size::K(k),
+        (None, Some(bytes), None) => Size::Bytes(bytes),
+        (None, None, Some(tolerance)) => Size::Tolerance(ToleranceOptions {
+            tolerance,
+            capacity,
+            voronoi_rounds,
+        }),
+        _ => {
+            return Err(bad_value(
+                "k, bytes, tolerance",
+                "give exactly one: k entities, a budget of bytes, or a tolerance in metres",
+            ));
+        }
+    };
+    let options = MapOptions {
+        size,
+        model: if paper {
+            mema::mapping::Model::Paper
+        } else {
+            options::model(model)?
+        },
+        entity: options::entity(entity)?,
+        shells: ShellModel {
+            shell: ShellParams {
+                tangent_scale,
+                normal_scale,
+                ..Default::default()
+            },
+            surface_rounds,
+        },
+        fit: FitOptions {
+            alpha,
+            seed,
+            threshold,
+            sphere_tolerance,
+            bounds: options::bounds(bounds)?,
+            out_of_bounds: options::out_of_bounds(out_of_bounds)?,
+            volume: options::volume(volume)?,
+            initialisation: options::init(init)?,
+            generations,
+            max_iterations,
+        },
+        crop: options::crop(crop)?,
+        voxel,
+    };
+    let points = rows(points, "points", false)?.rows;
+    let made = py.detach(|| options::run(&points, &options)).into_py()?;
+    for warning in &made.warnings {
+        let message = CString::new(warning.replace('\0', " "))?;
+        PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
+    }
+    Ok(Map::made(made.map, made.report, made.labels))
+}
+
+/// Reads a map file (`.mema`, `.csv` or `.json`, by its extension).
+#[pyfunction]
+fn load(py: Python<'_>, path: PathBuf) -> PyResult<Map> {
+    py.detach(|| Map::read(path)).into_py()
+}
+
+/// A map from its `.mema` bytes (`Map.to_bytes()`; how a `Map` is unpickled).
+#[pyfunction]
+fn from_bytes(data: &[u8]) -> PyResult<Map> {
+    mema::io::HostMap::from_mema(data).into_py().map(Map::new)
+}
+
+/// The 3x3 matrix of `mema transform --rotate ax,ay,az`: rotations about x, then y, then z,
+/// in degrees; multiples of 90 are exact axis permutations.
+#[pyfunction]
+fn rotation_degrees<'py>(py: Python<'py>, angles: [f64; 3]) -> PyResult<Bound<'py, PyAny>> {
+    if !angles.iter().all(|a| a.is_finite()) {
+        return Err(bad_value("angles", "must be finite"));
+    }
+    let m = mema::query::rotation_degrees(angles).rotation;
+    let rotation = array_n(py, &m)?;
+    Ok(rotation)
+}
+
+#[pymodule]
+fn _mema(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("MemaError", m.py().get_type::<MemaError>())?;
+    m.add_class::<Map>()?;
+    m.add_class::<Entities>()?;
+    m.add_function(wrap_pyfunction!(read_cloud, m)?)?;
+    m.add_function(wrap_pyfunction!(map_points, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
+    m.add_function(wrap_pyfunction!(rotation_degrees, m)?)?;
+    Ok(())
+}
