@@ -160,14 +160,18 @@ impl Map {
         self.map == other.map
     }
 
+    /// `Map(data)`: the map of `.mema` bytes (`Map.to_bytes()`), as `mema.from_bytes`.
+    #[new]
+    fn from_mema(data: &[u8]) -> PyResult<Self> {
+        HostMap::from_mema(data).into_py().map(Self::new)
+    }
+
     /// Pickles as its `.mema` bytes (the map only, not `report` or `labels`).
     fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
+        slf: &Bound<'py, Self>,
     ) -> PyResult<(Bound<'py, PyAny>, (Bound<'py, PyBytes>,))> {
-        let from_bytes = py.import("mema._mema")?.getattr("from_bytes")?;
-        let bytes = self.map.to_mema().into_py()?;
-        Ok((from_bytes, (PyBytes::new(py, &bytes),)))
+        let bytes = slf.get().map.to_mema().into_py()?;
+        Ok((slf.get_type().into_any(), (PyBytes::new(slf.py(), &bytes),)))
     }
 
     /// Writes the map to `path` in the format of its extension (`.mema`, `.csv`, `.json`),

@@ -1,0 +1,54 @@
+"""Map.eval against `mema eval --json` on the same files: the same keys and the same values."""
+
+import pytest
+
+import mema
+from conftest import cloud
+
+SAMPLES = 20_000
+
+
+@pytest.fixture(scope="module")
+def car_map(cli, tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval") / "car.mema"
+    cli.run("map", cloud("car6.pcd"), "-k", 120, "-o", out)
+    return out
+
+
+def test_eval_of_files_is_the_clis(cli, car_map):
+    want = cli.json("eval", cloud("car6.pcd"), car_map, "--samples", SAMPLES, "--seed", 2)
+    got = mema.load(car_map).eval(cloud("car6.pcd"), samples=SAMPLES, seed=2)
+    assert got == want
+
+
+def test_eval_of_the_array_read_is_the_clis_but_for_the_unit(cli, car_map):
+    want = cli.json("eval", cloud("car6.pcd"), car_map, "--samples", SAMPLES)
+    got = mema.load(car_map).eval(mema.read_cloud(cloud("car6.pcd")), samples=SAMPLES)
+    assert got.pop("unit") == {"unit": {"name": "metre", "metres": 1.0}, "source": "assumed"}
+    want.pop("unit")
+    assert got == want
+
+
+def test_a_map_in_memory_measures_its_mema_encoding(cli, tmp_path):
+    # Not saved: the bytes of the .mema file it would be; saved as CSV: that file's bytes.
+    p = cloud("milk.pcd")
+    made = mema.map(mema.read_cloud(p), k=50)
+    in_memory = made.eval(p, samples=SAMPLES)
+    made.save(tmp_path / "milk.mema")
+    assert in_memory == cli.json("eval", p, tmp_path / "milk.mema", "--samples", SAMPLES)
+    made.save(tmp_path / "milk.csv")
+    assert made.eval(p, samples=SAMPLES) == cli.json(
+        "eval", p, tmp_path / "milk.csv", "--samples", SAMPLES
+    )
+
+
+def test_eval_reads_a_clouds_unit_and_takes_units(cli, tmp_path):
+    # autzen_trim.laz is in feet (its GeoKeys); --units overrides it.
+    p = cloud("autzen_trim.laz")
+    cli.run("map", p, "--bytes", 1400, "-o", tmp_path / "autzen.mema")
+    m = mema.load(tmp_path / "autzen.mema")
+    want = cli.json("eval", p, tmp_path / "autzen.mema", "--samples", SAMPLES)
+    got = m.eval(p, samples=SAMPLES)
+    assert got == want and got["unit"]["unit"]["name"] == "foot"
+    want = cli.json("eval", p, tmp_path / "autzen.mema", "--samples", SAMPLES, "--units", "m")
+    assert m.eval(p, samples=SAMPLES, units="m") == want
