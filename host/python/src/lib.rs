@@ -20,7 +20,9 @@ use pyo3::prelude::*;
 use std::ffi::CString;
 use std::path::PathBuf;
 
-use crate::arrays::{array_n, rows};
+use numpy::PyArrayMethods;
+
+use crate::arrays::array_n;
 use crate::errors::{IntoPy, MemaError, bad_value};
 use crate::map::{Entities, Map};
 use crate::options::{MapOptions, Size};
@@ -35,33 +37,52 @@ pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
     })
 }
 
-/// Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI `.bin`: whatever `mema map`
-/// reads) as an `(N, 3)` float64 array of its finite points in world coordinates, in metres:
-/// scaled by `units` (`m`, `mm`, `cm`, `km`, `in`, `ft`, `us-ft`) if given, else by the unit
-/// the file says (a LAS file's CRS), else taken as metres, as the command line reads it.
+/// `mema.read_cloud`'s reading (`python/mema/_cloud.py` wraps it into a `mema.Cloud`): the
+/// cloud in metres as `mema map` reads it, `units` as `--units`. Gives the world coordinates
+/// `(N, 3)` float64, the reader's f32 offsets `(N, 3)` and f64 origin `(3,)`, the unit as
+/// `mema eval --json` gives it (JSON text), and the points dropped for a non-finite coordinate.
 #[pyfunction]
 #[pyo3(signature = (path, units = None))]
-fn read_cloud<'py>(
+fn _read_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
     units: Option<&str>,
-) -> PyResult<Bound<'py, PyAny>> {
+) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
-    let points = py
-        .detach(|| {
-            mema::io::load_cloud_in_metres(&path, given.as_ref())
-                .map(|(cloud, _)| cloud::world_points(&cloud))
-        })
+    let (cloud, unit) = py
+        .detach(|| mema::io::load_cloud_in_metres(&path, given.as_ref()))
         .into_py()?;
-    array_n(py, &points)
+    let world = py.detach(|| cloud::world_points(&cloud));
+    let local: Vec<f32> = cloud.points.iter().flat_map(|p| p.to_array()).collect();
+    let unit = serde_json::to_string(&unit).map_err(|e| errors::to_py(e.into()))?;
+    Ok((
+        array_n(py, &world)?,
+        numpy::PyArray1::from_vec(py, local)
+            .reshape([cloud.points.len(), 3])?
+            .into_any(),
+        arrays::array1(py, cloud.origin.to_vec()),
+        unit,
+        cloud.dropped_non_finite,
+    ))
 }
+
+/// What [`_read_cloud`] gives.
+type ReadCloud<'py> = (
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    String,
+    usize,
+);
 
 /// Maps an `(N, 3)` array of points in metres (float32 or float64; rows with a NaN or infinite
 /// coordinate are dropped) into a `Map`, with every option of `mema map` under its name
 /// (`--tangent-scale` is `tangent_scale=`). Give exactly one of `k` (entities), `bytes` (as many
 /// entities as that many bytes of `.mema` file hold) or `tolerance` (metres of eq. 13 error per
-/// cluster). The same points and options give the same map bytes as `mema map` on the file
-/// `read_cloud` read them from. The GIL is released while mapping.
+/// cluster). A `mema.Cloud` from `read_cloud` maps in the frame its reader chose, so the same
+/// cloud and options give the same map bytes as `mema map` on its file (as long as the array
+/// still holds what was read); another array is centred as a reader centres a file. The GIL
+/// is released while mapping.
 #[pyfunction(name = "map")]
 #[pyo3(signature = (
     points, k = None, bytes = None, seed = 0, paper = false, *,
@@ -146,8 +167,8 @@ fn map_points<'py>(
         crop: options::crop(crop)?,
         voxel,
     };
-    let points = rows(points, "points", false)?.rows;
-    let made = py.detach(|| options::run(&points, &options)).into_py()?;
+    let input = cloud::input(points, "points")?;
+    let made = py.detach(|| options::run(&input, &options)).into_py()?;
     for warning in &made.warnings {
         let message = CString::new(warning.replace('\0', " "))?;
         PyErr::warn(py, &py.get_type::<PyUserWarning>(), &message, 1)?;
@@ -185,7 +206,7 @@ fn _mema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MemaError", m.py().get_type::<MemaError>())?;
     m.add_class::<Map>()?;
     m.add_class::<Entities>()?;
-    m.add_function(wrap_pyfunction!(read_cloud, m)?)?;
+    m.add_function(wrap_pyfunction!(_read_cloud, m)?)?;
     m.add_function(wrap_pyfunction!(map_points, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;

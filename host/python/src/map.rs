@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use std::path::PathBuf;
 use std::sync::{Mutex, OnceLock};
 
-use crate::arrays::{array_n, array1, finite_rows, matrix3, rows};
+use crate::arrays::{array_n, array1, finite_rows, matrix3};
 use crate::errors::{IntoPy, bad_value};
 
 /// A map of ellipsoids, in metres. Made by `mema.map`, read by `mema.load`.
@@ -127,7 +127,7 @@ struct EvalJson {
     fidelity: mema::analysis::fidelity::FidelityScore,
     #[serde(flatten)]
     bytes: mema::analysis::eval::FileBytes,
-    unit: mema::io::Units,
+    unit: serde_json::Value,
 }
 
 /// JSON text as Python objects (dicts keep the keys' order).
@@ -268,7 +268,8 @@ impl Map {
     }
 
     /// `mema eval --json` of this map against `cloud` (a path, read in metres as `mema eval`
-    /// reads it, `units` as its `--units`; or an `(N, 3)` array in metres): a dict of eq. 13's
+    /// reads it, `units` as its `--units`; or an `(N, 3)` array in metres, a `mema.Cloud` in
+    /// the frame and unit it was read in): a dict of eq. 13's
     /// statistics, the two-way score with `samples` surface points seeded by `seed`, the map's
     /// bytes (of the file it was last read from or saved to, else of its `.mema` encoding) and
     /// the unit.
@@ -293,24 +294,31 @@ impl Map {
         }
         let given = units.map(crate::parse_units).transpose()?;
         let input = match cloud.extract::<PathBuf>() {
-            Ok(path) => Input::Path(path),
+            Ok(path) => Scored::Path(path),
             Err(_) if given.is_some() => {
                 return Err(bad_value(
                     "units",
                     "only a file's coordinates are scaled; an array is taken in metres",
                 ));
             }
-            Err(_) => Input::Rows(rows(cloud, "cloud", false)?.rows),
+            Err(_) => Scored::Points(crate::cloud::input(cloud, "cloud")?),
         };
         let source = self.source();
         let doc = py
             .detach(|| -> anyhow::Result<EvalJson> {
                 let (cloud, unit) = match input {
-                    Input::Path(path) => mema::io::load_cloud_in_metres(&path, given.as_ref())?,
-                    Input::Rows(rows) => (
-                        crate::cloud::local_cloud(&rows).map_err(anyhow::Error::msg)?,
-                        mema::io::Units::assumed(),
-                    ),
+                    Scored::Path(path) => {
+                        let (cloud, unit) = mema::io::load_cloud_in_metres(&path, given.as_ref())?;
+                        (cloud, serde_json::to_value(unit)?)
+                    }
+                    Scored::Points(input) => {
+                        let (cloud, unit) = input.cloud().map_err(anyhow::Error::msg)?;
+                        let unit = match unit {
+                            Some(unit) => unit,
+                            None => serde_json::to_value(mema::io::Units::assumed())?,
+                        };
+                        (cloud, unit)
+                    }
                 };
                 let bytes = file_bytes(&self.map, source)?;
                 let eq13 = evaluate(&cloud, &self.map);
@@ -481,9 +489,9 @@ impl Map {
 }
 
 /// What `eval` scores against.
-enum Input {
+enum Scored {
     Path(PathBuf),
-    Rows(Vec<[f64; 3]>),
+    Points(crate::cloud::Input),
 }
 
 /// The map's bytes as `mema eval` reports them: measured on the file it came from or went to,

@@ -10,7 +10,7 @@ use mema_core::fit::{Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use pyo3::PyResult;
 
-use crate::cloud::local_cloud;
+use crate::cloud::Input;
 use crate::errors::bad_value;
 
 /// One of `choices` (the command line's value names), for the keyword `what`.
@@ -153,7 +153,8 @@ pub struct MapOptions {
 /// What a run made, and what the caller should hear about it.
 pub struct Made {
     pub map: mema::io::HostMap,
-    /// The report `mema map --json` prints (without `output` and `unit`).
+    /// The report `mema map --json` prints, without `output`; its `unit` is the one
+    /// `read_cloud` read in, or metres assumed for another array.
     pub report: serde_json::Value,
     pub labels: Vec<u32>,
     /// What `mema map` says on stderr: a budget larger than the points allow, a map of mostly
@@ -164,7 +165,7 @@ pub struct Made {
 /// Maps `points` as `mema map` maps the cloud it reads (`host/src/cli/commands/map.rs`): the
 /// same checks in the same order, the same filters and library calls, so the same points and
 /// options give the same map bytes.
-pub fn run(points: &[[f64; 3]], options: &MapOptions) -> Result<Made> {
+pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
     let model = options.model;
     if model == Model::Shells && options.entity == EntityChoice::Sphere {
         anyhow::bail!(
@@ -177,12 +178,12 @@ pub fn run(points: &[[f64; 3]], options: &MapOptions) -> Result<Made> {
         tolerance.check()?;
         let config = options.fit.config(1)?;
         let voxel = options.voxel.map(check_voxel).transpose()?;
-        let cloud = local_cloud(points).map_err(anyhow::Error::msg)?;
+        let (cloud, unit) = input.cloud().map_err(anyhow::Error::msg)?;
         let (cloud, _) = filter::apply(cloud, options.crop, voxel).context("points")?;
         let built = map_to_tolerance(&cloud, &tolerance, &config, model, options.shells.shell)
             .context("points")?;
         let mut report = serde_json::to_value(built.report(cloud.points.len(), "".as_ref()))?;
-        strip_output(&mut report);
+        finish_report(&mut report, unit)?;
         return Ok(Made {
             labels: built.labels(cloud.points.len()),
             map: built.map,
@@ -197,7 +198,7 @@ pub fn run(points: &[[f64; 3]], options: &MapOptions) -> Result<Made> {
     };
     let mut config = options.fit.config(k)?;
     let voxel = options.voxel.map(check_voxel).transpose()?;
-    let cloud = local_cloud(points).map_err(anyhow::Error::msg)?;
+    let (cloud, unit) = input.cloud().map_err(anyhow::Error::msg)?;
     let (cloud, counts) = filter::apply(cloud, options.crop, voxel).context("points")?;
     let mut warnings = Vec::new();
     // A budget is an upper bound, as on the command line: past a quarter of the points,
@@ -220,7 +221,7 @@ pub fn run(points: &[[f64; 3]], options: &MapOptions) -> Result<Made> {
     report.filter = counts;
     warnings.extend(degenerate_warning(&report, options.fit.threshold));
     let mut report = serde_json::to_value(&report)?;
-    strip_output(&mut report);
+    finish_report(&mut report, unit)?;
     Ok(Made {
         map: built.map,
         report,
@@ -229,11 +230,18 @@ pub fn run(points: &[[f64; 3]], options: &MapOptions) -> Result<Made> {
     })
 }
 
-/// The report's `output` names the file written; a map in memory has none yet.
-fn strip_output(report: &mut serde_json::Value) {
+/// The report as `mema map --json` prints it, but for `output`, the file written, which a map
+/// in memory has not yet.
+fn finish_report(report: &mut serde_json::Value, unit: Option<serde_json::Value>) -> Result<()> {
     if let Some(fields) = report.as_object_mut() {
         fields.remove("output");
+        let unit = match unit {
+            Some(unit) => unit,
+            None => serde_json::to_value(mema::io::Units::assumed())?,
+        };
+        fields.insert("unit".into(), unit);
     }
+    Ok(())
 }
 
 /// `mema map`'s warning when most entities degenerated: clusters wider than the threshold

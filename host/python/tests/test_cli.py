@@ -25,21 +25,35 @@ def test_the_issues_example_gives_the_clis_bytes(cli, tmp_path):
 
 
 @pytest.mark.parametrize("name", CLOUDS)
-def test_every_shared_cloud_reads_back_as_the_cli_reads_it(cli, tmp_path, name):
-    # The array is the reader's origin plus its f32 points; mapping it finds that origin again
-    # and the same f32 points, so a one-entity map (its origin and the cloud's mean) agrees.
+def test_every_shared_cloud_maps_as_the_cli_maps_it(cli, tmp_path, name):
+    # A one-entity map holds the cloud's origin and mean, so it sees every point's bits.
     p = cloud(name)
     cli.run("map", p, "-k", 1, "--surface-rounds", 0, "-o", tmp_path / "cli.mema")
     points = mema.read_cloud(p)
+    assert isinstance(points, np.ndarray) and isinstance(points, mema.Cloud)
     assert points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 3
     made = mema.map(points, k=1, surface_rounds=0)
     made.save(tmp_path / "py.mema")
     assert same_bytes(tmp_path / "cli.mema", tmp_path / "py.mema")
-    origin = mema.load(tmp_path / "cli.mema").origin
-    assert made.origin.tobytes() == origin.tobytes()
-    # Each point's offset from the command line's origin is an f32, exactly: what it maps.
-    offsets = points - origin
-    assert np.array_equal(offsets.astype(np.float32).astype(np.float64), offsets)
+    # The cloud is its reader's frame, to f64 rounding of origin + offset.
+    assert np.array_equal(points.origin, mema.load(tmp_path / "cli.mema").origin)
+    assert np.array_equal(points, points.origin + points.local.astype(np.float64))
+    # As a plain array it is centred as a file is: the same map where origin + offset is
+    # exact in f64 (binary clouds), within that rounding elsewhere.
+    plain = mema.map(np.array(points), k=1, surface_rounds=0)
+    assert np.allclose(plain.origin, made.origin, rtol=0, atol=1e-12 * (1 + np.abs(made.origin)))
+    assert np.allclose(plain.entities.centres, made.entities.centres, rtol=0, atol=1e-6)
+
+
+def test_a_changed_cloud_maps_as_a_plain_array():
+    points = mema.read_cloud(cloud("top3.ply"))
+    for changed in (points[::2], points * 1.0 + [0.0, 0.0, 0.001], points[:, [1, 0, 2]]):
+        assert isinstance(changed, mema.Cloud)
+        want = mema.map(np.array(changed), k=10).to_bytes()
+        assert mema.map(changed, k=10).to_bytes() == want
+    edited = points.copy()
+    edited[7, 2] += 0.01
+    assert mema.map(edited, k=10).to_bytes() == mema.map(np.array(edited), k=10).to_bytes()
 
 
 @pytest.mark.parametrize(
@@ -78,8 +92,7 @@ def test_options_give_the_clis_map_labels_and_report(cli, tmp_path, name, args, 
     made.save(tmp_path / "py.mema")
     assert same_bytes(tmp_path / "cli.mema", tmp_path / "py.mema")
     assert np.array_equal(made.labels, np.loadtxt(tmp_path / "labels.txt", dtype=np.int64))
-    for key in ("output", "unit"):
-        report.pop(key)
+    report.pop("output")
     assert made.report == report
 
 

@@ -65,7 +65,7 @@ def test_occupied_is_brute_force(bunny):
     inside = np.where(level <= 1.0, np.arange(len(m))[None, :], len(m)).min(axis=1)
     want = np.where(inside == len(m), -1, inside)
     assert np.array_equal(got[clear], want[clear])
-    assert (got >= 0).sum() > 100 and (got < 0).sum() > 100
+    assert (got >= 0).sum() > 30 and (got < 0).sum() > 1000
 
 
 def test_nearest_is_brute_force(bunny):
@@ -80,7 +80,7 @@ def test_nearest_is_brute_force(bunny):
     assert np.allclose(signed, want, rtol=1e-5, atol=1e-7)
     # The entity named is a nearest one (ties to rounding aside).
     assert np.allclose(distances[np.arange(len(p)), entity], distances.min(axis=1), atol=1e-7)
-    assert (signed < 0).sum() > 50
+    assert (signed < 0).sum() > 20
 
 
 def ray_hits(m, origins, directions, max_range):
@@ -130,8 +130,8 @@ def test_one_point_queries_answer_scalars_as_mema_query(cli, bunny, tmp_path):
     p, o, d = points[100] + 0.003, points[5] + [0.0, 0.0, 0.3], [0.01, 0.02, -1.0]
     point, ray = cli.json(
         "query", tmp_path / "bunny.mema",
-        "--point", ",".join(map(repr, p)),
-        "--ray", ",".join(map(repr, [*o, *d])),
+        "--point", ",".join(repr(float(v)) for v in p),
+        "--ray", ",".join(repr(float(v)) for v in [*o, *d]),
         "--max-range", 1.0,
     )
     signed, entity = m.nearest(p)
