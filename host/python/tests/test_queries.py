@@ -44,7 +44,7 @@ def surface_distances(local, weights):
 
     lo = -np.min(r2, axis=-1) * np.ones(q.shape[:2])
     hi = np.sqrt(np.max(r2, axis=-1)) * np.linalg.norm(q, axis=-1) + 1e-12
-    for _ in range(200):
+    for _ in range(100):
         mid = 0.5 * (lo + hi)
         above = f(mid) > 0
         lo = np.where(above, mid, lo)
