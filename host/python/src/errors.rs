@@ -31,7 +31,9 @@ impl<T> IntoPy<T> for anyhow::Result<T> {
 /// for a missing one); anything wrong with the data is a [`MemaError`].
 pub fn to_py(e: anyhow::Error) -> PyErr {
     // The command line's words for options, in Python's.
-    let message = format!("{e:#}").replace("--units", "units=");
+    let message = format!("{e:#}")
+        .replace("--units", "units=")
+        .replace("consider -k ", "consider k=");
     if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) {
         return PyValueError::new_err(message);
     }
@@ -57,4 +59,15 @@ pub fn to_py(e: anyhow::Error) -> PyErr {
 /// A `ValueError` for a bad argument, its name first.
 pub fn bad_value(what: &str, why: impl std::fmt::Display) -> PyErr {
     PyValueError::new_err(format!("{what}: {why}"))
+}
+
+/// A count given as a Python int: `what` and the value in the error, where pyo3's unsigned
+/// conversion would only say "can't convert negative int to unsigned".
+pub fn count<T: TryFrom<i64>>(what: &str, value: i64) -> Result<T, PyErr> {
+    T::try_from(value).map_err(|_| {
+        bad_value(
+            what,
+            format!("{value} is not a count (0 or more, and not too large)"),
+        )
+    })
 }

@@ -23,7 +23,7 @@ use std::path::PathBuf;
 use numpy::PyArrayMethods;
 
 use crate::arrays::array_n;
-use crate::errors::{IntoPy, MemaError, bad_value};
+use crate::errors::{IntoPy, MemaError, bad_value, count};
 use crate::map::{Entities, Map};
 use crate::options::{MapOptions, Size};
 
@@ -97,17 +97,17 @@ type ReadCloud<'py> = (
 fn map_points<'py>(
     py: Python<'py>,
     points: &Bound<'py, PyAny>,
-    k: Option<usize>,
-    bytes: Option<usize>,
+    k: Option<i64>,
+    bytes: Option<i64>,
     seed: u64,
     paper: bool,
     model: &str,
     tangent_scale: f64,
     normal_scale: f64,
-    surface_rounds: usize,
+    surface_rounds: i64,
     tolerance: Option<f64>,
-    capacity: usize,
-    voronoi_rounds: usize,
+    capacity: i64,
+    voronoi_rounds: i64,
     entity: &str,
     alpha: f64,
     threshold: f64,
@@ -116,11 +116,17 @@ fn map_points<'py>(
     out_of_bounds: &str,
     volume: &str,
     init: &str,
-    generations: u32,
-    max_iterations: u32,
+    generations: i64,
+    max_iterations: i64,
     crop: Option<Vec<f64>>,
     voxel: Option<f64>,
 ) -> PyResult<Map> {
+    let k = k.map(|k| count::<usize>("k", k)).transpose()?;
+    let bytes = bytes.map(|b| count::<usize>("bytes", b)).transpose()?;
+    let (capacity, voronoi_rounds) = (
+        count("capacity", capacity)?,
+        count("voronoi_rounds", voronoi_rounds)?,
+    );
     let size = match (k, bytes, tolerance) {
         (Some(k), None, None) => Size::K(k),
         (None, Some(bytes), None) => Size::Bytes(bytes),
@@ -150,7 +156,7 @@ fn map_points<'py>(
                 normal_scale,
                 ..Default::default()
             },
-            surface_rounds,
+            surface_rounds: count("surface_rounds", surface_rounds)?,
         },
         fit: FitOptions {
             alpha,
@@ -161,8 +167,8 @@ fn map_points<'py>(
             out_of_bounds: options::out_of_bounds(out_of_bounds)?,
             volume: options::volume(volume)?,
             initialisation: options::init(init)?,
-            generations,
-            max_iterations,
+            generations: count("generations", generations)?,
+            max_iterations: count("max_iterations", max_iterations)?,
         },
         crop: options::crop(crop)?,
         voxel,

@@ -278,10 +278,11 @@ impl Map {
         &self,
         py: Python<'py>,
         cloud: &Bound<'py, PyAny>,
-        samples: usize,
+        samples: i64,
         seed: u64,
         units: Option<&str>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let samples: usize = crate::errors::count("samples", samples)?;
         use mema::analysis::eval::{MAX_SAMPLES, evaluate, points_in_map_frame};
         if samples == 0 || samples > MAX_SAMPLES {
             return Err(bad_value(
@@ -467,10 +468,11 @@ impl Map {
         };
         let shift = match translation {
             Some(t) => {
-                let rows = finite_rows(t, "translation", true)?;
+                let three = || bad_value("translation", "expected three finite numbers (x, y, z)");
+                let rows = finite_rows(t, "translation", true).map_err(|_| three())?;
                 match rows.rows.as_slice() {
                     [t] if rows.single => *t,
-                    _ => return Err(bad_value("translation", "expected three numbers")),
+                    _ => return Err(three()),
                 }
             }
             None => [0.0; 3],

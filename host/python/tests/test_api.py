@@ -86,6 +86,9 @@ def test_errors_are_exceptions_that_say_what(milk, tmp_path):
         (ValueError, "exactly one", lambda: mema.map(milk)),
         (ValueError, "exactly one", lambda: mema.map(milk, k=5, bytes=2400)),
         (ValueError, "k must be at least 1", lambda: mema.map(milk, k=0)),
+        (ValueError, "k: -1 is not a count", lambda: mema.map(milk, k=-1)),
+        (ValueError, "generations: -5", lambda: mema.map(milk, k=5, generations=-5)),
+        (mema.MemaError, "consider k=1", lambda: mema.map(milk[:3], k=10)),
         (ValueError, "alpha 1.5", lambda: mema.map(milk, k=5, alpha=1.5, paper=True)),
         (ValueError, "'cubes' is not one of", lambda: mema.map(milk, k=5, model="cubes")),
         (ValueError, "paper=True", lambda: mema.map(milk, k=5, entity="sphere")),
@@ -111,6 +114,10 @@ def test_errors_are_exceptions_that_say_what(milk, tmp_path):
         m.transform(np.diag([1.0, 1.0, 2.0]))
     with pytest.raises(ValueError, match="row 0"):
         m.nearest([[np.nan, 0, 0]])
+    with pytest.raises(ValueError, match="translation: expected three"):
+        m.transform(None, [1.0, 2.0])
+    with pytest.raises(ValueError, match="samples: -1"):
+        m.eval(milk, samples=-1)
 
 
 def test_a_byte_budget_past_the_points_warns_and_maps_fewer(milk):
