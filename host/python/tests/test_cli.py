@@ -77,11 +77,22 @@ def test_a_changed_cloud_maps_as_a_plain_array():
             dict(k=60, tangent_scale=1.5, normal_scale=0.5, surface_rounds=5,
                  crop=(-0.1, 0.05, -0.1, 0.1, 0.2, 0.1), voxel=0.002),
         ),
+        # the rest of the fit options, through --model
+        (
+            "lamppost.pcd",
+            ["-k", 25, "--model", "paper", "--out-of-bounds", "reflect", "--volume", "spread",
+             "--threshold", 0.5, "--sphere-tolerance", 0.05, "--max-iterations", 7],
+            dict(k=25, model="paper", out_of_bounds="reflect", volume="spread", threshold=0.5,
+                 sphere_tolerance=0.05, max_iterations=7),
+        ),
         # the tolerance mode
         ("lamppost.pcd", ["--tolerance", 0.05, "--voronoi-rounds", 1],
          dict(tolerance=0.05, voronoi_rounds=1)),
+        ("car6.pcd", ["--tolerance", 0.01, "--capacity", 30, "--paper"],
+         dict(tolerance=0.01, capacity=30, paper=True)),
     ],
-    ids=["bytes-feet", "paper-sphere", "shells-crop-voxel", "tolerance"],
+    ids=["bytes-feet", "paper-sphere", "shells-crop-voxel", "paper-options", "tolerance",
+         "tolerance-capacity"],
 )
 def test_options_give_the_clis_map_labels_and_report(cli, tmp_path, name, args, keywords):
     p = cloud(name)
