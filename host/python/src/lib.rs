@@ -3,7 +3,7 @@
 //!
 //! Every function that works for long (reading, mapping, scoring, queries) copies its input out
 //! of Python first and then releases the GIL ([`Python::detach`]), so other Python threads run
-//! meanwhile. Errors become exceptions through [`errors::to_py`]; nothing here panics on input.
+//! meanwhile. Errors become exceptions through `errors::to_py`; nothing here panics on input.
 
 mod arrays;
 mod cloud;
