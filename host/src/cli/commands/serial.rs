@@ -60,19 +60,53 @@ pub struct StreamSummary {
     pub ellipsoids: usize,
     pub elapsed_s: f64,
     pub points_per_s: f64,
+    /// From the start of listening (or replaying) to the end.
 }
+    /// From the first point's arrival to the last's: the time the points took to arrive.
+    pub arrival_s: f64,
+    /// Points over `arrival_s`: the rate the link delivered while it delivered, not diluted
+    /// by the wait for the scanner to start (0 when every point came in one read).
 
 fn summary(
     link: &Link,
+/// When the mapper's points first and last grew: the window a rate is measured over.
+#[derive(Default)]
+struct Arrivals {
+    seen: u64,
+    first: Option<Instant>,
+    last: Option<Instant>,
+}
+
+impl Arrivals {
+    /// Notes the mapper's point count after a read; a count that grew is an arrival now.
+    fn note(&mut self, points: u64) {
+        if points > self.seen {
+            let now = Instant::now();
+            self.first.get_or_insert(now);
+            self.last = Some(now);
+            self.seen = points;
+        }
+    }
+
+    fn seconds(&self) -> f64 {
+        match (self.first, self.last) {
+            (Some(first), Some(last)) => last.duration_since(first).as_secs_f64(),
+            _ => 0.0,
+        }
+    }
+}
+
     map: &Path,
     end: &str,
     ellipsoids: usize,
     started: Instant,
 ) -> StreamSummary {
     let s = link.stats();
+    arrivals: &Arrivals,
     let elapsed = started.elapsed().as_secs_f64();
     let points = link.mapper.stats().points;
     StreamSummary {
+    let arrival = arrivals.seconds();
         map: map.display().to_string(),
         end: end.into(),
         points,
@@ -83,8 +117,9 @@ fn summary(
         bytes: s.bytes,
         ellipsoids,
         elapsed_s: elapsed,
-        points_per_s: if elapsed > 0.0 {
-            points as f64 / elapsed
+        arrival_s: arrival,
+        points_per_s: if arrival > 0.0 {
+            points as f64 / arrival
         } else {
             0.0
         },
@@ -93,7 +128,7 @@ fn summary(
 
 fn report(s: &StreamSummary, json: bool) -> Result<()> {
     eprintln!(
-        "mema: {}: {} points, frames {} accepted / {} rejected / {} lost / {} repeated, {} ellipsoids, {:.2} s, {:.0} points/s",
+        "mema: {}: {} points, frames {} accepted / {} rejected / {} lost / {} repeated, {} ellipsoids, {:.2} s, {:.0} points/s over the {:.2} s they took to arrive",
         s.end,
         s.points,
         s.frames_accepted,
@@ -102,7 +137,8 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         s.frames_duplicated,
         s.ellipsoids,
         s.elapsed_s,
-        s.points_per_s
+        s.points_per_s,
+        s.arrival_s
     );
     if json {
         println!("{}", serde_json::to_string(s)?);
@@ -117,7 +153,7 @@ fn conclude(
     mut link: Link,
     output: &Path,
     end: Option<String>,
-    started: Instant,
+    (started, arrivals): (Instant, &Arrivals),
     json: bool,
 ) -> Result<()> {
     let map = link.finish();
@@ -131,7 +167,14 @@ fn conclude(
         (None, false) => ("input ended before end of stream".to_string(), true),
     };
     report(
-        &summary(&link, output, &end_text, map.entities.len(), started),
+        &summary(
+            &link,
+            output,
+            &end_text,
+            map.entities.len(),
+            started,
+            arrivals,
+        ),
         json,
     )?;
     if lost {
@@ -159,6 +202,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     let started = Instant::now();
     let mut last_snapshot = Instant::now();
     let mut last_progress = Instant::now();
+    let mut arrivals = Arrivals::default();
     let mut buf = [0u8; 4096];
     let end = loop {
         if last_progress.elapsed() >= PROGRESS_EVERY {
@@ -186,6 +230,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 link.feed(bytes);
                 if link.end_of_stream {
                     break None;
+                arrivals.note(link.mapper.stats().points);
                 }
             }
             ReadOutcome::Idle => {}
@@ -206,7 +251,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     if let Some(r) = record {
         r.finish()?;
     }
-    conclude(link, &args.output, end, started, args.json)
+    conclude(link, &args.output, end, (started, &arrivals), args.json)
 }
 
 pub fn record(args: &RecordArgs) -> Result<()> {
@@ -275,6 +320,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let started = Instant::now();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
+    let mut arrivals = Arrivals::default();
         if stop.load(Ordering::SeqCst) {
             end = Some("interrupted".to_string());
             break;
@@ -282,6 +328,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         link.feed(chunk);
         if let Some(rate) = args.rate {
             // Pace by points delivered, as the scanner would have.
+        arrivals.note(link.mapper.stats().points);
             let due = link.mapper.stats().points as f64 / rate;
             let ahead = due - started.elapsed().as_secs_f64();
             if ahead > 0.0 {
@@ -292,7 +339,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
             break;
         }
     }
-    conclude(link, &output, end, started, args.json)
+    conclude(link, &output, end, (started, &arrivals), args.json)
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
