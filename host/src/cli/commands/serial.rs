@@ -13,7 +13,9 @@ use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::link::capture::CaptureWriter;
 use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
-use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use mema::link::port::{
+    ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
+};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
 
@@ -58,17 +60,15 @@ pub struct StreamSummary {
     pub frames_duplicated: u64,
     pub bytes: u64,
     pub ellipsoids: usize,
-    pub elapsed_s: f64,
-    pub points_per_s: f64,
     /// From the start of listening (or replaying) to the end.
-}
+    pub elapsed_s: f64,
     /// From the first point's arrival to the last's: the time the points took to arrive.
     pub arrival_s: f64,
     /// Points over `arrival_s`: the rate the link delivered while it delivered, not diluted
     /// by the wait for the scanner to start (0 when every point came in one read).
+    pub points_per_s: f64,
+}
 
-fn summary(
-    link: &Link,
 /// When the mapper's points first and last grew: the window a rate is measured over.
 #[derive(Default)]
 struct Arrivals {
@@ -96,17 +96,19 @@ impl Arrivals {
     }
 }
 
+fn summary(
+    link: &Link,
     map: &Path,
     end: &str,
     ellipsoids: usize,
     started: Instant,
+    arrivals: &Arrivals,
 ) -> StreamSummary {
     let s = link.stats();
-    arrivals: &Arrivals,
     let elapsed = started.elapsed().as_secs_f64();
+    let arrival = arrivals.seconds();
     let points = link.mapper.stats().points;
     StreamSummary {
-    let arrival = arrivals.seconds();
         map: map.display().to_string(),
         end: end.into(),
         points,
@@ -200,9 +202,9 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
+    let mut arrivals = Arrivals::default();
     let mut last_snapshot = Instant::now();
     let mut last_progress = Instant::now();
-    let mut arrivals = Arrivals::default();
     let mut buf = [0u8; 4096];
     let end = loop {
         if last_progress.elapsed() >= PROGRESS_EVERY {
@@ -228,9 +230,9 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                     r.write(bytes)?;
                 }
                 link.feed(bytes);
+                arrivals.note(link.mapper.stats().points);
                 if link.end_of_stream {
                     break None;
-                arrivals.note(link.mapper.stats().points);
                 }
             }
             ReadOutcome::Idle => {}
@@ -318,17 +320,17 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let stop = interrupted();
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();
+    let mut arrivals = Arrivals::default();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
-    let mut arrivals = Arrivals::default();
         if stop.load(Ordering::SeqCst) {
             end = Some("interrupted".to_string());
             break;
         }
         link.feed(chunk);
+        arrivals.note(link.mapper.stats().points);
         if let Some(rate) = args.rate {
             // Pace by points delivered, as the scanner would have.
-        arrivals.note(link.mapper.stats().points);
             let due = link.mapper.stats().points as f64 / rate;
             let ahead = due - started.elapsed().as_secs_f64();
             if ahead > 0.0 {
@@ -381,11 +383,23 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     }
     port.flush()
         .with_context(|| format!("{}: flush failed", args.port.display()))?;
-    eprintln!(
-        "mema: scanner-sim: sent {} points in {} frames, {sent} bytes, {:.2} s",
-        wire.len(),
-        wire.len().div_ceil(POINTS_PER_FRAME),
-        started.elapsed().as_secs_f64()
-    );
+    let frames = wire.len().div_ceil(POINTS_PER_FRAME);
+    // A device is a port; a FIFO is someone's reader; a regular file is what was made.
+    let to_file =
+        !is_terminal_device(&args.port) && std::fs::metadata(&args.port).is_ok_and(|m| m.is_file());
+    if to_file {
+        // No scanner listens on a file: say what was made of it, and what reads it.
+        let path = args.port.display();
+        eprintln!(
+            "mema: scanner-sim: {path} is not a serial port or terminal device, so it is now a capture file: {} points in {frames} frames, {sent} bytes; map it with `mema replay {path}`",
+            wire.len()
+        );
+    } else {
+        eprintln!(
+            "mema: scanner-sim: sent {} points in {frames} frames, {sent} bytes, {:.2} s",
+            wire.len(),
+            started.elapsed().as_secs_f64()
+        );
+    }
     Ok(())
 }
