@@ -25,7 +25,7 @@ pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Unit
     if let Some(file) = &units.overrides {
         eprintln!(
             "mema: {}: --units {} overrides the file's {file}",
-            path.display(),
+            mema::io::read::input_name(path),
             units.unit.name
         );
     }
