@@ -134,6 +134,7 @@ fn eval_json_has_the_documented_keys_and_consistent_figures() {
         "bytes_per_entity",
         // The unit the cloud was read in (issue 15).
         "unit",
+        "dropped_non_finite",
     ];
     let mut got = keys.clone();
     want.sort();
