@@ -56,3 +56,6 @@ mod map_versions;
 mod units;
 // Exact rotation: a cloud and its map turned by the same random rotation score the same.
 mod rotation_invariance;
+// What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
+// fits the search box chose.
+mod honest_reports;

@@ -1,5 +1,6 @@
 //! One handler per subcommand: check the arguments, call the library, print.
 pub mod bench;
+pub mod demo;
 pub mod eval;
 pub mod info;
 pub mod map;
