@@ -28,7 +28,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         Command::Draw(a) => toolbox::draw(a),
         Command::Export(a) => toolbox::export(a),
         Command::Completions(a) => toolbox::completions(a),
-        Command::Man => toolbox::man(),
+        Command::Man(a) => toolbox::man(a),
         Command::Bench(a) => bench::bench(a),
     }
 }
