@@ -41,6 +41,7 @@ Start with `mema demo`.";
 #[command(
     name = "mema",
     version,
+    propagate_version = true,
     about = "Multiellipsoidal maps of 3D point clouds",
     long_about = None,
     after_help = TERMS

@@ -51,7 +51,7 @@ fn every_command_argument_and_value_has_help() {
         }
     });
     // The walk reached the tree: a broken walk would pass on nothing.
-    assert!(args > 200, "only {args} arguments walked");
+    assert!(args >= 150, "only {args} arguments walked");
     assert!(missing.is_empty(), "help missing:\n{}", missing.join("\n"));
 }
 
