@@ -37,10 +37,46 @@ pub struct MapReport {
     /// `--surface-rounds 0`).
     pub surface_rounds: Option<usize>,
     pub entity: EntityChoice,
+    /// The written map's fitted axes that ended on a bound of DE's search box (null for
+    /// shells, which are not searched).
+    pub axes_on_bound: Option<AxesOnBound>,
     pub dropped_non_finite: usize,
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
+}
+
+/// How many fitted semi-axes ended on a bound of the box DE searched (`--bounds`): there the
+/// box, not eq. 12, chose their length.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct AxesOnBound {
+    /// Semi-axes fitted (a sphere's radius counts once).
+    pub axes: usize,
+    pub lower: usize,
+    pub upper: usize,
+}
+
+impl AxesOnBound {
+    /// Counts over `fits`.
+    pub fn of(fits: &[mema_core::fit::Fit], sphere: bool) -> Self {
+        let per_fit = if sphere { 1 } else { 3 };
+        fits.iter().fold(
+            Self {
+                axes: per_fit * fits.len(),
+                ..Self::default()
+            },
+            |acc, f| Self {
+                lower: acc.lower + usize::from(f.on_lower_bound),
+                upper: acc.upper + usize::from(f.on_upper_bound),
+                ..acc
+            },
+        )
+    }
+
+    /// Whether most axes rest on a bound.
+    pub fn most(&self) -> bool {
+        2 * (self.lower + self.upper) > self.axes
+    }
 }
 
 /// The paper's model: clusters, fits both entity types, evaluates eq. 13 for both, writes the
@@ -181,9 +217,9 @@ fn paper_map(
         }))
     };
     let (ellipsoidal, spherical) = (errors(&ellipsoids), errors(&spheres));
-    let chosen = match entity {
-        EntityChoice::Ellipsoid => ellipsoids,
-        EntityChoice::Sphere => spheres,
+    let (chosen, on_bound) = match entity {
+        EntityChoice::Ellipsoid => (ellipsoids, AxesOnBound::of(&fitted.ellipsoids, false)),
+        EntityChoice::Sphere => (spheres, AxesOnBound::of(&fitted.spheres, true)),
     };
     let report = MapReport {
         model: Model::Paper,
@@ -195,6 +231,7 @@ fn paper_map(
         kmeans_converged: clusters.outcome.converged,
         surface_rounds: None,
         entity,
+        axes_on_bound: Some(on_bound),
         dropped_non_finite: cloud.dropped_non_finite,
         output: String::new(),
         filter: FilterCounts {
@@ -271,6 +308,7 @@ fn shells_map(
         kmeans_converged: clusters.outcome.converged,
         surface_rounds: surfaces.as_ref().map(|s| s.rounds),
         entity: EntityChoice::Ellipsoid,
+        axes_on_bound: None,
         dropped_non_finite: cloud.dropped_non_finite,
         output: String::new(),
         filter: FilterCounts {

@@ -274,3 +274,68 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
         assert!(hits > 1000, "{name}: queries too easy ({hits} hits)");
     }
 }
+
+/// `transform` labels each moved entity by its infinite axes, as the kinds are defined (one a
+/// pseudocylinder, two a pair of planes), even where the map it read was labelled otherwise
+/// (written by another tool, or by hand); a finite entity keeps its ellipsoid or sphere.
+#[test]
+fn transform_labels_kinds_by_their_infinite_axes() {
+    let dir = Dir::new("transform-kinds");
+    let bunny = shared("bun_zipper.ply");
+    let mut rows = Vec::new();
+    // Thresholds at which the bunny's clusters degenerate: one infinite axis, then two.
+    for threshold in ["0.02", "0.012"] {
+        MemaCommand::new(&dir)
+            .arg("map")
+            .arg(&bunny)
+            .args(["--paper", "-k", "40", "--bounds", "threshold"])
+            .args(["--threshold", threshold, "-o", "deg.csv"])
+            .run()
+            .assert_ok();
+        let csv = std::fs::read_to_string(dir.join("deg.csv")).expect("csv");
+        rows.extend(csv.lines().skip(1).map(str::to_owned));
+    }
+    let infinite = |row: &str| {
+        let fields: Vec<&str> = row.split(',').collect();
+        fields[3..6].iter().filter(|r| **r == "inf").count()
+    };
+    let counts = |rows: &[String], n| rows.iter().filter(|r| infinite(r) == n).count();
+    assert!(counts(&rows, 1) > 0 && counts(&rows, 2) > 0, "{rows:?}");
+    // Every entity labelled an ellipsoid, whatever its axes.
+    let mislabelled: String = rows
+        .iter()
+        .map(|r| {
+            let keep = r.rsplit_once(',').expect("kind column").0;
+            format!("{keep},ellipsoid\n")
+        })
+        .collect();
+    dir.write(
+        "labelled.csv",
+        format!("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n{mislabelled}").as_bytes(),
+    );
+    for rotate in ["30,20,10", "90,0,0", "0,0,0"] {
+        MemaCommand::new(&dir)
+            .args([
+                "transform",
+                "labelled.csv",
+                "-o",
+                "moved.csv",
+                "--rotate",
+                rotate,
+            ])
+            .run()
+            .assert_ok();
+        let moved = std::fs::read_to_string(dir.join("moved.csv")).expect("moved");
+        let moved: Vec<&str> = moved.lines().skip(1).collect();
+        assert_eq!(moved.len(), rows.len());
+        for row in moved {
+            let kind = row.rsplit(',').next().expect("kind");
+            let want = match infinite(row) {
+                0 => "ellipsoid",
+                1 => "pseudocylinder",
+                _ => "plane_pair",
+            };
+            assert_eq!(kind, want, "--rotate {rotate}: {row}");
+        }
+    }
+}

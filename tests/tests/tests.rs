@@ -56,3 +56,9 @@ mod map_versions;
 mod units;
 // Exact rotation: a cloud and its map turned by the same random rotation score the same.
 mod rotation_invariance;
+// A first run that explains itself: the demo's files and next commands, man pages, one-line
+// usage errors, scanner-sim to a file, clouds on standard input.
+mod first_run;
+// What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
+// fits the search box chose.
+mod honest_reports;

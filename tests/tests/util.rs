@@ -1,5 +1,6 @@
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The shared real clouds, read in place (never copied into the repository).
@@ -73,6 +74,17 @@ impl Drop for Dir {
 pub struct MemaCommand {
     args: Vec<String>,
     cwd: PathBuf,
+    stdin: Stdin,
+}
+
+/// What `mema` reads on its standard input.
+enum Stdin {
+    /// Nothing: a closed stream.
+    Closed,
+    /// A file, as `< file` redirects it.
+    File(PathBuf),
+    /// Bytes through a pipe, written as `mema` reads them.
+    Pipe(Vec<u8>),
 }
 
 pub struct Ran {
@@ -85,7 +97,20 @@ impl MemaCommand {
         Self {
             args: Vec::new(),
             cwd: dir.path.clone(),
+            stdin: Stdin::Closed,
         }
+    }
+
+    /// Standard input redirected from `path`.
+    pub fn stdin_file(mut self, path: impl Into<PathBuf>) -> Self {
+        self.stdin = Stdin::File(path.into());
+        self
+    }
+
+    /// Standard input a pipe that carries `bytes`.
+    pub fn stdin_pipe(mut self, bytes: Vec<u8>) -> Self {
+        self.stdin = Stdin::Pipe(bytes);
+        self
     }
 
     pub fn arg(mut self, a: impl AsRef<std::ffi::OsStr>) -> Self {
@@ -101,12 +126,34 @@ impl MemaCommand {
     }
 
     pub fn run(self) -> Ran {
-        let output = Command::new(mema_bin())
+        let mut command = Command::new(mema_bin());
+        command
             .args(&self.args)
             .current_dir(&self.cwd)
-            .env("RUST_BACKTRACE", "1")
-            .output()
-            .expect("mema runs");
+            .env("RUST_BACKTRACE", "1");
+        let output = match self.stdin {
+            Stdin::Closed => command.output().expect("mema runs"),
+            Stdin::File(path) => command
+                .stdin(std::fs::File::open(&path).expect("stdin file"))
+                .output()
+                .expect("mema runs"),
+            Stdin::Pipe(bytes) => {
+                let mut child = command
+                    .stdin(Stdio::piped())
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .expect("mema runs");
+                let mut pipe = child.stdin.take().expect("stdin piped");
+                // A writer of its own: mema may answer (or fail) before it has read it all.
+                let writer = std::thread::spawn(move || {
+                    let _ = pipe.write_all(&bytes);
+                });
+                let output = child.wait_with_output().expect("mema runs");
+                writer.join().expect("stdin writer");
+                output
+            }
+        };
         Ran {
             output,
             description: format!("mema {} (in {})", self.args.join(" "), self.cwd.display()),

@@ -45,6 +45,64 @@ pub fn message(e: &anyhow::Error) -> String {
     causes.join(": ")
 }
 
+/// What clap refused, as mema's other errors read: help and version print as clap prints
+/// them, and a usage error is one line, `mema: <what was wrong>; see 'mema <command> --help'`,
+/// exit 2. Clap's own runs to five lines, most of them a synopsis the help repeats.
+pub fn usage_failed(e: clap::Error) -> std::process::ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit()
+    }
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    eprintln!(
+        "mema: {}",
+        brief_usage(&e.render().to_string(), &command_path(&args))
+    );
+    std::process::ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
+/// `mema <subcommand>` as typed (the first word naming one), or `mema`.
+fn command_path(args: &[String]) -> String {
+    use clap::CommandFactory;
+    let root = super::Cli::command();
+    args.iter()
+        .find_map(|a| root.find_subcommand(a))
+        .map_or_else(|| "mema".to_owned(), |s| format!("mema {}", s.get_name()))
+}
+
+/// Clap's rendered error (no colour) as one line: the error, the arguments it lists, its tips,
+/// and where the help is. The synopsis and the "For more information" line are dropped.
+fn brief_usage(rendered: &str, command: &str) -> String {
+    let mut what = String::new();
+    let mut listed = Vec::new();
+    let mut tips = Vec::new();
+    for line in rendered.lines().map(str::trim) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if let Some(rest) = line.strip_prefix("error:") {
+            what = rest.trim().to_owned();
+        } else if let Some(tip) = line.strip_prefix("tip:") {
+            tips.push(tip.trim().to_owned());
+        } else if !line.is_empty() {
+            listed.push(line.to_owned());
+        }
+    }
+    let mut out = what;
+    if !listed.is_empty() {
+        out = format!("{out} {}", listed.join(", "));
+    }
+    for tip in tips {
+        out = format!("{out} ({tip})");
+    }
+    format!("{out}; see '{command} --help'")
+}
+
 fn config_message(e: &ConfigError) -> String {
     match e {
         ConfigError::NoClusters => {
@@ -110,6 +168,23 @@ fn filter_message(e: &FilterError) -> String {
 mod tests {
     use super::*;
     use anyhow::Context;
+
+    #[test]
+    fn usage_errors_keep_the_error_its_list_and_tips_on_one_line() {
+        let missing = "error: the following required arguments were not provided:\n  --output <OUTPUT>\n  <INPUT>\n\nUsage: mema map --output <OUTPUT> <INPUT>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            brief_usage(missing, "mema map"),
+            "the following required arguments were not provided: --output <OUTPUT>, <INPUT>; see 'mema map --help'"
+        );
+        let typo = "error: unexpected argument '--bogus' found\n\n  tip: a similar argument exists: '--bounds'\n\nUsage: mema map --bounds <BOUNDS> <INPUT>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            brief_usage(typo, "mema map"),
+            "unexpected argument '--bogus' found (a similar argument exists: '--bounds'); see 'mema map --help'"
+        );
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(command_path(&args(&["map", "-o", "demo"])), "mema map");
+        assert_eq!(command_path(&args(&["--bogus"])), "mema");
+    }
 
     #[test]
     fn library_errors_read_as_flags_inside_their_context() {

@@ -9,6 +9,7 @@ pub mod output;
 pub mod read;
 pub mod scene;
 pub mod units;
+pub mod write_cloud;
 
 pub use cloud::{LocalCloud, load_cloud, load_cloud_in_metres};
 pub use mapfile::{HostMap, MapFormat};

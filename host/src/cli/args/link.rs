@@ -10,6 +10,7 @@ pub struct StreamArgs {
     /// Serial device or pty, e.g. /dev/ttyUSB0.
     #[arg(long)]
     pub port: PathBuf,
+    /// Line speed in bits per second (a pty ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
     /// Most ellipsoids the map may hold (at most 2,048).
@@ -53,17 +54,22 @@ pub struct StreamShapeArgs {
 
 #[derive(Args, Debug)]
 pub struct RecordArgs {
+    /// Serial device or pty to listen on, e.g. /dev/ttyUSB0.
     #[arg(long)]
     pub port: PathBuf,
+    /// Line speed in bits per second (a pty ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
+    /// The capture file: every byte received, as it arrived.
     #[arg(short, long)]
     pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
 pub struct ReplayArgs {
+    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file).
     pub capture: PathBuf,
+    /// Most ellipsoids the map may hold (at most 2,048).
     #[arg(short, default_value_t = 150)]
     pub k: usize,
     /// Map file; default: the capture's path with the extension .mema.
@@ -79,6 +85,7 @@ pub struct ReplayArgs {
     pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Print the summary as JSON on stdout (instead of the map path).
     #[arg(long)]
     pub json: bool,
 }
@@ -96,6 +103,7 @@ pub struct ScannerSimArgs {
     /// Bytes per write.
     #[arg(long, default_value_t = 256)]
     pub chunk_bytes: usize,
+    /// Line speed in bits per second (a pty or a file ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
     #[command(flatten)]
@@ -104,7 +112,9 @@ pub struct ScannerSimArgs {
 
 #[derive(Args, Debug)]
 pub struct StreamBenchArgs {
+    /// The cloud to stream (any format `map` reads).
     pub input: PathBuf,
+    /// Most ellipsoids the streaming map may hold (at most 2,048).
     #[arg(short)]
     pub k: usize,
     /// Timed repetitions of the ingest (the best is reported).
@@ -116,6 +126,7 @@ pub struct StreamBenchArgs {
     pub units: UnitsArg,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }

@@ -10,6 +10,7 @@ use super::UnitsArg;
 
 #[derive(Args, Debug)]
 pub struct QueryArgs {
+    /// The map to ask: .mema, .csv or .json.
     pub map: PathBuf,
     /// x,y,z in the map's world coordinates (metres).
     #[arg(long, allow_hyphen_values = true)]
@@ -20,13 +21,16 @@ pub struct QueryArgs {
     /// How far a ray looks (metres).
     #[arg(long, default_value_t = 1e6)]
     pub max_range: f64,
+    /// Print each answer as one JSON object per line.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct TransformArgs {
+    /// The map to move: .mema, .csv or .json.
     pub map: PathBuf,
+    /// The moved map: .mema, .csv or .json (written atomically).
     #[arg(short, long)]
     pub output: PathBuf,
     /// tx,ty,tz in metres, applied after the rotation.
@@ -47,6 +51,7 @@ pub struct QueryBenchArgs {
     /// Random points (each asked nearest and occupancy, and a ray from it).
     #[arg(long, default_value_t = 100_000)]
     pub queries: usize,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }
@@ -95,17 +100,20 @@ impl From<StyleArg> for Style {
 
 #[derive(Args, Debug)]
 pub struct DrawArgs {
-    /// The cloud the map was made from (any readable format).
+    /// The cloud the map was made from (any format `map` reads; `-` reads standard input).
     pub input: PathBuf,
+    /// The map to draw over the cloud: .mema, .csv or .json.
     pub map: PathBuf,
     /// The picture to write (.png).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The direction the picture looks along.
     #[arg(long, value_enum, default_value_t = ViewArg::Iso)]
     pub view: ViewArg,
     /// Picture size in pixels; with --compare, the two panels share it side by side.
     #[arg(long, default_value = "1200x900")]
     pub size: Size,
+    /// How entities are drawn.
     #[arg(long, value_enum, default_value_t = StyleArg::Shaded)]
     pub style: StyleArg,
     /// A second map drawn beside the first on the same scale (the paper's Figure 12:
@@ -121,6 +129,7 @@ pub struct DrawArgs {
 
 #[derive(Args, Debug)]
 pub struct ExportArgs {
+    /// The map to mesh: .mema, .csv or .json.
     pub map: PathBuf,
     /// The mesh to write: .ply, .obj or .glb.
     #[arg(short, long)]
@@ -136,22 +145,37 @@ pub struct ExportArgs {
     /// Latitude bands of each ellipsoid.
     #[arg(long, default_value_t = 12)]
     pub rings: u32,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct CompletionsArgs {
+    /// The shell to print the script for.
     pub shell: clap_complete::Shell,
+}
+
+#[derive(Args, Debug)]
+pub struct ManArgs {
+    /// Write one page per command here (mema.1, mema-map.1, ...) instead of printing the
+    /// main page; the directory must exist.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
 }
 
 /// `--only`: [`Which`] for the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WhichArg {
+    /// Eq. 12 from moments against the direct sum over points, and the f32 fit against f64.
     Fitness,
+    /// Accelerated k-means against the plain algorithm.
     Kmeans,
+    /// The whole map command per cloud: time and peak memory, on 1 and 2 threads.
     Pipeline,
+    /// The same steps in Python (numpy and scikit-learn), with --python.
     Python,
+    /// Map fidelity at fixed byte budgets against a Gaussian mixture (about an hour).
     Fidelity,
 }
 

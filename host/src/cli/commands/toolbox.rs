@@ -7,10 +7,10 @@ use mema::io::output::check_output_file;
 use mema::progress::stage;
 use mema::render::export::{self as mesh, Bounds, ExportReport, MeshFormat, Tessellation};
 use mema::render::picture::render;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::read_in_metres;
-use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs};
+use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs, ManArgs};
 use crate::cli::errors::UsageError;
 
 /// Fails before any work if `path` lacks the extension or its directory cannot take it.
@@ -115,10 +115,49 @@ pub fn completions(args: &CompletionsArgs) -> Result<()> {
     print_bytes(&out)
 }
 
-pub fn man() -> Result<()> {
-    let mut out = Vec::new();
-    clap_mangen::Man::new(Cli::command()).render(&mut out)?;
-    print_bytes(&out)
+pub fn man(args: &ManArgs) -> Result<()> {
+    let Some(dir) = &args.out_dir else {
+        let mut out = Vec::new();
+        clap_mangen::Man::new(Cli::command()).render(&mut out)?;
+        return print_bytes(&out);
+    };
+    if !dir.is_dir() {
+        return Err(UsageError(format!(
+            "--out-dir {}: not an existing directory",
+            dir.display()
+        ))
+        .into());
+    }
+    // Built, so each subcommand's page is named after its path (mema-map.1); the `help`
+    // subcommand is no command of mema's and gets no page.
+    let mut root = Cli::command().disable_help_subcommand(true);
+    root.build();
+    let mut written = Vec::new();
+    write_pages(&root, dir, &mut written)?;
+    for path in &written {
+        println!("{}", path.display());
+    }
+    eprintln!(
+        "mema: wrote {} man pages to {}; read one with `man {}`",
+        written.len(),
+        dir.display(),
+        dir.join("mema-map.1").display()
+    );
+    Ok(())
+}
+
+/// Writes `command`'s page and its subcommands' pages into `dir`, each atomically.
+fn write_pages(command: &clap::Command, dir: &Path, written: &mut Vec<PathBuf>) -> Result<()> {
+    let page = clap_mangen::Man::new(command.clone());
+    let path = dir.join(page.get_filename());
+    let mut roff = Vec::new();
+    page.render(&mut roff)?;
+    write_file_atomically(&path, &roff, "man page")?;
+    written.push(path);
+    for sub in command.get_subcommands().filter(|s| !s.is_hide_set()) {
+        write_pages(sub, dir, written)?;
+    }
+    Ok(())
 }
 
 /// A closed pipe (`mema man | head`) is not an error worth a message.
