@@ -2,6 +2,7 @@
 //! (distance, occupancy, ray casts), each question vectorised over many points.
 
 use anyhow::Context;
+use mema::analysis::eval::EvalDocument;
 use mema::io::HostMap;
 use mema::io::mapfile::{KindCounts, MapFormat};
 use mema::query::{HostIndex, build_index, local, transform_map, world};
@@ -116,18 +117,6 @@ impl Entities {
             self.count
         )
     }
-}
-
-/// `mema eval --json`'s object: eq. 13's keys, the two-way score's, the bytes' and the unit.
-#[derive(serde::Serialize)]
-struct EvalJson {
-    #[serde(flatten)]
-    eq13: mema::analysis::eval::EvalReport,
-    #[serde(flatten)]
-    fidelity: mema::analysis::fidelity::FidelityScore,
-    #[serde(flatten)]
-    bytes: mema::analysis::eval::FileBytes,
-    unit: serde_json::Value,
 }
 
 /// JSON text as Python objects (dicts keep the keys' order).
@@ -306,7 +295,7 @@ impl Map {
         };
         let source = self.source();
         let doc = py
-            .detach(|| -> anyhow::Result<EvalJson> {
+            .detach(|| -> anyhow::Result<EvalDocument> {
                 let (cloud, unit) = match input {
                     Scored::Path(path) => {
                         let (cloud, unit) = mema::io::load_cloud_in_metres(&path, given.as_ref())?;
@@ -330,10 +319,11 @@ impl Map {
                     seed,
                     samples,
                 )?;
-                Ok(EvalJson {
+                Ok(EvalDocument {
                     eq13,
                     fidelity,
                     bytes,
+                    dropped_non_finite: cloud.dropped_non_finite,
                     unit,
                 })
             })

@@ -13,6 +13,23 @@ use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::{HostMap, MapFormat};
 use crate::mapping::pipeline;
 
+/// `mema eval --json` (and the Python package's `Map.eval`): eq. 13's keys first and unchanged,
+/// then the two-way score's, the bytes', the points dropped on reading and the cloud's unit.
+/// One type for both, so the two documents cannot drift apart.
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalDocument {
+    #[serde(flatten)]
+    pub eq13: EvalReport,
+    #[serde(flatten)]
+    pub fidelity: super::fidelity::FidelityScore,
+    #[serde(flatten)]
+    pub bytes: FileBytes,
+    /// Points of the cloud skipped for a NaN or infinite coordinate.
+    pub dropped_non_finite: usize,
+    /// The cloud's unit and where it came from (`io::Units`, as JSON).
+    pub unit: serde_json::Value,
+}
+
 /// Past this many surface samples the score costs memory and time for no added precision.
 pub const MAX_SAMPLES: usize = 100_000_000;
 

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use mema::analysis::eval::{
-    EvalReport, FileBytes, MAX_SAMPLES, WorldBox, evaluate, points_in_map_frame,
+    EvalDocument, EvalReport, FileBytes, MAX_SAMPLES, WorldBox, evaluate, points_in_map_frame,
 };
 use mema::analysis::fidelity::{self, FidelityScore};
 use mema::analysis::stats::{self, MemoryRow};
@@ -11,24 +11,10 @@ use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::HostMap;
 use mema::io::read::input_name;
 use mema::progress::stage;
-use serde::Serialize;
 
 use super::read_in_metres;
 use crate::cli::args::EvalArgs;
 use crate::cli::errors::UsageError;
-
-/// `mema eval --json`: eq. 13's keys first and unchanged, then the score's and the bytes'.
-#[derive(Serialize)]
-pub struct EvalJson {
-    #[serde(flatten)]
-    pub eq13: EvalReport,
-    #[serde(flatten)]
-    pub fidelity: FidelityScore,
-    #[serde(flatten)]
-    pub bytes: FileBytes,
-    /// Points of the file skipped for a NaN or infinite coordinate.
-    pub dropped_non_finite: usize,
-}
 
 pub fn eval(args: &EvalArgs) -> Result<()> {
     if args.samples == 0 || args.samples > MAX_SAMPLES {
@@ -57,14 +43,13 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     })
     .with_context(|| format!("{} against {}", args.map.display(), input_name(&args.input)))?;
     if args.json {
-        let doc = EvalJson {
+        let doc = EvalDocument {
             eq13,
             fidelity: score,
             bytes,
             dropped_non_finite: cloud.dropped_non_finite,
+            unit: serde_json::to_value(&units)?,
         };
-        let mut doc = serde_json::to_value(&doc)?;
-        doc["unit"] = serde_json::to_value(&units)?;
         println!("{}", serde_json::to_string(&doc)?);
         return Ok(());
     }
