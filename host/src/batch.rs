@@ -375,6 +375,8 @@ pub struct ToleranceReport {
     pub kinds: KindCounts,
     /// Eq. 13 error of each cluster, in map order.
     pub errors: Vec<f64>,
+    /// Points of the file skipped for a NaN or infinite coordinate.
+    pub dropped_non_finite: usize,
     pub output: String,
 }
 
@@ -438,8 +440,9 @@ impl ToleranceMap {
         labels
     }
 
-    /// The report of this map of a cloud of `points` points, written to `output`.
-    pub fn report(&self, points: usize, output: &Path) -> ToleranceReport {
+    /// The report of this map of `cloud`, written to `output`.
+    pub fn report(&self, cloud: &LocalCloud, output: &Path) -> ToleranceReport {
+        let points = cloud.points.len();
         let errors: Vec<f64> = self.outcome.nodes.iter().map(|n| n.error).collect();
         ToleranceReport {
             tolerance: self.tolerance,
@@ -457,6 +460,7 @@ impl ToleranceMap {
             capacity_reached: self.outcome.capacity_reached,
             kinds: KindCounts::of(&self.map),
             errors,
+            dropped_non_finite: cloud.dropped_non_finite,
             output: output.display().to_string(),
         }
     }

@@ -182,7 +182,7 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
         let (cloud, _) = filter::apply(cloud, options.crop, voxel).context("points")?;
         let built = map_to_tolerance(&cloud, &tolerance, &config, model, options.shells.shell)
             .context("points")?;
-        let mut report = serde_json::to_value(built.report(cloud.points.len(), "".as_ref()))?;
+        let mut report = serde_json::to_value(built.report(&cloud, "".as_ref()))?;
         finish_report(&mut report, unit)?;
         return Ok(Made {
             labels: built.labels(cloud.points.len()),

@@ -153,11 +153,10 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if let Some(path) = &args.labels {
         write_labels(path, &built.labels(cloud.points.len()))?;
     }
-    let report = built.report(cloud.points.len(), &args.output);
+    let report = built.report(&cloud, &args.output);
     if args.json {
         let mut doc = serde_json::to_value(&report)?;
         doc["unit"] = serde_json::to_value(&units)?;
-        doc["dropped_non_finite"] = cloud.dropped_non_finite.into();
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
