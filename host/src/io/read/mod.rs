@@ -20,6 +20,7 @@
 //! signature, then text with a line of at least three numbers); the file extension only sharpens
 //! the error message, except for headerless KITTI `.bin` scans, which it selects.
 
+pub mod fuzz_checks;
 mod kitti;
 mod las;
 mod lzf;
