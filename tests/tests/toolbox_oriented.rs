@@ -54,7 +54,7 @@ fn rotate_30_20_10() -> M3 {
 }
 
 /// The matrix of the unit quaternion (x, y, z, w), normalised in f64.
-fn quaternion_matrix(q: [f32; 4]) -> M3 {
+pub(crate) fn quaternion_matrix(q: [f32; 4]) -> M3 {
     let n = q.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>().sqrt();
     let [x, y, z, w] = q.map(|v| f64::from(v) / n);
     [
@@ -179,7 +179,10 @@ fn export_of_a_turned_map_is_the_turned_export() {
                 "{cloud}: bounds {br:?}, want {want:?}"
             );
         }
-        let (ma, mr) = (tessellate(&a, &ba, &t), tessellate(&r, &br, &t));
+        let (ma, mr) = (
+            tessellate(&a, &ba, &t).expect("memory"),
+            tessellate(&r, &br, &t).expect("memory"),
+        );
         let (ea, er) = (per_entity(&a, &ma, &t), per_entity(&r, &mr, &t));
         assert_eq!(ea.len(), er.len());
         let (mut on_surface, mut worst_surface, mut worst_turn) = (0, 0.0f64, 0.0f64);
