@@ -188,6 +188,16 @@ impl Extent {
         }
     }
 
+    /// The part of `other` inside this extent (empty where they do not meet).
+    pub fn clamp(&self, other: &Extent) -> Extent {
+        let cut = |a: [f64; 2], b: [f64; 2]| [b[0].max(a[0]), b[1].min(a[1])];
+        let (s, t) = (cut(self.s, other.s), cut(self.t, other.t));
+        if s[0] > s[1] || t[0] > t[1] {
+            return Extent::EMPTY;
+        }
+        Extent { s, t }
+    }
+
     /// Grows to hold `other`.
     pub fn union(&mut self, other: &Extent) {
         self.include(other.s[0], other.t[0]);

@@ -59,8 +59,7 @@ fn row_spans_paint_what_the_whole_box_paints() {
         for style in [Style::Shaded, Style::Outline] {
             let paint = |cull| {
                 let mut r = Raster::new(640, 480);
-                let cost =
-                    paint_entities(&mut r, &frame, &map, &clips, plot, style, cull, &|| {});
+                let cost = paint_entities(&mut r, &frame, &map, &clips, plot, style, cull, &|| {});
                 (r.pixels, cost)
             };
             let ((rows, spans), (boxed, boxes)) = (paint(Cull::Rows), paint(Cull::Box));

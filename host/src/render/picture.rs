@@ -144,8 +144,9 @@ pub fn render(
     let plot_at = |i: u32| [i * panel_w + 8, top, plot_w, plot_h];
     let mut extent = Extent::of_points(&camera, &points);
     let probe = Frame::fit_extent(cloud.origin, camera, &extent, plot_at(0));
+    let reach = entity_reach(&extent, &probe, plot_at(0));
     for ((_, map), clips) in maps.iter().zip(&clips) {
-        extent.union(&draw::entities_extent(&probe, map, clips));
+        extent.union(&reach.clamp(&draw::entities_extent(&probe, map, clips)));
     }
     let entities: usize = maps.iter().map(|(_, m)| m.entities.len()).sum();
     let progress = crate::progress::Stage::counted("drawing entities", entities as u64);
@@ -222,6 +223,19 @@ pub fn render(
         panels,
     };
     Ok((raster, report))
+}
+
+/// How far entities may widen a picture fitted to the points: the plot's window at the
+/// points' own scale, doubled about its centre, so the cloud is drawn at least half as large
+/// as it alone would be. Shells reaching past their points at a cloud's edge fit well within;
+/// a paper ellipsoid with a 4 m axis on a 15 cm bunny would otherwise shrink it to a dot.
+fn entity_reach(points: &Extent, fitted: &Frame, plot: [u32; 4]) -> Extent {
+    let centre = [points.s, points.t].map(|[lo, hi]| lo / 2.0 + hi / 2.0);
+    let half = [plot[2], plot[3]].map(|n| f64::from(n) / fitted.scale);
+    Extent {
+        s: [centre[0] - half[0], centre[0] + half[0]],
+        t: [centre[1] - half[1], centre[1] + half[1]],
+    }
 }
 
 /// Per entity, the box of the points nearest its centre (as `mema eval` assigns them), in the

@@ -7,7 +7,6 @@ use anyhow::{Context, Result};
 use mema_core::{EntityKind, MapEntity};
 use std::io::Write;
 
-use super::size::MeshSize;
 use super::{Bounds, Shapes, Tessellation, entity_vertices, kind_colour, reserved};
 use crate::io::mapfile::HostMap;
 
@@ -45,8 +44,9 @@ pub(crate) fn ply_header(map: &HostMap, vertices: u64, faces: u64) -> String {
     )
 }
 
-/// Binary little-endian PLY: `double x y z` and `uchar red green blue` per vertex (the kind's
-/// colour), `list uchar int vertex_indices` per face. The vertices come first, so the entities
+/// Binary little-endian PLY of (vertices, triangles) counted beforehand: `double x y z` and
+/// `uchar red green blue` per vertex (the kind's colour), `list uchar int vertex_indices` per
+/// face. The vertices come first, so the entities
 /// are visited twice: for their vertices, then for their faces, which need only their counts.
 pub(crate) fn write_ply(
     w: &mut impl Write,
@@ -54,9 +54,9 @@ pub(crate) fn write_ply(
     bounds: &Bounds,
     t: &Tessellation,
     shapes: &Shapes,
-    size: &MeshSize,
+    (vertices, triangles): (u64, u64),
 ) -> Result<()> {
-    w.write_all(ply_header(map, size.vertices, size.triangles).as_bytes())?;
+    w.write_all(ply_header(map, vertices, triangles).as_bytes())?;
     let mut record = [0u8; 27];
     for kind in EntityKind::ALL {
         record[24..].copy_from_slice(&kind_colour(kind));
@@ -220,7 +220,8 @@ fn local(map: &HostMap, p: &[f64; 3]) -> [f32; 3] {
 }
 
 /// Binary glTF 2.0: one node translated to the map's origin, one mesh with a primitive and a
-/// material per kind, f32 positions relative to the origin and u32 indices. The JSON chunk
+/// material per kind, f32 positions relative to the origin and u32 indices; `kinds` holds each
+/// kind's (vertices, triangles), counted beforehand. The JSON chunk
 /// comes first and holds each kind's box, so the vertices are made once for the boxes and
 /// again to be written.
 pub(crate) fn write_glb(
@@ -229,7 +230,7 @@ pub(crate) fn write_glb(
     bounds: &Bounds,
     t: &Tessellation,
     shapes: &Shapes,
-    size: &MeshSize,
+    kinds: &[(u64, u64); 4],
 ) -> Result<()> {
     let mut boxes: KindBoxes = [([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]); 4];
     for (k, kind) in EntityKind::ALL.into_iter().enumerate() {
@@ -245,11 +246,11 @@ pub(crate) fn write_glb(
             Ok(())
         })?;
     }
-    let mut json = glb_json(map, &size.kinds, Some(&boxes))?;
+    let mut json = glb_json(map, kinds, Some(&boxes))?;
     while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
-    let bin = 12 * (size.vertices + size.triangles);
+    let bin: u64 = kinds.iter().map(|(v, f)| 12 * (v + f)).sum();
     let total = u32::try_from(12 + 8 + json.len() as u64 + 8 + bin)
         .context("the mesh exceeds glTF's 4 GiB limit")?;
     w.write_all(b"glTF")?;

@@ -451,9 +451,12 @@ pub fn export(
     size.check(map, t, max_bytes)?;
     let shapes = Shapes::new(t).context("memory for the mesh's triangles")?;
     let written = crate::io::atomic::write_atomically_with(output, "mesh", |w| match format {
-        MeshFormat::Ply => formats::write_ply(w, map, &bounds, t, &shapes, &size),
+        MeshFormat::Ply => {
+            let counts = (size.vertices, size.triangles);
+            formats::write_ply(w, map, &bounds, t, &shapes, counts)
+        }
         MeshFormat::Obj => formats::write_obj(w, map, &bounds, t, &shapes),
-        MeshFormat::Glb => formats::write_glb(w, map, &bounds, t, &shapes, &size),
+        MeshFormat::Glb => formats::write_glb(w, map, &bounds, t, &shapes, &size.kinds),
     })?;
     let mut kinds = std::collections::BTreeMap::new();
     for (i, kind) in EntityKind::ALL.into_iter().enumerate() {
