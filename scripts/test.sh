@@ -31,6 +31,7 @@ echo "== core builds without std"
 cargo build -p mema-core --no-default-features
 echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are tested below)"
 (cd core/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
+(cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
 echo "== tests (release profile: real clouds)"

@@ -49,6 +49,9 @@ mod stream_shells;
 mod toolbox;
 // draw and export of oriented maps: a turned map meshes and draws as the turned original.
 mod toolbox_oriented;
+// draw and export within bounds: export's size counted first and limited, draw's --up,
+// sensor view, frame, scale-bar unit and work.
+mod toolbox_bounds;
 // .mema versions: a version-1 file written here by hand still loads; --paper writes version 1,
 // shells version 2 quantized, both within --bytes, decoded here from the documented layout.
 mod map_versions;

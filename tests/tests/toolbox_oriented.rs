@@ -156,7 +156,10 @@ fn export_of_a_turned_map_is_the_turned_export() {
                 "{cloud}: bounds {br:?}, want {want:?}"
             );
         }
-        let (ma, mr) = (tessellate(&a, &ba, &t), tessellate(&r, &br, &t));
+        let (ma, mr) = (
+            tessellate(&a, &ba, &t).expect("memory"),
+            tessellate(&r, &br, &t).expect("memory"),
+        );
         let (ea, er) = (per_entity(&a, &ma, &t), per_entity(&r, &mr, &t));
         assert_eq!(ea.len(), er.len());
         let (mut on_surface, mut worst_surface, mut worst_turn) = (0, 0.0f64, 0.0f64);

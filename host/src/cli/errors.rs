@@ -127,7 +127,29 @@ fn config_message(e: &ConfigError) -> String {
             "--segments {segments} --rings {rings}: need 3..=1024 segments and 2..=512 rings; consider the defaults, 24 and 12"
         ),
         ConfigError::TooManyVertices(v) => {
-            format!("{v} vertices exceed 32-bit indices; consider fewer --segments or --rings")
+            format!("{v} vertices exceed 31-bit indices; consider fewer --segments or --rings")
+        }
+        ConfigError::MeshTooLarge {
+            entities,
+            segments,
+            rings,
+            vertices,
+            triangles,
+            bytes,
+            format,
+            limit,
+            fits,
+        } => {
+            let consider = match fits {
+                Some((s, r)) => format!("consider --segments {s} --rings {r}, which fit"),
+                None => "even --segments 3 --rings 2 do not fit; consider a map of fewer entities"
+                    .into(),
+            };
+            format!(
+                "{entities} entities at --segments {segments} --rings {rings} make {vertices} vertices and {triangles} triangles, {bytes} bytes of {format} ({}), over --max-bytes {limit} ({}); {consider}",
+                human_bytes(*bytes),
+                human_bytes(*limit)
+            )
         }
         ConfigError::PictureTooSmall {
             width,
@@ -146,10 +168,28 @@ fn config_message(e: &ConfigError) -> String {
         ConfigError::WorkingWithTolerance => {
             "--working and --tolerance do not combine: frozen clusters cannot merge".into()
         }
+        ConfigError::UpAlongView => {
+            "--view sensor --up z: the sensor view looks along z; consider --up y or no --up".into()
+        }
         ConfigError::ZeroBudget(b) => format!("--budgets {b}: a budget is at least 1 byte"),
         // The extensions' messages name no flag; any variant added later reads as the library
         // words it until it gets its flags here.
         other => other.to_string(),
+    }
+}
+
+/// Bytes in the largest binary unit that leaves at least 1 of it ("97.6 GiB").
+fn human_bytes(bytes: u64) -> String {
+    let units = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < units.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    match unit {
+        0 => format!("{bytes} bytes"),
+        _ => format!("{value:.1} {}", units[unit]),
     }
 }
 

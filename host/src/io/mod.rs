@@ -2,6 +2,7 @@
 //!
 //! Nothing here depends on the rest of the crate but [`crate::error`]: every other layer reads
 //! and writes through it.
+pub mod atomic;
 pub mod cloud;
 pub mod input;
 pub mod mapfile;

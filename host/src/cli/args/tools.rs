@@ -2,7 +2,7 @@
 
 use clap::{Args, ValueEnum};
 use mema::bench::{BenchOptions, Which};
-use mema::render::draw::{Style, View};
+use mema::render::draw::{Style, Up, View};
 use mema::render::picture::Size;
 use std::path::PathBuf;
 
@@ -67,6 +67,30 @@ pub enum ViewArg {
     Front,
     /// Along -x: y right, z up.
     Side,
+    /// Along the sensor's axis, +z from its origin: x right, y down (a depth camera's or a
+    /// lidar's own frame), or the --up axis up.
+    Sensor,
+}
+
+/// `--up`: [`Up`] for the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum UpArg {
+    /// x up.
+    X,
+    /// y up (meshes such as the Stanford bunny, y-up camera frames).
+    Y,
+    /// z up (most scans and lidar).
+    Z,
+}
+
+impl From<UpArg> for Up {
+    fn from(u: UpArg) -> Self {
+        match u {
+            UpArg::X => Up::X,
+            UpArg::Y => Up::Y,
+            UpArg::Z => Up::Z,
+        }
+    }
 }
 
 /// `--style`: [`Style`] for the command line.
@@ -85,6 +109,7 @@ impl From<ViewArg> for View {
             ViewArg::Top => View::Top,
             ViewArg::Front => View::Front,
             ViewArg::Side => View::Side,
+            ViewArg::Sensor => View::Sensor,
         }
     }
 }
@@ -107,9 +132,13 @@ pub struct DrawArgs {
     /// The picture to write (.png).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// The direction the picture looks along.
+    /// The direction the picture looks along; the views name a z-up world, turned by --up.
     #[arg(long, value_enum, default_value_t = ViewArg::Iso)]
     pub view: ViewArg,
+    /// The world axis that points up in the picture [default: z; for --view sensor, the
+    /// sensor's -y, as camera frames point y down].
+    #[arg(long, value_enum)]
+    pub up: Option<UpArg>,
     /// Picture size in pixels; with --compare, the two panels share it side by side.
     #[arg(long, default_value = "1200x900")]
     pub size: Size,
@@ -145,6 +174,11 @@ pub struct ExportArgs {
     /// Latitude bands of each ellipsoid.
     #[arg(long, default_value_t = 12)]
     pub rings: u32,
+    /// The most bytes the mesh may take. Its size is counted from the map before any work
+    /// (PLY: 27 bytes a vertex and 13 a triangle; glTF: 12 and 12; OBJ: at most 101 and 35),
+    /// and a larger mesh is refused, naming the --segments and --rings that fit.
+    #[arg(long, value_name = "BYTES", default_value_t = mema::render::export::DEFAULT_MAX_BYTES)]
+    pub max_bytes: u64,
     /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,

@@ -83,6 +83,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
             &cloud,
             &[("map.mema".to_owned(), map)],
             View::Iso,
+            None,
             PICTURE,
             Style::Shaded,
         )

@@ -5,7 +5,9 @@ use clap::CommandFactory;
 use mema::io::mapfile::{HostMap, write_file_atomically};
 use mema::io::output::check_output_file;
 use mema::progress::stage;
-use mema::render::export::{self as mesh, Bounds, ExportReport, MeshFormat, Tessellation};
+use mema::render::export::{
+    self as mesh, Bounds, ExportReport, MeshFormat, MeshSize, Tessellation,
+};
 use mema::render::picture::render;
 use std::path::{Path, PathBuf};
 
@@ -45,15 +47,15 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
     if let Some(other) = &args.compare {
         maps.push((file_name(other), read_map(other)?));
     }
-    let (raster, mut report) = stage("rendering", || {
-        render(
-            &cloud,
-            &maps,
-            args.view.into(),
-            args.size,
-            args.style.into(),
-        )
-    })?;
+    // The renderer shows its own progress, counted over the entities.
+    let (raster, mut report) = render(
+        &cloud,
+        &maps,
+        args.view.into(),
+        args.up.map(Into::into),
+        args.size,
+        args.style.into(),
+    )?;
     let png = raster.encode_png().context("PNG encoding")?;
     write_file_atomically(&args.output, &png, "picture")
         .with_context(|| format!("{}", args.output.display()))?;
@@ -67,8 +69,11 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
                 p.map, p.entities, p.mean_error
             );
         }
+        let up = report.up.map_or(String::new(), |u| {
+            format!(", {} up", ["x", "y", "z"][u.axis()])
+        });
         println!(
-            "wrote {} ({}x{}, {} view)",
+            "wrote {} ({}x{}, {} view{up})",
             report.output,
             report.width,
             report.height,
@@ -90,6 +95,11 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     MeshFormat::from_path(&args.output)?;
     check_output(&args.output, &["ply", "obj", "glb"], "mesh")?;
     let map = read_map(&args.map)?;
+    // Counted and checked against --max-bytes before the cloud is read or any vertex made.
+    let format = MeshFormat::from_path(&args.output)?;
+    MeshSize::of(&map, &t, format)
+        .check(&map, &t, args.max_bytes)
+        .with_context(|| args.map.display().to_string())?;
     let (bounds, source) = match &args.cloud {
         Some(path) => {
             let (cloud, _) = read_in_metres(path, &args.units)?;
@@ -97,13 +107,20 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         }
         None => (Bounds::of_map(&map), "map"),
     };
-    let report: ExportReport = mesh::export(&map, bounds, source, &t, &args.output)?;
+    let report: ExportReport = stage("writing the mesh", || {
+        mesh::export(&map, bounds, source, &t, &args.output, args.max_bytes)
+    })?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         println!(
-            "wrote {}: {} entities as {} vertices and {} triangles (degenerated ones clipped to the {}'s box)",
-            report.output, report.entities, report.vertices, report.triangles, report.bounds_source
+            "wrote {}: {} entities as {} vertices and {} triangles, {} bytes (degenerated ones clipped to the {}'s box)",
+            report.output,
+            report.entities,
+            report.vertices,
+            report.triangles,
+            report.bytes,
+            report.bounds_source
         );
     }
     Ok(())

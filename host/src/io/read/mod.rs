@@ -24,6 +24,7 @@
 //! bounded) and recognised by its content the same way; a KITTI scan, which only its name
 //! tells apart, cannot come that way. A file named `-` is `./-`.
 
+pub mod fuzz_checks;
 mod kitti;
 mod las;
 mod lzf;
