@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# Fuzz campaigns of the core's decoders (core/fuzz: the .mema map decoder and the wire decoder)
-# under cargo-fuzz, each for SECONDS (default 60), from a seed corpus made of the shared clouds:
-# their maps in every layout and their captures. The test suite checks the same properties on
-# mutations of the same seeds on stable (tests/tests/fuzzing.rs); this is the long campaign.
+# Fuzz campaigns under cargo-fuzz, each for SECONDS (default 60), from seed corpora made of the
+# shared clouds: the core's decoders (core/fuzz: the .mema map decoder, seeded with the clouds'
+# maps in every layout, and the wire decoder, with their captures) and the host's cloud readers
+# (host/fuzz: PLY, PCD, LAS/LAZ, XYZ and KITTI, seeded with the clouds themselves). The test
+# suite checks the same properties on mutations of the same seeds on stable
+# (tests/tests/fuzzing.rs); this is the long campaign.
 # Installs the nightly toolchain and cargo-fuzz when missing. Usage: scripts/fuzz.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -25,8 +27,31 @@ for cloud in car6.pcd lamppost.pcd bun_zipper.ply milk.pcd; do
 done
 rm -f "$corpus/capture.bin"
 
+# The readers' target reads its input under the name its first byte picks
+# (mema::io::read::fuzz_checks::NAMES: 0 .ply, 1 .pcd, 2 .las, 3 .laz, 4 .xyz, 5 .bin), since
+# KITTI .bin is told by its name alone.
+readers="$corpus/cloud_readers"
+mkdir -p "$readers"
+for cloud in ../shared/data/*.ply ../shared/data/*.pcd ../shared/data/*.las ../shared/data/*.laz; do
+  case "$cloud" in
+    *.ply) pick='\x00' ;; *.pcd) pick='\x01' ;; *.las) pick='\x02' ;; *.laz) pick='\x03' ;;
+  esac
+  { printf "$pick"; cat "$cloud"; } > "$readers/$(basename "$cloud")"
+done
+# XYZ text and a KITTI scan, from lamppost.pcd's ascii points.
+xyz=$(awk 'body { print $1, $2, $3 } /^DATA/ { body = 1 }' ../shared/data/lamppost.pcd)
+{ printf '\x04'; echo "$xyz"; } > "$readers/lamppost.xyz"
+{ printf '\x05'; echo "$xyz" | perl -ne 'print pack("f<4", split(" "), 0.5)'; } > "$readers/lamppost.bin"
+
 cd core/fuzz
 for target in map_decoder wire_decoder; do
   echo "== fuzz $target for $seconds s"
   cargo +nightly fuzz run "$target" "$corpus/$target" -- -max_total_time="$seconds" -max_len=262144
 done
+cd ../../host/fuzz
+# Built as the binary ships (-O: no debug assertions). With them, the laz crate's decoder stops
+# the campaign within seconds at its own debug_assert!(sym < 1 << 16) (decoders.rs:284) on
+# corrupt arithmetic-coded data, where a release build reads on and the reader returns its
+# one-line error (the first 3-minute campaign found that and nothing else).
+echo "== fuzz cloud_readers for $seconds s"
+cargo +nightly fuzz run -O cloud_readers "$readers" -- -max_total_time="$seconds" -max_len=1048576

@@ -84,6 +84,9 @@ pub struct Fit {
     pub volume_term: f64,
     /// Axes that ended on the upper bound of the search box.
     pub on_upper_bound: u8,
+    /// Axes that ended on its lower bound. Most axes of a map on either bound mean the box,
+    /// not eq. 12, chose them: typically a cloud read in the wrong unit.
+    pub on_lower_bound: u8,
     pub evaluations: u32,
 }
 
@@ -383,7 +386,7 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
         moments,
         &terms,
         semi_axes,
-        search.hi,
+        (search.lo, search.hi),
         evaluations,
         params,
         false,
@@ -410,7 +413,7 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
         moments,
         &terms,
         [radius; 3],
-        search.hi,
+        (search.lo, search.hi),
         evaluations,
         params,
         true,
@@ -426,14 +429,22 @@ pub fn fit_ellipsoid_f64<const POP: usize, R: Rng + ?Sized>(
 ) -> Fit {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
-    let hi = search.hi;
+    let bounds = (search.lo, search.hi);
     let seed = match params.initialisation {
         Initialisation::Random => None,
         Initialisation::MomentSeeded => Some(moment_candidate(moments, &terms, &search)),
     };
     let (semi_axes, evaluations) =
         search.minimize::<3, POP, R>(|r| terms.fitness(r), seed, params, rng);
-    finish(moments, &terms, semi_axes, hi, evaluations, params, false)
+    finish(
+        moments,
+        &terms,
+        semi_axes,
+        bounds,
+        evaluations,
+        params,
+        false,
+    )
 }
 
 /// [`fit_sphere`] before the f32 search (see [`fit_ellipsoid_f64`]).
@@ -454,14 +465,14 @@ pub fn fit_sphere_f64<const POP: usize, R: Rng + ?Sized>(
         moments,
         &terms,
         [radius; 3],
-        search.hi,
+        (search.lo, search.hi),
         evaluations,
         params,
         true,
     )
 }
 
-/// A semi-axis this close to the box's upper bound rests on it: the f32 search holds the bound
+/// A semi-axis this close to a bound of the box rests on it: the f32 search holds the bound
 /// to f32's precision (6e-8), the f64 one exactly.
 const ON_BOUND: f64 = 1e-6;
 
@@ -469,7 +480,7 @@ fn finish(
     moments: &CentralMoments,
     terms: &FitnessTerms,
     semi_axes: [f64; 3],
-    hi: f64,
+    (lo, hi): (f64, f64),
     evaluations: u32,
     params: &FitParams,
     sphere: bool,
@@ -485,14 +496,13 @@ fn finish(
         Entity::from_semi_axes(center, semi_axes, &params.degeneration)
     };
     let weights = semi_axes.map(|r| 1.0 / (r * r));
-    let on_upper_bound = if sphere {
-        u8::from(semi_axes[0] >= hi * (1.0 - ON_BOUND))
-    } else {
-        semi_axes
-            .iter()
-            .filter(|&&r| r >= hi * (1.0 - ON_BOUND))
-            .count() as u8
-    };
+    // A sphere's three semi-axes are one radius: it counts once.
+    let axes = semi_axes.iter().take(if sphere { 1 } else { 3 });
+    let on_upper_bound = axes
+        .clone()
+        .filter(|&&r| r >= hi * (1.0 - ON_BOUND))
+        .count() as u8;
+    let on_lower_bound = axes.filter(|&&r| r <= lo * (1.0 + ON_BOUND)).count() as u8;
     Fit {
         entity,
         semi_axes,
@@ -500,6 +510,7 @@ fn finish(
         residual_rms: terms.residual_rms(&weights),
         volume_term: terms.volume_term(&semi_axes),
         on_upper_bound,
+        on_lower_bound,
         evaluations,
     }
 }

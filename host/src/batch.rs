@@ -37,10 +37,46 @@ pub struct MapReport {
     /// `--surface-rounds 0`).
     pub surface_rounds: Option<usize>,
     pub entity: EntityChoice,
+    /// The written map's fitted axes that ended on a bound of DE's search box (null for
+    /// shells, which are not searched).
+    pub axes_on_bound: Option<AxesOnBound>,
     pub dropped_non_finite: usize,
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
+}
+
+/// How many fitted semi-axes ended on a bound of the box DE searched (`--bounds`): there the
+/// box, not eq. 12, chose their length.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct AxesOnBound {
+    /// Semi-axes fitted (a sphere's radius counts once).
+    pub axes: usize,
+    pub lower: usize,
+    pub upper: usize,
+}
+
+impl AxesOnBound {
+    /// Counts over `fits`.
+    pub fn of(fits: &[mema_core::fit::Fit], sphere: bool) -> Self {
+        let per_fit = if sphere { 1 } else { 3 };
+        fits.iter().fold(
+            Self {
+                axes: per_fit * fits.len(),
+                ..Self::default()
+            },
+            |acc, f| Self {
+                lower: acc.lower + usize::from(f.on_lower_bound),
+                upper: acc.upper + usize::from(f.on_upper_bound),
+                ..acc
+            },
+        )
+    }
+
+    /// Whether most axes rest on a bound.
+    pub fn most(&self) -> bool {
+        2 * (self.lower + self.upper) > self.axes
+    }
 }
 
 /// The paper's model: clusters, fits both entity types, evaluates eq. 13 for both, writes the
@@ -104,32 +140,70 @@ pub fn map_cloud_with(
     output: &Path,
     labels: Option<&Path>,
 ) -> Result<MapReport> {
+    let built = build_map(cloud, config, model, shells, entity)?;
+    built.map.write(output)?;
+    // After the map: labels never describe a map that was not written.
+    if let Some(path) = labels {
+        write_labels(path, &built.labels)?;
+    }
+    Ok(MapReport {
+        output: output.display().to_string(),
+        ..built.report
+    })
+}
+
+/// A map made in memory by [`build_map`], not yet written.
+#[derive(Clone, Debug)]
+pub struct BuiltMap {
+    /// The map `mema map` writes: the shells, or the paper's entities of the kind chosen.
+    pub map: HostMap,
+    /// Its report; `output` is empty until the map is written somewhere.
+    pub report: MapReport,
+    /// Each point's cluster (after surface following, for shells), in the cloud's order: what
+    /// `mema map --labels` writes.
+    pub labels: Vec<u32>,
+}
+
+/// [`map_cloud_with`]'s work without the files: the map, its report and the points' labels,
+/// for a caller that keeps the map in memory (the Python package) or writes it elsewhere.
+/// Written with [`HostMap::write`], the map is the same bytes `map_cloud_with` writes.
+///
+/// ```
+/// use mema::mapping::{EntityChoice, FitOptions, Model, ShellModel};
+///
+/// let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/car6.pcd");
+/// let cloud = mema::io::load_cloud(path.as_ref())?;
+/// let config = FitOptions::default().config(40)?;
+/// let (shells, entity) = (ShellModel::default(), EntityChoice::Ellipsoid);
+/// let built = mema::batch::build_map(&cloud, &config, Model::Shells, shells, entity)?;
+/// assert_eq!(built.map.entities.len(), 40);
+/// assert_eq!(built.labels.len(), cloud.points.len());
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub fn build_map(
+    cloud: &LocalCloud,
+    config: &PipelineConfig,
+    model: Model,
+    shells: ShellModel,
+    entity: EntityChoice,
+) -> Result<BuiltMap> {
     let clusters = stage("k-means", || {
         pipeline::cluster(&cloud.points, config.k, &config.kmeans)
     })?;
-    let (report, refined) = match model {
-        Model::Shells => shells_report(cloud, config, shells, &clusters, output)?,
-        Model::Paper => (
-            paper_report(cloud, config, entity, &clusters, output)?,
-            None,
-        ),
-    };
-    // After the map: labels never describe a map that was not written.
-    if let Some(path) = labels {
-        write_labels(path, refined.as_deref().unwrap_or(&clusters.labels))?;
-    }
-    Ok(report)
+    Ok(match model {
+        Model::Shells => shells_map(cloud, config, shells, clusters),
+        Model::Paper => paper_map(cloud, config, entity, clusters),
+    })
 }
 
 /// The paper's maps of the clusters (ellipsoids and spheres by DE on eq. 12), the chosen one
-/// written, and their report.
-fn paper_report(
+/// and their report.
+fn paper_map(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     entity: EntityChoice,
-    clusters: &pipeline::Clusters,
-    output: &Path,
-) -> Result<MapReport> {
+    clusters: pipeline::Clusters,
+) -> BuiltMap {
     let fitted = stage("fitting", || {
         pipeline::fit_all(&clusters.moments, config.seed, &config.fit)
     });
@@ -142,28 +216,34 @@ fn paper_report(
             pipeline::cluster_errors(&cloud.points, &clusters.labels, &entities)
         }))
     };
-    let chosen = match entity {
-        EntityChoice::Ellipsoid => &ellipsoids,
-        EntityChoice::Sphere => &spheres,
+    let (ellipsoidal, spherical) = (errors(&ellipsoids), errors(&spheres));
+    let (chosen, on_bound) = match entity {
+        EntityChoice::Ellipsoid => (ellipsoids, AxesOnBound::of(&fitted.ellipsoids, false)),
+        EntityChoice::Sphere => (spheres, AxesOnBound::of(&fitted.spheres, true)),
     };
-    chosen.write(output)?;
-    Ok(MapReport {
+    let report = MapReport {
         model: Model::Paper,
         memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
-        ellipsoidal: errors(&ellipsoids),
-        spherical: Some(errors(&spheres)),
-        kinds: KindCounts::of(chosen),
+        ellipsoidal,
+        spherical: Some(spherical),
+        kinds: KindCounts::of(&chosen),
         kmeans_iterations: clusters.outcome.iterations,
         kmeans_converged: clusters.outcome.converged,
         surface_rounds: None,
         entity,
+        axes_on_bound: Some(on_bound),
         dropped_non_finite: cloud.dropped_non_finite,
-        output: output.display().to_string(),
+        output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),
             ..Default::default()
         },
-    })
+    };
+    BuiltMap {
+        map: chosen,
+        report,
+        labels: clusters.labels,
+    }
 }
 
 /// Shells never degenerate: a shell spans its cluster's points, which are bounded, so an
@@ -179,15 +259,14 @@ fn shell_params(shell: ShellParams, config: &PipelineConfig) -> ShellParams {
     }
 }
 
-/// The shell model's map of the clusters, written, its report, and the points' labels when
-/// surface following changed them.
-fn shells_report(
+/// The shell model's map of the clusters, its report, and the points' labels (those surface
+/// following left, or the k-means cells').
+fn shells_map(
     cloud: &LocalCloud,
     config: &PipelineConfig,
     model: ShellModel,
-    clusters: &pipeline::Clusters,
-    output: &Path,
-) -> Result<(MapReport, Option<Vec<u32>>)> {
+    clusters: pipeline::Clusters,
+) -> BuiltMap {
     let params = shell_params(model.shell, config);
     let centres: Vec<Point3> = clusters
         .moments
@@ -211,7 +290,6 @@ fn shells_report(
     let map = stage("fitting", || {
         shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
     });
-    map.write(output)?;
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     let errors = stage("evaluating", || {
         pipeline::cluster_errors(&cloud.points, labels, &entities)
@@ -230,14 +308,23 @@ fn shells_report(
         kmeans_converged: clusters.outcome.converged,
         surface_rounds: surfaces.as_ref().map(|s| s.rounds),
         entity: EntityChoice::Ellipsoid,
+        axes_on_bound: None,
         dropped_non_finite: cloud.dropped_non_finite,
-        output: output.display().to_string(),
+        output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),
             ..Default::default()
         },
     };
-    Ok((report, surfaces.map(|s| s.labels)))
+    let labels = match surfaces {
+        Some(s) => s.labels,
+        None => clusters.labels,
+    };
+    BuiltMap {
+        map,
+        report,
+        labels,
+    }
 }
 
 /// The tolerance mode's settings (`mema map --tolerance`).
@@ -288,6 +375,8 @@ pub struct ToleranceReport {
     pub kinds: KindCounts,
     /// Eq. 13 error of each cluster, in map order.
     pub errors: Vec<f64>,
+    /// Points of the file skipped for a NaN or infinite coordinate.
+    pub dropped_non_finite: usize,
     pub output: String,
 }
 
@@ -351,8 +440,9 @@ impl ToleranceMap {
         labels
     }
 
-    /// The report of this map of a cloud of `points` points, written to `output`.
-    pub fn report(&self, points: usize, output: &Path) -> ToleranceReport {
+    /// The report of this map of `cloud`, written to `output`.
+    pub fn report(&self, cloud: &LocalCloud, output: &Path) -> ToleranceReport {
+        let points = cloud.points.len();
         let errors: Vec<f64> = self.outcome.nodes.iter().map(|n| n.error).collect();
         ToleranceReport {
             tolerance: self.tolerance,
@@ -370,6 +460,7 @@ impl ToleranceMap {
             capacity_reached: self.outcome.capacity_reached,
             kinds: KindCounts::of(&self.map),
             errors,
+            dropped_non_finite: cloud.dropped_non_finite,
             output: output.display().to_string(),
         }
     }

@@ -100,6 +100,33 @@ pub enum ConfigError {
     /// Frozen clusters asked for together with the tolerance mode.
     #[error("a working set below k and a tolerance do not combine: frozen clusters cannot merge")]
     WorkingWithTolerance,
+    /// The sensor view asked to put z, the axis it looks along, up.
+    #[error("the sensor view looks along z, so z cannot be up; choose x or y")]
+    UpAlongView,
+    /// A mesh past the output limit, found from the counts before any of it is made.
+    #[error(
+        "{entities} entities at {segments} segments and {rings} rings make {vertices} vertices and {triangles} triangles, {bytes} bytes of {format}, over the limit of {limit} bytes"
+    )]
+    MeshTooLarge {
+        /// Entities in the map.
+        entities: usize,
+        /// Vertices around each ellipsoid and tube.
+        segments: u32,
+        /// Latitude bands of each ellipsoid.
+        rings: u32,
+        /// Vertices the mesh would have.
+        vertices: u64,
+        /// Triangles the mesh would have.
+        triangles: u64,
+        /// Bytes the file would take (an upper bound for OBJ's text).
+        bytes: u64,
+        /// The format's name.
+        format: &'static str,
+        /// The limit asked for.
+        limit: u64,
+        /// The finest (segments, rings) at the same ratio that fit the limit, if any does.
+        fits: Option<(u32, u32)>,
+    },
     /// A byte budget of zero for the fidelity benchmark.
     #[error("a budget of {0} bytes: a budget is at least 1 byte")]
     ZeroBudget(usize),

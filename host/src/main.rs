@@ -31,7 +31,10 @@ fn main() -> ExitCode {
         eprintln!("mema: cannot start the worker threads: {e}");
         return ExitCode::from(1);
     }
-    let cli = cli::Cli::parse();
+    let cli = match cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return cli::errors::usage_failed(e),
+    };
     match cli::run(&cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -132,8 +132,9 @@ fn eval_json_has_the_documented_keys_and_consistent_figures() {
         "file_bytes",
         "header_bytes",
         "bytes_per_entity",
-        // The unit the cloud was read in (issue 15).
+        // The unit the cloud was read in, and the points dropped for NaN coordinates (issue 15).
         "unit",
+        "dropped_non_finite",
     ];
     let mut got = keys.clone();
     want.sort();
@@ -197,7 +198,7 @@ fn demo_needs_no_files_and_writes_its_map() {
         "{}",
         ran.stdout()
     );
-    let map = HostMap::read(&dir.join("mema-demo.mema")).expect("demo map");
+    let map = HostMap::read(&dir.join("mema-demo/map.mema")).expect("demo map");
     assert_eq!(map.entities.len(), 250);
     assert!(
         map.quantization.is_some(),
@@ -209,7 +210,7 @@ fn demo_needs_no_files_and_writes_its_map() {
             .any(|e| e.entity.rotation != mema_core::Rotation::IDENTITY),
         "no shell of the demo turned"
     );
-    assert_eq!(dir.listing(), vec!["mema-demo.mema".to_string()]);
+    assert_eq!(dir.listing(), vec!["mema-demo".to_string()]);
     // The paper's method, one flag away, with its spherical comparison.
     let ran = MemaCommand::new(&dir)
         .args(["demo", "--paper"])
@@ -220,7 +221,7 @@ fn demo_needs_no_files_and_writes_its_map() {
         "{}",
         ran.stdout()
     );
-    let map = HostMap::read(&dir.join("mema-demo.mema")).expect("paper demo map");
+    let map = HostMap::read(&dir.join("mema-demo/map.mema")).expect("paper demo map");
     assert_eq!(map.entities.len(), 250);
     assert!(map.quantization.is_none());
     assert!(

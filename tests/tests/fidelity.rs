@@ -262,30 +262,6 @@ fn fibonacci_on_ellipsoid(r: [f64; 3], n: usize) -> Vec<[f64; 3]> {
         .collect()
 }
 
-/// The rotation matrix of the unit quaternion `(x, y, z, w)`, written out here rather than
-/// taken from core.
-fn matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
-    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
-    let [x, y, z, w] = q.map(|v| v / n);
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 /// An entity's semi-axes, kind, and the points drawn on it in its own axes.
 type Drawn = ([f64; 3], &'static str, Vec<[f64; 3]>);
 
@@ -343,7 +319,7 @@ fn drawn_scene(turned: bool) -> (String, String, f64) {
         } else {
             [0.0, 0.0, 0.0, 1.0]
         };
-        let m = matrix(q);
+        let m = crate::util::quaternion_matrix(q);
         for p in local {
             let w = [0, 1, 2].map(|a| c[a] + (0..3).map(|b| m[a][b] * p[b]).sum::<f64>());
             text.push_str(&format!("{} {} {}\n", w[0], w[1], w[2]));

@@ -1,6 +1,8 @@
-//! The stable half of the fuzzing: the properties of `mema_core::fuzz_checks`, which the
-//! cargo-fuzz targets in `core/fuzz` check in long campaigns (`scripts/fuzz.sh`), checked here on
-//! mutations of the same seeds: maps of the shared clouds in every layout, and their captures.
+//! The stable half of the fuzzing: the properties of `mema_core::fuzz_checks` and of
+//! `mema::io::read::fuzz_checks`, which the cargo-fuzz targets in `core/fuzz` and `host/fuzz`
+//! check in long campaigns (`scripts/fuzz.sh`), checked here on mutations of the same seeds:
+//! maps of the shared clouds in every layout, their captures, and the clouds themselves in
+//! every format the readers take.
 
 use mema::link::frames::{encode_stream, quantise};
 use mema_core::fuzz_checks::{map_file, wire_stream};
@@ -114,4 +116,111 @@ fn wire_decoder_gives_the_same_frames_in_any_pieces_of_mutated_captures() {
             assert_eq!(wire_stream(&bytes, piece), Ok(()), "{cloud}, round {round}");
         }
     }
+}
+
+/// Seeds for the readers, from the shared clouds: the small files whole (LZF-compressed and
+/// ascii PCD, LAS, LAZ), and the first points of larger clouds re-encoded in the layouts the
+/// shared data lacks (binary PCD, binary PLY in both byte orders, ascii PLY, XYZ text, KITTI
+/// `.bin`), each with the fuzz target's first byte: the name it is read under.
+fn reader_seeds() -> Vec<(&'static str, u8, Vec<u8>)> {
+    use mema::io::read::fuzz_checks::NAMES;
+    let pick = |name: &str| NAMES.iter().position(|n| *n == name).expect(name) as u8;
+    let mut seeds = Vec::new();
+    for (file, name) in [
+        ("car6.pcd", "fuzz.pcd"),
+        ("milk.pcd", "fuzz.pcd"),
+        ("lamppost.pcd", "fuzz.pcd"),
+        ("simple.las", "fuzz.las"),
+        ("autzen_trim.laz", "fuzz.laz"),
+    ] {
+        let bytes = std::fs::read(shared(file)).expect(file);
+        seeds.push((file, pick(name), bytes));
+    }
+    let cloud = mema::io::read::read_cloud(&shared("bun000.ply")).expect("bun000");
+    let points: Vec<[f32; 3]> = cloud.points.iter().take(1500).copied().collect();
+    let n = points.len();
+    let floats = |big: bool, w: usize| -> Vec<u8> {
+        points
+            .iter()
+            .flat_map(|p| {
+                let mut q = p.to_vec();
+                q.resize(w, 0.5);
+                q
+            })
+            .flat_map(|c| {
+                if big {
+                    c.to_be_bytes()
+                } else {
+                    c.to_le_bytes()
+                }
+            })
+            .collect()
+    };
+    let text: String = points
+        .iter()
+        .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+        .collect();
+    let ply = |format: &str| {
+        format!(
+            "ply\nformat {format} 1.0\nelement vertex {n}\nproperty float x\n\
+             property float y\nproperty float z\nend_header\n"
+        )
+        .into_bytes()
+    };
+    let pcd = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\n\
+         HEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA binary\n"
+    );
+    seeds.push((
+        "binary PCD",
+        pick("fuzz.pcd"),
+        [pcd.into_bytes(), floats(false, 3)].concat(),
+    ));
+    for (format, big) in [("binary_little_endian", false), ("binary_big_endian", true)] {
+        seeds.push((
+            "binary PLY",
+            pick("fuzz.ply"),
+            [ply(format), floats(big, 3)].concat(),
+        ));
+    }
+    let ascii = [ply("ascii"), text.clone().into_bytes()].concat();
+    seeds.push(("ascii PLY", pick("fuzz.ply"), ascii));
+    seeds.push(("XYZ", pick("fuzz.xyz"), text.into_bytes()));
+    seeds.push(("KITTI", pick("fuzz.bin"), floats(false, 4)));
+    seeds
+}
+
+/// Every reader on mutations of real files in every format: never a panic, and either an
+/// error of one line naming the file or a cloud of finite points whose counts agree
+/// (`fuzz_checks::cloud_bytes`, the cargo-fuzz target's property). The seeds themselves must
+/// read as clouds, so the mutations start from inputs that reach the readers' depths.
+#[test]
+fn cloud_readers_hold_their_properties_on_mutated_real_files() {
+    use mema::io::read::fuzz_checks::{Outcome, cloud_bytes};
+    let mut m = Mutator(0x5851_f42d_4c95_7f2d);
+    let (mut clouds, mut errors) = (0, 0);
+    for (what, pick, seed) in reader_seeds() {
+        let whole = cloud_bytes(pick, &seed);
+        assert!(
+            matches!(whole, Ok(Outcome::Cloud { .. })),
+            "{what}: the seed itself: {whole:?}"
+        );
+        // LAZ decodes a chunk at a time; fewer rounds keep its share of the time in line.
+        let rounds = if seed.len() > 200_000 { 150 } else { 600 };
+        for round in 0..rounds {
+            let bytes = m.mutate(&seed, round);
+            let result = std::panic::catch_unwind(|| cloud_bytes(pick, &bytes));
+            let checked = result.unwrap_or_else(|_| panic!("{what}, round {round}: a panic"));
+            match checked {
+                Ok(Outcome::Cloud { .. }) => clouds += 1,
+                Ok(Outcome::Refused) => errors += 1,
+                Err(violation) => panic!("{what}, round {round}: {violation:?}"),
+            }
+        }
+    }
+    // Both outcomes are reached: the mutations neither all break nor all spare the files.
+    assert!(
+        clouds > 1_000 && errors > 500,
+        "{clouds} clouds, {errors} errors"
+    );
 }

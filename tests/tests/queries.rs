@@ -196,29 +196,6 @@ fn query_command_answers_in_world_coordinates() {
         .assert_error(2, "--point");
 }
 
-/// The rotation matrix of a unit quaternion (x, y, z, w), written out here rather than taken
-/// from the core, so the surface check below does not trust the code it checks.
-fn matrix_of(q: [f32; 4]) -> [[f64; 3]; 3] {
-    let [x, y, z, w] = q.map(f64::from);
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 #[test]
 fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
     // Shells of car6 (every entity turned), and the bunny's threshold-box map (pseudocylinders)
@@ -280,7 +257,10 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
                 hits += 1;
                 // On the surface in the entity's own frame: sum w (R^T (x - c))^2 = 1.
                 let e = &entities[hit.entity];
-                let (c, m) = (e.center.to_f64(), matrix_of(e.rotation.to_array()));
+                let (c, m) = (
+                    e.center.to_f64(),
+                    crate::util::quaternion_matrix(e.rotation.to_array().map(f64::from)),
+                );
                 let d = [0, 1, 2].map(|j| hit.point[j] - c[j]);
                 let s: f64 = (0..3)
                     .map(|j| {
@@ -292,5 +272,70 @@ fn index_answers_equal_the_brute_force_scan_on_oriented_maps() {
             }
         }
         assert!(hits > 1000, "{name}: queries too easy ({hits} hits)");
+    }
+}
+
+/// `transform` labels each moved entity by its infinite axes, as the kinds are defined (one a
+/// pseudocylinder, two a pair of planes), even where the map it read was labelled otherwise
+/// (written by another tool, or by hand); a finite entity keeps its ellipsoid or sphere.
+#[test]
+fn transform_labels_kinds_by_their_infinite_axes() {
+    let dir = Dir::new("transform-kinds");
+    let bunny = shared("bun_zipper.ply");
+    let mut rows = Vec::new();
+    // Thresholds at which the bunny's clusters degenerate: one infinite axis, then two.
+    for threshold in ["0.02", "0.012"] {
+        MemaCommand::new(&dir)
+            .arg("map")
+            .arg(&bunny)
+            .args(["--paper", "-k", "40", "--bounds", "threshold"])
+            .args(["--threshold", threshold, "-o", "deg.csv"])
+            .run()
+            .assert_ok();
+        let csv = std::fs::read_to_string(dir.join("deg.csv")).expect("csv");
+        rows.extend(csv.lines().skip(1).map(str::to_owned));
+    }
+    let infinite = |row: &str| {
+        let fields: Vec<&str> = row.split(',').collect();
+        fields[3..6].iter().filter(|r| **r == "inf").count()
+    };
+    let counts = |rows: &[String], n| rows.iter().filter(|r| infinite(r) == n).count();
+    assert!(counts(&rows, 1) > 0 && counts(&rows, 2) > 0, "{rows:?}");
+    // Every entity labelled an ellipsoid, whatever its axes.
+    let mislabelled: String = rows
+        .iter()
+        .map(|r| {
+            let keep = r.rsplit_once(',').expect("kind column").0;
+            format!("{keep},ellipsoid\n")
+        })
+        .collect();
+    dir.write(
+        "labelled.csv",
+        format!("cx,cy,cz,rx,ry,rz,qx,qy,qz,qw,kind\n{mislabelled}").as_bytes(),
+    );
+    for rotate in ["30,20,10", "90,0,0", "0,0,0"] {
+        MemaCommand::new(&dir)
+            .args([
+                "transform",
+                "labelled.csv",
+                "-o",
+                "moved.csv",
+                "--rotate",
+                rotate,
+            ])
+            .run()
+            .assert_ok();
+        let moved = std::fs::read_to_string(dir.join("moved.csv")).expect("moved");
+        let moved: Vec<&str> = moved.lines().skip(1).collect();
+        assert_eq!(moved.len(), rows.len());
+        for row in moved {
+            let kind = row.rsplit(',').next().expect("kind");
+            let want = match infinite(row) {
+                0 => "ellipsoid",
+                1 => "pseudocylinder",
+                _ => "plane_pair",
+            };
+            assert_eq!(kind, want, "--rotate {rotate}: {row}");
+        }
     }
 }

@@ -20,29 +20,12 @@ fn random_rotation(seed: u64) -> [[f64; 3]; 3] {
     };
     let (u1, u2, u3) = (next(), next(), next());
     let tau = std::f64::consts::TAU;
-    let (x, y, z, w) = (
+    crate::util::quaternion_matrix([
         (1.0 - u1).sqrt() * (tau * u2).sin(),
         (1.0 - u1).sqrt() * (tau * u2).cos(),
         u1.sqrt() * (tau * u3).sin(),
         u1.sqrt() * (tau * u3).cos(),
-    );
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
+    ])
 }
 
 fn figures(s: &FidelityScore) -> [(&'static str, f64); 8] {

@@ -421,3 +421,54 @@ fn working_memory_smaller_than_k_freezes_and_stays_within_k() {
             .assert_error(2, needle);
     }
 }
+
+/// `stream`'s points/s counts the time the points took to arrive, not the wait before the
+/// scanner started: with a pause of `WAIT` before the first byte, the rate is at least the
+/// points over what is left of the run once the pause is taken out (the first point cannot
+/// arrive before the scanner sends it).
+#[test]
+fn stream_rate_leaves_out_the_wait_for_the_first_point() {
+    const WAIT: Duration = Duration::from_secs(2);
+    let dir = Dir::new("stream-rate");
+    let mut pty = PtyPair::new(&dir);
+    let stream = spawn_mema(
+        &dir,
+        &[
+            "stream",
+            "--port",
+            pty.b.to_str().expect("utf8"),
+            "-k",
+            "100",
+            "-o",
+            "map.mema",
+            "--json",
+        ],
+    );
+    stream.wait_until_listening();
+    std::thread::sleep(WAIT);
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .arg("--port")
+        .arg(&pty.a)
+        .arg(shared("car6.pcd"))
+        .run()
+        .assert_ok();
+    let (code, stdout, stderr) = finish(stream, Duration::from_secs(60));
+    assert_eq!(code, 0, "{stderr}");
+    pty.unplug();
+    let s: serde_json::Value = serde_json::from_str(&stdout).expect("summary JSON");
+    let number = |key: &str| s[key].as_f64().unwrap_or_else(|| panic!("{key}: {s}"));
+    let (points, elapsed) = (number("points"), number("elapsed_s"));
+    let (arrival, rate) = (number("arrival_s"), number("points_per_s"));
+    assert_eq!(points, 10_031.0);
+    assert!(
+        arrival > 0.0 && arrival <= elapsed - WAIT.as_secs_f64(),
+        "{s}"
+    );
+    assert!((rate * arrival / points - 1.0).abs() < 1e-9, "{s}");
+    assert!(
+        rate >= points / (elapsed - WAIT.as_secs_f64()),
+        "the wait diluted the rate: {s}"
+    );
+    assert!(stderr.contains("points/s over the"), "{stderr}");
+}

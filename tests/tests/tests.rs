@@ -46,6 +46,10 @@ mod link_faults;
 mod poses;
 // Multi-view data: the bunny scans of bun.conf registered, streamed with their poses, mapped.
 mod multiview;
+// The moving robot through the demo scene, streamed with its poses.
+mod drive;
+// The independent sender written from PROTOCOL.md alone.
+mod sender;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,
@@ -56,6 +60,9 @@ mod stream_shells;
 mod toolbox;
 // draw and export of oriented maps: a turned map meshes and draws as the turned original.
 mod toolbox_oriented;
+// draw and export within bounds: export's size counted first and limited, draw's --up,
+// sensor view, frame, scale-bar unit and work.
+mod toolbox_bounds;
 // .mema versions: a version-1 file written here by hand still loads; --paper writes version 1,
 // shells version 2 quantized, both within --bytes, decoded here from the documented layout.
 mod map_versions;
@@ -63,3 +70,9 @@ mod map_versions;
 mod units;
 // Exact rotation: a cloud and its map turned by the same random rotation score the same.
 mod rotation_invariance;
+// A first run that explains itself: the demo's files and next commands, man pages, one-line
+// usage errors, scanner-sim to a file, clouds on standard input.
+mod first_run;
+// What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
+// fits the search box chose.
+mod honest_reports;

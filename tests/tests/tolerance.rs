@@ -137,3 +137,46 @@ fn check_tolerance_map(dir: &Dir, cloud: &str, k: usize, t: f64, model: &str) {
         );
     }
 }
+
+/// `stream-bench --tolerance` holds the stream map against a batch map of as many entities: the
+/// stream stops short of its capacity -k there, and a batch map of k entities would win by
+/// having more of them. The batch map's eq. 13 is then that of `mema map -k <that count>`,
+/// as `mema eval` scores it (each point to its nearest centre, as stream-bench does).
+#[test]
+fn stream_bench_with_a_tolerance_compares_maps_of_equal_size() {
+    let dir = Dir::new("tolerance-stream-bench");
+    let car = shared("car6.pcd");
+    let json = MemaCommand::new(&dir)
+        .arg("stream-bench")
+        .arg(&car)
+        .args(["-k", "400", "--tolerance", "0.1", "--repetitions", "1"])
+        .args(["--model", "paper", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    let stream = json["stream_entities"].as_u64().expect("stream entities");
+    let batch = json["batch_entities"].as_u64().expect("batch entities");
+    assert!(
+        stream > 0 && stream < 400,
+        "T left the capacity unused: {json}"
+    );
+    assert_eq!(batch, stream, "{json}");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car)
+        .args(["--paper", "-k", &stream.to_string(), "-o", "batch.mema"])
+        .run()
+        .assert_ok();
+    let scored = MemaCommand::new(&dir)
+        .arg("eval")
+        .arg(&car)
+        .args(["batch.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    let (bench, eval) = (
+        json["batch_mean_error"].as_f64().expect("bench"),
+        scored["mean"].as_f64().expect("eval"),
+    );
+    assert!((bench / eval - 1.0).abs() < 1e-9, "{bench} vs {eval}");
+}

@@ -197,13 +197,15 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
         .iter()
         .map(|v| v.as_i64().unwrap())
         .collect();
-    // The cloud fills the plot along one axis at least.
+    // The cloud lies inside the plot, which is fitted to it and to the entities (see
+    // toolbox_bounds); entities may widen it at most twice, so the cloud fills half of it at
+    // least (this map's threshold box lets the paper's fits grow metres long).
     let span = |j: usize| {
         world.iter().map(|p| p[j]).fold(f64::MIN, f64::max)
             - world.iter().map(|p| p[j]).fold(f64::MAX, f64::min)
     };
     let filled = (span(0) * scale / plot[2] as f64).max(span(1) * scale / plot[3] as f64);
-    assert!((filled - 1.0).abs() < 0.01, "{filled}");
+    assert!((0.5 - 1e-9..=1.0 + 1e-9).contains(&filled), "{filled}");
     // Highest point per pixel its dot covers.
     let size = report["point_size"].as_i64().unwrap();
     let mut dots = std::collections::HashMap::<(i64, i64), f64>::new();

@@ -53,29 +53,6 @@ fn rotate_30_20_10() -> M3 {
     matmul(&rz, &matmul(&ry, &rx))
 }
 
-/// The matrix of the unit quaternion (x, y, z, w), normalised in f64.
-fn quaternion_matrix(q: [f32; 4]) -> M3 {
-    let n = q.iter().map(|v| f64::from(*v).powi(2)).sum::<f64>().sqrt();
-    let [x, y, z, w] = q.map(|v| f64::from(v) / n);
-    [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ]
-}
-
 /// Maps `cloud` and turns the map with the CLI; returns (original, turned).
 fn map_and_turn(dir: &Dir, cloud: &str, k: &str) -> (HostMap, HostMap) {
     MemaCommand::new(dir)
@@ -113,7 +90,7 @@ fn map_and_turn(dir: &Dir, cloud: &str, k: &str) -> (HostMap, HostMap) {
 fn expected_bounds(map: &HostMap) -> Bounds {
     let (mut min, mut max, mut largest) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3], 0.0f64);
     for e in &map.entities {
-        let q = quaternion_matrix(e.entity.rotation.to_array());
+        let q = crate::util::quaternion_matrix(e.entity.rotation.to_array().map(f64::from));
         let r = e.entity.semi_axes_f64();
         let c = map.world_center(&e.entity);
         for j in 0..3 {
@@ -179,13 +156,16 @@ fn export_of_a_turned_map_is_the_turned_export() {
                 "{cloud}: bounds {br:?}, want {want:?}"
             );
         }
-        let (ma, mr) = (tessellate(&a, &ba, &t), tessellate(&r, &br, &t));
+        let (ma, mr) = (
+            tessellate(&a, &ba, &t).expect("memory"),
+            tessellate(&r, &br, &t).expect("memory"),
+        );
         let (ea, er) = (per_entity(&a, &ma, &t), per_entity(&r, &mr, &t));
         assert_eq!(ea.len(), er.len());
         let (mut on_surface, mut worst_surface, mut worst_turn) = (0, 0.0f64, 0.0f64);
         for ((eo, vo), (e, vr)) in ea.iter().zip(&er) {
             assert_eq!((eo.kind, vo.len()), (e.kind, vr.len()));
-            let q = quaternion_matrix(e.entity.rotation.to_array());
+            let q = crate::util::quaternion_matrix(e.entity.rotation.to_array().map(f64::from));
             let c = r.world_center(&e.entity);
             let semi = e.entity.semi_axes_f64();
             let size = semi

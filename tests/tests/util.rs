@@ -1,5 +1,6 @@
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The shared real clouds, read in place (never copied into the repository).
@@ -73,6 +74,17 @@ impl Drop for Dir {
 pub struct MemaCommand {
     args: Vec<String>,
     cwd: PathBuf,
+    stdin: Stdin,
+}
+
+/// What `mema` reads on its standard input.
+enum Stdin {
+    /// Nothing: a closed stream.
+    Closed,
+    /// A file, as `< file` redirects it.
+    File(PathBuf),
+    /// Bytes through a pipe, written as `mema` reads them.
+    Pipe(Vec<u8>),
 }
 
 pub struct Ran {
@@ -85,7 +97,20 @@ impl MemaCommand {
         Self {
             args: Vec::new(),
             cwd: dir.path.clone(),
+            stdin: Stdin::Closed,
         }
+    }
+
+    /// Standard input redirected from `path`.
+    pub fn stdin_file(mut self, path: impl Into<PathBuf>) -> Self {
+        self.stdin = Stdin::File(path.into());
+        self
+    }
+
+    /// Standard input a pipe that carries `bytes`.
+    pub fn stdin_pipe(mut self, bytes: Vec<u8>) -> Self {
+        self.stdin = Stdin::Pipe(bytes);
+        self
     }
 
     pub fn arg(mut self, a: impl AsRef<std::ffi::OsStr>) -> Self {
@@ -101,12 +126,34 @@ impl MemaCommand {
     }
 
     pub fn run(self) -> Ran {
-        let output = Command::new(mema_bin())
+        let mut command = Command::new(mema_bin());
+        command
             .args(&self.args)
             .current_dir(&self.cwd)
-            .env("RUST_BACKTRACE", "1")
-            .output()
-            .expect("mema runs");
+            .env("RUST_BACKTRACE", "1");
+        let output = match self.stdin {
+            Stdin::Closed => command.output().expect("mema runs"),
+            Stdin::File(path) => command
+                .stdin(std::fs::File::open(&path).expect("stdin file"))
+                .output()
+                .expect("mema runs"),
+            Stdin::Pipe(bytes) => {
+                let mut child = command
+                    .stdin(Stdio::piped())
+                    .stdout(Stdio::piped())
+                    .stderr(Stdio::piped())
+                    .spawn()
+                    .expect("mema runs");
+                let mut pipe = child.stdin.take().expect("stdin piped");
+                // A writer of its own: mema may answer (or fail) before it has read it all.
+                let writer = std::thread::spawn(move || {
+                    let _ = pipe.write_all(&bytes);
+                });
+                let output = child.wait_with_output().expect("mema runs");
+                writer.join().expect("stdin writer");
+                output
+            }
+        };
         Ran {
             output,
             description: format!("mema {} (in {})", self.args.join(" "), self.cwd.display()),
@@ -179,4 +226,29 @@ impl Ran {
         serde_json::from_str(&self.stdout())
             .unwrap_or_else(|e| panic!("stdout is not JSON ({e}):\n{}", self.report()))
     }
+}
+
+/// The rotation matrix of the quaternion `(x, y, z, w)` (scalar last, normalised here), written
+/// out in the tests rather than taken from the core, so checks of oriented maps do not trust the
+/// code they check.
+pub fn quaternion_matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let [x, y, z, w] = q.map(|v| v / n);
+    [
+        [
+            1.0 - 2.0 * (y * y + z * z),
+            2.0 * (x * y - z * w),
+            2.0 * (x * z + y * w),
+        ],
+        [
+            2.0 * (x * y + z * w),
+            1.0 - 2.0 * (x * x + z * z),
+            2.0 * (y * z - x * w),
+        ],
+        [
+            2.0 * (x * z - y * w),
+            2.0 * (y * z + x * w),
+            1.0 - 2.0 * (x * x + y * y),
+        ],
+    ]
 }

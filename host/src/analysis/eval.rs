@@ -13,6 +13,23 @@ use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::{HostMap, MapFormat};
 use crate::mapping::pipeline;
 
+/// `mema eval --json` (and the Python package's `Map.eval`): eq. 13's keys first and unchanged,
+/// then the two-way score's, the bytes', the points dropped on reading and the cloud's unit.
+/// One type for both, so the two documents cannot drift apart.
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalDocument {
+    #[serde(flatten)]
+    pub eq13: EvalReport,
+    #[serde(flatten)]
+    pub fidelity: super::fidelity::FidelityScore,
+    #[serde(flatten)]
+    pub bytes: FileBytes,
+    /// Points of the cloud skipped for a NaN or infinite coordinate.
+    pub dropped_non_finite: usize,
+    /// The cloud's unit and where it came from (`io::Units`, as JSON).
+    pub unit: serde_json::Value,
+}
+
 /// Past this many surface samples the score costs memory and time for no added precision.
 pub const MAX_SAMPLES: usize = 100_000_000;
 
@@ -73,6 +90,56 @@ pub fn points_in_map_frame(cloud: &LocalCloud, map: &HostMap) -> Vec<[f64; 3]> {
             [q[0] + shift[0], q[1] + shift[1], q[2] + shift[2]]
         })
         .collect()
+}
+
+/// An axis-aligned box in world coordinates (metres).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct WorldBox {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+impl WorldBox {
+    fn grow(b: Option<Self>, min: [f64; 3], max: [f64; 3]) -> Option<Self> {
+        Some(match b {
+            None => Self { min, max },
+            Some(b) => Self {
+                min: [0, 1, 2].map(|j| b.min[j].min(min[j])),
+                max: [0, 1, 2].map(|j| b.max[j].max(max[j])),
+            },
+        })
+    }
+
+    /// The box of `cloud`'s points; `None` for a cloud of no points.
+    pub fn of_cloud(cloud: &LocalCloud) -> Option<Self> {
+        cloud.points.iter().fold(None, |b, p| {
+            let q = p.to_f64();
+            let w = [0, 1, 2].map(|j| cloud.origin[j] + q[j]);
+            Self::grow(b, w, w)
+        })
+    }
+
+    /// The box `map`'s entities reach: each centre plus and minus its largest finite
+    /// semi-axis, which holds the entity whichever way it is turned (an infinite axis adds
+    /// nothing: it reaches everywhere, and so says nothing of where the map lies); `None` for
+    /// a map of no entities.
+    pub fn of_map(map: &HostMap) -> Option<Self> {
+        map.entities.iter().fold(None, |b, e| {
+            let c = map.world_center(&e.entity);
+            let r = e
+                .entity
+                .semi_axes_f64()
+                .into_iter()
+                .filter(|r| r.is_finite())
+                .fold(0.0, f64::max);
+            Self::grow(b, c.map(|v| v - r), c.map(|v| v + r))
+        })
+    }
+
+    /// Whether the two boxes share a point.
+    pub fn overlaps(&self, other: &Self) -> bool {
+        (0..3).all(|j| self.min[j] <= other.max[j] && other.min[j] <= self.max[j])
+    }
 }
 
 /// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,

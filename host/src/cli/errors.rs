@@ -53,6 +53,64 @@ pub fn message(e: &anyhow::Error) -> String {
     causes.join(": ")
 }
 
+/// What clap refused, as mema's other errors read: help and version print as clap prints
+/// them, and a usage error is one line, `mema: <what was wrong>; see 'mema <command> --help'`,
+/// exit 2. Clap's own runs to five lines, most of them a synopsis the help repeats.
+pub fn usage_failed(e: clap::Error) -> std::process::ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit()
+    }
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    eprintln!(
+        "mema: {}",
+        brief_usage(&e.render().to_string(), &command_path(&args))
+    );
+    std::process::ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
+/// `mema <subcommand>` as typed (the first word naming one), or `mema`.
+fn command_path(args: &[String]) -> String {
+    use clap::CommandFactory;
+    let root = super::Cli::command();
+    args.iter()
+        .find_map(|a| root.find_subcommand(a))
+        .map_or_else(|| "mema".to_owned(), |s| format!("mema {}", s.get_name()))
+}
+
+/// Clap's rendered error (no colour) as one line: the error, the arguments it lists, its tips,
+/// and where the help is. The synopsis and the "For more information" line are dropped.
+fn brief_usage(rendered: &str, command: &str) -> String {
+    let mut what = String::new();
+    let mut listed = Vec::new();
+    let mut tips = Vec::new();
+    for line in rendered.lines().map(str::trim) {
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if let Some(rest) = line.strip_prefix("error:") {
+            what = rest.trim().to_owned();
+        } else if let Some(tip) = line.strip_prefix("tip:") {
+            tips.push(tip.trim().to_owned());
+        } else if !line.is_empty() {
+            listed.push(line.to_owned());
+        }
+    }
+    let mut out = what;
+    if !listed.is_empty() {
+        out = format!("{out} {}", listed.join(", "));
+    }
+    for tip in tips {
+        out = format!("{out} ({tip})");
+    }
+    format!("{out}; see '{command} --help'")
+}
+
 fn config_message(e: &ConfigError) -> String {
     match e {
         ConfigError::NoClusters => {
@@ -77,7 +135,29 @@ fn config_message(e: &ConfigError) -> String {
             "--segments {segments} --rings {rings}: need 3..=1024 segments and 2..=512 rings; consider the defaults, 24 and 12"
         ),
         ConfigError::TooManyVertices(v) => {
-            format!("{v} vertices exceed 32-bit indices; consider fewer --segments or --rings")
+            format!("{v} vertices exceed 31-bit indices; consider fewer --segments or --rings")
+        }
+        ConfigError::MeshTooLarge {
+            entities,
+            segments,
+            rings,
+            vertices,
+            triangles,
+            bytes,
+            format,
+            limit,
+            fits,
+        } => {
+            let consider = match fits {
+                Some((s, r)) => format!("consider --segments {s} --rings {r}, which fit"),
+                None => "even --segments 3 --rings 2 do not fit; consider a map of fewer entities"
+                    .into(),
+            };
+            format!(
+                "{entities} entities at --segments {segments} --rings {rings} make {vertices} vertices and {triangles} triangles, {bytes} bytes of {format} ({}), over --max-bytes {limit} ({}); {consider}",
+                human_bytes(*bytes),
+                human_bytes(*limit)
+            )
         }
         ConfigError::PictureTooSmall {
             width,
@@ -96,10 +176,28 @@ fn config_message(e: &ConfigError) -> String {
         ConfigError::WorkingWithTolerance => {
             "--working and --tolerance do not combine: frozen clusters cannot merge".into()
         }
+        ConfigError::UpAlongView => {
+            "--view sensor --up z: the sensor view looks along z; consider --up y or no --up".into()
+        }
         ConfigError::ZeroBudget(b) => format!("--budgets {b}: a budget is at least 1 byte"),
         // The extensions' messages name no flag; any variant added later reads as the library
         // words it until it gets its flags here.
         other => other.to_string(),
+    }
+}
+
+/// Bytes in the largest binary unit that leaves at least 1 of it ("97.6 GiB").
+fn human_bytes(bytes: u64) -> String {
+    let units = ["bytes", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut value = bytes as f64;
+    let mut unit = 0;
+    while value >= 1024.0 && unit + 1 < units.len() {
+        value /= 1024.0;
+        unit += 1;
+    }
+    match unit {
+        0 => format!("{bytes} bytes"),
+        _ => format!("{value:.1} {}", units[unit]),
     }
 }
 
@@ -118,6 +216,23 @@ fn filter_message(e: &FilterError) -> String {
 mod tests {
     use super::*;
     use anyhow::Context;
+
+    #[test]
+    fn usage_errors_keep_the_error_its_list_and_tips_on_one_line() {
+        let missing = "error: the following required arguments were not provided:\n  --output <OUTPUT>\n  <INPUT>\n\nUsage: mema map --output <OUTPUT> <INPUT>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            brief_usage(missing, "mema map"),
+            "the following required arguments were not provided: --output <OUTPUT>, <INPUT>; see 'mema map --help'"
+        );
+        let typo = "error: unexpected argument '--bogus' found\n\n  tip: a similar argument exists: '--bounds'\n\nUsage: mema map --bounds <BOUNDS> <INPUT>\n\nFor more information, try '--help'.\n";
+        assert_eq!(
+            brief_usage(typo, "mema map"),
+            "unexpected argument '--bogus' found (a similar argument exists: '--bounds'); see 'mema map --help'"
+        );
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(command_path(&args(&["map", "-o", "demo"])), "mema map");
+        assert_eq!(command_path(&args(&["--bogus"])), "mema");
+    }
 
     #[test]
     fn library_errors_read_as_flags_inside_their_context() {

@@ -10,12 +10,12 @@ pub use args::{Cli, Command};
 
 /// Runs the subcommand `cli` holds.
 pub fn run(cli: &Cli) -> anyhow::Result<()> {
-    use commands::{bench, eval, info, map, query, serial, toolbox};
+    use commands::{bench, demo, eval, info, map, query, serial, toolbox};
     match &cli.command {
         Command::Map(a) => map::map(a),
         Command::Eval(a) => eval::eval(a),
         Command::Info(a) => info::info(a),
-        Command::Demo(a) => map::demo(a),
+        Command::Demo(a) => demo::demo(a),
         Command::Ablation(a) => bench::ablation(a),
         Command::StreamBench(a) => bench::stream_bench(a),
         Command::Stream(a) => serial::stream(a),
@@ -28,7 +28,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         Command::Draw(a) => toolbox::draw(a),
         Command::Export(a) => toolbox::export(a),
         Command::Completions(a) => toolbox::completions(a),
-        Command::Man => toolbox::man(),
+        Command::Man(a) => toolbox::man(a),
         Command::Bench(a) => bench::bench(a),
     }
 }

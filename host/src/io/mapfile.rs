@@ -5,10 +5,10 @@ use mema_core::map::record::Quantization;
 use mema_core::map::{Layout, MapFile, encode_as};
 use mema_core::{Entity, EntityKind, MapEntity, Point3, Rotation};
 use serde::{Deserialize, Serialize};
-use std::io::Write;
 use std::path::Path;
 
 use crate::error::ConfigError;
+pub use crate::io::atomic::write_file_atomically;
 
 /// A map on the host: the local frame's origin (f64, the cloud's own coordinates) and entities.
 ///
@@ -401,63 +401,6 @@ fn identity_quaternion() -> [f32; 4] {
 /// Writes a map to `path` atomically ([`write_file_atomically`]).
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
     write_file_atomically(path, bytes, "map")
-}
-
-/// Writes `bytes` to `path` through a temporary file in the same directory, a sync and a rename,
-/// then syncs the directory, so neither a reader nor a crash ever sees a partial file at `path`
-/// and the rename itself survives a power cut. `what` names the file in errors ("map",
-/// "labels", "picture", "mesh"). Temporary files left by writers of the same name that died
-/// (their process is gone) are removed first, so crashes do not leave them forever.
-pub fn write_file_atomically(path: &Path, bytes: &[u8], what: &str) -> Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .with_context(|| format!("{}: not a file path", path.display()))?
-        .to_string_lossy();
-    remove_stale_temporaries(dir, &name);
-    let tmp = dir.join(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| -> std::io::Result<()> {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        // The rename is durable only once the directory entry is on disk.
-        std::fs::File::open(dir)?.sync_all()
-    })();
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("cannot write {what} to {}", path.display()));
-    }
-    Ok(())
-}
-
-/// Removes `.NAME.PID.tmp` files in `dir` whose process no longer runs (Linux's /proc tells;
-/// where there is no /proc nothing is removed, as a live writer cannot be told from a dead one).
-fn remove_stale_temporaries(dir: &Path, name: &str) {
-    if !Path::new("/proc/self").exists() {
-        return;
-    }
-    let prefix = format!(".{name}.");
-    let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
-    };
-    for entry in entries.flatten() {
-        let file = entry.file_name();
-        let Some(pid) = file
-            .to_str()
-            .and_then(|f| f.strip_prefix(&prefix))
-            .and_then(|rest| rest.strip_suffix(".tmp"))
-            .and_then(|pid| pid.parse::<u32>().ok())
-        else {
-            continue;
-        };
-        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = std::fs::remove_file(entry.path());
-        }
-    }
 }
 
 #[cfg(test)]

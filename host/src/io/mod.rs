@@ -2,14 +2,17 @@
 //!
 //! Nothing here depends on the rest of the crate but [`crate::error`]: every other layer reads
 //! and writes through it.
+pub mod atomic;
 pub mod cloud;
 pub mod conf;
+pub mod drive;
 pub mod input;
 pub mod mapfile;
 pub mod output;
 pub mod read;
 pub mod scene;
 pub mod units;
+pub mod write_cloud;
 
 pub use cloud::{LocalCloud, load_cloud, load_cloud_in_metres};
 pub use mapfile::{HostMap, MapFormat};

@@ -9,7 +9,9 @@ use std::time::Duration;
 /// How long one read waits before the caller gets control back (Ctrl-C, snapshots).
 pub const READ_TIMEOUT: Duration = Duration::from_millis(100);
 
-fn is_terminal_device(path: &Path) -> bool {
+/// Whether `path` is a serial port or terminal device (a pty included), which the link
+/// commands open as a port; any other path is a file.
+pub fn is_terminal_device(path: &Path) -> bool {
     use std::os::unix::fs::FileTypeExt;
     std::fs::metadata(path).is_ok_and(|m| m.file_type().is_char_device())
 }

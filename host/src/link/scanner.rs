@@ -22,6 +22,7 @@ use super::frames::{POINTS_PER_FRAME, PosedScan, encode_posed_stream, wire_pose}
 use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
 use crate::io::cloud::{LocalCloud, is_registration, load_cloud_in_metres, read_scans_in_metres};
+use crate::io::drive::DriveScan;
 use crate::io::units::LengthUnit;
 use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
 
@@ -48,6 +49,15 @@ impl SensorScan {
             })
             .collect();
         Self::of_world(&world)
+    }
+
+    /// A stop of the drive through the demo scene: its points in the sensor's frame, its pose.
+    pub fn of_drive(scan: &DriveScan) -> Self {
+        Self {
+            translation: scan.translation,
+            rotation: scan.rotation(),
+            points: scan.points.clone(),
+        }
     }
 
     /// A cloud given in the world's frame as one scan: the sensor at the bounding-box centre

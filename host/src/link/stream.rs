@@ -7,7 +7,7 @@ use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
-use super::scanner::{SensorScan, quantise_scans};
+use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
 use crate::error::ConfigError;
 use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::HostMap;
@@ -313,4 +313,17 @@ pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Resul
     }
     mapper.finish();
     Ok(map_of(&mapper, origin.unwrap_or([0.0; 3])))
+}
+
+/// `scans` sent as `mema scanner-sim` sends them and received as `mema stream` receives them,
+/// in one process: the bytes sent, and the link after them (its counts and its finished map).
+pub fn stream_scans(
+    scans: &[SensorScan],
+    params: StreamParams,
+) -> Result<(SentScans, Link, HostMap)> {
+    let sent = send_scans(scans)?;
+    let mut link = Link::with_params(params);
+    link.feed(&sent.bytes);
+    let map = link.finish();
+    Ok((sent, link, map))
 }

@@ -286,10 +286,30 @@ pub fn cluster_errors(points: &[Point3], labels: &[u32], entities: &[Entity]) ->
 }
 
 /// Labels each point with its nearest entity centre (ties: lowest index), as `mema eval` does.
+///
+/// The answer is the plain scan's (`mema_core::kmeans::nearest`) bit for bit, found through
+/// the k-means kd-tree over the centres, so a map of 16,384 entities costs `N log k` rather
+/// than `N k` (11 minutes of `mema draw` went to this scan).
 pub fn nearest_centre_labels(points: &[Point3], centres: &[Point3]) -> Vec<u32> {
+    use mema_core::kmeans::tree::{CentreTree, nodes_for};
+    let k = centres.len();
+    let mut order = vec![0u32; k];
+    let mut sorted = vec![TreeCentre::default(); k];
+    let mut nodes = vec![TreeNode::default(); nodes_for(k)];
+    let Some(mut tree) = CentreTree::new(&mut order, &mut sorted, &mut nodes) else {
+        // More centres than u32 indices: no map comes near, but the scan still answers.
+        return points
+            .par_iter()
+            .map(|p| mema_core::kmeans::nearest(*p, centres).0 as u32)
+            .collect();
+    };
+    tree.build(centres, |_| 0.0);
+    let view = tree.view();
+    let none = [(u32::MAX, f32::INFINITY); 2];
+    // An empty tree (or a point the tree cannot rank, NaN) gets 0, as the scan gives it.
     points
         .par_iter()
-        .map(|p| mema_core::kmeans::nearest(*p, centres).0 as u32)
+        .map(|p| view.nearest(*p, none).map_or(0, |n| n.index))
         .collect()
 }
 
@@ -305,5 +325,32 @@ pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap 
             })
             .collect(),
         quantization: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tree gives the plain scan's labels on a real cloud, ties included: centres drawn
+    /// from the points themselves (so some points sit exactly on one) and duplicated (so two
+    /// centres tie and the lower index must win), plus a NaN point and no centres at all.
+    #[test]
+    fn nearest_centre_labels_equal_the_plain_scan() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/car6.pcd");
+        let cloud = crate::io::load_cloud(path.as_ref()).expect("car6");
+        let mut points = cloud.points.clone();
+        points.push(Point3::new(f32::NAN, 0.0, 0.0));
+        for k in [1, 7, 150, 2_000] {
+            let step = (cloud.points.len() / k).max(1);
+            let mut centres: Vec<Point3> = cloud.points.iter().step_by(step).copied().collect();
+            centres.extend_from_within(..centres.len() / 3);
+            let plain: Vec<u32> = points
+                .iter()
+                .map(|p| mema_core::kmeans::nearest(*p, &centres).0 as u32)
+                .collect();
+            assert_eq!(nearest_centre_labels(&points, &centres), plain, "k = {k}");
+        }
+        assert!(nearest_centre_labels(&points, &[]).iter().all(|&l| l == 0));
     }
 }

@@ -27,9 +27,9 @@
 pub mod recast;
 
 use anyhow::{Context, Result};
-use mema_core::MapEntity;
 use mema_core::query::MapIndex;
 use mema_core::transform::RigidTransform;
+use mema_core::{Degeneration, Entity, EntityKind, MapEntity};
 
 use crate::io::mapfile::HostMap;
 
@@ -69,8 +69,9 @@ pub fn world(map: &HostMap, p: [f64; 3]) -> [f64; 3] {
 }
 
 /// Applies `transform` to a whole map: the origin moves exactly in f64, shapes per entity
-/// (`None` if `transform` is not a rigid rotation). The result is not quantized: a rotated grid
-/// entity is no longer on the grid, and rounding it again would make the rotation lossy.
+/// (`None` if `transform` is not a rigid rotation), each labelled by [`kind_after`]. The
+/// result is not quantized: a rotated grid entity is no longer on the grid, and rounding it
+/// again would make the rotation lossy.
 pub fn transform_map(map: &HostMap, transform: &RigidTransform) -> Option<HostMap> {
     // x' = R (origin + local) + t = (R origin + t) + R local.
     let origin = transform.apply_point(map.origin);
@@ -82,13 +83,29 @@ pub fn transform_map(map: &HostMap, transform: &RigidTransform) -> Option<HostMa
         .entities
         .iter()
         .map(|e| {
+            let entity = rotation_only.apply_entity(&e.entity)?;
             Some(MapEntity {
-                entity: rotation_only.apply_entity(&e.entity)?,
-                kind: e.kind,
+                entity,
+                kind: kind_after(&entity, e.kind),
             })
         })
         .collect::<Option<Vec<_>>>()?;
     Some(HostMap::new(origin, entities))
+}
+
+/// The kind of a moved `entity` that was stored as `stored`. Its infinite axes decide, as
+/// [`Entity::kind`] defines the kinds (one a pseudocylinder, two a pair of planes), whatever
+/// the stored label said: a map written by another tool, or by hand, may carry one that does
+/// not fit. A finite entity keeps its ellipsoid or sphere, which its fit's sphere tolerance
+/// decided and a rotation does not change; one labelled degenerate is judged at the default
+/// tolerance.
+pub fn kind_after(entity: &Entity, stored: EntityKind) -> EntityKind {
+    match (entity.degenerated_axes(), stored) {
+        (0, EntityKind::Ellipsoid | EntityKind::Sphere) => stored,
+        (0, _) => entity.kind(Degeneration::default().sphere_tolerance),
+        (1, _) => EntityKind::Pseudocylinder,
+        _ => EntityKind::PlanePair,
+    }
 }
 
 /// Seeded random queries over the map's box (10% margin): points for nearest/occupancy, rays

@@ -1,42 +1,29 @@
 //! `mema draw`: a headless orthographic render of a cloud and its map(s) into an RGB raster.
 //!
 //! Entities are ray-cast per pixel (exact silhouettes and depths, no tessellation), points are
-//! depth-tested dots drawn over them, and text comes from the `font8x8` bitmap font compiled
-//! into the binary, so drawing needs no font file and cannot fail for want of one. Rendering
-//! touches pixels through `Raster::put`, which drops anything outside the picture.
+//! depth-tested dots drawn over them, and text comes from the bitmap font of [`Raster`]. The
+//! projection is [`Frame`]'s (see [`super::camera`]).
 //!
-//! The projection is the contract the tests use: with `p` a world point, `o` the frame's
-//! origin, pixel column `x = offset[0] + scale ((p - o) · right)` and row
-//! `y = offset[1] - scale ((p - o) · up)`; pixel (i, j) covers `[i, i+1) x [j, j+1)`.
+//! Cost: each entity visits, row by row, only the pixels its silhouette can cover (the
+//! interval a row cuts from its outline, found in closed form), so a picture costs its pixels,
+//! its entities and the area they cover, never entities times pixels.
 
-use mema_core::{EntityKind, Rotation};
+use mema_core::EntityKind;
 use serde::Serialize;
 
 use super::export::kind_colour;
 use crate::io::mapfile::HostMap;
 
-/// The picture's background.
-pub const BACKGROUND: [u8; 3] = [255, 255, 255];
+use super::camera::dot;
+pub use super::camera::{Camera, Extent, Frame, Up, View};
+pub use super::raster::{BACKGROUND, Raster};
+
 /// The cloud's points.
 pub const POINT_COLOUR: [u8; 3] = [25, 25, 25];
 /// Text and scale bar.
 pub const INK: [u8; 3] = [0, 0, 0];
 /// Diffuse shading spans `[AMBIENT, 1]` times the kind's colour.
 pub const AMBIENT: f64 = 0.35;
-
-/// The direction a picture looks along.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum View {
-    /// Along (-1, 1, -1): x and y recede to the right and left, z up.
-    Iso,
-    /// Down the z axis: x right, y up.
-    Top,
-    /// Along +y: x right, z up.
-    Front,
-    /// Along -x: y right, z up.
-    Side,
-}
 
 /// How entities are drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -46,191 +33,6 @@ pub enum Style {
     Shaded,
     /// Silhouettes only, over the points.
     Outline,
-}
-
-/// An orthographic camera: unit screen axes and the viewing direction (into the screen).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Camera {
-    pub right: [f64; 3],
-    pub up: [f64; 3],
-    pub forward: [f64; 3],
-}
-
-impl View {
-    /// The view's name, as `--json` and the command line spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            View::Iso => "iso",
-            View::Top => "top",
-            View::Front => "front",
-            View::Side => "side",
-        }
-    }
-
-    /// The view's orthographic camera.
-    pub fn camera(self) -> Camera {
-        let (s2, s3, s6) = (2f64.sqrt(), 3f64.sqrt(), 6f64.sqrt());
-        match self {
-            View::Top => Camera {
-                right: [1., 0., 0.],
-                up: [0., 1., 0.],
-                forward: [0., 0., -1.],
-            },
-            View::Front => Camera {
-                right: [1., 0., 0.],
-                up: [0., 0., 1.],
-                forward: [0., 1., 0.],
-            },
-            View::Side => Camera {
-                right: [0., 1., 0.],
-                up: [0., 0., 1.],
-                forward: [-1., 0., 0.],
-            },
-            View::Iso => Camera {
-                right: [1. / s2, 1. / s2, 0.],
-                up: [-1. / s6, 1. / s6, 2. / s6],
-                forward: [-1. / s3, 1. / s3, -1. / s3],
-            },
-        }
-    }
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// World to pixel for one panel (see the module doc).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Frame {
-    pub origin: [f64; 3],
-    #[serde(flatten)]
-    pub camera: Camera,
-    /// Pixels per cloud unit.
-    pub scale: f64,
-    pub offset: [f64; 2],
-}
-
-impl Frame {
-    /// Fits the projections of `points` (local to `origin`) into `plot` = [x, y, w, h].
-    pub fn fit(origin: [f64; 3], camera: Camera, points: &[[f64; 3]], plot: [u32; 4]) -> Self {
-        let (mut s0, mut s1, mut t0, mut t1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for p in points {
-            let (s, t) = (dot(*p, camera.right), dot(*p, camera.up));
-            (s0, s1, t0, t1) = (s0.min(s), s1.max(s), t0.min(t), t1.max(t));
-        }
-        let [x, y, w, h] = plot.map(f64::from);
-        let scale = (w / (s1 - s0).max(1e-12)).min(h / (t1 - t0).max(1e-12));
-        let offset = [
-            x + w / 2.0 - scale * (s0 + s1) / 2.0,
-            y + h / 2.0 + scale * (t0 + t1) / 2.0,
-        ];
-        Frame {
-            origin,
-            camera,
-            scale,
-            offset,
-        }
-    }
-
-    /// Pixel coordinates and depth of a point local to the frame's origin.
-    pub fn project(&self, p: [f64; 3]) -> (f64, f64, f64) {
-        let c = &self.camera;
-        let x = self.offset[0] + self.scale * dot(p, c.right);
-        let y = self.offset[1] - self.scale * dot(p, c.up);
-        (x, y, dot(p, c.forward))
-    }
-
-    /// The local point on the screen plane (depth 0) under pixel coordinates (x, y).
-    fn unproject(&self, x: f64, y: f64) -> [f64; 3] {
-        let (s, t) = (
-            (x - self.offset[0]) / self.scale,
-            (self.offset[1] - y) / self.scale,
-        );
-        let c = &self.camera;
-        [0, 1, 2].map(|j| s * c.right[j] + t * c.up[j])
-    }
-}
-
-/// An RGB picture with a depth buffer.
-pub struct Raster {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<[u8; 3]>,
-    depth: Vec<f64>,
-}
-
-impl Raster {
-    /// A picture of the background colour.
-    pub fn new(width: u32, height: u32) -> Self {
-        let n = width as usize * height as usize;
-        Raster {
-            width,
-            height,
-            pixels: vec![BACKGROUND; n],
-            depth: vec![f64::INFINITY; n],
-        }
-    }
-
-    fn index(&self, x: i64, y: i64) -> Option<usize> {
-        let inside = (0..self.width as i64).contains(&x) && (0..self.height as i64).contains(&y);
-        inside.then(|| y as usize * self.width as usize + x as usize)
-    }
-
-    /// Sets one pixel; anything outside the picture is dropped.
-    pub fn put(&mut self, x: i64, y: i64, colour: [u8; 3]) {
-        if let Some(i) = self.index(x, y) {
-            self.pixels[i] = colour;
-        }
-    }
-
-    /// Writes the pixel if `depth` is nearer than what is there.
-    fn put_nearer(&mut self, x: i64, y: i64, depth: f64, colour: [u8; 3]) {
-        if let Some(i) = self.index(x, y)
-            && depth < self.depth[i]
-        {
-            self.depth[i] = depth;
-            self.pixels[i] = colour;
-        }
-    }
-
-    /// Fills the rectangle `[x, y, w, h]`, clipped to the picture.
-    pub fn fill(&mut self, [x, y, w, h]: [i64; 4], colour: [u8; 3]) {
-        for yy in y..y + h {
-            for xx in x..x + w {
-                self.put(xx, yy, colour);
-            }
-        }
-    }
-
-    /// 8x8 glyphs scaled by `scale`; characters outside the font are blank.
-    pub fn text(&mut self, x: i64, y: i64, scale: i64, s: &str, colour: [u8; 3]) {
-        use font8x8::UnicodeFonts;
-        for (n, ch) in s.chars().enumerate() {
-            let glyph = font8x8::BASIC_FONTS.get(ch).unwrap_or([0; 8]);
-            let gx = x + 8 * scale * n as i64;
-            for (row, bits) in glyph.iter().enumerate() {
-                for col in 0..8 {
-                    if bits >> col & 1 == 1 {
-                        let (px, py) = (gx + col * scale, y + row as i64 * scale);
-                        self.fill([px, py, scale, scale], colour);
-                    }
-                }
-            }
-        }
-    }
-
-    /// The picture as PNG bytes (8-bit RGB).
-    pub fn encode_png(&self) -> anyhow::Result<Vec<u8>> {
-        let mut out = Vec::new();
-        let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
-        encoder.set_color(png::ColorType::Rgb);
-        encoder.set_depth(png::BitDepth::Eight);
-        encoder.set_compression(png::Compression::High);
-        let mut writer = encoder.write_header()?;
-        writer.write_image_data(self.pixels.as_flattened())?;
-        writer.finish()?;
-        Ok(out)
-    }
 }
 
 /// A box [min, max] in an entity's axes (`R^T x`, x local to the frame's origin: turned, not
@@ -297,7 +99,7 @@ fn hit(p: [f64; 3], f: [f64; 3], c: [f64; 3], w: [f64; 3], clip: &Clip) -> Optio
 /// The frame seen from an entity's axes: its camera turned by `R^T`, so that projecting or
 /// unprojecting there is `R^T` of the world's (`dot(R^T a, R^T b) = dot(a, b)`). The identity
 /// turns nothing, so axis-aligned entities keep their pixels bit for bit.
-fn in_entity_axes(frame: &Frame, rotation: &Rotation) -> Frame {
+fn in_entity_axes(frame: &Frame, rotation: &mema_core::Rotation) -> Frame {
     let c = frame.camera;
     let turn = |v| rotation.inverse_rotate(v);
     Frame {
@@ -310,6 +112,130 @@ fn in_entity_axes(frame: &Frame, rotation: &Rotation) -> Frame {
     }
 }
 
+/// One entity as it is ray-cast: in its own axes, where its quadric and its clip are
+/// axis-aligned. An oriented entity is an axis-aligned one there, drawn with the camera and
+/// its centre turned by `R^T` instead of the entity by `R`.
+struct Placed<'a> {
+    frame: Frame,
+    /// Centre, local to the frame's origin, turned.
+    c: [f64; 3],
+    /// `w_j = 1 / r_j^2`, 0 on an infinite axis.
+    w: [f64; 3],
+    r: [f64; 3],
+    clip: &'a Clip,
+}
+
+impl<'a> Placed<'a> {
+    fn new(frame: &Frame, shift: [f64; 3], e: &mema_core::MapEntity, clip: &'a Clip) -> Self {
+        let rotation = e.entity.rotation;
+        let c = rotation
+            .inverse_rotate([0, 1, 2].map(|j| f64::from(e.entity.center.to_array()[j]) + shift[j]));
+        Placed {
+            frame: in_entity_axes(frame, &rotation),
+            c,
+            w: e.entity.weights.map(f64::from),
+            r: e.entity.semi_axes().map(f64::from),
+            clip,
+        }
+    }
+
+    /// The range of `p · d` over the entity (its infinite axes cut by the clip), `d` in its
+    /// axes: the support function of an ellipsoid plus a box.
+    fn support(&self, d: [f64; 3]) -> [f64; 2] {
+        let (mut mid, mut ellipse, mut lo, mut hi) = (0.0, 0.0, 0.0, 0.0);
+        for (j, d) in d.into_iter().enumerate() {
+            if self.r[j].is_finite() {
+                mid += self.c[j] * d;
+                ellipse += (self.r[j] * d).powi(2);
+            } else {
+                let (a, b) = (self.clip.0[j] * d, self.clip.1[j] * d);
+                lo += a.min(b);
+                hi += a.max(b);
+            }
+        }
+        let half = ellipse.sqrt();
+        [mid - half + lo, mid + half + hi]
+    }
+
+    /// What of the screen plane the entity covers (see [`Extent`]).
+    fn extent(&self) -> Extent {
+        let cam = self.frame.camera;
+        let (s, t) = (self.support(cam.right), self.support(cam.up));
+        let mut e = Extent::EMPTY;
+        e.include(s[0], t[0]);
+        e.include(s[1], t[1]);
+        e
+    }
+
+    /// The pixel columns of row `y` whose centres the silhouette may cover, within `xs`:
+    /// the interval where the ray's closest approach to the quadric's centre lies inside it,
+    /// `A x^2 + 2 B x + C <= 1` in the pixel column `x`, widened by a pixel each side so
+    /// rounding never loses a pixel that [`hit`] finds. The clip only removes pixels,
+    /// so the quadric's interval holds the clipped entity's.
+    fn row_span(&self, y: i64, xs: &std::ops::Range<i64>) -> std::ops::Range<i64> {
+        let (f, w) = (self.frame.camera.forward, self.w);
+        let a: f64 = (0..3).map(|j| w[j] * f[j] * f[j]).sum();
+        // Minimising over the ray's depth leaves the form M = W - (W f)(W f)^T / a; a ray
+        // along an infinite axis (a = 0) must start inside, M = W.
+        let m = |u: [f64; 3], v: [f64; 3]| -> f64 {
+            let q: f64 = (0..3).map(|j| w[j] * u[j] * v[j]).sum();
+            if a > 1e-12 {
+                let (uf, vf): (f64, f64) = (
+                    (0..3).map(|j| w[j] * u[j] * f[j]).sum(),
+                    (0..3).map(|j| w[j] * v[j] * f[j]).sum(),
+                );
+                q - uf * vf / a
+            } else {
+                q
+            }
+        };
+        // The ray through pixel x's centre starts at o(x) = g + x step from the centre.
+        let centre_y = y as f64 + 0.5;
+        let (start, next) = (
+            self.frame.unproject(0.5, centre_y),
+            self.frame.unproject(1.5, centre_y),
+        );
+        let g = [0, 1, 2].map(|j| start[j] - self.c[j]);
+        let step = [0, 1, 2].map(|j| next[j] - start[j]);
+        let (aa, bb, cc) = (m(step, step), m(step, g), m(g, g) - 1.0);
+        if aa <= 1e-300 || !(aa.is_finite() && bb.is_finite() && cc.is_finite()) {
+            return xs.clone();
+        }
+        let disc = bb * bb - aa * cc;
+        if disc < -1e-7 * (bb * bb + (aa * cc).abs()) {
+            return 0..0;
+        }
+        let root = disc.max(0.0).sqrt();
+        let (s0, s1) = ((-bb - root) / aa, (-bb + root) / aa);
+        // Pixel x is hit where s0 <= x <= s1; one more each side absorbs the rounding.
+        let from = (s0.ceil() as i64).saturating_sub(1).max(xs.start);
+        let to = (s1.floor() as i64).saturating_add(2).min(xs.end);
+        from..to.max(from)
+    }
+}
+
+/// What the entities of `map` cover on the screen plane of `frame` (its scale and offset
+/// aside), their infinite axes cut by `clips`: [`Frame::fit_extent`] fits a picture to it.
+pub fn entities_extent(frame: &Frame, map: &HostMap, clips: &[Clip]) -> Extent {
+    let shift = [0, 1, 2].map(|j| map.origin[j] - frame.origin[j]);
+    let mut extent = Extent::EMPTY;
+    for (e, clip) in map.entities.iter().zip(clips) {
+        extent.union(&Placed::new(frame, shift, e, clip).extent());
+    }
+    extent
+}
+
+/// The work of drawing entities: the rows their silhouettes' boxes span, the rays cast (one
+/// per pixel visited) and the rays that hit. Spans keep `rays` within a few pixels a row of
+/// `hits`, where whole boxes cast a ray for every pixel of each box.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct DrawCost {
+    pub entities: u64,
+    pub rows: u64,
+    pub rays: u64,
+    pub hits: u64,
+}
+
 /// Renders `map`'s entities into `plot` of `raster`; `clips[i]` bounds entity i's infinite
 /// axes, in its own axes (see [`Clip`]).
 pub fn draw_entities(
@@ -319,7 +245,44 @@ pub fn draw_entities(
     clips: &[Clip],
     plot: [u32; 4],
     style: Style,
-) {
+) -> DrawCost {
+    draw_entities_counted(raster, frame, map, clips, plot, style, &|| {})
+}
+
+/// [`draw_entities`], calling `done` after each entity (a progress bar's step).
+pub fn draw_entities_counted(
+    raster: &mut Raster,
+    frame: &Frame,
+    map: &HostMap,
+    clips: &[Clip],
+    plot: [u32; 4],
+    style: Style,
+    done: &dyn Fn(),
+) -> DrawCost {
+    paint_entities(raster, frame, map, clips, plot, style, Cull::Rows, done)
+}
+
+/// Which pixels an entity visits: its projected box's, or only the spans its rows may cover.
+/// Both paint the same pixels; the box is kept as the reference the spans are tested against.
+#[derive(Clone, Copy, PartialEq)]
+enum Cull {
+    Rows,
+    #[cfg_attr(not(test), allow(dead_code))]
+    Box,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn paint_entities(
+    raster: &mut Raster,
+    frame: &Frame,
+    map: &HostMap,
+    clips: &[Clip],
+    plot: [u32; 4],
+    style: Style,
+    cull: Cull,
+    done: &dyn Fn(),
+) -> DrawCost {
+    let mut cost = DrawCost::default();
     let shift = [0, 1, 2].map(|j| map.origin[j] - frame.origin[j]);
     let toward_light = {
         let cam = frame.camera;
@@ -329,50 +292,40 @@ pub fn draw_entities(
     };
     let [px, py, pw, ph] = plot.map(i64::from);
     for (e, clip) in map.entities.iter().zip(clips) {
-        // An oriented entity is an axis-aligned one in its own axes: ray-cast it there, with
-        // the camera, its centre and the light turned by R^T instead of the entity by R.
-        let rotation = e.entity.rotation;
-        let frame = in_entity_axes(frame, &rotation);
+        let placed = Placed::new(frame, shift, e, clip);
+        let (frame, c, w) = (placed.frame, placed.c, placed.w);
         let cam = frame.camera;
-        let toward_light = rotation.inverse_rotate(toward_light);
-        let c = rotation
-            .inverse_rotate([0, 1, 2].map(|j| f64::from(e.entity.center.to_array()[j]) + shift[j]));
-        let w = e.entity.weights.map(f64::from);
-        let r = e.entity.semi_axes().map(f64::from);
-        // The entity's box in its axes (clipped where an axis is infinite), projected, bounds
-        // its pixels.
-        let lo = [0, 1, 2].map(|j| {
-            if r[j].is_finite() {
-                c[j] - r[j]
-            } else {
-                clip.0[j]
-            }
-        });
-        let hi = [0, 1, 2].map(|j| {
-            if r[j].is_finite() {
-                c[j] + r[j]
-            } else {
-                clip.1[j]
-            }
-        });
-        let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-        for corner in 0..8 {
-            let q = [0, 1, 2].map(|j| if corner >> j & 1 == 0 { lo[j] } else { hi[j] });
-            let (x, y, _) = frame.project(q);
-            (x0, x1, y0, y1) = (x0.min(x), x1.max(x), y0.min(y), y1.max(y));
-        }
-        let xs = (x0.floor() as i64).max(px)..(x1.ceil() as i64 + 1).min(px + pw);
-        let ys = (y0.floor() as i64).max(py)..(y1.ceil() as i64 + 1).min(py + ph);
+        let toward_light = e.entity.rotation.inverse_rotate(toward_light);
+        // The silhouette's screen box bounds its pixels.
+        let extent = placed.extent();
+        let (x0, x1) = (
+            frame.offset[0] + frame.scale * extent.s[0],
+            frame.offset[0] + frame.scale * extent.s[1],
+        );
+        let (y0, y1) = (
+            frame.offset[1] - frame.scale * extent.t[1],
+            frame.offset[1] - frame.scale * extent.t[0],
+        );
+        let xs = (x0.floor() as i64).max(px)..(x1.ceil() as i64).saturating_add(1).min(px + pw);
+        let ys = (y0.floor() as i64).max(py)..(y1.ceil() as i64).saturating_add(1).min(py + ph);
         let colour = kind_colour(e.kind);
         let covered = |x: i64, y: i64| {
             let p = frame.unproject(x as f64 + 0.5, y as f64 + 0.5);
             hit(p, cam.forward, c, w, clip)
         };
-        for y in ys.clone() {
-            for x in xs.clone() {
+        cost.entities += 1;
+        for y in ys {
+            let span = match cull {
+                Cull::Rows => placed.row_span(y, &xs),
+                Cull::Box => xs.clone(),
+            };
+            cost.rows += 1;
+            cost.rays += span.end.saturating_sub(span.start).max(0) as u64;
+            for x in span {
                 let Some((t, n)) = covered(x, y) else {
                     continue;
                 };
+                cost.hits += 1;
                 match style {
                     Style::Shaded => {
                         let len = dot(n, n).sqrt().max(1e-300);
@@ -396,7 +349,9 @@ pub fn draw_entities(
                 }
             }
         }
+        done();
     }
+    cost
 }
 
 /// Dots of `size` pixels at the points' projections, behind any nearer entity surface.
@@ -480,7 +435,43 @@ pub fn draw_legend(
     entries
 }
 
-/// A bar of a round length ending at (right, y), labelled; returns (length, pixels).
+/// A length in metres as a scale bar labels it: in the largest of km, m, cm, mm and um that
+/// leaves at least 1 of it ("10 cm", "1 m", "2 km"), to three significant digits.
+pub fn length_label(metres: f64) -> String {
+    let units = [
+        (1e3, "km"),
+        (1.0, "m"),
+        (1e-2, "cm"),
+        (1e-3, "mm"),
+        (1e-6, "um"),
+    ];
+    let (size, name) = units
+        .into_iter()
+        .find(|(size, _)| metres >= *size * (1.0 - 1e-9))
+        .unwrap_or((1e-6, "um"));
+    let value = metres / size;
+    // Three significant digits drop the powf's last-bit noise (0.05 / 0.01 = 5.000000000000001).
+    let digits = (2 - value.abs().max(1e-300).log10().floor() as i32).max(0) as usize;
+    let text = format!("{value:.digits$}");
+    let text = if text.contains('.') {
+        text.trim_end_matches('0').trim_end_matches('.')
+    } else {
+        &text
+    };
+    format!("{text} {name}")
+}
+
+/// The scale bar as drawn: its length in metres, its pixels and its label.
+#[derive(Clone, Debug, Serialize)]
+pub struct ScaleBar {
+    /// In metres (the cloud is read in metres).
+    pub length: f64,
+    pub pixels: i64,
+    /// The length with its unit, as drawn ("10 cm").
+    pub label: String,
+}
+
+/// A bar of a round length ending at (right, y), labelled with its unit.
 pub fn draw_scale_bar(
     raster: &mut Raster,
     right: i64,
@@ -488,17 +479,21 @@ pub fn draw_scale_bar(
     ts: i64,
     frame: &Frame,
     max_pixels: f64,
-) -> (f64, i64) {
+) -> ScaleBar {
     let length = nice_length(max_pixels / frame.scale);
     let pixels = (length * frame.scale).round() as i64;
     let x0 = right - pixels;
     raster.fill([x0, y, pixels, 2 * ts], INK);
     raster.fill([x0, y - 2 * ts, ts, 6 * ts], INK);
     raster.fill([right - ts, y - 2 * ts, ts, 6 * ts], INK);
-    let label = format!("{length}");
-    let width = 8 * ts * label.len() as i64;
+    let label = length_label(length);
+    let width = 8 * ts * label.chars().count() as i64;
     raster.text(x0 + (pixels - width) / 2, y + 4 * ts, ts, &label, INK);
-    (length, pixels)
+    ScaleBar {
+        length,
+        pixels,
+        label,
+    }
 }
 
 /// What one panel shows, apart from its map.
@@ -513,16 +508,30 @@ pub struct PanelScene<'a> {
 }
 
 /// Shaded: solids, then the points that lie in front of them. Outline: points, then outlines.
-pub fn draw_panel(raster: &mut Raster, scene: &PanelScene, map: &HostMap) {
+/// `done` is called after each entity.
+pub fn draw_panel(
+    raster: &mut Raster,
+    scene: &PanelScene,
+    map: &HostMap,
+    done: &dyn Fn(),
+) -> DrawCost {
     let s = scene;
+    let entities = |raster: &mut Raster, style| {
+        draw_entities_counted(raster, &s.frame, map, &s.clips, s.plot, style, done)
+    };
     match s.style {
         Style::Shaded => {
-            draw_entities(raster, &s.frame, map, &s.clips, s.plot, Style::Shaded);
+            let cost = entities(raster, Style::Shaded);
             draw_points(raster, &s.frame, s.points, s.point_size, true);
+            cost
         }
         Style::Outline => {
             draw_points(raster, &s.frame, s.points, s.point_size, false);
-            draw_entities(raster, &s.frame, map, &s.clips, s.plot, Style::Outline);
+            entities(raster, Style::Outline)
         }
     }
 }
+
+#[cfg(test)]
+#[path = "draw_tests.rs"]
+mod tests;

@@ -1,5 +1,8 @@
-//! Pictures and meshes of maps: a headless renderer ([`draw`]), `mema draw`'s panels
-//! ([`picture`]) and tessellated meshes in PLY, OBJ and glTF ([`export`]).
+//! Pictures and meshes of maps: a headless renderer ([`draw`]) with its camera ([`camera`]) and
+//! raster ([`raster`]), `mema draw`'s panels ([`picture`]) and tessellated meshes in PLY, OBJ
+//! and glTF ([`export`]).
+pub mod camera;
 pub mod draw;
 pub mod export;
 pub mod picture;
+pub mod raster;

@@ -4,7 +4,7 @@
 use serde::Serialize;
 use std::str::FromStr;
 
-use super::draw::{self, Frame, LegendEntry, Raster, Style, View};
+use super::draw::{self, Extent, Frame, LegendEntry, Raster, ScaleBar, Style, Up, View};
 use super::export::Bounds;
 use crate::analysis::eval::evaluate;
 use crate::error::ConfigError;
@@ -53,14 +53,8 @@ pub struct Panel {
     pub frame: Frame,
     pub legend: Vec<LegendEntry>,
     pub scale_bar: ScaleBar,
-}
-
-/// A panel's scale bar: its length and how many pixels it spans.
-#[derive(Serialize)]
-pub struct ScaleBar {
-    /// In the cloud's units.
-    pub length: f64,
-    pub pixels: i64,
+    /// The work of drawing the entities (see [`draw::DrawCost`]).
+    pub cost: draw::DrawCost,
 }
 
 /// `mema draw --json`.
@@ -70,6 +64,9 @@ pub struct DrawReport {
     pub width: u32,
     pub height: u32,
     pub view: View,
+    /// The world axis up in the picture, as asked (`None`: the view's own, z or the sensor's
+    /// -y).
+    pub up: Option<Up>,
     pub style: Style,
     pub points: usize,
     pub point_size: i64,
@@ -78,7 +75,10 @@ pub struct DrawReport {
 }
 
 /// Renders the picture of `cloud` and one panel per named map; the caller writes it
-/// ([`Raster::encode_png`]). Fails if `size` leaves too small a plot.
+/// ([`Raster::encode_png`]). Every panel has the same frame, fitted to the points and to every
+/// map's entities, so nothing is cut at the plot's edge. Fails if `size` leaves too small a
+/// plot, or if `up` lies along the view. Shows its progress over the entities on stderr
+/// ([`crate::progress`]).
 ///
 /// ```
 /// use mema::io::{HostMap, LocalCloud};
@@ -93,7 +93,7 @@ pub struct DrawReport {
 /// let map = HostMap::new([0.0; 3], vec![entity]);
 /// let size: Size = "400x300".parse().map_err(anyhow::Error::msg)?;
 /// let maps = [("sphere".to_string(), map)];
-/// let (raster, report) = render(&cloud, &maps, View::Iso, size, Style::Shaded)?;
+/// let (raster, report) = render(&cloud, &maps, View::Iso, None, size, Style::Shaded)?;
 /// assert_eq!(report.panels[0].entities, 1);
 /// assert!(raster.encode_png()?.starts_with(b"\x89PNG"));
 /// # Ok::<(), anyhow::Error>(())
@@ -102,6 +102,7 @@ pub fn render(
     cloud: &LocalCloud,
     maps: &[(String, HostMap)],
     view: View,
+    up: Option<Up>,
     size: Size,
     style: Style,
 ) -> Result<(Raster, DrawReport), ConfigError> {
@@ -136,21 +137,34 @@ pub fn render(
     } else {
         1
     };
+    let camera = view.camera_with(up)?;
+    let clips: Vec<Vec<draw::Clip>> = maps.iter().map(|(_, m)| cluster_boxes(cloud, m)).collect();
+    // Extents lie on the screen plane, whatever a frame's scale and offset, so a probe frame
+    // measures them; every panel then fits the one extent into its own plot, at one scale.
+    let plot_at = |i: u32| [i * panel_w + 8, top, plot_w, plot_h];
+    let mut extent = Extent::of_points(&camera, &points);
+    let probe = Frame::fit_extent(cloud.origin, camera, &extent, plot_at(0));
+    let reach = entity_reach(&extent, &probe, plot_at(0));
+    for ((_, map), clips) in maps.iter().zip(&clips) {
+        extent.union(&reach.clamp(&draw::entities_extent(&probe, map, clips)));
+    }
+    let entities: usize = maps.iter().map(|(_, m)| m.entities.len()).sum();
+    let progress = crate::progress::Stage::counted("drawing entities", entities as u64);
     let mut raster = Raster::new(size.width, size.height);
     let mut panels = Vec::new();
-    for (i, (name, map)) in maps.iter().enumerate() {
+    for (i, ((name, map), clips)) in maps.iter().zip(clips).enumerate() {
         let x0 = i as u32 * panel_w;
-        let plot = [x0 + 8, top, plot_w, plot_h];
-        let frame = Frame::fit(cloud.origin, view.camera(), &points, plot);
+        let plot = plot_at(i as u32);
+        let frame = Frame::fit_extent(cloud.origin, camera, &extent, plot);
         let scene = draw::PanelScene {
             frame,
-            clips: cluster_boxes(cloud, map),
+            clips,
             plot,
             style,
             points: &points,
             point_size,
         };
-        draw::draw_panel(&mut raster, &scene, map);
+        let cost = draw::draw_panel(&mut raster, &scene, map, &|| progress.inc(1));
         let errors = evaluate(cloud, map).errors;
         let title = format!(
             "{name}: {} entities, mean e {:.4}",
@@ -168,7 +182,7 @@ pub fn render(
             points.len(),
         );
         let right = i64::from(x0 + panel_w) - 12;
-        let (length, pixels) = draw::draw_scale_bar(
+        let scale_bar = draw::draw_scale_bar(
             &mut raster,
             right,
             legend_y + 4 * ts,
@@ -192,7 +206,8 @@ pub fn render(
             plot,
             frame,
             legend,
-            scale_bar: ScaleBar { length, pixels },
+            scale_bar,
+            cost,
         });
     }
     let report = DrawReport {
@@ -200,6 +215,7 @@ pub fn render(
         width: size.width,
         height: size.height,
         view,
+        up,
         style,
         points: points.len(),
         point_size,
@@ -207,6 +223,19 @@ pub fn render(
         panels,
     };
     Ok((raster, report))
+}
+
+/// How far entities may widen a picture fitted to the points: the plot's window at the
+/// points' own scale, doubled about its centre, so the cloud is drawn at least half as large
+/// as it alone would be. Shells reaching past their points at a cloud's edge fit well within;
+/// a paper ellipsoid with a 4 m axis on a 15 cm bunny would otherwise shrink it to a dot.
+fn entity_reach(points: &Extent, fitted: &Frame, plot: [u32; 4]) -> Extent {
+    let centre = [points.s, points.t].map(|[lo, hi]| lo / 2.0 + hi / 2.0);
+    let half = [plot[2], plot[3]].map(|n| f64::from(n) / fitted.scale);
+    Extent {
+        s: [centre[0] - half[0], centre[0] + half[0]],
+        t: [centre[1] - half[1], centre[1] + half[1]],
+    }
 }
 
 /// Per entity, the box of the points nearest its centre (as `mema eval` assigns them), in the

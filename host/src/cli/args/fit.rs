@@ -17,8 +17,11 @@ pub enum BoundsArg {
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum OutOfBoundsArg {
+    /// Move it onto the bound it crossed.
     Clamp,
+    /// Mirror it back inside across that bound.
     Reflect,
+    /// Draw it again, uniformly inside the box.
     Resample,
 }
 
@@ -41,30 +44,38 @@ pub enum InitArg {
 /// Options shared by every command that fits.
 #[derive(Args, Debug, Clone)]
 pub struct FitArgs {
-    /// Weight of the residual term of eq. 12 (the paper: 0.8).
+    /// Weight of eq. 12's residual term (how far the points lie from the surface) against its
+    /// volume term (how large the ellipsoid is); the paper: 0.8.
     #[arg(long, default_value_t = 0.8)]
     pub alpha: f64,
     /// Seed of k-means++ and DE; the same seed gives the same map bytes.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Semi-axis length in metres at which an axis degenerates (infinite); the paper: 4 m.
+    /// Semi-axis length in metres at which an axis degenerates: it becomes infinite, and one
+    /// such axis makes a pseudocylinder, two a pair of planes; the paper: 4 m.
     #[arg(long, default_value_t = 4.0)]
     pub threshold: f64,
     /// Relative tolerance within which three semi-axes make a sphere.
     #[arg(long, default_value_t = 0.01)]
     pub sphere_tolerance: f64,
+    /// The box DE (Differential Evolution, the paper's search) searches each semi-axis in; s
+    /// is the cluster's RMS radius (the RMS distance of its points from their mean).
     #[arg(long, value_enum, default_value_t = BoundsArg::Spread)]
     pub bounds: BoundsArg,
+    /// What DE does with a candidate semi-axis outside that box.
     #[arg(long, value_enum, default_value_t = OutOfBoundsArg::Clamp)]
     pub out_of_bounds: OutOfBoundsArg,
+    /// Eq. 12's volume term, which keeps an ellipsoid from swelling to hold every point.
     #[arg(long, value_enum, default_value_t = VolumeArg::Exact)]
     pub volume: VolumeArg,
+    /// How DE's first population of candidate semi-axes is drawn.
     #[arg(long, value_enum, default_value_t = InitArg::Seeded)]
     pub init: InitArg,
-    /// DE generations (the paper: 50).
+    /// DE generations, rounds of mutating and selecting candidates (the paper: 50).
     #[arg(long, default_value_t = 50)]
     pub generations: u32,
-    /// Lloyd iteration cap.
+    /// Lloyd iteration cap: k-means rounds of moving each point to its nearest centre and
+    /// each centre to its points' mean.
     #[arg(long, default_value_t = 100)]
     pub max_iterations: u32,
 }

@@ -10,6 +10,7 @@ pub struct StreamArgs {
     /// Serial device or pty, e.g. /dev/ttyUSB0.
     #[arg(long)]
     pub port: PathBuf,
+    /// Line speed in bits per second (a pty ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
     /// Most ellipsoids the map may hold (at most 2,048).
@@ -57,17 +58,22 @@ pub struct StreamShapeArgs {
 
 #[derive(Args, Debug)]
 pub struct RecordArgs {
+    /// Serial device or pty to listen on, e.g. /dev/ttyUSB0.
     #[arg(long)]
     pub port: PathBuf,
+    /// Line speed in bits per second (a pty ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
+    /// The capture file: every byte received, as it arrived.
     #[arg(short, long)]
     pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
 pub struct ReplayArgs {
+    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file).
     pub capture: PathBuf,
+    /// Most ellipsoids the map may hold (at most 2,048).
     #[arg(short, default_value_t = 150)]
     pub k: usize,
     /// Map file; default: the capture's path with the extension .mema.
@@ -83,6 +89,7 @@ pub struct ReplayArgs {
     pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Print the summary as JSON on stdout (instead of the map path).
     #[arg(long)]
     pub json: bool,
 }
@@ -92,8 +99,9 @@ pub struct ScannerSimArgs {
     /// Serial device or pty to write to; a path that is not a device becomes a capture file.
     #[arg(long)]
     pub port: PathBuf,
-    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: the
-    /// built-in demo scene's scan.
+    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: a robot
+    /// driving through the built-in demo scene, its rangefinder's scan at each of eight stops
+    /// sent in the sensor's frame after the stop's pose.
     pub cloud: Option<PathBuf>,
     /// Play the scans of a registration file (`bmesh FILE tx ty tz qx qy qz qw` lines, as
     /// Stanford's bun.conf): each in its own sensor frame after its pose frame.
@@ -105,6 +113,7 @@ pub struct ScannerSimArgs {
     /// Bytes per write.
     #[arg(long, default_value_t = 256)]
     pub chunk_bytes: usize,
+    /// Line speed in bits per second (a pty or a file ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
     #[command(flatten)]
@@ -113,7 +122,9 @@ pub struct ScannerSimArgs {
 
 #[derive(Args, Debug)]
 pub struct StreamBenchArgs {
+    /// The cloud to stream (any format `map` reads).
     pub input: PathBuf,
+    /// Most ellipsoids the streaming map may hold (at most 2,048).
     #[arg(short)]
     pub k: usize,
     /// Timed repetitions of the ingest (the best is reported).
@@ -125,6 +136,7 @@ pub struct StreamBenchArgs {
     pub units: UnitsArg,
     #[command(flatten)]
     pub fit: FitArgs,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }

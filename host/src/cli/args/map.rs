@@ -27,7 +27,9 @@ impl From<ModelArg> for Model {
 /// `--entity`: [`EntityChoice`] for the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum EntityArg {
+    /// Three semi-axes fitted independently (the paper's map).
     Ellipsoid,
+    /// One radius (the paper's spherical comparison).
     Sphere,
 }
 
@@ -42,8 +44,10 @@ impl From<EntityArg> for EntityChoice {
 
 #[derive(Args, Debug)]
 pub struct MapArgs {
+    /// The point cloud: PLY, PCD, LAS/LAZ, XYZ/CSV text or KITTI .bin, recognised by its
+    /// content; `-` reads it from standard input.
     pub input: PathBuf,
-    /// Number of clusters (entities).
+    /// Number of clusters, each of which becomes one entity (an ellipsoid) of the map.
     #[arg(
         short,
         required_unless_present_any = ["tolerance", "bytes"],
@@ -71,15 +75,18 @@ pub struct MapArgs {
     /// in a thousand moves); 0 keeps the k-means cells.
     #[arg(long, value_name = "N", default_value_t = mema::mapping::surface_clusters::DEFAULT_ROUNDS)]
     pub surface_rounds: usize,
-    /// The paper's method exactly: axis-aligned entities fitted by DE on eq. 12 (F 1.2, CR 0.7,
-    /// 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as --model paper.
+    /// The paper's method exactly: axis-aligned entities fitted by Differential Evolution (DE)
+    /// on eq. 12, the paper's measure of how badly an ellipsoid fits its points (F 1.2, CR
+    /// 0.7, 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as
+    /// --model paper.
     #[arg(long)]
     pub paper: bool,
-    /// Instead of k: split clusters until each one's eq. 13 error is at most T (metres),
-    /// then merge neighbours that stay under T.
+    /// Instead of k: split clusters until each one's eq. 13 error (the RMS distance from its
+    /// points to its entity's surface) is at most T metres, then merge neighbours that stay
+    /// under T.
     #[arg(long)]
     pub tolerance: Option<f64>,
-    /// Most clusters the tolerance mode may make.
+    /// Tolerance mode: the most clusters it may make.
     #[arg(long, default_value_t = 16_384)]
     pub capacity: usize,
     /// Tolerance mode: rounds of re-checking T with nearest-centre membership (as `mema eval`
@@ -92,7 +99,7 @@ pub struct MapArgs {
     /// Output map: .mema (binary), .csv or .json.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Which entity the written map holds; both are fitted and reported.
+    /// With --paper: which entity the written map holds; both are fitted and reported.
     #[arg(long, value_enum, default_value_t = EntityArg::Ellipsoid)]
     pub entity: EntityArg,
     #[command(flatten)]
@@ -125,7 +132,9 @@ pub struct MapArgs {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
+    /// The cloud to score the map against (any format `map` reads; `-` reads standard input).
     pub input: PathBuf,
+    /// The map to score: .mema, .csv or .json.
     pub map: PathBuf,
     /// Points drawn uniformly by area over the map's surface for completeness (at least 8 per
     /// entity whatever this says).
@@ -136,42 +145,59 @@ pub struct EvalArgs {
     pub seed: u64,
     #[command(flatten)]
     pub units: UnitsArg,
+    /// Print one JSON object (its keys are in the README) instead of the tables.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct InfoArgs {
+    /// The map to describe: .mema, .csv or .json.
     pub map: PathBuf,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct DemoArgs {
+    /// Entities of the demo's map (one per cluster of the scan's points).
     #[arg(short, default_value_t = 250)]
     pub k: usize,
-    #[arg(short, long, default_value = "mema-demo.mema")]
-    pub output: PathBuf,
+    /// Where the demo writes the scan (scan.ply), its map (map.mema) and a picture of both
+    /// (picture.png); made if missing. Each file is written whole or not at all.
+    #[arg(long, value_name = "DIR", default_value = "mema-demo")]
+    pub out_dir: PathBuf,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Map the scan with the paper's method (Tables 2 and 4 with the spherical comparison)
     /// instead of the default's oriented shells.
     #[arg(long)]
     pub paper: bool,
+    /// A robot drives through the scene instead: its rangefinder scans at eight stops along an
+    /// arc, each scan goes over the link's bytes in the sensor's frame after its pose (what
+    /// `mema scanner-sim` sends), and the streaming mapper builds one map in the world frame.
+    /// The scans' rays are then cast again at the map and at the scene.
+    #[arg(long)]
+    pub moving: bool,
+    /// Print one JSON object (the map's report and the files written) instead of the text.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct AblationArgs {
+    /// The cloud to measure the fit options on (any format `map` reads).
     pub input: PathBuf,
+    /// Number of clusters; every option is fitted to the same ones.
     #[arg(short)]
     pub k: usize,
+    /// Seed of k-means++ and DE.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     #[command(flatten)]
     pub units: UnitsArg,
+    /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
 }

@@ -13,14 +13,39 @@ pub use link::{
 };
 pub use map::{AblationArgs, DemoArgs, EntityArg, EvalArgs, InfoArgs, MapArgs, ModelArg};
 pub use tools::{
-    BenchArgs, CompletionsArgs, DrawArgs, ExportArgs, QueryArgs, QueryBenchArgs, TransformArgs,
+    BenchArgs, CompletionsArgs, DrawArgs, ExportArgs, ManArgs, QueryArgs, QueryBenchArgs,
+    TransformArgs,
 };
 pub use units::UnitsArg;
 
 use clap::{Parser, Subcommand};
 
+/// The words the help texts use, defined once under `mema --help`.
+const TERMS: &str = "\
+Terms:
+  cloud       3D points from a scanner (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI .bin), read in metres
+  map         a few hundred entities standing for a cloud, in a .mema, .csv or .json file
+  entity      one ellipsoid of the map, made from one cluster of the cloud's points; an axis
+              past --threshold is infinite: one such axis gives a pseudocylinder, two a pair
+              of planes
+  shell       the default entity: a thin ellipsoid on a cluster's principal axes
+  eq. 12      the paper's measure of how badly an ellipsoid fits its points (a residual and a
+              volume term), minimised by Differential Evolution (DE) in --paper maps
+  eq. 13      a cluster's error: the RMS distance from its points to its entity's surface (m)
+  Table 2, 4  the paper's tables: the memory of cloud and map; eq. 13 over the clusters
+  capture     the raw bytes a rangefinder sent over its serial link (PROTOCOL.md)
+
+Start with `mema demo`.";
+
 #[derive(Parser, Debug)]
-#[command(name = "mema", version, about = "Multiellipsoidal maps of 3D point clouds", long_about = None)]
+#[command(
+    name = "mema",
+    version,
+    propagate_version = true,
+    about = "Multiellipsoidal maps of 3D point clouds",
+    long_about = None,
+    after_help = TERMS
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -28,17 +53,32 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Map a point cloud (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI .bin) with k ellipsoids and print Tables 2 and 4.
+    /// Map a point cloud with k entities; print the map's memory and error (Tables 2 and 4).
+    ///
+    /// Clusters the points (k-means, then surface following), makes one entity per cluster,
+    /// writes the map and prints its memory beside the cloud's (the paper's Table 2) and each
+    /// cluster's eq. 13 error, the RMS distance from its points to its entity's surface in
+    /// metres (Table 4).
     Map(MapArgs),
-    /// Evaluate any map against any cloud: eq. 13 statistics and memory.
+    /// Score any map against any cloud: eq. 13, the two-way score and the bytes.
+    ///
+    /// Eq. 13: each point joins its nearest entity centre; a cluster's error is the RMS
+    /// distance from its points to that entity's surface (m). The two-way score measures
+    /// points to the map's nearest surface (accuracy) and the map's surface to the points
+    /// (completeness).
     Eval(EvalArgs),
     /// Describe a map: entities per kind, bounds, bytes.
     Info(InfoArgs),
-    /// Map the built-in scene (a simulated rangefinder scan); needs no files.
+    /// Map a simulated scan of a built-in scene and explain the result; needs no files.
+    ///
+    /// Writes the scan, its map and a picture of both to --out-dir, and prints what to run
+    /// next on them.
     Demo(DemoArgs),
     /// Measure the fit options the paper leaves open on one cloud (same clusters for all).
     Ablation(AblationArgs),
     /// Streaming mapper vs batch map on one cloud, and its ingest rate vs the SRI-500.
+    ///
+    /// The SRI-500 is the paper's scanner (800,000 points/s).
     StreamBench(StreamBenchArgs),
     /// Map points arriving from a serial rangefinder (PROTOCOL.md) until end of stream, Ctrl-C
     /// or the port vanishing; the map so far is always written. Exit 3: link lost before the
@@ -62,8 +102,11 @@ pub enum Command {
     Export(ExportArgs),
     /// Print a shell completion script generated from these definitions.
     Completions(CompletionsArgs),
-    /// Print the man page (roff) generated from these definitions.
-    Man,
+    /// Print the man page (roff), or write one page per command with --out-dir.
+    Man(ManArgs),
     /// Time the pipeline on the shared clouds against in-process baselines (README "Performance").
     Bench(BenchArgs),
 }
+
+#[cfg(test)]
+mod tests;

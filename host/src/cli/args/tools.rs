@@ -2,7 +2,7 @@
 
 use clap::{Args, ValueEnum};
 use mema::bench::{BenchOptions, Which};
-use mema::render::draw::{Style, View};
+use mema::render::draw::{Style, Up, View};
 use mema::render::picture::Size;
 use std::path::PathBuf;
 
@@ -10,6 +10,7 @@ use super::UnitsArg;
 
 #[derive(Args, Debug)]
 pub struct QueryArgs {
+    /// The map to ask: .mema, .csv or .json.
     pub map: PathBuf,
     /// x,y,z in the map's world coordinates (metres).
     #[arg(long, allow_hyphen_values = true)]
@@ -20,13 +21,16 @@ pub struct QueryArgs {
     /// How far a ray looks (metres).
     #[arg(long, default_value_t = 1e6)]
     pub max_range: f64,
+    /// Print each answer as one JSON object per line.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct TransformArgs {
+    /// The map to move: .mema, .csv or .json.
     pub map: PathBuf,
+    /// The moved map: .mema, .csv or .json (written atomically).
     #[arg(short, long)]
     pub output: PathBuf,
     /// tx,ty,tz in metres, applied after the rotation.
@@ -47,6 +51,7 @@ pub struct QueryBenchArgs {
     /// Random points (each asked nearest and occupancy, and a ray from it).
     #[arg(long, default_value_t = 100_000)]
     pub queries: usize,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }
@@ -62,6 +67,30 @@ pub enum ViewArg {
     Front,
     /// Along -x: y right, z up.
     Side,
+    /// Along the sensor's axis, +z from its origin: x right, y down (a depth camera's or a
+    /// lidar's own frame), or the --up axis up.
+    Sensor,
+}
+
+/// `--up`: [`Up`] for the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum UpArg {
+    /// x up.
+    X,
+    /// y up (meshes such as the Stanford bunny, y-up camera frames).
+    Y,
+    /// z up (most scans and lidar).
+    Z,
+}
+
+impl From<UpArg> for Up {
+    fn from(u: UpArg) -> Self {
+        match u {
+            UpArg::X => Up::X,
+            UpArg::Y => Up::Y,
+            UpArg::Z => Up::Z,
+        }
+    }
 }
 
 /// `--style`: [`Style`] for the command line.
@@ -80,6 +109,7 @@ impl From<ViewArg> for View {
             ViewArg::Top => View::Top,
             ViewArg::Front => View::Front,
             ViewArg::Side => View::Side,
+            ViewArg::Sensor => View::Sensor,
         }
     }
 }
@@ -95,17 +125,24 @@ impl From<StyleArg> for Style {
 
 #[derive(Args, Debug)]
 pub struct DrawArgs {
-    /// The cloud the map was made from (any readable format).
+    /// The cloud the map was made from (any format `map` reads; `-` reads standard input).
     pub input: PathBuf,
+    /// The map to draw over the cloud: .mema, .csv or .json.
     pub map: PathBuf,
     /// The picture to write (.png).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// The direction the picture looks along; the views name a z-up world, turned by --up.
     #[arg(long, value_enum, default_value_t = ViewArg::Iso)]
     pub view: ViewArg,
+    /// The world axis that points up in the picture [default: z; for --view sensor, the
+    /// sensor's -y, as camera frames point y down].
+    #[arg(long, value_enum)]
+    pub up: Option<UpArg>,
     /// Picture size in pixels; with --compare, the two panels share it side by side.
     #[arg(long, default_value = "1200x900")]
     pub size: Size,
+    /// How entities are drawn.
     #[arg(long, value_enum, default_value_t = StyleArg::Shaded)]
     pub style: StyleArg,
     /// A second map drawn beside the first on the same scale (the paper's Figure 12:
@@ -121,6 +158,7 @@ pub struct DrawArgs {
 
 #[derive(Args, Debug)]
 pub struct ExportArgs {
+    /// The map to mesh: .mema, .csv or .json.
     pub map: PathBuf,
     /// The mesh to write: .ply, .obj or .glb.
     #[arg(short, long)]
@@ -136,22 +174,42 @@ pub struct ExportArgs {
     /// Latitude bands of each ellipsoid.
     #[arg(long, default_value_t = 12)]
     pub rings: u32,
+    /// The most bytes the mesh may take. Its size is counted from the map before any work
+    /// (PLY: 27 bytes a vertex and 13 a triangle; glTF: 12 and 12; OBJ: at most 101 and 35),
+    /// and a larger mesh is refused, naming the --segments and --rings that fit.
+    #[arg(long, value_name = "BYTES", default_value_t = mema::render::export::DEFAULT_MAX_BYTES)]
+    pub max_bytes: u64,
+    /// Print one JSON object instead of the text.
     #[arg(long)]
     pub json: bool,
 }
 
 #[derive(Args, Debug)]
 pub struct CompletionsArgs {
+    /// The shell to print the script for.
     pub shell: clap_complete::Shell,
+}
+
+#[derive(Args, Debug)]
+pub struct ManArgs {
+    /// Write one page per command here (mema.1, mema-map.1, ...) instead of printing the
+    /// main page; the directory must exist.
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
 }
 
 /// `--only`: [`Which`] for the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WhichArg {
+    /// Eq. 12 from moments against the direct sum over points, and the f32 fit against f64.
     Fitness,
+    /// Accelerated k-means against the plain algorithm.
     Kmeans,
+    /// The whole map command per cloud: time and peak memory, on 1 and 2 threads.
     Pipeline,
+    /// The same steps in Python (numpy and scikit-learn), with --python.
     Python,
+    /// Map fidelity at fixed byte budgets against a Gaussian mixture (about an hour).
     Fidelity,
 }
 

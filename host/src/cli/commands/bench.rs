@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result};
 use mema::bench::{ablation, stream};
+use mema::io::read::input_name;
 
 use super::read_in_metres;
 use super::serial::capacity;
@@ -14,8 +15,7 @@ pub fn bench(args: &BenchArgs) -> Result<()> {
 
 pub fn ablation(args: &AblationArgs) -> Result<()> {
     let (cloud, _) = read_in_metres(&args.input, &args.units)?;
-    ablation::run(&cloud, args.k, args.seed, args.json)
-        .with_context(|| args.input.display().to_string())
+    ablation::run(&cloud, args.k, args.seed, args.json).with_context(|| input_name(&args.input))
 }
 
 pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
@@ -30,13 +30,13 @@ pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
         args.shape.tolerance.unwrap_or(0.0),
         args.shape.model.into(),
     )
-    .with_context(|| args.input.display().to_string())?;
+    .with_context(|| input_name(&args.input))?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         println!(
             "{}: {} points, k = {}, model {:?}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  two-way score, stream / batch: Chamfer {:.6} / {:.6}, accuracy mean {:.6} / {:.6}, completeness mean {:.6} / {:.6}, phantom {:.3} / {:.3}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
-            args.input.display(),
+            input_name(&args.input),
             r.points,
             r.k,
             r.model,

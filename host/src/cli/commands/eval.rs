@@ -2,27 +2,19 @@
 //! bytes the map file really takes.
 
 use anyhow::{Context, Result};
-use mema::analysis::eval::{EvalReport, FileBytes, MAX_SAMPLES, evaluate, points_in_map_frame};
+use mema::analysis::eval::{
+    EvalDocument, EvalReport, FileBytes, MAX_SAMPLES, WorldBox, evaluate, points_in_map_frame,
+};
 use mema::analysis::fidelity::{self, FidelityScore};
 use mema::analysis::stats::{self, MemoryRow};
+use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::HostMap;
+use mema::io::read::input_name;
 use mema::progress::stage;
-use serde::Serialize;
 
 use super::read_in_metres;
 use crate::cli::args::EvalArgs;
 use crate::cli::errors::UsageError;
-
-/// `mema eval --json`: eq. 13's keys first and unchanged, then the score's and the bytes'.
-#[derive(Serialize)]
-pub struct EvalJson {
-    #[serde(flatten)]
-    pub eq13: EvalReport,
-    #[serde(flatten)]
-    pub fidelity: FidelityScore,
-    #[serde(flatten)]
-    pub bytes: FileBytes,
-}
 
 pub fn eval(args: &EvalArgs) -> Result<()> {
     if args.samples == 0 || args.samples > MAX_SAMPLES {
@@ -39,6 +31,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     }
     let bytes = FileBytes::of(&args.map, &map)?;
     let eq13 = stage("evaluating", || evaluate(&cloud, &map));
+    warn_if_apart(args, &cloud, &map, &eq13);
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     let score = stage("scoring", || {
         fidelity::two_way_score(
@@ -48,19 +41,23 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             args.samples,
         )
     })
-    .with_context(|| format!("{} against {}", args.map.display(), args.input.display()))?;
+    .with_context(|| format!("{} against {}", args.map.display(), input_name(&args.input)))?;
     if args.json {
-        let doc = EvalJson {
+        let doc = EvalDocument {
             eq13,
             fidelity: score,
             bytes,
+            dropped_non_finite: cloud.dropped_non_finite,
+            unit: serde_json::to_value(&units)?,
         };
-        let mut doc = serde_json::to_value(&doc)?;
-        doc["unit"] = serde_json::to_value(&units)?;
         println!("{}", serde_json::to_string(&doc)?);
         return Ok(());
     }
     println!("cloud unit: {units}, scaled to metres; lengths below in metres");
+    println!(
+        "cloud points: {} read, {} more dropped for a NaN or infinite coordinate",
+        eq13.points, cloud.dropped_non_finite
+    );
     println!("{}", stats::MEMORY_HEADER);
     println!(
         "{}",
@@ -80,6 +77,36 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         bytes.file_bytes, bytes.bytes_per_entity, bytes.header_bytes
     );
     Ok(())
+}
+
+/// One warning line each when the map and the cloud do not look like each other's: their
+/// boxes do not meet, or most entities are nearest to none of the points. Either way the
+/// scores below measure two unrelated things.
+fn warn_if_apart(args: &EvalArgs, cloud: &LocalCloud, map: &HostMap, eq13: &EvalReport) {
+    let (map_name, cloud_name) = (args.map.display(), input_name(&args.input));
+    if let (Some(c), Some(m)) = (WorldBox::of_cloud(cloud), WorldBox::of_map(map))
+        && !c.overlaps(&m)
+    {
+        eprintln!(
+            "mema: warning: {map_name} lies apart from {cloud_name} (entities within {:?}..{:?} m, points within {:?}..{:?} m): the map was made from another cloud, or one of them is in another unit or frame (--units)",
+            round(m.min),
+            round(m.max),
+            round(c.min),
+            round(c.max)
+        );
+    }
+    let entities = map.entities.len();
+    let empty = entities.saturating_sub(eq13.errors.clusters);
+    if 2 * empty > entities {
+        eprintln!(
+            "mema: warning: {empty} of {entities} entities of {map_name} are nearest to none of the points of {cloud_name}: the map likely covers another cloud, or another part of this one"
+        );
+    }
+}
+
+/// A corner rounded to the millimetre, for a readable message.
+fn round(p: [f64; 3]) -> [f64; 3] {
+    p.map(|v| (v * 1000.0).round() / 1000.0)
 }
 
 fn print_score(s: &FidelityScore, seed: u64) {

@@ -1,23 +1,21 @@
-//! `mema map` and `mema demo`: the arguments checked in the order the user reads them, the
-//! library's [`mema::batch`] run, and Tables 2 and 4 (or one JSON object).
+//! `mema map`: the arguments checked in the order the user reads them, the library's
+//! [`mema::batch`] run, and Tables 2 and 4 (or one JSON object).
 
 use anyhow::{Context, Result};
 use mema::analysis::stats;
 use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance};
 use mema::io::Units;
-use mema::io::cloud::LocalCloud;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
-use mema::io::scene::{ScanConfig, Scene, scan};
-use mema::link::scanner::{scans_of, send_scans, unit_name};
-use mema::link::stream::{Capacity, Link, link_params};
-use mema::mapping::filter::{self, check_voxel};
-use mema::mapping::{
-    EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel, most_entities,
-};
+use mema::io::read::input_name;
+use mema::link::scanner::{scans_of, unit_name};
+use mema::link::stream::{Capacity, link_params, stream_scans};
+use mema::mapping::filter::{self, FilterCounts, check_voxel};
+use mema::mapping::{MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel, most_entities};
 use mema_core::shell::ShellParams;
 
 use super::read_in_metres;
-use crate::cli::args::{DemoArgs, EntityArg, MapArgs};
+use crate::cli::args::fit::BoundsArg;
+use crate::cli::args::{EntityArg, MapArgs};
 use crate::cli::errors::UsageError;
 
 /// The shell model `mema map`'s arguments ask for, checked before any work.
@@ -65,7 +63,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
     }
     let (cloud, units) = read_in_metres(&args.input, &args.units)?;
     let (cloud, counts) =
-        filter::apply(cloud, args.crop, voxel).with_context(|| args.input.display().to_string())?;
+        filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
     // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
     let most = most_entities(cloud.points.len());
@@ -87,10 +85,12 @@ pub fn map(args: &MapArgs) -> Result<()> {
         &args.output,
         args.labels.as_deref(),
     )
-    .with_context(|| args.input.display().to_string())?;
+    .with_context(|| input_name(&args.input))?;
     report.filter = counts;
-    warn_if_degenerate(&report, args.fit.threshold, &units);
-    print_map_report(&report, Some(&units), args.json)
+    if !warn_if_degenerate(&report, args.fit.threshold, &units) {
+        warn_if_on_bounds(&report, args, &units);
+    }
+    print_map_report(&report, &units, args.json)
 }
 
 /// `mema map --stream`: the bytes `mema scanner-sim` would send of the file, through the
@@ -99,10 +99,7 @@ fn stream_map(args: &MapArgs, config: &PipelineConfig, model: Model) -> Result<(
     let capacity = Capacity::checked(config.k, args.working, false)?;
     let scans = scans_of(&args.input, args.units.units.as_ref())
         .with_context(|| args.input.display().to_string())?;
-    let sent = send_scans(&scans)?;
-    let mut link = Link::with_params(link_params(config, capacity, None, model));
-    link.feed(&sent.bytes);
-    let map = link.finish();
+    let (sent, link, map) = stream_scans(&scans, link_params(config, capacity, None, model))?;
     map.write(&args.output)?;
     let summary = StreamMapSummary {
         map: args.output.display().to_string(),
@@ -144,43 +141,44 @@ struct StreamMapSummary {
 
 /// A warning on stderr when most entities degenerated: clusters wider than the threshold
 /// (the paper's 4 m) everywhere mostly mean coordinates in millimetres or feet read as metres.
-fn warn_if_degenerate(r: &MapReport, threshold: f64, units: &Units) {
+/// Returns whether it warned.
+fn warn_if_degenerate(r: &MapReport, threshold: f64, units: &Units) -> bool {
     let degenerate = r.kinds.pseudocylinder + r.kinds.plane_pair;
     let all = r.memory.entities;
-    if all > 0 && 2 * degenerate > all {
+    let most = all > 0 && 2 * degenerate > all;
+    if most {
         eprintln!(
             "mema: warning: {degenerate} of {all} entities degenerated (an axis past the {threshold} m threshold); \
              the cloud was read in {units}: if its coordinates are not in that unit, give --units (e.g. --units mm)"
         );
     }
+    most
 }
 
-pub fn demo(args: &DemoArgs) -> Result<()> {
-    let config = args.fit.config(args.k)?;
-    check_map_output(&args.output)?;
-    let scan = scan(&Scene::demo(), &ScanConfig::default());
-    eprintln!(
-        "demo: simulated rangefinder scan of the built-in scene (floor, trash can, box, person): {} points from {} rays",
-        scan.points.len(),
-        scan.rays
-    );
-    let cloud = LocalCloud::from_world(&scan.points);
-    let model = if args.paper {
-        Model::Paper
-    } else {
-        Model::Shells
+/// A warning on stderr when most fitted semi-axes ended on a bound of DE's search box: the
+/// box chose them, not eq. 12. With `--bounds threshold` the upper bound is in metres, so a
+/// cloud in millimetres read as metres puts every axis on it (the bunny: all 180, though only
+/// half its entities degenerate); `--alpha 0` leaves eq. 12 only its volume term, which puts
+/// every axis on the lower bound.
+fn warn_if_on_bounds(r: &MapReport, args: &MapArgs, units: &Units) {
+    let Some(on) = r.axes_on_bound.filter(|b| b.most()) else {
+        return;
     };
-    let report = map_cloud_with(
-        &cloud,
-        &config,
-        model,
-        ShellModel::default(),
-        EntityChoice::Ellipsoid,
-        &args.output,
-        None,
-    )
-    .context("demo scene")?;
-    print_map_report(&report, None, args.json)
+    let the_box = match args.fit.bounds {
+        BoundsArg::Spread => "spread: 0.05 to 3 times each cluster's RMS radius".to_owned(),
+        BoundsArg::Threshold => format!(
+            "threshold: 0.05 times each cluster's RMS radius to the {} m threshold",
+            args.fit.threshold
+        ),
+    };
+    eprintln!(
+        "mema: warning: {} of {} fitted semi-axes ended on a bound of the fit's search box ({} on its lower bound, {} on its upper; --bounds {the_box}), so the box chose their lengths, not eq. 12; \
+         the cloud was read in {units}: if its coordinates are not in that unit, give --units (e.g. --units mm), otherwise consider another --bounds, --alpha or --volume",
+        on.lower + on.upper,
+        on.axes,
+        on.lower,
+        on.upper
+    );
 }
 
 /// `mema map --tolerance T`.
@@ -201,15 +199,15 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
         check_output_file(labels, "labels")?;
     }
     let (cloud, units) = read_in_metres(&args.input, &args.units)?;
-    let (cloud, _) =
-        filter::apply(cloud, args.crop, voxel).with_context(|| args.input.display().to_string())?;
+    let (cloud, counts) =
+        filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     let built = map_to_tolerance(&cloud, &options, &config, model, shell)
-        .with_context(|| args.input.display().to_string())?;
+        .with_context(|| input_name(&args.input))?;
     built.map.write(&args.output)?;
     if let Some(path) = &args.labels {
         write_labels(path, &built.labels(cloud.points.len()))?;
     }
-    let report = built.report(cloud.points.len(), &args.output);
+    let report = built.report(&cloud, &args.output);
     if args.json {
         let mut doc = serde_json::to_value(&report)?;
         doc["unit"] = serde_json::to_value(&units)?;
@@ -217,6 +215,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
         return Ok(());
     }
     println!("unit: {units}, scaled to metres");
+    println!("{}", points_line(&counts, cloud.dropped_non_finite));
     println!(
         "tolerance {tolerance} m: k = {} ({} splits, {} merges{})",
         report.k,
@@ -251,19 +250,15 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     Ok(())
 }
 
-fn print_map_report(r: &MapReport, units: Option<&Units>, json: bool) -> Result<()> {
+fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
     if json {
         let mut doc = serde_json::to_value(r)?;
-        if let Some(units) = units {
-            doc["unit"] = serde_json::to_value(units)?;
-        }
+        doc["unit"] = serde_json::to_value(units)?;
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
-    match units {
-        Some(units) => println!("unit: {units}, scaled to metres; map in metres"),
-        None => println!("unit: metre (the simulated scene)"),
-    }
+    println!("unit: {units}, scaled to metres; map in metres");
+    println!("{}", points_line(&r.filter, r.dropped_non_finite));
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
@@ -303,4 +298,20 @@ fn print_map_report(r: &MapReport, units: Option<&Units>, json: bool) -> Result<
         r.output
     );
     Ok(())
+}
+
+/// The points the map was made of: read, dropped for a NaN or infinite coordinate (a scanner's
+/// empty returns), and what `--crop` and `--voxel` left.
+fn points_line(counts: &FilterCounts, dropped: usize) -> String {
+    let mut line = format!(
+        "points: {} read, {dropped} more dropped for a NaN or infinite coordinate",
+        counts.read
+    );
+    if let Some(n) = counts.cropped {
+        line.push_str(&format!(", {n} inside --crop"));
+    }
+    if let Some(n) = counts.voxelized {
+        line.push_str(&format!(", {n} after --voxel"));
+    }
+    line
 }

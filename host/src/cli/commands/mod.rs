@@ -1,5 +1,7 @@
 //! One handler per subcommand: check the arguments, call the library, print.
 pub mod bench;
+pub mod demo;
+mod demo_moving;
 pub mod eval;
 pub mod info;
 pub mod map;
@@ -25,7 +27,7 @@ pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Unit
     if let Some(file) = &units.overrides {
         eprintln!(
             "mema: {}: --units {} overrides the file's {file}",
-            path.display(),
+            mema::io::read::input_name(path),
             units.unit.name
         );
     }

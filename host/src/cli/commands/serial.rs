@@ -9,10 +9,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use mema::io::cloud::is_registration;
+use mema::io::drive::{DriveConfig, drive};
 use mema::io::output::{check_map_output, check_output_dir};
-use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::io::scene::Scene;
 use mema::link::capture::CaptureWriter;
-use mema::link::port::{ReadOutcome, open_for_reading, open_for_writing, read_some};
+use mema::link::port::{
+    ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
+};
 use mema::link::scanner::{SensorScan, scans_of, send_scans, unit_name};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
@@ -122,8 +125,40 @@ pub struct StreamSummary {
     pub origin: [f64; 3],
     pub bytes: u64,
     pub ellipsoids: usize,
+    /// From the start of listening (or replaying) to the end.
     pub elapsed_s: f64,
+    /// From the first point's arrival to the last's: the time the points took to arrive.
+    pub arrival_s: f64,
+    /// Points over `arrival_s`: the rate the link delivered while it delivered, not diluted
+    /// by the wait for the scanner to start (0 when every point came in one read).
     pub points_per_s: f64,
+}
+
+/// When the mapper's points first and last grew: the window a rate is measured over.
+#[derive(Default)]
+struct Arrivals {
+    seen: u64,
+    first: Option<Instant>,
+    last: Option<Instant>,
+}
+
+impl Arrivals {
+    /// Notes the mapper's point count after a read; a count that grew is an arrival now.
+    fn note(&mut self, points: u64) {
+        if points > self.seen {
+            let now = Instant::now();
+            self.first.get_or_insert(now);
+            self.last = Some(now);
+            self.seen = points;
+        }
+    }
+
+    fn seconds(&self) -> f64 {
+        match (self.first, self.last) {
+            (Some(first), Some(last)) => last.duration_since(first).as_secs_f64(),
+            _ => 0.0,
+        }
+    }
 }
 
 fn summary(
@@ -132,9 +167,11 @@ fn summary(
     end: &str,
     ellipsoids: usize,
     started: Instant,
+    arrivals: &Arrivals,
 ) -> StreamSummary {
     let s = link.stats();
     let elapsed = started.elapsed().as_secs_f64();
+    let arrival = arrivals.seconds();
     let points = link.mapper.stats().points;
     StreamSummary {
         map: map.display().to_string(),
@@ -153,8 +190,9 @@ fn summary(
         bytes: s.bytes,
         ellipsoids,
         elapsed_s: elapsed,
-        points_per_s: if elapsed > 0.0 {
-            points as f64 / elapsed
+        arrival_s: arrival,
+        points_per_s: if arrival > 0.0 {
+            points as f64 / arrival
         } else {
             0.0
         },
@@ -183,7 +221,7 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         ));
     }
     eprintln!(
-        "mema: {}: {} points, frames {} accepted / {} rejected{} / {} lost / {} repeated{extra}, {} ellipsoids, {:.2} s, {:.0} points/s",
+        "mema: {}: {} points, frames {} accepted / {} rejected{} / {} lost / {} repeated{extra}, {} ellipsoids, {:.2} s, {:.0} points/s over the {:.2} s they took to arrive",
         s.end,
         s.points,
         s.frames_accepted,
@@ -193,7 +231,8 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         s.frames_duplicated,
         s.ellipsoids,
         s.elapsed_s,
-        s.points_per_s
+        s.points_per_s,
+        s.arrival_s
     );
     if json {
         println!("{}", serde_json::to_string(s)?);
@@ -219,7 +258,7 @@ fn conclude(
     mut link: Link,
     output: &Path,
     end: Option<Stop>,
-    started: Instant,
+    (started, arrivals): (Instant, &Arrivals),
     json: bool,
 ) -> Result<()> {
     let map = link.finish();
@@ -234,7 +273,14 @@ fn conclude(
         (None, false) => "input ended before end of stream".to_string(),
     };
     report(
-        &summary(&link, output, &end_text, map.entities.len(), started),
+        &summary(
+            &link,
+            output,
+            &end_text,
+            map.entities.len(),
+            started,
+            arrivals,
+        ),
         json,
     )?;
     let lost = format!(
@@ -269,6 +315,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
+    let mut arrivals = Arrivals::default();
     let mut last_snapshot = Instant::now();
     let mut last_progress = Instant::now();
     let mut last_frame = Instant::now();
@@ -298,6 +345,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 }
                 let frames = link.stats().accepted;
                 link.feed(bytes);
+                arrivals.note(link.mapper.stats().points);
                 if link.stats().accepted > frames {
                     last_frame = Instant::now();
                 }
@@ -332,7 +380,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     if let Some(r) = record {
         r.finish()?;
     }
-    conclude(link, &args.output, end, started, args.json)
+    conclude(link, &args.output, end, (started, &arrivals), args.json)
 }
 
 pub fn record(args: &RecordArgs) -> Result<()> {
@@ -399,6 +447,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let stop = interrupted();
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();
+    let mut arrivals = Arrivals::default();
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
         if stop.load(Ordering::SeqCst) {
@@ -409,6 +458,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         // counted whole whatever the chunk size.
         let paced = !link.end_of_stream();
         link.feed(chunk);
+        arrivals.note(link.mapper.stats().points);
         if let Some(rate) = args.rate.filter(|_| paced) {
             // Pace by points delivered, as the scanner would have.
             let due = link.mapper.stats().points as f64 / rate;
@@ -418,7 +468,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
             }
         }
     }
-    conclude(link, &output, end, started, args.json)
+    conclude(link, &output, end, (started, &arrivals), args.json)
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
@@ -435,10 +485,11 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
         (None, Some(path)) => vec![SensorScan::of_cloud(
             &super::read_in_metres(path, &args.units)?.0,
         )?],
-        (None, None) => {
-            let scan = scan(&Scene::demo(), &ScanConfig::default());
-            vec![SensorScan::of_world(&scan.points)?]
-        }
+        // The robot driving through the demo scene: each stop's scan after its pose.
+        (None, None) => drive(&Scene::demo(), &DriveConfig::default())
+            .iter()
+            .map(SensorScan::of_drive)
+            .collect(),
     };
     if scans.iter().all(|s| s.points.is_empty()) {
         bail!("the cloud has no points to send");
@@ -477,11 +528,23 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     }
     port.flush()
         .with_context(|| format!("{}: flush failed", args.port.display()))?;
-    eprintln!(
-        "mema: scanner-sim: sent {} points in {} frames, {sent} bytes, {:.2} s",
-        sending.points,
-        sending.frames,
-        started.elapsed().as_secs_f64()
-    );
+    let frames = sending.frames;
+    // A device is a port; a FIFO is someone's reader; a regular file is what was made.
+    let to_file =
+        !is_terminal_device(&args.port) && std::fs::metadata(&args.port).is_ok_and(|m| m.is_file());
+    if to_file {
+        // No scanner listens on a file: say what was made of it, and what reads it.
+        let path = args.port.display();
+        eprintln!(
+            "mema: scanner-sim: {path} is not a serial port or terminal device, so it is now a capture file: {} points in {frames} frames, {sent} bytes; map it with `mema replay {path}`",
+            sending.points
+        );
+    } else {
+        eprintln!(
+            "mema: scanner-sim: sent {} points in {frames} frames, {sent} bytes, {:.2} s",
+            sending.points,
+            started.elapsed().as_secs_f64()
+        );
+    }
     Ok(())
 }

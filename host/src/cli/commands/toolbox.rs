@@ -5,12 +5,14 @@ use clap::CommandFactory;
 use mema::io::mapfile::{HostMap, write_file_atomically};
 use mema::io::output::check_output_file;
 use mema::progress::stage;
-use mema::render::export::{self as mesh, Bounds, ExportReport, MeshFormat, Tessellation};
+use mema::render::export::{
+    self as mesh, Bounds, ExportReport, MeshFormat, MeshSize, Tessellation,
+};
 use mema::render::picture::render;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::read_in_metres;
-use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs};
+use crate::cli::args::{Cli, CompletionsArgs, DrawArgs, ExportArgs, ManArgs};
 use crate::cli::errors::UsageError;
 
 /// Fails before any work if `path` lacks the extension or its directory cannot take it.
@@ -45,15 +47,15 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
     if let Some(other) = &args.compare {
         maps.push((file_name(other), read_map(other)?));
     }
-    let (raster, mut report) = stage("rendering", || {
-        render(
-            &cloud,
-            &maps,
-            args.view.into(),
-            args.size,
-            args.style.into(),
-        )
-    })?;
+    // The renderer shows its own progress, counted over the entities.
+    let (raster, mut report) = render(
+        &cloud,
+        &maps,
+        args.view.into(),
+        args.up.map(Into::into),
+        args.size,
+        args.style.into(),
+    )?;
     let png = raster.encode_png().context("PNG encoding")?;
     write_file_atomically(&args.output, &png, "picture")
         .with_context(|| format!("{}", args.output.display()))?;
@@ -67,8 +69,11 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
                 p.map, p.entities, p.mean_error
             );
         }
+        let up = report.up.map_or(String::new(), |u| {
+            format!(", {} up", ["x", "y", "z"][u.axis()])
+        });
         println!(
-            "wrote {} ({}x{}, {} view)",
+            "wrote {} ({}x{}, {} view{up})",
             report.output,
             report.width,
             report.height,
@@ -90,6 +95,11 @@ pub fn export(args: &ExportArgs) -> Result<()> {
     MeshFormat::from_path(&args.output)?;
     check_output(&args.output, &["ply", "obj", "glb"], "mesh")?;
     let map = read_map(&args.map)?;
+    // Counted and checked against --max-bytes before the cloud is read or any vertex made.
+    let format = MeshFormat::from_path(&args.output)?;
+    MeshSize::of(&map, &t, format)
+        .check(&map, &t, args.max_bytes)
+        .with_context(|| args.map.display().to_string())?;
     let (bounds, source) = match &args.cloud {
         Some(path) => {
             let (cloud, _) = read_in_metres(path, &args.units)?;
@@ -97,13 +107,20 @@ pub fn export(args: &ExportArgs) -> Result<()> {
         }
         None => (Bounds::of_map(&map), "map"),
     };
-    let report: ExportReport = mesh::export(&map, bounds, source, &t, &args.output)?;
+    let report: ExportReport = stage("writing the mesh", || {
+        mesh::export(&map, bounds, source, &t, &args.output, args.max_bytes)
+    })?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         println!(
-            "wrote {}: {} entities as {} vertices and {} triangles (degenerated ones clipped to the {}'s box)",
-            report.output, report.entities, report.vertices, report.triangles, report.bounds_source
+            "wrote {}: {} entities as {} vertices and {} triangles, {} bytes (degenerated ones clipped to the {}'s box)",
+            report.output,
+            report.entities,
+            report.vertices,
+            report.triangles,
+            report.bytes,
+            report.bounds_source
         );
     }
     Ok(())
@@ -115,10 +132,49 @@ pub fn completions(args: &CompletionsArgs) -> Result<()> {
     print_bytes(&out)
 }
 
-pub fn man() -> Result<()> {
-    let mut out = Vec::new();
-    clap_mangen::Man::new(Cli::command()).render(&mut out)?;
-    print_bytes(&out)
+pub fn man(args: &ManArgs) -> Result<()> {
+    let Some(dir) = &args.out_dir else {
+        let mut out = Vec::new();
+        clap_mangen::Man::new(Cli::command()).render(&mut out)?;
+        return print_bytes(&out);
+    };
+    if !dir.is_dir() {
+        return Err(UsageError(format!(
+            "--out-dir {}: not an existing directory",
+            dir.display()
+        ))
+        .into());
+    }
+    // Built, so each subcommand's page is named after its path (mema-map.1); the `help`
+    // subcommand is no command of mema's and gets no page.
+    let mut root = Cli::command().disable_help_subcommand(true);
+    root.build();
+    let mut written = Vec::new();
+    write_pages(&root, dir, &mut written)?;
+    for path in &written {
+        println!("{}", path.display());
+    }
+    eprintln!(
+        "mema: wrote {} man pages to {}; read one with `man {}`",
+        written.len(),
+        dir.display(),
+        dir.join("mema-map.1").display()
+    );
+    Ok(())
+}
+
+/// Writes `command`'s page and its subcommands' pages into `dir`, each atomically.
+fn write_pages(command: &clap::Command, dir: &Path, written: &mut Vec<PathBuf>) -> Result<()> {
+    let page = clap_mangen::Man::new(command.clone());
+    let path = dir.join(page.get_filename());
+    let mut roff = Vec::new();
+    page.render(&mut roff)?;
+    write_file_atomically(&path, &roff, "man page")?;
+    written.push(path);
+    for sub in command.get_subcommands().filter(|s| !s.is_hide_set()) {
+        write_pages(sub, dir, written)?;
+    }
+    Ok(())
 }
 
 /// A closed pipe (`mema man | head`) is not an error worth a message.

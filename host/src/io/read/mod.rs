@@ -19,7 +19,12 @@
 //! Format detection looks at the first bytes (`ply` magic line, a PCD header, the `LASF`
 //! signature, then text with a line of at least three numbers); the file extension only sharpens
 //! the error message, except for headerless KITTI `.bin` scans, which it selects.
+//!
+//! The path `-` is standard input ([`STDIN`]), read as a pipe is (to 1 GiB, each wait for bytes
+//! bounded) and recognised by its content the same way; a KITTI scan, which only its name
+//! tells apart, cannot come that way. A file named `-` is `./-`.
 
+pub mod fuzz_checks;
 mod kitti;
 mod las;
 mod lzf;
@@ -31,7 +36,7 @@ mod xyz;
 
 use std::fmt;
 use std::fs::File;
-use std::io::Seek;
+use std::io::{IsTerminal, Seek};
 use std::path::{Path, PathBuf};
 
 use crate::io::units::{self, FileUnit, LengthUnit, Units};
@@ -155,6 +160,27 @@ pub enum ReadError {
     /// The coordinates cannot be taken to metres: geographic, or in a unit not known.
     #[error(transparent)]
     Units(units::UnitError),
+    /// `-` was given while standard input is a terminal: a cloud is piped in, not typed.
+    #[error(
+        "{}: a terminal, not a cloud; pipe one in (e.g. `mema map - -k 150 -o scan.mema < scan.ply`)",
+        STDIN_NAME
+    )]
+    Terminal,
+}
+
+/// The path that reads standard input.
+pub const STDIN: &str = "-";
+
+/// How messages name standard input.
+const STDIN_NAME: &str = "standard input";
+
+/// How messages name the input at `path`: its path, or "standard input" for [`STDIN`].
+pub fn input_name(path: &Path) -> String {
+    if path == Path::new(STDIN) {
+        STDIN_NAME.to_owned()
+    } else {
+        path.display().to_string()
+    }
 }
 
 fn no_finite_points(slots: &usize) -> String {
@@ -186,6 +212,13 @@ pub fn read_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<C
 }
 
 fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
+    if path == Path::new(STDIN) {
+        if std::io::stdin().is_terminal() {
+            return Err(ReadError::Terminal);
+        }
+        // Linux's name for descriptor 0: a pipe, a socket or a redirected file alike.
+        return read_unsized(Path::new("/dev/stdin"), STDIN_NAME, scaling);
+    }
     let io = |cause| ReadError::Io {
         path: path.to_owned(),
         cause,
@@ -195,20 +228,7 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
     let name = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(io)?;
     if !meta.is_file() || meta.len() == 0 {
-        return match crate::io::input::read_bounded(path, UNSIZED_LIMIT, "point cloud") {
-            Ok(bytes) => read_bytes(Ctx(&name, scaling), &bytes),
-            Err(crate::io::input::InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
-                name,
-                what: format!(
-                    "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
-                ),
-            }),
-            Err(crate::io::input::InputError::Io { cause, .. }) => Err(io(cause)),
-            Err(idle @ crate::io::input::InputError::Idle { .. }) => Err(io(std::io::Error::new(
-                std::io::ErrorKind::TimedOut,
-                idle.to_string(),
-            ))),
-        };
+        return read_unsized(path, &name, scaling);
     }
     let mut file = File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
@@ -227,6 +247,33 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
             file.rewind().map_err(io)?;
             las::read(ctx, std::io::BufReader::new(file), meta.len())
         }
+    }
+}
+
+/// Reads a pipe, a device or a file whose length says nothing, whole (to [`UNSIZED_LIMIT`]),
+/// then its bytes; `name` names it in errors.
+fn read_unsized(path: &Path, name: &str, scaling: Scaling) -> Result<Cloud, ReadError> {
+    use crate::io::input::{InputError, read_bounded};
+    let io = |cause| ReadError::Io {
+        path: PathBuf::from(name),
+        cause,
+    };
+    match read_bounded(path, UNSIZED_LIMIT, "point cloud") {
+        Ok(bytes) => read_bytes(Ctx(name, scaling), &bytes),
+        Err(InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
+            name: name.to_owned(),
+            what: format!(
+                "a pipe or device giving more than {limit} bytes, the most read from an input without a length"
+            ),
+        }),
+        Err(InputError::Io { cause, .. }) => Err(io(cause)),
+        Err(InputError::Idle { .. }) => Err(io(std::io::Error::new(
+            std::io::ErrorKind::TimedOut,
+            format!(
+                "nothing arrived for {} s (a pipe or device that nobody writes to is not a point cloud)",
+                crate::io::input::IDLE_TIMEOUT.as_secs()
+            ),
+        ))),
     }
 }
 

@@ -13,17 +13,19 @@
 //! cloud it came from; glTF positions are f32 by the specification, so they are local to the
 //! map's origin and the one node carries the origin as its translation.
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use mema_core::query::half_extents;
 use mema_core::{EntityKind, MapEntity, Rotation};
 use serde::Serialize;
+use std::collections::TryReserveError;
 use std::path::Path;
 
 use crate::error::ConfigError;
 use crate::io::mapfile::HostMap;
 
 mod formats;
-pub use formats::{to_glb, to_obj, to_ply};
+mod size;
+pub use size::{DEFAULT_MAX_BYTES, MeshSize};
 
 /// Colours by kind (Okabe-Ito, readable with colour-blindness), shared with `mema draw`.
 pub fn kind_colour(kind: EntityKind) -> [u8; 3] {
@@ -76,13 +78,15 @@ impl Tessellation {
         Ok(Self { segments, rings })
     }
 
-    /// (vertices, triangles) of one entity with `degenerated` infinite axes.
+    /// (vertices, triangles) of one entity with `degenerated` infinite axes; none with three,
+    /// which leave no surface to mesh.
     pub fn counts(&self, degenerated: usize) -> (usize, usize) {
         let (s, r) = (self.segments as usize, self.rings as usize);
         match degenerated {
             0 => ((r - 1) * s + 2, 2 * s * (r - 1)),
             1 => (2 * s + 2, 4 * s),
-            _ => (8, 4),
+            2 => (8, 4),
+            _ => (0, 0),
         }
     }
 }
@@ -180,64 +184,170 @@ pub struct Mesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-impl Mesh {
-    fn add(&mut self, vertices: Vec<[f64; 3]>, triangles: impl IntoIterator<Item = [u32; 3]>) {
-        let base = self.positions.len() as u32;
-        self.positions.extend(vertices);
-        self.triangles
-            .extend(triangles.into_iter().map(|t| t.map(|i| base + i)));
-    }
-}
-
-/// The map as one mesh per kind present, in `EntityKind::ALL` order.
-pub fn tessellate(map: &HostMap, bounds: &Bounds, t: &Tessellation) -> Vec<(EntityKind, Mesh)> {
+/// The map as one mesh per kind present, in `EntityKind::ALL` order, held in memory (`mema
+/// export` streams the same vertices and triangles to its file instead, [`export`]). The
+/// memory is reserved fallibly, per kind, from the counts.
+pub fn tessellate(
+    map: &HostMap,
+    bounds: &Bounds,
+    t: &Tessellation,
+) -> Result<Vec<(EntityKind, Mesh)>, TryReserveError> {
+    let shapes = Shapes::new(t)?;
+    let mut v = reserved(t.counts(0).0)?;
     let mut meshes: Vec<(EntityKind, Mesh)> = Vec::new();
     for kind in EntityKind::ALL {
-        let mut mesh = Mesh::default();
-        for e in map.entities.iter().filter(|e| e.kind == kind) {
-            entity_mesh(&mut mesh, map, e, bounds, t);
+        let of_kind = || map.entities.iter().filter(move |e| e.kind == kind);
+        let (nv, nt) = of_kind()
+            .map(|e| t.counts(infinite_axes(e)))
+            .fold((0, 0), |(a, b), (c, d)| (a + c, b + d));
+        let mut mesh = Mesh {
+            positions: reserved(nv)?,
+            triangles: reserved(nt)?,
+        };
+        for e in of_kind() {
+            let Some(tri) = entity_vertices(&mut v, map, e, bounds, t, &shapes) else {
+                continue;
+            };
+            let base = mesh.positions.len() as u32;
+            mesh.positions.extend_from_slice(&v);
+            mesh.triangles
+                .extend(tri.iter().map(|t| t.map(|i| base + i)));
         }
         if !mesh.triangles.is_empty() {
             meshes.push((kind, mesh));
         }
     }
-    meshes
+    Ok(meshes)
 }
 
+/// The triangles of each shape, which depend on the tessellation only: made once and shared
+/// by every entity of that shape, so only vertices are made per entity.
+pub(crate) struct Shapes {
+    ellipsoid: Vec<[u32; 3]>,
+    tube: Vec<[u32; 3]>,
+    planes: Vec<[u32; 3]>,
+}
+
+impl Shapes {
+    /// The shapes' triangles, their memory reserved fallibly (12.5 MB at the most segments
+    /// and rings).
+    pub(crate) fn new(t: &Tessellation) -> Result<Self, TryReserveError> {
+        let (s, rings) = (t.segments, t.rings);
+        let south = 1 + (rings - 1) * s;
+        let at = |ring: u32, i: u32| 1 + (ring - 1) * s + i % s;
+        let mut ellipsoid = reserved(t.counts(0).1)?;
+        for i in 0..s {
+            ellipsoid.push([0, at(1, i), at(1, i + 1)]);
+            ellipsoid.push([south, at(rings - 1, i + 1), at(rings - 1, i)]);
+        }
+        for ring in 1..rings - 1 {
+            for i in 0..s {
+                let (a, b, c, d) = (
+                    at(ring, i),
+                    at(ring + 1, i),
+                    at(ring + 1, i + 1),
+                    at(ring, i + 1),
+                );
+                ellipsoid.push([a, b, c]);
+                ellipsoid.push([a, c, d]);
+            }
+        }
+        let (cap0, cap1) = (2 * s, 2 * s + 1);
+        let mut tube = reserved(t.counts(1).1)?;
+        for i in 0..s {
+            let n = (i + 1) % s;
+            tube.push([i, n, s + n]);
+            tube.push([i, s + n, s + i]);
+            tube.push([cap0, n, i]);
+            tube.push([cap1, s + i, s + n]);
+        }
+        let mut planes = reserved(t.counts(2).1)?;
+        planes.extend([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]);
+        Ok(Shapes {
+            ellipsoid,
+            tube,
+            planes,
+        })
+    }
+}
+
+impl Shapes {
+    /// The triangles of `e`'s shape, `None` for an entity with no finite axis.
+    pub(crate) fn of(&self, e: &MapEntity) -> Option<&[[u32; 3]]> {
+        match infinite_axes(e) {
+            0 => Some(&self.ellipsoid),
+            1 => Some(&self.tube),
+            2 => Some(&self.planes),
+            _ => None,
+        }
+    }
+}
+
+/// The infinite semi-axes of `e`, which choose its shape (and [`Tessellation::counts`]).
+pub(crate) fn infinite_axes(e: &MapEntity) -> usize {
+    e.entity
+        .semi_axes()
+        .iter()
+        .filter(|r| !r.is_finite())
+        .count()
+}
+
+/// An empty vector with room for `n` items, or the error of a machine that has not the memory
+/// (returned rather than ending the process, see [`crate::heap::fallible`]).
+pub(crate) fn reserved<T>(n: usize) -> Result<Vec<T>, TryReserveError> {
+    let mut v = Vec::new();
+    crate::heap::fallible(|| v.try_reserve_exact(n))?;
+    Ok(v)
+}
+
+/// Replaces `v` with an entity's vertices in world coordinates and returns its triangles
+/// (indices into `v`), or `None` for an entity with no finite axis, which has no surface.
+///
 /// An oriented entity is meshed axis-aligned around 0 in its own axes, its degenerated axes
 /// spanning the bounds seen along those axes, and each vertex is then placed at `c + R v`. An
 /// axis-aligned one is meshed where it is, so its vertices keep the bits they always had.
-fn entity_mesh(mesh: &mut Mesh, map: &HostMap, e: &MapEntity, b: &Bounds, t: &Tessellation) {
+fn entity_vertices<'s>(
+    v: &mut Vec<[f64; 3]>,
+    map: &HostMap,
+    e: &MapEntity,
+    b: &Bounds,
+    t: &Tessellation,
+    shapes: &'s Shapes,
+) -> Option<&'s [[u32; 3]]> {
     let c = map.world_center(&e.entity);
     let rotation = e.entity.rotation;
     let r = e.entity.semi_axes().map(f64::from);
-    let Some((mut v, tri)) = (if rotation.is_identity() {
-        axis_aligned_mesh(c, r, b, t)
+    v.clear();
+    let tri = if rotation.is_identity() {
+        axis_aligned_vertices(v, c, r, b, t, shapes)
     } else {
-        axis_aligned_mesh([0.0; 3], r, &b.in_axes_of(c, &rotation), t)
-    }) else {
-        return;
-    };
+        axis_aligned_vertices(v, [0.0; 3], r, &b.in_axes_of(c, &rotation), t, shapes)
+    }?;
     if !rotation.is_identity() {
-        for p in &mut v {
+        for p in v.iter_mut() {
             let q = rotation.rotate(*p);
             *p = [0, 1, 2].map(|j| c[j] + q[j]);
         }
     }
-    mesh.add(v, tri);
+    Some(tri)
 }
 
-type Triangles = (Vec<[f64; 3]>, Vec<[u32; 3]>);
-
-/// The mesh of an entity of semi-axes `r` centred at `c`, unturned; `None` without a finite
-/// axis.
-fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> Option<Triangles> {
+/// The vertices of an entity of semi-axes `r` centred at `c`, unturned, pushed to `v`; `None`
+/// without a finite axis.
+fn axis_aligned_vertices<'s>(
+    v: &mut Vec<[f64; 3]>,
+    c: [f64; 3],
+    r: [f64; 3],
+    b: &Bounds,
+    t: &Tessellation,
+    shapes: &'s Shapes,
+) -> Option<&'s [[u32; 3]]> {
     let (s, rings) = (t.segments, t.rings);
     let angle = |i: u32| std::f64::consts::TAU * f64::from(i) / f64::from(s);
     let finite: Vec<usize> = (0..3).filter(|&j| r[j].is_finite()).collect();
     match finite[..] {
         [_, _, _] => {
-            let mut v = vec![[c[0], c[1], c[2] + r[2]]];
+            v.push([c[0], c[1], c[2] + r[2]]);
             for ring in 1..rings {
                 let theta = std::f64::consts::PI * f64::from(ring) / f64::from(rings);
                 for i in 0..s {
@@ -250,30 +360,10 @@ fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> 
                 }
             }
             v.push([c[0], c[1], c[2] - r[2]]);
-            let south = 1 + (rings - 1) * s;
-            let at = |ring: u32, i: u32| 1 + (ring - 1) * s + i % s;
-            let mut tri = Vec::new();
-            for i in 0..s {
-                tri.push([0, at(1, i), at(1, i + 1)]);
-                tri.push([south, at(rings - 1, i + 1), at(rings - 1, i)]);
-            }
-            for ring in 1..rings - 1 {
-                for i in 0..s {
-                    let (a, b2, c2, d) = (
-                        at(ring, i),
-                        at(ring + 1, i),
-                        at(ring + 1, i + 1),
-                        at(ring, i + 1),
-                    );
-                    tri.push([a, b2, c2]);
-                    tri.push([a, c2, d]);
-                }
-            }
-            Some((v, tri))
+            Some(&shapes.ellipsoid)
         }
         [j, k] => {
             let a = 3 - j - k;
-            let mut v = Vec::with_capacity(2 * s as usize + 2);
             for end in [b.min[a], b.max[a]] {
                 for i in 0..s {
                     let mut p = [0.0; 3];
@@ -288,20 +378,10 @@ fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> 
                 p[a] = end;
                 v.push(p);
             }
-            let (cap0, cap1) = (2 * s, 2 * s + 1);
-            let mut tri = Vec::new();
-            for i in 0..s {
-                let n = (i + 1) % s;
-                tri.push([i, n, s + n]);
-                tri.push([i, s + n, s + i]);
-                tri.push([cap0, n, i]);
-                tri.push([cap1, s + i, s + n]);
-            }
-            Some((v, tri))
+            Some(&shapes.tube)
         }
         [n] => {
             let (u, w) = ((n + 1) % 3, (n + 2) % 3);
-            let mut v = Vec::with_capacity(8);
             for side in [-1.0, 1.0] {
                 for (du, dw) in [
                     (b.min[u], b.min[w]),
@@ -316,7 +396,7 @@ fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> 
                     v.push(p);
                 }
             }
-            Some((v, vec![[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7]]))
+            Some(&shapes.planes)
         }
         // `Entity` keeps at least one finite axis; a map read from elsewhere without one has
         // no surface to draw.
@@ -328,58 +408,64 @@ fn axis_aligned_mesh(c: [f64; 3], r: [f64; 3], b: &Bounds, t: &Tessellation) -> 
 #[derive(Serialize, Default)]
 pub struct KindMesh {
     pub entities: usize,
-    pub vertices: usize,
-    pub triangles: usize,
+    pub vertices: u64,
+    pub triangles: u64,
 }
 
-/// `mema export --json`: `output`, `format`, `entities`, `vertices`, `triangles`, `bounds`
-/// (`min`, `max`, `source`: "cloud" or "map") and `kinds` (per kind: entities, vertices,
-/// triangles).
+/// `mema export --json`: `output`, `format`, `entities`, `vertices`, `triangles`, `bytes`
+/// (written) and `limit`, `bounds` (`min`, `max`, `source`: "cloud" or "map") and `kinds`
+/// (per kind: entities, vertices, triangles).
 #[derive(Serialize)]
 pub struct ExportReport {
     pub output: String,
     pub format: MeshFormat,
     pub entities: usize,
-    pub vertices: usize,
-    pub triangles: usize,
+    pub vertices: u64,
+    pub triangles: u64,
+    /// The file's size as written.
+    pub bytes: u64,
+    /// The most bytes the export was allowed to write.
+    pub limit: u64,
     pub bounds: Bounds,
     pub bounds_source: &'static str,
     pub kinds: std::collections::BTreeMap<&'static str, KindMesh>,
 }
 
-/// Tessellates `map` and writes it to `output` in the format of its extension, atomically.
+/// Tessellates `map` and writes it to `output` in the format of its extension, atomically,
+/// streaming: one entity's vertices are held at a time, so memory does not grow with the map.
+///
+/// The mesh's size is counted from the map before any of it is made ([`MeshSize`]); past
+/// `max_bytes` ([`DEFAULT_MAX_BYTES`] is `mema export`'s) or past 32-bit indices it is a
+/// [`ConfigError`] naming the counts and the finest tessellation that fits, and nothing is
+/// written. Memory the machine refuses is an error, not an abort.
 pub fn export(
     map: &HostMap,
     bounds: Bounds,
     bounds_source: &'static str,
     t: &Tessellation,
     output: &Path,
+    max_bytes: u64,
 ) -> Result<ExportReport> {
     let format = MeshFormat::from_path(output)?;
-    let (vertices, _) = map.entities.iter().fold((0usize, 0usize), |(v, f), e| {
-        let (dv, df) = t.counts(e.entity.degenerated_axes());
-        (v + dv, f + df)
-    });
-    if vertices > u32::MAX as usize / 2 {
-        return Err(ConfigError::TooManyVertices(vertices).into());
-    }
-    let meshes = tessellate(map, &bounds, t);
-    let bytes = match format {
-        MeshFormat::Ply => to_ply(map, &meshes),
-        MeshFormat::Obj => to_obj(map, &meshes),
-        MeshFormat::Glb => to_glb(map, &meshes)?,
-    };
-    crate::io::mapfile::write_file_atomically(output, &bytes, "mesh")?;
+    let size = MeshSize::of(map, t, format);
+    size.check(map, t, max_bytes)?;
+    let shapes = Shapes::new(t).context("memory for the mesh's triangles")?;
+    let written = crate::io::atomic::write_atomically_with(output, "mesh", |w| match format {
+        MeshFormat::Ply => {
+            let counts = (size.vertices, size.triangles);
+            formats::write_ply(w, map, &bounds, t, &shapes, counts)
+        }
+        MeshFormat::Obj => formats::write_obj(w, map, &bounds, t, &shapes),
+        MeshFormat::Glb => formats::write_glb(w, map, &bounds, t, &shapes, &size.kinds),
+    })?;
     let mut kinds = std::collections::BTreeMap::new();
-    for kind in EntityKind::ALL {
-        let entities = map.entities.iter().filter(|e| e.kind == kind).count();
-        let mesh = meshes.iter().find(|(k, _)| *k == kind).map(|(_, m)| m);
+    for (i, kind) in EntityKind::ALL.into_iter().enumerate() {
         kinds.insert(
             kind.name(),
             KindMesh {
-                entities,
-                vertices: mesh.map_or(0, |m| m.positions.len()),
-                triangles: mesh.map_or(0, |m| m.triangles.len()),
+                entities: map.entities.iter().filter(|e| e.kind == kind).count(),
+                vertices: size.kinds[i].0,
+                triangles: size.kinds[i].1,
             },
         );
     }
@@ -387,8 +473,10 @@ pub fn export(
         output: output.display().to_string(),
         format,
         entities: map.entities.len(),
-        vertices: meshes.iter().map(|(_, m)| m.positions.len()).sum(),
-        triangles: meshes.iter().map(|(_, m)| m.triangles.len()).sum(),
+        vertices: size.vertices,
+        triangles: size.triangles,
+        bytes: written,
+        limit: max_bytes,
         bounds,
         bounds_source,
         kinds,
@@ -432,7 +520,7 @@ mod tests {
         for e in cases.into_iter().chain(turned) {
             let map = HostMap::new([10.0, 20.0, 30.0], vec![e]);
             let bounds = Bounds::of_map(&map);
-            let meshes = tessellate(&map, &bounds, &t);
+            let meshes = tessellate(&map, &bounds, &t).expect("memory");
             let (_, mesh) = &meshes[0];
             let d = e.entity.degenerated_axes();
             assert_eq!(

@@ -1,0 +1,59 @@
+"""`mema.Cloud` and `mema.read_cloud`: a cloud as numpy users hold it, world coordinates in
+metres, that remembers the frame its reader put it in so that mapping it gives the command
+line's map bit for bit."""
+
+import numpy as np
+
+from mema import _mema
+
+
+class Cloud(np.ndarray):
+    """An ``(N, 3)`` float64 array of a cloud's points, in world coordinates and metres, as
+    ``read_cloud`` reads it; a plain ndarray in every other way.
+
+    It also keeps what the reader made of the file, because the world coordinates alone cannot
+    give it back (``origin + local`` rounds in float64): ``origin`` ``(3,)``, the local frame's
+    origin; ``local`` ``(N, 3)`` float32, each point's offset from it; ``unit``, the unit the
+    file was read in (as ``mema eval --json`` gives it); ``dropped_non_finite``, the points
+    skipped for a NaN or infinite coordinate. ``mema.map`` and ``Map.eval`` use that frame as
+    long as the array still holds exactly ``origin + local`` (so the map is ``mema map``'s,
+    byte for byte), and otherwise (a slice, an edited or computed array) centre the values as
+    for any array. ``np.asarray(cloud)`` is the plain array.
+    """
+
+    def __new__(cls, points, origin=None, local=None, unit=None, dropped_non_finite=0):
+        cloud = np.asarray(points, dtype=np.float64).view(cls)
+        cloud.origin = origin
+        cloud.local = local
+        cloud.unit = unit
+        cloud.dropped_non_finite = dropped_non_finite
+        return cloud
+
+    def __array_finalize__(self, obj):
+        # Views and results of arithmetic carry the frame along; mapping checks it still fits.
+        self.origin = getattr(obj, "origin", None)
+        self.local = getattr(obj, "local", None)
+        self.unit = getattr(obj, "unit", None)
+        self.dropped_non_finite = getattr(obj, "dropped_non_finite", 0)
+
+    def __reduce__(self):
+        return (
+            _rebuild,
+            (np.asarray(self), self.origin, self.local, self.unit, self.dropped_non_finite),
+        )
+
+
+def _rebuild(points, origin, local, unit, dropped_non_finite):
+    return Cloud(points, origin, local, unit, dropped_non_finite)
+
+
+def read_cloud(path, units=None):
+    """Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI ``.bin``: whatever ``mema
+    map`` reads) as a ``Cloud``: an ``(N, 3)`` float64 array of its finite points in world
+    coordinates, in metres. ``units`` (``m``, ``mm``, ``cm``, ``km``, ``in``, ``ft``,
+    ``us-ft``) scales them as ``--units`` does; without it the unit the file says (a LAS
+    file's CRS) is used, else metres, as the command line reads it."""
+    import json
+
+    world, local, origin, unit, dropped = _mema._read_cloud(path, units)
+    return Cloud(world, origin, local, json.loads(unit), dropped)

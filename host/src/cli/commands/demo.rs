@@ -1,0 +1,192 @@
+//! `mema demo`: a first run that explains itself. It maps a simulated scan of the built-in
+//! scene, writes the scan, the map and a picture of both where the user can open them, says
+//! what the numbers mean, and what to run next on those files.
+
+use anyhow::{Context, Result};
+use mema::analysis::stats;
+use mema::batch::{MapReport, map_cloud_with};
+use mema::io::cloud::LocalCloud;
+use mema::io::mapfile::{HostMap, write_file_atomically};
+use mema::io::output::check_output_file;
+use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::io::write_cloud::write_ply;
+use mema::mapping::{EntityChoice, Model, ShellModel};
+use mema::progress::stage;
+use mema::render::draw::{Style, View};
+use mema::render::picture::{Size, render};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+use crate::cli::args::DemoArgs;
+
+/// The picture's size: large enough to read the legend, small enough to draw in a second.
+pub(super) const PICTURE: Size = Size {
+    width: 1200,
+    height: 900,
+};
+
+/// The files the demo writes, all in `--out-dir`.
+#[derive(Serialize)]
+pub(super) struct DemoFiles {
+    pub scan: PathBuf,
+    pub map: PathBuf,
+    pub picture: PathBuf,
+}
+
+impl DemoFiles {
+    pub(super) fn in_dir(dir: &Path) -> Self {
+        Self {
+            scan: dir.join("scan.ply"),
+            map: dir.join("map.mema"),
+            picture: dir.join("picture.png"),
+        }
+    }
+}
+
+/// `mema demo --json`: the map's report (as `mema map --json` gives it) and the files.
+#[derive(Serialize)]
+struct DemoJson<'a> {
+    #[serde(flatten)]
+    report: &'a MapReport,
+    files: &'a DemoFiles,
+}
+
+pub fn demo(args: &DemoArgs) -> Result<()> {
+    if args.moving {
+        return super::demo_moving::demo_moving(args);
+    }
+    let config = args.fit.config(args.k)?;
+    let dir = &args.out_dir;
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("--out-dir {}: cannot make the directory", dir.display()))?;
+    let files = DemoFiles::in_dir(dir);
+    check_output_file(&files.map, "map")?;
+    let scan_config = ScanConfig::default();
+    let scan = stage("scanning", || scan(&Scene::demo(), &scan_config));
+    write_ply(&files.scan, &scan.points)?;
+    let cloud = LocalCloud::from_world(&scan.points);
+    let model = if args.paper {
+        Model::Paper
+    } else {
+        Model::Shells
+    };
+    let report = map_cloud_with(
+        &cloud,
+        &config,
+        model,
+        ShellModel::default(),
+        EntityChoice::Ellipsoid,
+        &files.map,
+        None,
+    )
+    .context("demo scene")?;
+    let map = HostMap::read(&files.map)?;
+    let (raster, _) = stage("drawing", || {
+        render(
+            &cloud,
+            &[("map.mema".to_owned(), map)],
+            View::Iso,
+            None,
+            PICTURE,
+            Style::Shaded,
+        )
+    })?;
+    let png = raster.encode_png().context("PNG encoding")?;
+    write_file_atomically(&files.picture, &png, "picture")?;
+    if args.json {
+        let doc = DemoJson {
+            report: &report,
+            files: &files,
+        };
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+        return Ok(());
+    }
+    explain(&report, &files, dir, scan_config.range_noise_sigma);
+    Ok(())
+}
+
+/// Millimetres, for lengths a newcomer reads at a glance.
+fn mm(metres: f64) -> String {
+    format!("{:.1} mm", 1000.0 * metres)
+}
+
+/// `path` as a shell word: quoted only where it has to be.
+pub(super) fn shell_word(path: &Path) -> String {
+    let text = path.display().to_string();
+    let plain = text
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || "._/-+,:@".contains(c));
+    if plain {
+        text
+    } else {
+        format!("'{}'", text.replace('\'', r"'\''"))
+    }
+}
+
+fn explain(r: &MapReport, files: &DemoFiles, dir: &Path, noise: f64) {
+    let points = r.memory.points;
+    let entities = r.memory.entities;
+    let what = match r.model {
+        Model::Shells => "oriented shells (thin ellipsoids lying along the surfaces)",
+        Model::Paper => "the paper's axis-aligned ellipsoids, fitted by DE on eq. 12",
+    };
+    println!(
+        "mema demo: a simulated rangefinder scan of a built-in scene (a floor, a trash can, a box\n\
+         and a person): {points} points, in metres. The points are clustered, and each cluster\n\
+         becomes one entity of the map: {entities} {what}."
+    );
+    println!();
+    println!(
+        "Memory (the paper's Table 2): the scan at 12 bytes a point, the map at {} bytes an entity.",
+        r.memory.map_bytes / entities.max(1)
+    );
+    println!("{}", stats::MEMORY_HEADER);
+    println!("{}", stats::format_memory_row(&r.memory));
+    println!();
+    println!(
+        "Error (the paper's Table 4, eq. 13): for each cluster, the RMS distance from its points\n\
+         to its entity's surface, in metres; its mean, spread (std), extremes and sum over the\n\
+         {} clusters.",
+        r.ellipsoidal.clusters
+    );
+    println!("{}", stats::ERROR_HEADER);
+    match &r.spherical {
+        Some(spherical) => {
+            println!("{}", stats::format_error_row("ellipsoidal", &r.ellipsoidal));
+            println!("{}", stats::format_error_row("spherical", spherical));
+            println!(
+                "(spherical: the same clusters fitted with one radius each, the paper's comparison)"
+            );
+        }
+        None => println!("{}", stats::format_error_row("shells", &r.ellipsoidal)),
+    }
+    println!(
+        "So a cluster's points lie {} from its surface on average (RMS; the simulated range noise\n\
+         is {}), {} in the worst cluster.",
+        mm(r.ellipsoidal.mean),
+        mm(noise),
+        mm(r.ellipsoidal.max)
+    );
+    println!(
+        "kinds: {} ellipsoid, {} sphere, {} pseudocylinder, {} plane_pair",
+        r.kinds.ellipsoid, r.kinds.sphere, r.kinds.pseudocylinder, r.kinds.plane_pair
+    );
+    println!();
+    println!("Wrote, in {}:", shell_word(dir));
+    println!("  scan.ply     the scan ({points} points, PLY)");
+    println!("  map.mema     the map ({entities} entities)");
+    println!("  picture.png  the map's entities drawn over the scan's points");
+    println!();
+    let (scan, map) = (shell_word(&files.scan), shell_word(&files.map));
+    let coarse = shell_word(&dir.join("k100.mema"));
+    let top = shell_word(&dir.join("k100.png"));
+    println!("Next:");
+    println!("  mema info {map}");
+    println!("      what the map holds: entities by kind, extent, bytes");
+    println!("  mema eval {scan} {map}");
+    println!("      score the map against the scan, both ways");
+    println!("  mema map {scan} -k 100 -o {coarse}");
+    println!("      a coarser map of the same scan (any PLY, PCD, LAS/LAZ or XYZ cloud maps so)");
+    println!("  mema draw {scan} {coarse} -o {top} --view top");
+    println!("      draw it from above");
+}
