@@ -21,7 +21,7 @@ use mema::render::draw::{Style, View};
 use mema::render::picture::render;
 use serde::Serialize;
 
-use super::demo::{DemoFiles, PICTURE, shell_word};
+use super::demo_files::{DemoFiles, PICTURE, shell_word};
 use crate::cli::args::DemoArgs;
 
 /// Surface samples of the two-way score: eval's default.
