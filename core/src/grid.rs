@@ -19,6 +19,13 @@ pub struct CentreGrid<const K: usize, const G: usize> {
     filed: [bool; K],
 }
 
+/// Whether `filed` is cell `c`: compared field by field, because `[i32; 3] ==` (and `Option`'s)
+/// compiles to a call to `memcmp` at opt-level "s", which was 7% of the firmware's run.
+#[inline(always)]
+fn same_cell(filed: Option<&[i32; 3]>, c: &[i32; 3]) -> bool {
+    filed.is_some_and(|f| f[0] == c[0] && f[1] == c[1] && f[2] == c[2])
+}
+
 fn cell_coordinate(v: f32, cell: f32) -> i32 {
     // Saturating float-to-int: coordinates beyond i32 cells share the edge cell, still correct.
     libm::floorf(v / cell) as i32
@@ -108,7 +115,9 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
 
     /// Re-files centre `index` if it moved into another cell.
     pub fn update(&mut self, index: usize, p: Point3) {
-        if self.cells.get(index) != Some(&self.cell_of(p)) || self.filed.get(index) != Some(&true) {
+        if !same_cell(self.cells.get(index), &self.cell_of(p))
+            || self.filed.get(index) != Some(&true)
+        {
             self.remove(index);
             self.insert(index, p);
         }
@@ -127,7 +136,7 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
     fn visit_cell(&self, c: [i32; 3], mut f: impl FnMut(usize)) {
         let mut at = self.heads.get(Self::bucket(c)).copied().unwrap_or(NONE);
         while at != NONE {
-            if self.cells.get(at as usize) == Some(&c) {
+            if same_cell(self.cells.get(at as usize), &c) {
                 f(at as usize);
             }
             at = self.next.get(at as usize).copied().unwrap_or(NONE);
