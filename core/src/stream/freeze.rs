@@ -11,7 +11,7 @@
 //! not a sweep map worse this way (README, "Streaming").
 
 use super::{Observer, StreamMapper, StreamModel};
-use crate::fit::fit_ellipsoid_paper;
+use crate::fit::fit_entity_paper;
 use crate::geometry::{AxisEntity, Entity};
 use crate::map::record::{rotation_code, rotation_of_code};
 use crate::rng::stream_rng;
@@ -87,12 +87,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let fit = self.clusters.get(i).and_then(|c| match self.params.model {
             StreamModel::Paper => {
                 let central = c.moments.central()?;
-                let fit = fit_ellipsoid_paper(
+                Some(fit_entity_paper(
                     &central,
                     &self.params.fit,
                     &mut stream_rng(self.params.seed, stream),
-                );
-                Some(fit.entity)
+                ))
             }
             StreamModel::Shells(params) => super::shells::shell_of(&c.moments, &params),
         });

@@ -15,7 +15,7 @@
 //! refitted on the schedule above, or oriented shells, which are a function of the moments
 //! alone and so are computed when the map is read, with no refits at all; see [`shells`].
 
-use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
+use crate::fit::{FitParams, fit_entity_paper, surface_error_estimate};
 use crate::geometry::{AxisEntity, Entity, Point3};
 use crate::grid::CentreGrid;
 use crate::map::MapEntity;
@@ -431,12 +431,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn fit(&self, index: usize, cluster: &StreamCluster) -> Option<Entity> {
         let central = cluster.moments.central()?;
         let stream = (index as u64) << 32 | (self.stats.points & 0xFFFF_FFFF);
-        let fit = fit_ellipsoid_paper(
+        Some(fit_entity_paper(
             &central,
             &self.params.fit,
             &mut stream_rng(self.params.seed, stream),
-        );
-        Some(fit.entity)
+        ))
     }
 
     /// Refits the cluster with the most points added since its last fit (ties: lowest index).
@@ -514,13 +513,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         for i in 0..self.clusters.len() {
             let central = self.clusters.get(i).and_then(|c| c.moments.central());
             if let Some(central) = central {
-                let fit = fit_ellipsoid_paper(
+                let entity = fit_entity_paper(
                     &central,
                     &self.params.fit,
                     &mut stream_rng(self.params.seed, i as u64),
                 );
                 if let Some(c) = self.clusters.get_mut(i) {
-                    c.entity = AxisEntity::of_axis_aligned(&fit.entity);
+                    c.entity = AxisEntity::of_axis_aligned(&entity);
                     c.stale = 0;
                 }
             }
