@@ -28,7 +28,21 @@ fn same_cell(filed: Option<&[i32; 3]>, c: &[i32; 3]) -> bool {
 
 fn cell_coordinate(v: f32, cell: f32) -> i32 {
     // Saturating float-to-int: coordinates beyond i32 cells share the edge cell, still correct.
-    libm::floorf(v / cell) as i32
+    floor_to_i32(v / cell)
+}
+
+/// `libm::floorf(q) as i32`, the same value for every `q` (NaN 0, saturating at the ends),
+/// without libm's software floor: the hardware conversion truncates toward zero, which is the
+/// floor unless it rounded a negative non-integer up. Below 2^23 the truncation and its
+/// conversion back are exact; above, every f32 is an integer.
+#[inline]
+fn floor_to_i32(q: f32) -> i32 {
+    let t = q as i32;
+    if (t as f32) > q {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
 }
 
 impl<const K: usize, const G: usize> CentreGrid<K, G> {
@@ -192,6 +206,44 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn floor_to_i32_is_libm_floor() {
+        let fixed = [
+            0.0f32,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1.5,
+            8_388_607.5,
+            -8_388_607.5,
+            8_388_608.0,
+            -8_388_609.0,
+            2_147_483_520.0,
+            -2_147_483_648.0,
+            3e9,
+            -3e9,
+            1e30,
+            -1e30,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut s = 7u32;
+        let random = core::iter::repeat_with(move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            f32::from_bits(s)
+        });
+        for q in fixed.into_iter().chain(random.take(100_000)) {
+            assert_eq!(floor_to_i32(q), libm::floorf(q) as i32, "{q:e}");
+        }
+    }
 
     #[test]
     fn finds_every_centre_within_half_a_cell_and_survives_moves() {
