@@ -240,8 +240,9 @@ fn split(x: &mut u32, n: usize) -> usize {
 /// One trial's random choices from two 32-bit draws: the three donors, distinct from each other
 /// and from `target` (uniform among the `POP - 1`, `POP - 2`, `POP - 3` left), and the forced
 /// coordinate, all split from the first draw; the crossover slices are the second draw's bits
-/// from the top, 10 per coordinate. Before, each of these was a draw of its own (7 a trial): on
-/// a Cortex-M4F a PCG32 step costs more than the f32 evaluation of eq. 12.
+/// from the top, 10 per coordinate. Before, each of these was a draw of its own (7 a trial, each
+/// a 64-bit multiply-add on a 32-bit core); two save about 20,000 instructions a fit on the
+/// Cortex-M4F image (README, "Firmware").
 #[inline]
 fn trial_draws<const POP: usize, const D: usize, R: Rng + ?Sized>(
     target: usize,
