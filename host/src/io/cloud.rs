@@ -4,6 +4,8 @@ use anyhow::{Context, Result, bail};
 use mema_core::Point3;
 use std::path::Path;
 
+pub use super::bag::is_bag;
+use super::bag::{BagOptions, read_bag};
 pub use super::conf::is_registration;
 use super::conf::{RegisteredScan, read_registration};
 use super::read::{Cloud, read_cloud, read_cloud_in_metres};
@@ -195,6 +197,9 @@ pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
     if is_registration(path) {
         return Ok(load_registered_in_metres(path, None)?.0);
     }
+    if is_bag(path) {
+        return Ok(load_bag_in_metres(path, &BagOptions::default(), None)?.0);
+    }
     Ok(local(read_cloud(path)?))
 }
 
@@ -223,9 +228,22 @@ pub fn load_cloud_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
+    load_input_in_metres(path, given, &BagOptions::default())
+}
+
+/// [`load_cloud_in_metres`] with the topic and frame of a ROS 2 bag (see
+/// [`crate::io::bag`]); `bag` is ignored for every other input.
+pub fn load_input_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    bag: &BagOptions,
+) -> Result<(LocalCloud, Units)> {
     // Several registered scans (a `.conf`): all of them, in their common frame.
     if is_registration(path) {
         return load_registered_in_metres(path, given);
+    }
+    if is_bag(path) {
+        return load_bag_in_metres(path, bag, given);
     }
     let mut cloud = read_cloud_in_metres(path, given)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
@@ -300,4 +318,33 @@ pub fn load_registered_in_metres(
         source: "scaled to metres",
     });
     Ok((cloud, units))
+}
+
+/// The PointCloud2 messages of a ROS 2 bag as one cloud in metres: each message's points in
+/// `options.frame` (or as they are without one), gathered and centred exactly as
+/// [`load_registered_in_metres`] gathers a registration file's scans, so a bag of those scans
+/// with their poses on `/tf` gives the same cloud, bit for bit.
+///
+/// ```no_run
+/// use mema::io::bag::BagOptions;
+///
+/// let options = BagOptions { topic: Some("/points".into()), frame: Some("world".into()) };
+/// let (cloud, _) = mema::io::cloud::load_bag_in_metres("scans.mcap".as_ref(), &options, None)?;
+/// println!("{} points around {:?}", cloud.points.len(), cloud.origin);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub fn load_bag_in_metres(
+    path: &Path,
+    options: &BagOptions,
+    given: Option<&LengthUnit>,
+) -> Result<(LocalCloud, Units)> {
+    let bag = read_bag(path, options, given)?;
+    let world: Vec<[f64; 3]> = bag.scans.iter().flat_map(|s| s.world_points()).collect();
+    let mut cloud = LocalCloud::from_world(&world);
+    cloud.dropped_non_finite = usize::try_from(bag.dropped_non_finite).unwrap_or(usize::MAX);
+    cloud.unit = Some(FileUnit::Length {
+        unit: LengthUnit::metre(),
+        source: "scaled to metres",
+    });
+    Ok((cloud, bag.units))
 }

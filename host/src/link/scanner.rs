@@ -21,7 +21,10 @@ use std::path::Path;
 use super::frames::{POINTS_PER_FRAME, PosedScan, encode_posed_stream, wire_pose};
 use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
-use crate::io::cloud::{LocalCloud, is_registration, load_cloud_in_metres, read_scans_in_metres};
+use crate::io::bag::{BagOptions, read_bag};
+use crate::io::cloud::{
+    LocalCloud, is_bag, is_registration, load_cloud_in_metres, read_scans_in_metres,
+};
 use crate::io::drive::DriveScan;
 use crate::io::units::LengthUnit;
 use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
@@ -112,6 +115,34 @@ pub struct SentScans {
 /// in its own sensor frame with its pose, or a cloud as one scan in the file's frame; in metres
 /// (`given`: `--units`).
 pub fn scans_of(path: &Path, given: Option<&LengthUnit>) -> Result<Vec<SensorScan>> {
+    scans_of_input(path, given, &BagOptions::default())
+}
+
+/// [`scans_of`] with the topic and frame of a ROS 2 bag ([`crate::io::bag`]): with a frame,
+/// each PointCloud2 message is a scan in its own frame with its pose at its stamp, as a
+/// registration file's scans are; without one, the messages' points are one cloud, sent as a
+/// single cloud is. `bag` is ignored for every other input.
+pub fn scans_of_input(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    bag: &BagOptions,
+) -> Result<Vec<SensorScan>> {
+    if is_bag(path) {
+        let read = read_bag(path, bag, given)?;
+        if read.frame.is_none() {
+            let world: Vec<[f64; 3]> = read.scans.iter().flat_map(|s| s.world_points()).collect();
+            return Ok(vec![SensorScan::of_world(&world)?]);
+        }
+        return Ok(read
+            .scans
+            .into_iter()
+            .map(|s| SensorScan {
+                translation: s.pose.translation,
+                rotation: s.pose.rotation,
+                points: s.points,
+            })
+            .collect());
+    }
     if is_registration(path) {
         let (scans, _) = read_scans_in_metres(path, given)?;
         return Ok(scans

@@ -3,7 +3,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
-use super::{FitArgs, ModelArg, UnitsArg};
+use super::{BagArg, FitArgs, ModelArg, UnitsArg};
 
 #[derive(Args, Debug)]
 pub struct StreamArgs {
@@ -71,7 +71,9 @@ pub struct RecordArgs {
 
 #[derive(Args, Debug)]
 pub struct ReplayArgs {
-    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file).
+    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file), or a ROS
+    /// 2 bag (.mcap), whose PointCloud2 messages are sent as `scanner-sim` sends scans
+    /// (--topic, --frame).
     pub capture: PathBuf,
     /// Most ellipsoids the map may hold (at most 2,048).
     #[arg(short, default_value_t = 150)]
@@ -85,6 +87,8 @@ pub struct ReplayArgs {
     /// Bytes per delivery, as a UART would hand them over.
     #[arg(long, default_value_t = 4096)]
     pub chunk_bytes: usize,
+    #[command(flatten)]
+    pub bag: BagArg,
     #[command(flatten)]
     pub shape: StreamShapeArgs,
     #[command(flatten)]
@@ -122,7 +126,7 @@ pub struct ScannerSimArgs {
 
 #[derive(Args, Debug)]
 pub struct StreamBenchArgs {
-    /// The cloud to stream (any format `map` reads).
+    /// The cloud to stream (any format `map` reads, a ROS 2 bag included).
     pub input: PathBuf,
     /// Most ellipsoids the streaming map may hold (at most 2,048).
     #[arg(short)]
@@ -134,6 +138,8 @@ pub struct StreamBenchArgs {
     pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Print one JSON object instead of the text.

@@ -4,7 +4,7 @@ use clap::{Args, ValueEnum};
 use mema::mapping::{EntityChoice, Model};
 use std::path::PathBuf;
 
-use super::{FitArgs, UnitsArg};
+use super::{BagArg, FitArgs, UnitsArg};
 
 /// `--model`: [`Model`] for the command line (its help text is the variants' docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -45,7 +45,8 @@ impl From<EntityArg> for EntityChoice {
 #[derive(Args, Debug)]
 pub struct MapArgs {
     /// The point cloud: PLY, PCD, LAS/LAZ, XYZ/CSV text or KITTI .bin, recognised by its
-    /// content; `-` reads it from standard input.
+    /// content, a registration file (.conf) of several scans, or a ROS 2 bag (.mcap) of
+    /// PointCloud2 messages (--topic, --frame); `-` reads it from standard input.
     pub input: PathBuf,
     /// Number of clusters, each of which becomes one entity (an ellipsoid) of the map.
     #[arg(
@@ -106,6 +107,8 @@ pub struct MapArgs {
     pub fit: FitArgs,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     /// Keep only the points inside this box, in metres in the file's frame (PCL's CropBox).
     #[arg(
         long,

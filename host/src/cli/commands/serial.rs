@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::is_registration;
+use mema::io::cloud::{is_bag, is_registration};
 use mema::io::drive::{DriveConfig, drive};
 use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::Scene;
@@ -16,7 +16,7 @@ use mema::link::capture::CaptureWriter;
 use mema::link::port::{
     ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
 };
-use mema::link::scanner::{SensorScan, scans_of, send_scans, unit_name};
+use mema::link::scanner::{SensorScan, scans_of, scans_of_input, send_scans, unit_name};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
 use mema_core::wire::DecoderStats;
@@ -443,7 +443,15 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| args.capture.with_extension("mema"));
     check_map_output(&output)?;
-    let bytes = mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?;
+    super::check_bag_args(&args.capture, &args.bag)?;
+    let bytes = if is_bag(&args.capture) {
+        // A bag's scans, as `scanner-sim` would send them: what `map BAG --stream` maps.
+        let scans = scans_of_input(&args.capture, None, &args.bag.options())
+            .with_context(|| args.capture.display().to_string())?;
+        send_scans(&scans)?.bytes
+    } else {
+        mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?
+    };
     let stop = interrupted();
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();
