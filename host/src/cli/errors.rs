@@ -27,9 +27,7 @@ pub struct LinkIdle(pub String);
 
 /// The exit status for `e`.
 pub fn exit_status(e: &anyhow::Error) -> u8 {
-    let bag_usage = e
-        .downcast_ref::<BagError>()
-        .is_some_and(BagError::is_usage);
+    let bag_usage = e.downcast_ref::<BagError>().is_some_and(BagError::is_usage);
     if e.downcast_ref::<UsageError>().is_some()
         || e.downcast_ref::<ConfigError>().is_some()
         || bag_usage

@@ -5,8 +5,8 @@ use anyhow::{Context, Result};
 use mema::bench::{ablation, stream};
 use mema::io::read::input_name;
 
-use super::{read_in_metres, read_input};
 use super::serial::capacity;
+use super::{read_in_metres, read_input};
 use crate::cli::args::{AblationArgs, BenchArgs, StreamBenchArgs};
 
 pub fn bench(args: &BenchArgs) -> Result<()> {

@@ -249,10 +249,7 @@ mod tests {
         assert_eq!(c.u32("b").unwrap(), 2);
         assert_eq!(c.f64("c").unwrap(), 1.5);
         assert_eq!(c.left(), 0);
-        assert!(matches!(
-            c.u8("d"),
-            Err(CdrError::Truncated { at: 20, .. })
-        ));
+        assert!(matches!(c.u8("d"), Err(CdrError::Truncated { at: 20, .. })));
     }
 
     #[test]

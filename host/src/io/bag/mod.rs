@@ -188,7 +188,9 @@ impl BagError {
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            BagError::NoSuchTopic { .. } | BagError::ChooseTopic { .. } | BagError::NoTransform { .. }
+            BagError::NoSuchTopic { .. }
+                | BagError::ChooseTopic { .. }
+                | BagError::NoTransform { .. }
         )
     }
 }
@@ -233,7 +235,8 @@ fn messages(
         path: path.to_owned(),
         cause,
     })?;
-    let options = mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD);
+    let options =
+        mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD);
     let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
     for message in reader {
         let message = message.map_err(|e| BagError::Mcap {

@@ -51,7 +51,9 @@ pub enum LayoutError {
     #[error("field `{axis}` has datatype {datatype}, not one of 1..=8 (INT8 to FLOAT64)")]
     Datatype { axis: &'static str, datatype: u8 },
     /// A coordinate reaching past its point.
-    #[error("field `{axis}` at offset {offset} ({size} bytes) reaches past point_step {point_step}")]
+    #[error(
+        "field `{axis}` at offset {offset} ({size} bytes) reaches past point_step {point_step}"
+    )]
     PastPoint {
         axis: &'static str,
         offset: u32,
@@ -262,7 +264,11 @@ mod tests {
         for p in points {
             m.extend_from_slice(&[9, 9, 9, 9]);
             for v in [p[0], p[1], p[2]] {
-                m.extend_from_slice(&if big { v.to_be_bytes() } else { v.to_le_bytes() });
+                m.extend_from_slice(&if big {
+                    v.to_be_bytes()
+                } else {
+                    v.to_le_bytes()
+                });
             }
         }
         m.push(1);

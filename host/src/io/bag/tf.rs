@@ -90,7 +90,11 @@ pub fn parse_tf_message(message: &[u8]) -> Result<Vec<TransformStamped>, CdrErro
         let header = c.header()?;
         let child = c.string("child_frame_id")?.to_owned();
         let mut f = |what| c.f64(what);
-        let translation = [f("translation.x")?, f("translation.y")?, f("translation.z")?];
+        let translation = [
+            f("translation.x")?,
+            f("translation.y")?,
+            f("translation.z")?,
+        ];
         let rotation = [
             f("rotation.x")?,
             f("rotation.y")?,
@@ -139,7 +143,9 @@ pub enum TfError {
         first: Stamp,
     },
     /// A transform that is not a rotation and a translation of finite numbers.
-    #[error("the transform from `{child}` to `{parent}` at {stamp} is not a finite unit quaternion and translation ({transform:?})")]
+    #[error(
+        "the transform from `{child}` to `{parent}` at {stamp} is not a finite unit quaternion and translation ({transform:?})"
+    )]
     NotRigid {
         child: String,
         parent: String,
@@ -342,9 +348,27 @@ mod tests {
         let h = 0.5f64.sqrt();
         let mut tree = TfTree::default();
         // robot turned a quarter about z, 1 m along x; scanner 1 m ahead of the robot.
-        tree.add_dynamic(stamped("world", "robot", 10, [1.0, 0.0, 0.0], [0.0, 0.0, h, h]));
-        tree.add_dynamic(stamped("world", "robot", 20, [5.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]));
-        tree.add_static(stamped("robot", "scanner", 0, [1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]));
+        tree.add_dynamic(stamped(
+            "world",
+            "robot",
+            10,
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, h, h],
+        ));
+        tree.add_dynamic(stamped(
+            "world",
+            "robot",
+            20,
+            [5.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ));
+        tree.add_static(stamped(
+            "robot",
+            "scanner",
+            0,
+            [1.0, 0.0, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+        ));
         tree.finish();
         let at = |sec| Stamp { sec, nanosec: 0 };
         let t = tree.lookup("scanner", "world", at(15)).unwrap();
