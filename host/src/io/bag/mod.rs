@@ -167,7 +167,7 @@ pub enum BagError {
         name: String,
         topic: String,
         index: usize,
-        cause: TfError,
+        cause: Box<TfError>,
     },
     /// Every message of the topic is empty or all NaN.
     #[error("{name}: {topic}: no finite points in its {messages} messages ({slots} slots)")]

@@ -232,7 +232,7 @@ mod tests {
     fn message(points: &[[f32; 3]], big: bool) -> Vec<u8> {
         let mut m = vec![0, 1, 0, 0];
         let pad = |m: &mut Vec<u8>, n: usize| {
-            while (m.len() - 4) % n != 0 {
+            while !(m.len() - 4).is_multiple_of(n) {
                 m.push(0);
             }
         };

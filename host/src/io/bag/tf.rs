@@ -225,7 +225,7 @@ impl TfTree {
     }
 
     /// `child`'s parent at `stamp`.
-    fn up(&self, child: &str, stamp: Stamp, from: &str, to: &str) -> Result<Up, TfError> {
+    fn up(&self, child: &str, stamp: Stamp, from: &str, to: &str) -> Result<Up, Box<TfError>> {
         let (parent, transform, at) = if let Some((p, t, s)) = self.statics.get(child) {
             (p, *t, *s)
         } else if let Some(list) = self.dynamic.get(child) {
@@ -236,14 +236,14 @@ impl TfTree {
                     let Some((first, parent, _)) = list.first() else {
                         return Ok(Up::Root);
                     };
-                    return Err(TfError::BeforeFirst {
+                    return Err(Box::new(TfError::BeforeFirst {
                         from: from.into(),
                         to: to.into(),
                         stamp,
                         child: child.into(),
                         parent: parent.clone(),
                         first: *first,
-                    });
+                    }));
                 }
             }
         } else {
@@ -251,13 +251,13 @@ impl TfTree {
         };
         let norm = transform.rotation.iter().map(|v| v * v).sum::<f64>().sqrt();
         let finite = transform.translation.iter().all(|v| v.is_finite());
-        if !finite || !((norm - 1.0).abs() <= 1e-3) {
-            return Err(TfError::NotRigid {
+        if !finite || !norm.is_finite() || (norm - 1.0).abs() > 1e-3 {
+            return Err(Box::new(TfError::NotRigid {
                 child: child.into(),
                 parent: parent.clone(),
                 stamp: at,
                 transform,
-            });
+            }));
         }
         Ok(Up::Parent(parent.clone(), transform))
     }
@@ -270,12 +270,9 @@ impl TfTree {
         stamp: Stamp,
         from: &str,
         to: &str,
-    ) -> Result<Vec<(String, Transform)>, TfError> {
+    ) -> Result<Vec<(String, Transform)>, Box<TfError>> {
         let mut chain = vec![(frame.to_owned(), Transform::IDENTITY)];
-        loop {
-            let Some((name, acc)) = chain.last() else {
-                break;
-            };
+        while let Some((name, acc)) = chain.last() {
             match self.up(name, stamp, from, to)? {
                 Up::Root => break,
                 Up::Parent(parent, t) => {
@@ -287,7 +284,7 @@ impl TfTree {
                         Transform::then(acc, &t)
                     };
                     if chain.len() > MAX_DEPTH || chain.iter().any(|(n, _)| *n == parent) {
-                        return Err(TfError::TooDeep { from: frame.into() });
+                        return Err(Box::new(TfError::TooDeep { from: frame.into() }));
                     }
                     chain.push((parent, next));
                 }
@@ -297,7 +294,8 @@ impl TfTree {
     }
 
     /// The transform taking points of frame `from` to frame `to` at `stamp`.
-    pub fn lookup(&self, from: &str, to: &str, stamp: Stamp) -> Result<Transform, TfError> {
+    /// The error is boxed: it names the frames, and a lookup runs per message.
+    pub fn lookup(&self, from: &str, to: &str, stamp: Stamp) -> Result<Transform, Box<TfError>> {
         if from == to {
             return Ok(Transform::IDENTITY);
         }
@@ -312,14 +310,14 @@ impl TfTree {
             }
         }
         let root = |c: &[(String, Transform)]| c.last().map(|(n, _)| n.clone()).unwrap_or_default();
-        Err(TfError::NotConnected {
+        Err(Box::new(TfError::NotConnected {
             from: from.into(),
             to: to.into(),
             stamp,
             from_root: root(&up),
             to_root: root(&down),
             known: self.known(),
-        })
+        }))
     }
 }
 
@@ -379,7 +377,7 @@ mod tests {
         let t = tree.lookup("world", "scanner", at(20)).unwrap();
         assert!(near(t.translation, [-6.0, 0.0, 0.0]), "{t:?}");
         assert!(matches!(
-            tree.lookup("scanner", "world", at(5)),
+            tree.lookup("scanner", "world", at(5)).map_err(|e| *e),
             Err(TfError::BeforeFirst { .. })
         ));
         let e = tree.lookup("scanner", "map", at(15)).unwrap_err();
