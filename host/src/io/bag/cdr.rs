@@ -1,7 +1,7 @@
 //! CDR, as ROS 2 serializes a message (OMG CDR, "XCDR1" plain), read from an untrusted byte
 //! slice.
 //!
-//! The layout, which is all [`Cdr`] assumes:
+//! The layout, which is all the reader assumes:
 //! - a 4-byte encapsulation header: a big-endian u16 id, `0x0000` (CDR, big-endian body) or
 //!   `0x0001` (CDR_LE, little-endian body), then two option bytes, ignored;
 //! - then the fields in declaration order, each primitive aligned to its own size (1, 4 or 8)

@@ -2,7 +2,7 @@
 //!
 //! The message, in CDR order: `header` (stamp, frame_id), `height`, `width` (u32), `fields`
 //! (a sequence of `PointField`: name, offset u32, datatype u8, count u32), `is_bigendian`
-//! (bool), `point_step`, `row_step` (u32), `data` (sequence<u8>), `is_dense` (bool).
+//! (bool), `point_step`, `row_step` (u32), `data` (`sequence<uint8>`), `is_dense` (bool).
 //!
 //! A point is `point_step` bytes; row `r`'s point `c` starts at `r * row_step + c * point_step`
 //! of `data`. Its x, y and z are the fields of those names, of any of the eight datatypes
