@@ -95,6 +95,10 @@ fn bag_in_world_maps_as_the_conf_does_bit_for_bit() {
     let (from_bag, _) = mema::io::cloud::load_bag_in_metres(&bunny(), &options, None).unwrap();
     let (from_conf, _) = mema::io::cloud::load_registered_in_metres(&conf, None).unwrap();
     assert_eq!(from_bag, from_conf);
+    // The rosbag2 directory rosbags wrote (metadata.yaml beside the .mcap) reads the same.
+    let (from_dir, _) =
+        mema::io::cloud::load_bag_in_metres(&bags().join("bunny"), &options, None).unwrap();
+    assert_eq!(from_dir, from_conf);
     // Without a frame each scan stays in its own: a different cloud.
     let (raw, _) =
         mema::io::cloud::load_bag_in_metres(&bunny(), &BagOptions::default(), None).unwrap();

@@ -45,8 +45,8 @@ impl From<EntityArg> for EntityChoice {
 #[derive(Args, Debug)]
 pub struct MapArgs {
     /// The point cloud: PLY, PCD, LAS/LAZ, XYZ/CSV text or KITTI .bin, recognised by its
-    /// content, a registration file (.conf) of several scans, or a ROS 2 bag (.mcap) of
-    /// PointCloud2 messages (--topic, --frame); `-` reads it from standard input.
+    /// content, a registration file (.conf) of several scans, or a ROS 2 bag (.mcap, or its
+    /// rosbag2 directory) of PointCloud2 messages (--topic, --frame); `-` reads it from standard input.
     pub input: PathBuf,
     /// Number of clusters, each of which becomes one entity (an ellipsoid) of the map.
     #[arg(

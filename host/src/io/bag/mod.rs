@@ -1,9 +1,9 @@
 //! ROS 2 bags without ROS: `sensor_msgs/msg/PointCloud2` messages from an MCAP file, each put
 //! in a chosen frame through the bag's `/tf` and `/tf_static`.
 //!
-//! A bag ([`is_bag`]: the MCAP magic at its start) is read in two passes over the file with the
-//! `mcap` crate's streaming reader, so memory holds one record (or one chunk) at a time, never
-//! the file:
+//! A bag ([`is_bag`]: an MCAP file, or a rosbag2 directory of them) is read in two passes over
+//! its files with the `mcap` crate's streaming reader, so memory holds one record (or one chunk)
+//! at a time, never the file:
 //! 1. the channels of type `sensor_msgs/msg/PointCloud2` and their message counts, and, when a
 //!    frame is asked for, every `tf2_msgs/msg/TFMessage` on `/tf` (dynamic) and `/tf_static`
 //!    (static) into a [`tf::TfTree`];
@@ -214,8 +214,14 @@ fn choose_hint(available: &[String]) -> String {
     }
 }
 
-/// Whether `path` is a regular file that starts with the MCAP magic.
+/// Whether `path` is a bag: an MCAP file (a regular file that starts with the MCAP magic), or
+/// a rosbag2 directory (as `ros2 bag record` and rosbags write it: `metadata.yaml` beside one
+/// or more MCAP files).
 pub fn is_bag(path: &Path) -> bool {
+    bag_files(path).is_some()
+}
+
+fn is_mcap(path: &Path) -> bool {
     if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
         return false;
     }
@@ -225,25 +231,50 @@ pub fn is_bag(path: &Path) -> bool {
         .is_ok_and(|()| &head == MAGIC)
 }
 
+/// The MCAP files of bag `path`, in recording order: the file itself, or a rosbag2
+/// directory's `*.mcap` files by their split index (`name_0.mcap`, `name_1.mcap`, ...,
+/// `name_10.mcap`: shorter names first, then by name).
+fn bag_files(path: &Path) -> Option<Vec<PathBuf>> {
+    if is_mcap(path) {
+        return Some(vec![path.to_owned()]);
+    }
+    if !path.join("metadata.yaml").is_file() {
+        return None;
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(path)
+        .ok()?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap") && is_mcap(p))
+        .collect();
+    files.sort_by_key(|p| (p.as_os_str().len(), p.clone()));
+    (!files.is_empty()).then_some(files)
+}
+
 /// Every message of the bag, in file order, with its topic, schema and encoding.
 fn messages(
-    path: &Path,
+    files: &[PathBuf],
     name: &str,
     mut each: impl FnMut(&mcap::Message<'static>) -> Result<(), BagError>,
 ) -> Result<(), BagError> {
-    let file = File::open(path).map_err(|cause| BagError::Io {
-        path: path.to_owned(),
-        cause,
-    })?;
-    let options =
-        mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD);
-    let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
-    for message in reader {
-        let message = message.map_err(|e| BagError::Mcap {
-            name: name.to_owned(),
-            cause: e.to_string(),
+    for path in files {
+        let file = File::open(path).map_err(|cause| BagError::Io {
+            path: path.to_owned(),
+            cause,
         })?;
-        each(&message)?;
+        let options =
+            mcap::sans_io::LinearReaderOptions::default().with_record_length_limit(MAX_RECORD);
+        let reader = mcap::io::MessageReader::new_with_options(BufReader::new(file), options);
+        for message in reader {
+            let message = message.map_err(|e| BagError::Mcap {
+                name: if files.len() == 1 {
+                    name.to_owned()
+                } else {
+                    path.display().to_string()
+                },
+                cause: e.to_string(),
+            })?;
+            each(&message)?;
+        }
     }
     Ok(())
 }
@@ -260,6 +291,11 @@ pub fn read_bag(
     given: Option<&LengthUnit>,
 ) -> Result<BagScans, BagError> {
     let name = path.display().to_string();
+    let files = bag_files(path).ok_or_else(|| BagError::Mcap {
+        name: name.clone(),
+        cause: "neither an MCAP file nor a rosbag2 directory (metadata.yaml and .mcap files)"
+            .into(),
+    })?;
     let cdr_only = |channel: &mcap::Channel| {
         if channel.message_encoding == "cdr" {
             Ok(())
@@ -275,7 +311,7 @@ pub fn read_bag(
     let mut topics: BTreeMap<String, usize> = BTreeMap::new();
     let mut tree = TfTree::default();
     let mut tf_index = 0usize;
-    messages(path, &name, |m| {
+    messages(&files, &name, |m| {
         let schema = schema_of(&m.channel);
         if schema == POINTCLOUD2 {
             *topics.entry(m.channel.topic.clone()).or_default() += 1;
@@ -332,7 +368,7 @@ pub fn read_bag(
         dropped_non_finite: 0,
         units: Units::assumed(),
     };
-    messages(path, &name, |m| {
+    messages(&files, &name, |m| {
         if m.channel.topic != topic || schema_of(&m.channel) != POINTCLOUD2 {
             return Ok(());
         }
