@@ -46,7 +46,8 @@ impl From<EntityArg> for EntityChoice {
 pub struct MapArgs {
     /// The point cloud: PLY, PCD, LAS/LAZ, XYZ/CSV text or KITTI .bin, recognised by its
     /// content, a registration file (.conf) of several scans, or a ROS 2 bag (.mcap, or its
-    /// rosbag2 directory) of PointCloud2 messages (--topic, --frame); `-` reads it from standard input.
+    /// rosbag2 directory) of PointCloud2 messages (--topic, --frame); `-` reads it from
+    /// standard input (not a bag or a .conf).
     pub input: PathBuf,
     /// Number of clusters, each of which becomes one entity (an ellipsoid) of the map.
     #[arg(
