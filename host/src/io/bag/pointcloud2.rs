@@ -187,7 +187,9 @@ impl<'a> PointCloud2<'a> {
     /// them). `layout` must be this message's; the reads stay inside `data` whatever it is.
     pub fn points(&self, layout: Layout) -> impl Iterator<Item = [f64; 3]> + '_ {
         let (step, row_step) = (self.point_step as usize, self.row_step as usize);
-        (0..self.height as usize).flat_map(move |r| {
+        // Rows of no points are not walked: 2^32 of them would be a loop of nothing.
+        let rows = if self.width == 0 { 0 } else { self.height };
+        (0..rows as usize).flat_map(move |r| {
             (0..self.width as usize).map(move |c| {
                 let start = r.saturating_mul(row_step).saturating_add(c * step);
                 let point = self.data.get(start..).unwrap_or(&[]);
@@ -304,6 +306,11 @@ mod tests {
             cloud.layout(),
             Err(LayoutError::MissingAxis { axis: "y", .. })
         ));
+        // 2^32 - 1 empty rows: no points, and no loop over them.
+        let mut cloud = PointCloud2::parse(&bytes).unwrap();
+        cloud.width = 0;
+        cloud.height = u32::MAX;
+        assert_eq!(cloud.points(cloud.layout().unwrap()).count(), 0);
         // Every truncation of the message is an error, never a panic.
         for n in 0..bytes.len() {
             assert!(PointCloud2::parse(&bytes[..n]).is_err(), "{n}");
