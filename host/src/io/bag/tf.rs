@@ -11,7 +11,7 @@
 //! transform stamped exactly at a scan's time exact, bit for bit, and never invents a pose
 //! between two that were measured). A frame whose dynamic transforms all come after `s` has
 //! none at `s`. The path may go up from the source and down to the target through their
-//! nearest common ancestor, over any number of frames.
+//! nearest common ancestor, over any number of frames. Names compare without a leading `/`.
 
 use std::collections::HashMap;
 
@@ -157,6 +157,12 @@ pub enum TfError {
     TooDeep { from: String },
 }
 
+/// A frame's name as tf2 compares it: without a leading `/` (ROS 1's `/base_link` is ROS 2's
+/// `base_link`).
+pub fn frame_name(name: &str) -> &str {
+    name.strip_prefix('/').unwrap_or(name)
+}
+
 /// The most frames from a frame up to its root.
 pub const MAX_DEPTH: usize = 256;
 
@@ -178,16 +184,18 @@ enum Up {
 impl TfTree {
     /// A transform from `/tf_static`: the latest one read for a child wins, as tf2 keeps it.
     pub fn add_static(&mut self, t: TransformStamped) {
-        self.statics
-            .insert(t.child, (t.parent, t.transform, t.stamp));
+        self.statics.insert(
+            frame_name(&t.child).to_owned(),
+            (frame_name(&t.parent).to_owned(), t.transform, t.stamp),
+        );
     }
 
     /// A transform from `/tf`.
     pub fn add_dynamic(&mut self, t: TransformStamped) {
         self.dynamic
-            .entry(t.child)
+            .entry(frame_name(&t.child).to_owned())
             .or_default()
-            .push((t.stamp, t.parent, t.transform));
+            .push((t.stamp, frame_name(&t.parent).to_owned(), t.transform));
     }
 
     /// Sorts each child's transforms by stamp (stable: of equal stamps, the one read last wins).
@@ -296,6 +304,7 @@ impl TfTree {
     /// The transform taking points of frame `from` to frame `to` at `stamp`.
     /// The error is boxed: it names the frames, and a lookup runs per message.
     pub fn lookup(&self, from: &str, to: &str, stamp: Stamp) -> Result<Transform, Box<TfError>> {
+        let (from, to) = (frame_name(from), frame_name(to));
         if from == to {
             return Ok(Transform::IDENTITY);
         }
@@ -361,7 +370,7 @@ mod tests {
             [0.0, 0.0, 0.0, 1.0],
         ));
         tree.add_static(stamped(
-            "robot",
+            "/robot",
             "scanner",
             0,
             [1.0, 0.0, 0.0],
@@ -371,7 +380,7 @@ mod tests {
         let at = |sec| Stamp { sec, nanosec: 0 };
         let t = tree.lookup("scanner", "world", at(15)).unwrap();
         assert!(near(t.translation, [1.0, 1.0, 0.0]), "{t:?}");
-        let t = tree.lookup("scanner", "world", at(20)).unwrap();
+        let t = tree.lookup("/scanner", "world", at(20)).unwrap();
         assert!(near(t.translation, [6.0, 0.0, 0.0]), "{t:?}");
         // Down: world in the scanner's frame at 20 s.
         let t = tree.lookup("world", "scanner", at(20)).unwrap();
