@@ -131,7 +131,22 @@ fn bag_replay_and_stream_map_as_the_conf_streams() {
         .args(["-o", "replay.mema", "--json"])
         .run()
         .assert_ok();
+    // scanner-sim sends the bag's scans as replay takes them: its capture replays to the same.
+    MemaCommand::new(&dir)
+        .arg("scanner-sim")
+        .arg(bunny())
+        .args(["--frame", "world", "--port", "bag.capture"])
+        .run()
+        .assert_ok();
+    MemaCommand::new(&dir)
+        .args(["replay", "bag.capture", "-k", "200", "-o", "capture.mema"])
+        .run()
+        .assert_ok();
     let conf_map = bytes(&dir.join("conf.mema"));
+    assert!(
+        bytes(&dir.join("capture.mema")) == conf_map,
+        "scanner-sim BAG"
+    );
     assert!(bytes(&dir.join("bag.mema")) == conf_map, "map --stream");
     assert!(bytes(&dir.join("replay.mema")) == conf_map, "replay");
     let summary = replay.json();

@@ -103,7 +103,9 @@ pub struct ScannerSimArgs {
     /// Serial device or pty to write to; a path that is not a device becomes a capture file.
     #[arg(long)]
     pub port: PathBuf,
-    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: a robot
+    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame, or a ROS 2 bag's
+    /// PointCloud2 messages (--topic; with --frame each one in its sensor frame after its
+    /// pose, as `replay BAG` sends them); default: a robot
     /// driving through the built-in demo scene, its rangefinder's scan at each of eight stops
     /// sent in the sensor's frame after the stop's pose.
     pub cloud: Option<PathBuf>,
@@ -122,6 +124,8 @@ pub struct ScannerSimArgs {
     pub baud: u32,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
 }
 
 #[derive(Args, Debug)]

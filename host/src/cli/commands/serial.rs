@@ -480,6 +480,17 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
+    match (&args.cloud, &args.conf) {
+        (Some(path), _) => super::check_bag_args(path, &args.bag)?,
+        (None, Some(conf)) => super::check_bag_args(conf, &args.bag)?,
+        (None, None) if args.bag.given() => {
+            return Err(UsageError(
+                "--topic and --frame choose a ROS 2 bag's messages; name the bag".into(),
+            )
+            .into());
+        }
+        (None, None) => {}
+    }
     let scans = match (&args.conf, &args.cloud) {
         (Some(conf), _) => {
             if !is_registration(conf) {
@@ -489,6 +500,10 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
                 );
             }
             scans_of(conf, args.units.units.as_ref())?
+        }
+        (None, Some(path)) if is_bag(path) => {
+            scans_of_input(path, args.units.units.as_ref(), &args.bag.options())
+                .with_context(|| path.display().to_string())?
         }
         (None, Some(path)) => vec![SensorScan::of_cloud(
             &super::read_in_metres(path, &args.units)?.0,
