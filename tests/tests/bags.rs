@@ -87,6 +87,24 @@ fn bag_in_world_maps_as_the_conf_does_bit_for_bit() {
         bytes(&dir.join("bag.mema")) == bytes(&dir.join("conf.mema")),
         "the bag's map in frame world differs from bun.conf's"
     );
+    // eval of the bag in frame world scores as eval of bun.conf.
+    let eval = |input: &Path, frame: &[&str]| {
+        MemaCommand::new(&dir)
+            .arg("eval")
+            .arg(input)
+            .args(frame)
+            .args(["conf.mema", "--samples", "20000", "--json"])
+            .run()
+            .assert_ok()
+            .json()
+    };
+    let (mut by_bag, mut by_conf) = (eval(&bunny(), &["--frame", "world"]), eval(&conf, &[]));
+    // Every figure but the unit's source (REP 103 for the bag, assumed for the PLY scans).
+    assert_eq!(by_bag["unit"]["unit"], by_conf["unit"]["unit"]);
+    for doc in [&mut by_bag, &mut by_conf] {
+        doc.as_object_mut().expect("an object").remove("unit");
+    }
+    assert_eq!(by_bag, by_conf);
     // The library's cloud, too: the same origin and the same f32 points.
     let options = BagOptions {
         topic: None,

@@ -136,7 +136,8 @@ pub struct MapArgs {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// The cloud to score the map against (any format `map` reads; `-` reads standard input).
+    /// The cloud to score the map against (any format `map` reads, a ROS 2 bag with --topic
+    /// and --frame as `map` took it; `-` reads standard input).
     pub input: PathBuf,
     /// The map to score: .mema, .csv or .json.
     pub map: PathBuf,
@@ -149,6 +150,8 @@ pub struct EvalArgs {
     pub seed: u64,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     /// Print one JSON object (its keys are in the README) instead of the tables.
     #[arg(long)]
     pub json: bool,
