@@ -285,6 +285,20 @@ fn schema_of<'a>(channel: &'a mcap::Channel<'_>) -> &'a str {
 
 /// The scans of bag `path`: the PointCloud2 messages of `options.topic`, each with its pose in
 /// `options.frame`, in metres (`given`: `--units`, else REP 103's metres).
+///
+/// ```no_run
+/// use mema::io::bag::{BagOptions, read_bag};
+///
+/// let options = BagOptions { topic: Some("/points".into()), frame: Some("world".into()) };
+/// let bag = read_bag("bags/bunny/bunny.mcap".as_ref(), &options, None)?;
+/// for scan in &bag.scans {
+///     let first = scan.world_points().next();
+///     let (frame, stamp, n) = (&scan.frame_id, scan.stamp, scan.points.len());
+///     println!("{frame} at {stamp}: {n} points, the first at {first:?} in world");
+/// }
+/// println!("{} points dropped for NaN or inf", bag.dropped_non_finite);
+/// # Ok::<(), mema::io::bag::BagError>(())
+/// ```
 pub fn read_bag(
     path: &Path,
     options: &BagOptions,
