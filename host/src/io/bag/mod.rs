@@ -283,6 +283,61 @@ fn schema_of<'a>(channel: &'a mcap::Channel<'_>) -> &'a str {
     channel.schema.as_ref().map_or("", |s| s.name.as_str())
 }
 
+/// Refuses a channel that is not CDR-encoded.
+fn cdr_only(name: &str, channel: &mcap::Channel) -> Result<(), BagError> {
+    if channel.message_encoding == "cdr" {
+        Ok(())
+    } else {
+        Err(BagError::Encoding {
+            name: name.to_owned(),
+            topic: channel.topic.clone(),
+            encoding: channel.message_encoding.clone(),
+        })
+    }
+}
+
+/// Pass 1 over the bag: its PointCloud2 topics with their message counts, and, if `with_tf`,
+/// the transforms of `/tf` and `/tf_static`.
+fn survey(
+    files: &[PathBuf],
+    name: &str,
+    with_tf: bool,
+) -> Result<(BTreeMap<String, usize>, TfTree), BagError> {
+    let mut topics: BTreeMap<String, usize> = BTreeMap::new();
+    let mut tree = TfTree::default();
+    let mut tf_index = 0usize;
+    messages(files, name, |m| {
+        let schema = schema_of(&m.channel);
+        if schema == POINTCLOUD2 {
+            *topics.entry(m.channel.topic.clone()).or_default() += 1;
+            return Ok(());
+        }
+        let topic = m.channel.topic.as_str();
+        let fixed = topic == "/tf_static";
+        if !(with_tf && schema == TF_MESSAGE && (fixed || topic == "/tf")) {
+            return Ok(());
+        }
+        cdr_only(name, &m.channel)?;
+        let transforms = parse_tf_message(&m.data).map_err(|cause| BagError::Message {
+            name: name.to_owned(),
+            topic: topic.to_owned(),
+            index: tf_index,
+            cause,
+        })?;
+        tf_index += 1;
+        for t in transforms {
+            if fixed {
+                tree.add_static(t);
+            } else {
+                tree.add_dynamic(t);
+            }
+        }
+        Ok(())
+    })?;
+    tree.finish();
+    Ok((topics, tree))
+}
+
 /// The scans of bag `path`: the PointCloud2 messages of `options.topic`, each with its pose in
 /// `options.frame`, in metres (`given`: `--units`, else REP 103's metres).
 ///
@@ -310,49 +365,9 @@ pub fn read_bag(
         cause: "neither an MCAP file nor a rosbag2 directory (metadata.yaml and .mcap files)"
             .into(),
     })?;
-    let cdr_only = |channel: &mcap::Channel| {
-        if channel.message_encoding == "cdr" {
-            Ok(())
-        } else {
-            Err(BagError::Encoding {
-                name: name.clone(),
-                topic: channel.topic.clone(),
-                encoding: channel.message_encoding.clone(),
-            })
-        }
-    };
+    let cdr_only = |channel: &mcap::Channel| cdr_only(&name, channel);
     // Pass 1: the PointCloud2 topics, and the transforms if a frame is asked for.
-    let mut topics: BTreeMap<String, usize> = BTreeMap::new();
-    let mut tree = TfTree::default();
-    let mut tf_index = 0usize;
-    messages(&files, &name, |m| {
-        let schema = schema_of(&m.channel);
-        if schema == POINTCLOUD2 {
-            *topics.entry(m.channel.topic.clone()).or_default() += 1;
-        } else if schema == TF_MESSAGE && options.frame.is_some() {
-            let topic = m.channel.topic.as_str();
-            let fixed = topic == "/tf_static";
-            if fixed || topic == "/tf" {
-                cdr_only(&m.channel)?;
-                let transforms = parse_tf_message(&m.data).map_err(|cause| BagError::Message {
-                    name: name.clone(),
-                    topic: topic.to_owned(),
-                    index: tf_index,
-                    cause,
-                })?;
-                tf_index += 1;
-                for t in transforms {
-                    if fixed {
-                        tree.add_static(t);
-                    } else {
-                        tree.add_dynamic(t);
-                    }
-                }
-            }
-        }
-        Ok(())
-    })?;
-    tree.finish();
+    let (topics, tree) = survey(&files, &name, options.frame.is_some())?;
     let available: Vec<String> = topics.keys().cloned().collect();
     let topic = match &options.topic {
         Some(t) if topics.contains_key(t) => t.clone(),
