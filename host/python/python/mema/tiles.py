@@ -149,8 +149,9 @@ def map_tile(cell, paths, tile, seam, open_bands, k, options, units=None):
 
 
 def map_seam(key, tiles, k, options):
-    """Maps the points of both sides of seam `key` (from the two tiles' results) together."""
-    points = np.concatenate([t[1][key] for t in tiles])
+    """Maps the points of both sides of seam `key` (from the two tiles' results) together; a
+    side with no point within half a seam of the edge has none to give."""
+    points = np.concatenate([t[1][key] for t in tiles if key in t[1]])
     return _map_bytes(points, k, options)
 
 
