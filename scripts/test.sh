@@ -48,7 +48,7 @@ if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
   $sudo_ apt-get update -qq && $sudo_ apt-get install -y -qq python3-venv
 fi
 [ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
-CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy
+CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 # The tests compare the package with the command line built above by `cargo test --release`.
 cargo build --release -p mema --quiet
 MEMA_BIN="$PWD/target/release/mema" target/py-venv/bin/python -m pytest -q host/python/tests
