@@ -24,6 +24,21 @@ pub struct LocalCloud {
     pub unit: Option<FileUnit>,
 }
 
+/// Why world coordinates make no cloud ([`LocalCloud::from_world_checked`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum WorldCloudError {
+    #[error("no points (the array has 0 rows)")]
+    Empty,
+    #[error("no finite points ({rows} rows, all with a NaN or infinite coordinate)")]
+    NoFinitePoint { rows: usize },
+    #[error("{axis} spans {lo:e} to {hi:e}, beyond f32 even after centring")]
+    BeyondF32 {
+        axis: &'static str,
+        lo: f64,
+        hi: f64,
+    },
+}
+
 impl LocalCloud {
     /// From world coordinates: the bounding-box centre becomes the origin.
     ///
@@ -50,8 +65,62 @@ impl LocalCloud {
                 0.5 * (lo[j] + hi[j])
             }
         });
+        Self::around(origin, points.iter(), 0)
+    }
+
+    /// From world coordinates of outside origin (a caller's array), centred exactly as the
+    /// file readers centre what they read: rows with a NaN or infinite coordinate are dropped
+    /// and counted, the origin is the bounding box's centre with each bound halved before
+    /// adding (no overflow near f64's limits), and a box too wide for f32 around that centre
+    /// is refused rather than mapped as infinities.
+    ///
+    /// ```
+    /// use mema::io::LocalCloud;
+    ///
+    /// let cloud = LocalCloud::from_world_checked(&[[1.0, 2.0, 3.0], [f64::NAN, 0.0, 0.0]])?;
+    /// assert_eq!((cloud.points.len(), cloud.dropped_non_finite), (1, 1));
+    /// assert!(LocalCloud::from_world_checked(&[[f64::NAN, 0.0, 0.0]]).is_err());
+    /// # Ok::<(), mema::io::cloud::WorldCloudError>(())
+    /// ```
+    pub fn from_world_checked(points: &[[f64; 3]]) -> Result<Self, WorldCloudError> {
+        let finite = |p: &&[f64; 3]| p.iter().all(|c| c.is_finite());
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        let mut kept = 0;
+        for p in points.iter().filter(finite) {
+            for j in 0..3 {
+                lo[j] = lo[j].min(p[j]);
+                hi[j] = hi[j].max(p[j]);
+            }
+            kept += 1;
+        }
+        if kept == 0 {
+            return Err(match points.len() {
+                0 => WorldCloudError::Empty,
+                rows => WorldCloudError::NoFinitePoint { rows },
+            });
+        }
+        let origin: [f64; 3] = std::array::from_fn(|j| lo[j] / 2.0 + hi[j] / 2.0);
+        for (axis, j) in ["x", "y", "z"].into_iter().zip(0..3) {
+            if hi[j] / 2.0 - lo[j] / 2.0 > f64::from(f32::MAX) {
+                return Err(WorldCloudError::BeyondF32 {
+                    axis,
+                    lo: lo[j],
+                    hi: hi[j],
+                });
+            }
+        }
+        let dropped = points.len() - kept;
+        Ok(Self::around(origin, points.iter().filter(finite), dropped))
+    }
+
+    /// Every point as f32 offsets from `origin`.
+    fn around<'a>(
+        origin: [f64; 3],
+        points: impl Iterator<Item = &'a [f64; 3]>,
+        dropped_non_finite: usize,
+    ) -> Self {
         let points = points
-            .iter()
             .map(|p| {
                 Point3::new(
                     (p[0] - origin[0]) as f32,
@@ -63,7 +132,7 @@ impl LocalCloud {
         Self {
             origin,
             points,
-            dropped_non_finite: 0,
+            dropped_non_finite,
             unit: None,
         }
     }
