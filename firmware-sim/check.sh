@@ -60,8 +60,12 @@ for cloud in car6.pcd demo; do
     done
   done
 done
-# A line idling at zero: 1 MiB of zeros before car6's capture changes nothing in the map of the
-# debug build (idle delimiters are skipped in place; the decoder once recursed per idle byte).
+# A line idling at zero: 100,000 zeros in one chunk, decoded at opt-level 0 on a 256 KiB stack
+# (the decoder once recursed per idle byte: 512 zeros overflowed it; the test profile's
+# optimiser hides that, so this runs in the dev profile).
+cargo test -q -p mema-core --profile dev --target-dir target/fw-debug --test idle_line >/dev/null
+echo "   100,000 idle zeros in one chunk: decoded on a 256 KiB stack at opt-level 0"
+# And 1 MiB of zeros before car6's capture changes nothing in the map of the debug build.
 idle="$work/idle"
 mkdir -p "$idle"
 { head -c 1048576 /dev/zero; cat "$work/car6.pcd/capture.bin"; } > "$idle/capture.bin"

@@ -31,6 +31,7 @@ pub mod map;
 pub mod moments;
 mod num;
 pub mod query;
+pub mod receiver;
 pub mod rng;
 pub mod rotation;
 pub mod shell;

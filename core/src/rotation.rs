@@ -73,30 +73,7 @@ impl Rotation {
     /// The rotation matrix, from the quaternion renormalised in f64 so that f32 storage does not
     /// scale lengths.
     pub fn matrix(&self) -> [[f64; 3]; 3] {
-        let q = self.to_array().map(|v| v as f64);
-        let n2: f64 = q.iter().map(|v| v * v).sum();
-        if !(n2 > 0.0) || !n2.is_finite() {
-            return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
-        }
-        let s = 2.0 / n2;
-        let [x, y, z, w] = q;
-        [
-            [
-                1.0 - s * (y * y + z * z),
-                s * (x * y - z * w),
-                s * (x * z + y * w),
-            ],
-            [
-                s * (x * y + z * w),
-                1.0 - s * (x * x + z * z),
-                s * (y * z - x * w),
-            ],
-            [
-                s * (x * z - y * w),
-                s * (y * z + x * w),
-                1.0 - s * (x * x + y * y),
-            ],
-        ]
+        quaternion_matrix(self.to_array().map(|v| v as f64))
     }
 
     /// `R v`.
@@ -173,6 +150,35 @@ impl Rotation {
         ];
         Self::from_quaternion(q).unwrap_or(Self::IDENTITY)
     }
+}
+
+/// The rotation matrix of quaternion `q = [x, y, z, w]` of any non-zero length: the scale
+/// `2 / |q|^2` normalises it, so no square root is needed (the identity for a zero or
+/// non-finite `q`).
+pub fn quaternion_matrix(q: [f64; 4]) -> [[f64; 3]; 3] {
+    let n2: f64 = q.iter().map(|v| v * v).sum();
+    if !(n2 > 0.0) || !n2.is_finite() {
+        return [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+    }
+    let s = 2.0 / n2;
+    let [x, y, z, w] = q;
+    [
+        [
+            1.0 - s * (y * y + z * z),
+            s * (x * y - z * w),
+            s * (x * z + y * w),
+        ],
+        [
+            s * (x * y + z * w),
+            1.0 - s * (x * x + z * z),
+            s * (y * z - x * w),
+        ],
+        [
+            s * (x * z - y * w),
+            s * (y * z + x * w),
+            1.0 - s * (x * x + y * y),
+        ],
+    ]
 }
 
 /// Orthonormal with determinant +1, within 1e-6 per entry.

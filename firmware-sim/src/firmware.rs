@@ -11,19 +11,19 @@
 //! **Snapshots.** [`Firmware::save`] copies the mapper (its whole state: clusters, centre grid,
 //! join radius, counters, so the refit schedule resumes exactly) into a [`Snapshot`], which stands
 //! for memory that survives a reset (retained RAM, or flash). After a reset,
-//! [`Firmware::restart_from`] restores the mapper and starts a fresh decoder, which resynchronises
-//! at the next delimiter. Frames accepted after the snapshot and before the reset are lost with
+//! [`Firmware::restart_from`] restores the mapper (and the map's origin) and starts a fresh
+//! receiver, which resynchronises at the next delimiter. Frames accepted after the snapshot and before the reset are lost with
 //! the RAM; the final map equals that of an uninterrupted run over the frames the restored mapper
 //! holds plus those accepted after the restart.
 
-use mema_core::Point3;
 use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
 use mema_core::map::EncodeError;
+use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams, StreamStats};
-use mema_core::wire::{Decoded, Decoder, DecoderStats, MAX_FRAME_LEN};
+use mema_core::wire::{DecoderStats, MAX_FRAME_LEN};
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next lands.
 pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
@@ -121,7 +121,7 @@ pub struct AcceptedFrame {
 #[derive(Debug)]
 pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
     rx: heapless::Deque<u8, RX_CAPACITY>,
-    decoder: Decoder,
+    receiver: Receiver,
     mapper: StreamMapper<K, G, F>,
     /// The next point to map of the decoder's held frame, while a frame is part mapped.
     cursor: Option<usize>,
@@ -134,6 +134,8 @@ pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
 #[derive(Debug)]
 pub struct Snapshot<const K: usize, const G: usize, const F: usize = 0> {
     mapper: StreamMapper<K, G, F>,
+    /// The receiver's map origin: the mapper's points are relative to it.
+    origin: Option<[f64; 3]>,
     frames: u64,
     saved: bool,
 }
@@ -143,6 +145,7 @@ impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
     pub const fn new(params: StreamParams) -> Self {
         Self {
             mapper: StreamMapper::new(params),
+            origin: None,
             frames: 0,
             saved: false,
         }
@@ -167,7 +170,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     pub const fn new(params: StreamParams) -> Self {
         Self {
             rx: heapless::Deque::new(),
-            decoder: Decoder::new(),
+            receiver: Receiver::new(),
             mapper: StreamMapper::new(params),
             cursor: None,
             refit_due: false,
@@ -213,17 +216,20 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         if self.cursor.is_none() && !self.decode_next() {
             return;
         }
-        let Some(frame) = self.decoder.held_frame() else {
+        let Some(frame) = self.receiver.held_frame() else {
             self.cursor = None;
             return;
         };
+        let placement = self.receiver.placement();
         let start = self.cursor.unwrap_or(0);
         let fitted = |s: &StreamStats| (s.frozen, s.merges, s.refits);
         let before = fitted(self.mapper.stats());
         let mut next = start;
-        for p in frame.points_metres().skip(start) {
+        // Indices, not `points().skip(start)`: skipping an iterator of points converts the
+        // points it skips, a third of a frame's conversions again at 32 points a tick.
+        let count = usize::from(frame.point_count());
+        for point in (start..count).filter_map(|i| placement.point(&frame, i)) {
             next += 1;
-            let point = Point3::new(p[0] as f32, p[1] as f32, p[2] as f32);
             let refit = self.mapper.ingest_observed(point, &mut ());
             let fitted_now = fitted(self.mapper.stats()) != before;
             if refit && fitted_now {
@@ -258,10 +264,12 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
             if front.is_empty() {
                 return false;
             }
-            let (taken, accepted) = match self.decoder.feed(front) {
-                Decoded::Consumed => (front.len(), false),
-                Decoded::Rejected { remaining, .. } => (front.len() - remaining.len(), false),
-                Decoded::Frame { remaining, .. } => (front.len() - remaining.len(), true),
+            let (taken, accepted) = match self.receiver.feed(front) {
+                Received::Consumed => (front.len(), false),
+                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                    (front.len() - remaining.len(), false)
+                }
+                Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
             };
             self.rx.retain_back(pending - taken);
             if accepted {
@@ -281,22 +289,23 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         self.mapper.finish();
     }
 
-    /// Writes the `.mema` bytes of the map as it stands (origin 0: the sensor frame, as the host's
-    /// `replay` writes it; the mapper's layout) and returns their length.
+    /// Writes the `.mema` bytes of the map as it stands (around the receiver's origin, as the
+    /// host's `replay` writes it; the mapper's layout) and returns their length.
     pub fn encode_map(&self, out: &mut [u8]) -> Result<usize, EncodeError> {
-        self.mapper.encode_into([0.0; 3], out)
+        self.mapper.encode_into(self.receiver.origin(), out)
     }
 
     /// Sends the map's `.mema` bytes out piece by piece (a UART, a file): the device needs no
     /// buffer for the whole map, which at 400 entities would be 10 KB of its RAM.
     pub fn send_map(&self, sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
-        self.mapper.encode_pieces([0.0; 3], sink)
+        self.mapper.encode_pieces(self.receiver.origin(), sink)
     }
 
     /// Copies the mapper into `snapshot` (the memory that survives a reset). Meant for an idle
     /// moment (not [`Firmware::busy`]): a part-mapped frame or a deferred refit is not saved.
     pub fn save(&self, snapshot: &mut Snapshot<K, G, F>) {
         snapshot.mapper.clone_from(&self.mapper);
+        snapshot.origin = self.receiver.map_origin();
         snapshot.frames = self.stats.frames;
         snapshot.saved = true;
     }
@@ -307,7 +316,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         self.rx.clear();
         self.cursor = None;
         self.refit_due = false;
-        self.decoder = Decoder::new();
+        self.receiver = Receiver::resuming(snapshot.origin);
         self.mapper.clone_from(&snapshot.mapper);
         self.stats.frames = snapshot.frames;
         self.stats.end_of_stream = false;
@@ -323,7 +332,11 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     }
 
     pub fn decoder_stats(&self) -> &DecoderStats {
-        self.decoder.stats()
+        self.receiver.decoder_stats()
+    }
+
+    pub fn receiver_stats(&self) -> &ReceiverStats {
+        self.receiver.stats()
     }
 
     pub fn stats(&self) -> &FirmwareStats {

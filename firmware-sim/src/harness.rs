@@ -7,8 +7,9 @@ use std::collections::HashMap;
 
 use mema_core::Point3;
 use mema_core::map::EncodeError;
+use mema_core::receiver::{Received, Receiver};
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
-use mema_core::wire::{Decoded, Decoder, DecoderStats};
+use mema_core::wire::DecoderStats;
 
 use crate::board::{Board, BoardError};
 use crate::fault::{FaultConfig, FaultInjector, FaultStats};
@@ -167,21 +168,24 @@ fn drive<
     })
 }
 
-/// Every valid frame of a clean capture, by sequence number, as the mapper receives its points.
+/// Every points frame of a clean capture, by sequence number, as the mapper receives its points
+/// (through their pose, around the receiver's origin, which the tests' captures keep at 0).
 pub fn frames_of(capture: &[u8]) -> HashMap<u32, Vec<Point3>> {
-    let mut decoder = Decoder::new();
+    let mut receiver = Receiver::new();
     let mut frames = HashMap::new();
     let mut window = capture;
     loop {
-        match decoder.feed(window) {
-            Decoded::Consumed => break,
-            Decoded::Rejected { remaining, .. } => window = remaining,
-            Decoded::Frame { frame, remaining } => {
-                let points = frame
-                    .points_metres()
-                    .map(|p| Point3::new(p[0] as f32, p[1] as f32, p[2] as f32))
-                    .collect();
-                frames.insert(frame.sequence(), points);
+        match receiver.feed(window) {
+            Received::Consumed => break,
+            Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                window = remaining
+            }
+            Received::Points {
+                frame,
+                placement,
+                remaining,
+            } => {
+                frames.insert(frame.sequence(), placement.points(&frame).collect());
                 window = remaining;
             }
         }

@@ -149,7 +149,7 @@ fn corrupted_frames_are_refused_and_the_map_is_that_of_the_clean_frames() {
             s.duplicates, duplicated,
             "round {round}: repeats are used once"
         );
-        assert!(link.end_of_stream);
+        assert!(link.end_of_stream());
         assert_eq!(
             link.finish().to_mema().expect("encode"),
             expected_map,

@@ -4,7 +4,8 @@
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
 use mema::io::load_cloud;
 use mema::link::stream::Capacity;
-use mema::link::stream::map_points_directly;
+use mema::link::stream::{map_sent_directly_with, stream_params};
+use mema_core::stream::StreamModel;
 use std::io::Read;
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -12,14 +13,14 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 /// A socat-made pty pair, killed on drop.
-struct PtyPair {
+pub(crate) struct PtyPair {
     child: Child,
     pub a: PathBuf,
     pub b: PathBuf,
 }
 
 impl PtyPair {
-    fn new(dir: &Dir) -> Self {
+    pub(crate) fn new(dir: &Dir) -> Self {
         let (a, b) = (dir.join("ttyA"), dir.join("ttyB"));
         let child = Command::new("socat")
             .arg(format!("pty,raw,echo=0,link={}", a.display()))
@@ -36,7 +37,7 @@ impl PtyPair {
         Self { child, a, b }
     }
 
-    fn unplug(&mut self) {
+    pub(crate) fn unplug(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -49,13 +50,13 @@ impl Drop for PtyPair {
 }
 
 /// A running `mema` whose stderr is collected as it arrives.
-struct Running {
+pub(crate) struct Running {
     child: Child,
     stderr: Arc<Mutex<String>>,
     reader: Option<std::thread::JoinHandle<()>>,
 }
 
-fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
+pub(crate) fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
     let mut child = Command::new(mema_bin())
         .args(args)
         .current_dir(&dir.path)
@@ -86,7 +87,7 @@ fn spawn_mema(dir: &Dir, args: &[&str]) -> Running {
 
 impl Running {
     /// Blocks until the command has opened its port (it says so on stderr).
-    fn wait_until_listening(&self) {
+    pub(crate) fn wait_until_listening(&self) {
         let deadline = Instant::now() + Duration::from_secs(30);
         while !self.stderr.lock().expect("lock").contains("listening on") {
             assert!(
@@ -98,13 +99,26 @@ impl Running {
         }
     }
 
-    fn id(&self) -> u32 {
+    pub(crate) fn id(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Blocks until stderr holds `needle` (a hang is a failure).
+    pub(crate) fn wait_for(&self, needle: &str) {
+        let deadline = Instant::now() + Duration::from_secs(60);
+        while !self.stderr.lock().expect("lock").contains(needle) {
+            assert!(
+                Instant::now() < deadline,
+                "mema never said {needle:?}: {}",
+                self.stderr.lock().expect("lock")
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
     }
 }
 
 /// Waits for the command up to `limit`; a hang is a failure, never a stuck test run.
-fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
+pub(crate) fn finish(mut running: Running, limit: Duration) -> (i32, String, String) {
     let deadline = Instant::now() + limit;
     loop {
         if let Some(status) = running.child.try_wait().expect("wait") {
@@ -169,7 +183,8 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     assert_eq!(code, 0, "{stderr}");
     assert_eq!(stdout.trim(), "stream.mema", "the map path on stdout");
     assert!(
-        stderr.contains("10031 points") && stderr.contains("101 accepted / 0 rejected / 0 lost"),
+        // 101 frames of points after the pose frame of the sensor at the car's centre.
+        stderr.contains("10031 points") && stderr.contains("102 accepted / 0 rejected / 0 lost"),
         "{stderr}"
     );
     pty.unplug();
@@ -187,8 +202,9 @@ fn pty_stream_equals_replay_and_the_direct_mapper() {
     );
 
     let cloud = load_cloud(&car).expect("car6");
-    let direct = map_points_directly(&cloud, Capacity::all_working(150), 0, default_fit())
-        .expect("direct map");
+    let paper = |capacity| stream_params(capacity, 0, default_fit(), 0.0, StreamModel::Paper);
+    let direct =
+        map_sent_directly_with(&cloud, paper(Capacity::all_working(150))).expect("direct map");
     assert_eq!(
         streamed,
         direct.to_mema().expect("encode"),
@@ -385,7 +401,8 @@ fn working_memory_smaller_than_k_freezes_and_stays_within_k() {
         k: 400,
         working: 150,
     };
-    let direct = map_points_directly(&cloud, capacity, 0, default_fit()).expect("direct map");
+    let params = stream_params(capacity, 0, default_fit(), 0.0, StreamModel::Paper);
+    let direct = map_sent_directly_with(&cloud, params).expect("direct map");
     assert_eq!(replayed, direct.to_mema().expect("encode"));
     let n = direct.entities.len();
     assert!(150 < n && n <= 400, "{n} entities");

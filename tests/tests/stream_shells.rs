@@ -9,7 +9,7 @@
 
 use mema::io::load_cloud;
 use mema::link::frames::{dequantise, quantise};
-use mema::link::stream::map_points_directly_with;
+use mema::link::stream::map_sent_directly_with;
 use mema::link::stream::{Capacity, new_mapper_with, stream_params};
 use mema_core::Point3;
 use mema_core::stream::{Observer, StreamModel};
@@ -228,7 +228,7 @@ fn shells_replay_gives_the_same_bytes_for_every_chunking() {
             k: k.parse().expect("k"),
             working: working.parse().expect("working"),
         };
-        let direct = map_points_directly_with(
+        let direct = map_sent_directly_with(
             &cloud,
             stream_params(capacity, 0, Default::default(), 0.0, shells()),
         )

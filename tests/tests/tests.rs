@@ -39,6 +39,17 @@ mod queries;
 mod tolerance;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
+// The link's faults (issue 12): frames after the end, a sender that starts again, units out of
+// range, points 2,000 km out, SIGTERM and SIGHUP, the idle timeout, a failed snapshot.
+mod link_faults;
+// Protocol version 2: poses and sessions through the real binary; version 1 maps as it did.
+mod poses;
+// Multi-view data: the bunny scans of bun.conf registered, streamed with their poses, mapped.
+mod multiview;
+// The moving robot through the demo scene, streamed with its poses.
+mod drive;
+// The independent sender written from PROTOCOL.md alone.
+mod sender;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,

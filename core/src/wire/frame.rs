@@ -1,6 +1,10 @@
-//! The raw frame: a checked view over bytes (`Frame`) and the valid content it carries (`FrameRepr`).
+//! The raw frame: a checked view over bytes ([`Frame`]), for both versions and both kinds.
 
-use super::{CRC_LEN, HEADER_LEN, MAX_POINTS, POINT_LEN, VERSION, field};
+use super::{
+    CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
+    MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, QUATERNION_ONE, VERSION,
+    VERSION_1, WirePose, field,
+};
 use crate::crc32::crc32;
 
 /// Why a raw frame was refused. Each kind is counted separately by the decoder.
@@ -10,7 +14,7 @@ pub enum FrameError {
     Truncated {
         len: usize,
     },
-    /// The length does not match the point count.
+    /// The length does not match the point count (or a pose frame's length).
     LengthMismatch {
         expected: usize,
         got: usize,
@@ -21,8 +25,19 @@ pub enum FrameError {
     UnsupportedVersion {
         version: u8,
     },
+    /// A version 2 kind other than points (0) or pose (1).
+    UnknownKind {
+        kind: u8,
+    },
     /// Reserved bits or bytes are not zero.
     Reserved,
+    /// A unit exponent outside [`MIN_UNIT_EXPONENT`]`..=`[`MAX_UNIT_EXPONENT`].
+    UnitOutOfRange {
+        exponent: i8,
+    },
+    /// A pose frame numbered 0 (the identity a session starts at), carrying points, or whose
+    /// quaternion is not a unit one (within 2^-20 in its squared norm).
+    BadPose,
     BadCrc {
         stored: u32,
         computed: u32,
@@ -31,7 +46,7 @@ pub enum FrameError {
     BadCobs,
     /// More bytes than [`super::MAX_FRAME_LEN`] before a delimiter (only the decoder reports this).
     Oversized,
-    /// A sequence number at or behind the last accepted one: a repeat, used once only.
+    /// A repeat of the last accepted frame (same sequence number and CRC), used once only.
     Duplicate {
         sequence: u32,
     },
@@ -42,11 +57,17 @@ impl core::fmt::Display for FrameError {
         match *self {
             Self::Truncated { len } => write!(f, "truncated frame ({len} bytes)"),
             Self::LengthMismatch { expected, got } => {
-                write!(f, "frame of {got} bytes, its point count needs {expected}")
+                write!(f, "frame of {got} bytes, its header needs {expected}")
             }
             Self::TooManyPoints { count } => write!(f, "{count} points, at most {MAX_POINTS}"),
             Self::UnsupportedVersion { version } => write!(f, "protocol version {version}"),
+            Self::UnknownKind { kind } => write!(f, "frame kind {kind}"),
             Self::Reserved => write!(f, "reserved bits set"),
+            Self::UnitOutOfRange { exponent } => write!(
+                f,
+                "unit exponent {exponent} outside {MIN_UNIT_EXPONENT}..={MAX_UNIT_EXPONENT}"
+            ),
+            Self::BadPose => write!(f, "pose numbered 0, with points, or not a unit quaternion"),
             Self::BadCrc { stored, computed } => {
                 write!(
                     f,
@@ -61,6 +82,14 @@ impl core::fmt::Display for FrameError {
 }
 
 impl core::error::Error for FrameError {}
+
+/// What a frame carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameKind {
+    Points,
+    /// The sensor's pose for the points frames that name its number (version 2).
+    Pose,
+}
 
 /// A view over a raw (COBS-decoded) frame. Any accessor works on any bytes, returning zeros for
 /// missing fields, so an invalid frame can still be printed; [`Frame::new_checked`] makes the
@@ -82,6 +111,28 @@ fn u32_at(bytes: &[u8], at: usize) -> u32 {
     u32::from_le_bytes(b)
 }
 
+fn i32_at(bytes: &[u8], at: usize) -> i32 {
+    u32_at(bytes, at) as i32
+}
+
+/// The raw length of a points frame of `points` in `version`.
+pub(crate) const fn points_len(version: u8, points: usize) -> usize {
+    let header = if version == VERSION_1 {
+        HEADER_LEN_V1
+    } else {
+        HEADER_LEN
+    };
+    header + POINT_LEN * points + CRC_LEN
+}
+
+/// A unit quaternion on the wire: its squared norm within 2^-20 of 1 (a sender rounding each
+/// component to 2^-30 is within 2^-28), and never the zero quaternion.
+fn is_unit_quaternion(q: [i32; 4]) -> bool {
+    let one = QUATERNION_ONE as f64;
+    let n2: f64 = q.iter().map(|&v| (v as f64 / one) * (v as f64 / one)).sum();
+    libm::fabs(n2 - 1.0) <= 1.0 / (1u32 << 20) as f64
+}
+
 impl<T: AsRef<[u8]>> Frame<T> {
     pub const fn new_unchecked(buffer: T) -> Self {
         Self { buffer }
@@ -99,32 +150,52 @@ impl<T: AsRef<[u8]>> Frame<T> {
         Ok(frame)
     }
 
-    /// The one place that validates: length, version, count, reserved fields, CRC.
+    /// The one place that validates: length, version, kind, count, reserved fields, unit, CRC,
+    /// and a pose's number and quaternion.
     pub fn check(&self) -> Result<(), FrameError> {
         let bytes = self.buffer.as_ref();
         let len = bytes.len();
-        if len < HEADER_LEN + CRC_LEN {
+        if len < HEADER_LEN_V1 + CRC_LEN {
             return Err(FrameError::Truncated { len });
         }
-        if self.version() != VERSION {
-            return Err(FrameError::UnsupportedVersion {
-                version: self.version(),
-            });
-        }
+        let version = self.version();
+        let flags = match version {
+            VERSION_1 => FLAG_END_OF_STREAM,
+            VERSION => FLAG_END_OF_STREAM | FLAG_SESSION_START,
+            _ => return Err(FrameError::UnsupportedVersion { version }),
+        };
         let count = self.point_count();
         if count as usize > MAX_POINTS {
             return Err(FrameError::TooManyPoints { count });
         }
-        let expected = FrameRepr::len_for(count as usize);
+        let kind = self.kind().ok_or(FrameError::UnknownKind {
+            kind: byte_at(bytes, field::KIND),
+        })?;
+        let expected = match kind {
+            FrameKind::Points => points_len(version, count as usize),
+            FrameKind::Pose => POSE_FRAME_LEN,
+        };
         if len != expected {
             return Err(FrameError::LengthMismatch { expected, got: len });
         }
-        if self.flags() & !super::FLAG_END_OF_STREAM != 0 || byte_at(bytes, field::RESERVED) != 0 {
+        if self.flags() & !flags != 0
+            || (version == VERSION_1 && byte_at(bytes, field::RESERVED) != 0)
+        {
             return Err(FrameError::Reserved);
+        }
+        let exponent = self.unit_exponent();
+        if !(MIN_UNIT_EXPONENT..=MAX_UNIT_EXPONENT).contains(&exponent) {
+            return Err(FrameError::UnitOutOfRange { exponent });
         }
         let (stored, computed) = (self.stored_crc(), self.computed_crc());
         if stored != computed && !cfg!(fuzzing) {
             return Err(FrameError::BadCrc { stored, computed });
+        }
+        if kind == FrameKind::Pose {
+            let pose = self.pose().ok_or(FrameError::BadPose)?;
+            if count != 0 || self.pose_number() == 0 || !is_unit_quaternion(pose.rotation) {
+                return Err(FrameError::BadPose);
+            }
         }
         Ok(())
     }
@@ -138,7 +209,12 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
 
     pub fn end_of_stream(&self) -> bool {
-        self.flags() & super::FLAG_END_OF_STREAM != 0
+        self.flags() & FLAG_END_OF_STREAM != 0
+    }
+
+    /// Version 2: the sender (re)started with this frame.
+    pub fn session_start(&self) -> bool {
+        self.version() == VERSION && self.flags() & FLAG_SESSION_START != 0
     }
 
     pub fn sequence(&self) -> u32 {
@@ -157,20 +233,70 @@ impl<T: AsRef<[u8]>> Frame<T> {
         byte_at(self.buffer.as_ref(), field::UNIT_EXPONENT) as i8
     }
 
+    /// The metres in one unit of this frame (`10^e`); NaN for an exponent out of range, which
+    /// [`Frame::check`] refuses.
+    pub fn unit_scale(&self) -> f64 {
+        super::unit_scale(self.unit_exponent()).unwrap_or(f64::NAN)
+    }
+
+    /// Points or pose; `None` for an unknown version 2 kind. Version 1 frames hold points.
+    pub fn kind(&self) -> Option<FrameKind> {
+        if self.version() == VERSION_1 {
+            return Some(FrameKind::Points);
+        }
+        match byte_at(self.buffer.as_ref(), field::KIND) {
+            0 => Some(FrameKind::Points),
+            1 => Some(FrameKind::Pose),
+            _ => None,
+        }
+    }
+
+    /// Version 2: a points frame's pose, or a pose frame's own number. Version 1: 0, the
+    /// identity.
+    pub fn pose_number(&self) -> u32 {
+        if self.version() == VERSION_1 {
+            return 0;
+        }
+        u32_at(self.buffer.as_ref(), field::POSE_NUMBER.start)
+    }
+
+    fn header_len(&self) -> usize {
+        if self.version() == VERSION_1 {
+            HEADER_LEN_V1
+        } else {
+            HEADER_LEN
+        }
+    }
+
     /// Point `i` as raw integers, or `None` past the points present.
     pub fn point(&self, i: usize) -> Option<[i32; 3]> {
-        if i >= self.point_count() as usize {
+        if i >= self.point_count() as usize || self.kind() != Some(FrameKind::Points) {
             return None;
         }
-        let at = HEADER_LEN + POINT_LEN * i;
+        let at = self.header_len() + POINT_LEN * i;
         let bytes = self.buffer.as_ref().get(at..at + POINT_LEN)?;
-        let v = |k: usize| u32_at(bytes, 4 * k) as i32;
+        let v = |k: usize| i32_at(bytes, 4 * k);
         Some([v(0), v(1), v(2)])
     }
 
-    /// The points, in metres, as the mapper takes them (`value * 10^e`, computed in f64).
+    /// A pose frame's pose as raw integers, or `None` for a points frame or short bytes.
+    pub fn pose(&self) -> Option<WirePose> {
+        if self.kind() != Some(FrameKind::Pose) {
+            return None;
+        }
+        let b = self.buffer.as_ref();
+        b.get(field::TRANSLATION..field::ROTATION + 16)?;
+        let t = |k: usize| i32_at(b, field::TRANSLATION + 4 * k);
+        let q = |k: usize| i32_at(b, field::ROTATION + 4 * k);
+        Some(WirePose {
+            translation: [t(0), t(1), t(2)],
+            rotation: [q(0), q(1), q(2), q(3)],
+        })
+    }
+
+    /// The points, in metres (`value * 10^e`, computed in f64), in the sensor frame.
     pub fn points_metres(&self) -> impl Iterator<Item = [f64; 3]> + '_ {
-        let scale = libm::pow(10.0, self.unit_exponent() as f64);
+        let scale = self.unit_scale();
         (0..self.point_count() as usize)
             .filter_map(move |i| self.point(i))
             .map(move |p| p.map(|v| v as f64 * scale))
@@ -187,166 +313,5 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
 }
 
-/// The content of a valid frame, for emitting.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct FrameRepr<'a> {
-    pub sequence: u32,
-    pub end_of_stream: bool,
-    pub unit_exponent: i8,
-    pub points: &'a [[i32; 3]],
-}
-
-impl FrameRepr<'_> {
-    pub const fn len_for(points: usize) -> usize {
-        HEADER_LEN + POINT_LEN * points + CRC_LEN
-    }
-
-    pub const fn buffer_len(&self) -> usize {
-        Self::len_for(self.points.len())
-    }
-
-    /// Writes the raw frame; returns its length, or `None` if the buffer is short or there are
-    /// more than [`MAX_POINTS`] points.
-    pub fn emit(&self, out: &mut [u8]) -> Option<usize> {
-        if self.points.len() > MAX_POINTS {
-            return None;
-        }
-        let len = self.buffer_len();
-        let out = out.get_mut(..len)?;
-        let (body, crc_bytes) = out.split_at_mut(len - CRC_LEN);
-        let (header, points) = body.split_at_mut(HEADER_LEN);
-        header.fill(0);
-        *header.get_mut(field::VERSION)? = VERSION;
-        *header.get_mut(field::FLAGS)? = if self.end_of_stream {
-            super::FLAG_END_OF_STREAM
-        } else {
-            0
-        };
-        header
-            .get_mut(field::SEQUENCE)?
-            .copy_from_slice(&self.sequence.to_le_bytes());
-        header
-            .get_mut(field::COUNT)?
-            .copy_from_slice(&(self.points.len() as u16).to_le_bytes());
-        *header.get_mut(field::UNIT_EXPONENT)? = self.unit_exponent as u8;
-        for (record, p) in points.chunks_exact_mut(POINT_LEN).zip(self.points.iter()) {
-            for (slot, v) in record.chunks_exact_mut(4).zip(p.iter()) {
-                slot.copy_from_slice(&v.to_le_bytes());
-            }
-        }
-        crc_bytes.copy_from_slice(&crc32(body).to_le_bytes());
-        Some(len)
-    }
-}
-
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::test_support::{OrFail, TestResult};
-
-    const POINTS: [[i32; 3]; 3] = [[1, -2, 3], [i32::MAX, i32::MIN, 0], [-1500, 250, 999_999]];
-
-    #[test]
-    fn emit_then_parse() -> TestResult {
-        let repr = FrameRepr {
-            sequence: 0xDEAD_BEEF,
-            end_of_stream: true,
-            unit_exponent: -3,
-            points: &POINTS,
-        };
-        let mut buf = [0u8; 64];
-        let n = repr.emit(&mut buf).or_fail("fits")?;
-        assert_eq!(n, 10 + 36 + 4);
-        let frame = Frame::new_checked(&buf[..n]).or_fail("valid")?;
-        assert_eq!(frame.sequence(), 0xDEAD_BEEF);
-        assert!(frame.end_of_stream());
-        assert_eq!(frame.unit_exponent(), -3);
-        for (i, p) in POINTS.iter().enumerate() {
-            assert_eq!(frame.point(i), Some(*p));
-        }
-        assert_eq!(frame.point(3), None);
-        let metres: [[f64; 3]; 1] = [frame.points_metres().next().or_fail("one point")?];
-        assert_eq!(metres[0], [0.001, -0.002, 0.003]);
-        // Byte layout, field by field (the PROTOCOL.md example).
-        assert_eq!(&buf[..10], &[1, 1, 0xEF, 0xBE, 0xAD, 0xDE, 3, 0, 0xFD, 0]);
-        Ok(())
-    }
-
-    /// The example of PROTOCOL.md, whose bytes were computed independently (Python, zlib).
-    #[test]
-    fn protocol_example() -> TestResult {
-        let points = [[1000, -2000, 500], [0, 0, -1]];
-        let repr = FrameRepr {
-            sequence: 7,
-            end_of_stream: true,
-            unit_exponent: -3,
-            points: &points,
-        };
-        let mut raw = [0u8; 64];
-        let n = repr.emit(&mut raw).or_fail("fits")?;
-        let want_raw: [u8; 38] = [
-            0x01, 0x01, 0x07, 0x00, 0x00, 0x00, 0x02, 0x00, 0xfd, 0x00, 0xe8, 0x03, 0x00, 0x00,
-            0x30, 0xf8, 0xff, 0xff, 0xf4, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
-            0x00, 0x00, 0xff, 0xff, 0xff, 0xff, 0x3d, 0x7e, 0xf4, 0x5a,
-        ];
-        assert_eq!(&raw[..n], &want_raw);
-        let mut wire = [0u8; 64];
-        let m = crate::wire::cobs_encode(&raw[..n], &mut wire).or_fail("fits")?;
-        let want_wire: [u8; 39] = [
-            0x04, 0x01, 0x01, 0x07, 0x01, 0x01, 0x02, 0x02, 0x02, 0xfd, 0x03, 0xe8, 0x03, 0x01,
-            0x07, 0x30, 0xf8, 0xff, 0xff, 0xf4, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01,
-            0x01, 0x01, 0x09, 0xff, 0xff, 0xff, 0xff, 0x3d, 0x7e, 0xf4, 0x5a,
-        ];
-        assert_eq!(&wire[..m], &want_wire);
-        Ok(())
-    }
-
-    #[test]
-    fn one_test_per_rejection_rule() -> TestResult {
-        let repr = FrameRepr {
-            sequence: 7,
-            end_of_stream: false,
-            unit_exponent: -3,
-            points: &POINTS,
-        };
-        let mut good = [0u8; 64];
-        let n = repr.emit(&mut good).or_fail("fits")?;
-        let check = |bytes: &[u8]| Frame::new_checked(bytes).map(|_| ());
-        assert_eq!(check(&good[..5]), Err(FrameError::Truncated { len: 5 }));
-        assert_eq!(
-            check(&good[..n - 1]),
-            Err(FrameError::LengthMismatch {
-                expected: n,
-                got: n - 1
-            })
-        );
-        let mut v = good;
-        v[0] = 2;
-        assert_eq!(
-            check(&v[..n]),
-            Err(FrameError::UnsupportedVersion { version: 2 })
-        );
-        let mut c = good;
-        c[6] = 200;
-        assert_eq!(
-            check(&c[..n]),
-            Err(FrameError::TooManyPoints { count: 200 })
-        );
-        let mut r = good;
-        r[9] = 1;
-        assert_eq!(check(&r[..n]), Err(FrameError::Reserved));
-        let mut f = good;
-        f[1] = 0x80;
-        assert_eq!(check(&f[..n]), Err(FrameError::Reserved));
-        let mut crc = good;
-        crc[20] ^= 4;
-        assert!(matches!(check(&crc[..n]), Err(FrameError::BadCrc { .. })));
-        let too_many = [[0i32; 3]; MAX_POINTS + 1];
-        let big = FrameRepr {
-            points: &too_many,
-            ..repr
-        };
-        assert_eq!(big.emit(&mut [0u8; 2048]), None);
-        Ok(())
-    }
-}
+mod tests;

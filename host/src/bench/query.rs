@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use crate::io::mapfile::HostMap;
 use crate::io::scene::{ScanConfig, Scene};
-use crate::query::{build_index, local, random_queries};
+use crate::query::recast::{Recast, recast};
+use crate::query::{build_index, random_queries};
 
 /// What `mema query-bench` reports.
 #[derive(Clone, Debug, Serialize)]
@@ -20,14 +21,8 @@ pub struct QueryBench {
     pub brute_force_queries_per_s: f64,
     pub speedup: f64,
     /// The demo scene's rays cast against its own map.
-    pub rays: usize,
-    pub rays_hit_both: usize,
-    pub rays_scene_only: usize,
-    pub rays_map_only: usize,
-    pub range_rmse: f64,
-    /// Median and 95th percentile of |map range - scene range| over rays that hit both.
-    pub range_median_abs: f64,
-    pub range_p95_abs: f64,
+    #[serde(flatten)]
+    pub recast: Recast,
 }
 
 /// Times `queries` random queries of each kind (nearest, occupancy, ray) on `map`, through the
@@ -67,27 +62,10 @@ pub fn run_bench(map: &HostMap, queries: usize, ray_check: Option<&Scene>) -> Re
         .filter(|(a, b)| a != b)
         .count();
 
-    let (mut rays, mut both, mut scene_only, mut map_only, mut sum2) = (0, 0, 0, 0, 0.0);
-    let mut abs_errors = Vec::new();
-    if let Some(scene) = ray_check {
-        let config = ScanConfig::default();
-        let sensor = local(map, config.sensor);
-        for d in config.ray_directions() {
-            rays += 1;
-            let truth = scene.ray_cast(config.sensor, d, config.max_range);
-            let mapped = index.ray_cast(sensor, d, config.max_range);
-            match (truth, mapped) {
-                (Some(t), Some(m)) => {
-                    both += 1;
-                    sum2 += (m.t - t.range) * (m.t - t.range);
-                    abs_errors.push((m.t - t.range).abs());
-                }
-                (Some(_), None) => scene_only += 1,
-                (None, Some(_)) => map_only += 1,
-                (None, None) => {}
-            }
-        }
-    }
+    let recast = match ray_check {
+        Some(scene) => recast(map, scene, &[ScanConfig::default()])?,
+        None => Recast::default(),
+    };
     let per_s = |secs: f64| queries as f64 * 3.0 / secs;
     Ok(QueryBench {
         entities: map.entities.len(),
@@ -96,24 +74,6 @@ pub fn run_bench(map: &HostMap, queries: usize, ray_check: Option<&Scene>) -> Re
         index_queries_per_s: per_s(index_s),
         brute_force_queries_per_s: per_s(brute_s),
         speedup: brute_s / index_s,
-        rays,
-        rays_hit_both: both,
-        rays_scene_only: scene_only,
-        rays_map_only: map_only,
-        range_rmse: if both > 0 {
-            (sum2 / both as f64).sqrt()
-        } else {
-            0.0
-        },
-        range_median_abs: quantile(&mut abs_errors, 0.5),
-        range_p95_abs: quantile(&mut abs_errors, 0.95),
+        recast,
     })
-}
-
-fn quantile(values: &mut [f64], q: f64) -> f64 {
-    if values.is_empty() {
-        return 0.0;
-    }
-    values.sort_by(f64::total_cmp);
-    values[((values.len() - 1) as f64 * q).round() as usize]
 }

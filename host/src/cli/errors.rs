@@ -1,7 +1,7 @@
 //! How a failed command reads and exits. The library's errors name its own terms; here they
 //! become the flags the user typed, and the exit status says what kind of failure it was:
 //! 1 bad input or I/O, 2 bad usage (clap's own status for its errors), 3 a stream that ended
-//! before its end-of-stream frame.
+//! before its end-of-stream frame, 4 a stream ended by `--idle-timeout`.
 
 use mema::ConfigError;
 use mema::mapping::filter::FilterError;
@@ -17,12 +17,20 @@ pub struct UsageError(pub String);
 #[error("{0}")]
 pub struct LinkLost(pub String);
 
+/// `--idle-timeout` ended a silent link before its end-of-stream frame (a lost last frame, a
+/// sender that hung). The map of what arrived is written; the exit status is 4.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct LinkIdle(pub String);
+
 /// The exit status for `e`.
 pub fn exit_status(e: &anyhow::Error) -> u8 {
     if e.downcast_ref::<UsageError>().is_some() || e.downcast_ref::<ConfigError>().is_some() {
         2
     } else if e.downcast_ref::<LinkLost>().is_some() {
         3
+    } else if e.downcast_ref::<LinkIdle>().is_some() {
+        4
     } else {
         1
     }
@@ -254,6 +262,10 @@ mod tests {
         );
         assert_eq!(exit_status(&e), 2);
         assert_eq!(exit_status(&anyhow::Error::from(LinkLost("cut".into()))), 3);
+        assert_eq!(
+            exit_status(&anyhow::Error::from(LinkIdle("quiet".into()))),
+            4
+        );
         assert_eq!(exit_status(&anyhow::anyhow!("broken file")), 1);
     }
 }

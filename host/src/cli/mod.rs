@@ -10,11 +10,12 @@ pub use args::{Cli, Command};
 
 /// Runs the subcommand `cli` holds.
 pub fn run(cli: &Cli) -> anyhow::Result<()> {
-    use commands::{bench, demo, eval, info, map, query, serial, toolbox};
+    use commands::{bench, demo, demo_moving, eval, info, map, query, serial, toolbox};
     match &cli.command {
         Command::Map(a) => map::map(a),
         Command::Eval(a) => eval::eval(a),
         Command::Info(a) => info::info(a),
+        Command::Demo(a) if a.moving => demo_moving::demo_moving(a),
         Command::Demo(a) => demo::demo(a),
         Command::Ablation(a) => bench::ablation(a),
         Command::StreamBench(a) => bench::stream_bench(a),

@@ -1,9 +1,11 @@
 //! A cloud as the pipeline takes it: f32 points in a local frame around an f64 origin.
 
-use anyhow::Result;
+use anyhow::{Context, Result, bail};
 use mema_core::Point3;
 use std::path::Path;
 
+pub use super::conf::is_registration;
+use super::conf::{RegisteredScan, read_registration};
 use super::read::{Cloud, read_cloud, read_cloud_in_metres};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
@@ -190,6 +192,9 @@ impl LocalCloud {
 /// # Ok::<(), anyhow::Error>(())
 /// ```
 pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
+    if is_registration(path) {
+        return Ok(load_registered_in_metres(path, None)?.0);
+    }
     Ok(local(read_cloud(path)?))
 }
 
@@ -218,9 +223,78 @@ pub fn load_cloud_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
+    // Several registered scans (a `.conf`): all of them, in their common frame.
+    if is_registration(path) {
+        return load_registered_in_metres(path, given);
+    }
     let mut cloud = read_cloud_in_metres(path, given)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
     let mut cloud = local(cloud);
+    cloud.unit = Some(FileUnit::Length {
+        unit: LengthUnit::metre(),
+        source: "scaled to metres",
+    });
+    Ok((cloud, units))
+}
+
+/// A scan read in metres: its pose (translation in metres) and its points in the scanner's
+/// frame.
+#[derive(Clone, Debug)]
+pub struct ScanInMetres {
+    pub scan: RegisteredScan,
+    pub points: Vec<[f64; 3]>,
+}
+
+/// Every scan of registration file `path`, read in metres (scaled by `given`, else by the unit
+/// each file says, else taken as metres; the translations by the same unit), and the units of
+/// the first scan.
+pub fn read_scans_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+) -> Result<(Vec<ScanInMetres>, Units)> {
+    let mut out = Vec::new();
+    let mut first_units = None;
+    for scan in read_registration(path)? {
+        if is_registration(&scan.path) {
+            bail!(
+                "{}: a registration file names another, {}",
+                path.display(),
+                scan.path.display()
+            );
+        }
+        let (cloud, units) = load_cloud_in_metres(&scan.path, given)
+            .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
+        let scale = units.unit.metres;
+        let o = cloud.origin;
+        let points = cloud
+            .points
+            .iter()
+            .map(|p| {
+                let q = p.to_f64();
+                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
+            })
+            .collect();
+        let scan = RegisteredScan {
+            translation: scan.translation.map(|v| v * scale),
+            ..scan
+        };
+        out.push(ScanInMetres { scan, points });
+        first_units.get_or_insert(units);
+    }
+    Ok((out, first_units.unwrap_or_else(Units::assumed)))
+}
+
+/// All scans of registration file `path` in the common frame, in metres, as one cloud.
+pub fn load_registered_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+) -> Result<(LocalCloud, Units)> {
+    let (scans, units) = read_scans_in_metres(path, given)?;
+    let world: Vec<[f64; 3]> = scans
+        .iter()
+        .flat_map(|s| s.points.iter().map(|p| s.scan.to_world(*p)))
+        .collect();
+    let mut cloud = LocalCloud::from_world(&world);
     cloud.unit = Some(FileUnit::Length {
         unit: LengthUnit::metre(),
         source: "scaled to metres",

@@ -4,6 +4,8 @@
 //! and writes through it.
 pub mod atomic;
 pub mod cloud;
+pub mod conf;
+pub mod drive;
 pub mod input;
 pub mod mapfile;
 pub mod output;

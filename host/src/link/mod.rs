@@ -7,4 +7,5 @@
 pub mod capture;
 pub mod frames;
 pub mod port;
+pub mod scanner;
 pub mod stream;

@@ -1,12 +1,13 @@
 //! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
 
 use anyhow::Result;
-use mema_core::Point3;
 use mema_core::fit::FitParams;
+use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
-use mema_core::wire::{Decoded, Decoder, DecoderStats};
+use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
+use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
 use crate::error::ConfigError;
 use crate::io::cloud::LocalCloud;
 use crate::io::mapfile::HostMap;
@@ -124,11 +125,12 @@ pub fn link_params(
 }
 
 /// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
-/// quantized grid (the entities already on it, so the map in memory is its file read back).
-pub fn map_of(mapper: &HostStreamMapper) -> HostMap {
+/// quantized grid (the entities already on it, so the map in memory is its file read back),
+/// around `origin`, the receiver's (the mapper's points are relative to it).
+pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
     let layout = mapper.layout();
     HostMap {
-        origin: [0.0; 3],
+        origin,
         entities: mapper.stored_entities(layout).collect(),
         quantization: match layout {
             mema_core::map::Layout::Quantized(grid) => Some(grid),
@@ -148,7 +150,7 @@ pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
         .unwrap_or_else(|| Box::new(HostStreamMapper::new(params)))
 }
 
-/// Decoder + mapper, fed with whatever chunks of bytes arrive.
+/// Receiver + mapper, fed with whatever chunks of bytes arrive.
 ///
 /// A cloud sent as a rangefinder sends it, in chunks of any size, becomes a map:
 ///
@@ -166,17 +168,15 @@ pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
 /// for chunk in bytes.chunks(7) {
 ///     link.feed(chunk);
 /// }
-/// assert!(link.end_of_stream);
+/// assert!(link.end_of_stream());
 /// assert_eq!(link.stats().rejected, 0);
 /// let map = link.finish();
 /// assert!(!map.entities.is_empty() && map.entities.len() <= 16);
 /// # Ok::<(), anyhow::Error>(())
 /// ```
 pub struct Link {
-    pub decoder: Decoder,
+    pub receiver: Receiver,
     pub mapper: Box<HostStreamMapper>,
-    pub end_of_stream: bool,
-    pub frames_after_end: u64,
 }
 
 impl Link {
@@ -194,38 +194,50 @@ impl Link {
     /// A link whose mapper has every parameter chosen by the caller.
     pub fn with_params(params: StreamParams) -> Self {
         Self {
-            decoder: Decoder::new(),
+            receiver: Receiver::new(),
             mapper: new_mapper_with(params),
-            end_of_stream: false,
-            frames_after_end: 0,
         }
     }
 
-    /// Feeds one chunk; frames go straight into the mapper.
+    /// Feeds one chunk; the points of its frames go straight into the mapper, through their
+    /// pose into the world (frames after the end of stream are only counted, so any chunking
+    /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
         let mut window = chunk;
         loop {
-            match self.decoder.feed(window) {
-                Decoded::Consumed => break,
-                Decoded::Rejected { remaining, .. } => window = remaining,
-                Decoded::Frame { frame, remaining } => {
-                    if self.end_of_stream {
-                        self.frames_after_end += 1;
+            match self.receiver.feed(window) {
+                Received::Consumed => break,
+                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                    window = remaining
+                }
+                Received::Points {
+                    frame,
+                    placement,
+                    remaining,
+                } => {
+                    for p in placement.points(&frame) {
+                        self.mapper.add(p);
                     }
-                    for p in frame.points_metres() {
-                        self.mapper
-                            .add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
-                    }
-                    self.end_of_stream |= frame.end_of_stream();
                     window = remaining;
                 }
             }
         }
     }
 
-    /// The decoder's counts: frames accepted, rejected, lost, repeated, bytes.
+    /// Whether the end-of-stream frame has arrived.
+    pub fn end_of_stream(&self) -> bool {
+        self.receiver.ended()
+    }
+
+    /// The decoder's counts: frames accepted, rejected (by reason), lost, repeated, sessions,
+    /// bytes.
     pub fn stats(&self) -> &DecoderStats {
-        self.decoder.stats()
+        self.receiver.decoder_stats()
+    }
+
+    /// The receiver's counts: frames after the end, poses, points frames without their pose.
+    pub fn receiver_stats(&self) -> &ReceiverStats {
+        self.receiver.stats()
     }
 
     /// The map so far: stale clusters refitted first (a snapshot).
@@ -241,12 +253,13 @@ impl Link {
     }
 
     fn map(&self) -> HostMap {
-        map_of(&self.mapper)
+        map_of(&self.mapper, self.receiver.origin())
     }
 }
 
-/// The direct path the tests compare the link against: the same points, quantised as the wire
-/// carries them, straight into the mapper (the paper's model).
+/// The direct path the tests compare a version 1 link against: the same points, quantised to
+/// millimetres as a version 1 capture carries them, straight into the mapper as
+/// `(v * 10^-3) as f32` (the paper's model).
 pub fn map_points_directly(
     cloud: &LocalCloud,
     capacity: Capacity,
@@ -269,5 +282,48 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
         mapper.add(dequantise(*q));
     }
     mapper.finish();
-    Ok(map_of(&mapper))
+    // Clouds are centred on their bounding box, so the receiver's origin is 0 (ORIGIN_CELL).
+    Ok(map_of(&mapper, [0.0; 3]))
+}
+
+/// The direct path the tests compare `scanner-sim` into `stream` against: the integers
+/// scanner-sim sends of `cloud` (its unit, its sensor at the cloud's centre in whole metres),
+/// taken to the map's frame here, `v * 10^e + (t - origin)` in f64 with the origin the first
+/// point's 1,024 m cell, and fed to the mapper: no bytes, frames or receiver.
+pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
+    let wire = quantise_scans(&[SensorScan::of_cloud(cloud)?])?;
+    let unit = |e: i8| mema_core::wire::unit_scale(e).unwrap_or(f64::NAN);
+    let (s, ps) = (unit(wire.unit_exponent), unit(wire.pose_exponent));
+    let mut mapper = new_mapper_with(params);
+    let mut origin: Option<[f64; 3]> = None;
+    for scan in &wire.scans {
+        anyhow::ensure!(
+            scan.pose.rotation[..3] == [0, 0, 0],
+            "a cloud is sent unturned"
+        );
+        let t = scan.pose.translation.map(|v| v as f64 * ps);
+        for p in &scan.points {
+            let w = p.map(|v| v as f64 * s);
+            let o = *origin.get_or_insert_with(|| {
+                [0, 1, 2].map(|j| ((w[j] + t[j]) / 1024.0).round() * 1024.0 + 0.0)
+            });
+            let local = |j: usize| (w[j] + (t[j] - o[j])) as f32;
+            mapper.add(mema_core::Point3::new(local(0), local(1), local(2)));
+        }
+    }
+    mapper.finish();
+    Ok(map_of(&mapper, origin.unwrap_or([0.0; 3])))
+}
+
+/// `scans` sent as `mema scanner-sim` sends them and received as `mema stream` receives them,
+/// in one process: the bytes sent, and the link after them (its counts and its finished map).
+pub fn stream_scans(
+    scans: &[SensorScan],
+    params: StreamParams,
+) -> Result<(SentScans, Link, HostMap)> {
+    let sent = send_scans(scans)?;
+    let mut link = Link::with_params(params);
+    link.feed(&sent.bytes);
+    let map = link.finish();
+    Ok((sent, link, map))
 }

@@ -22,6 +22,10 @@ pub struct StreamArgs {
     /// Write the map so far every this many seconds.
     #[arg(long)]
     pub snapshot_every: Option<f64>,
+    /// End the stream when no frame has arrived for this many seconds (a lost end-of-stream
+    /// frame, a sender that hung): the map of what arrived is written, exit status 4.
+    #[arg(long, value_name = "SECONDS")]
+    pub idle_timeout: Option<f64>,
     #[command(flatten)]
     pub shape: StreamShapeArgs,
     /// Also save the raw bytes received, as `mema record` would.
@@ -95,8 +99,14 @@ pub struct ScannerSimArgs {
     /// Serial device or pty to write to; a path that is not a device becomes a capture file.
     #[arg(long)]
     pub port: PathBuf,
-    /// The cloud to play (PLY, PCD, XYZ/CSV); default: the built-in demo scene's scan.
+    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: a robot
+    /// driving through the built-in demo scene, its rangefinder's scan at each of eight stops
+    /// sent in the sensor's frame after the stop's pose.
     pub cloud: Option<PathBuf>,
+    /// Play the scans of a registration file (`bmesh FILE tx ty tz qx qy qz qw` lines, as
+    /// Stanford's bun.conf): each in its own sensor frame after its pose frame.
+    #[arg(long, value_name = "SCANS.conf", conflicts_with = "cloud")]
+    pub conf: Option<PathBuf>,
     /// Points per second (default: as fast as the port takes them).
     #[arg(long)]
     pub rate: Option<f64>,

@@ -117,6 +117,14 @@ pub struct MapArgs {
     /// (metres).
     #[arg(long, value_name = "SIZE")]
     pub voxel: Option<f64>,
+    /// Map with the streaming mapper instead, exactly as `mema stream` maps what
+    /// `mema scanner-sim` sends of the same file (the same bytes, so the same map): each scan
+    /// of a .conf in its sensor frame after its pose, in the unit scanner-sim picks.
+    #[arg(long, conflicts_with_all = ["tolerance", "bytes", "crop", "voxel", "labels"])]
+    pub stream: bool,
+    /// With --stream: at most W clusters in working memory, the rest frozen (as `stream`).
+    #[arg(long, value_name = "W", requires = "stream")]
+    pub working: Option<usize>,
     /// Print one JSON object instead of the tables.
     #[arg(long)]
     pub json: bool,
@@ -166,6 +174,12 @@ pub struct DemoArgs {
     /// instead of the default's oriented shells.
     #[arg(long)]
     pub paper: bool,
+    /// A robot drives through the scene instead: its rangefinder scans at eight stops along an
+    /// arc, each scan goes over the link's bytes in the sensor's frame after its pose (what
+    /// `mema scanner-sim` sends), and the streaming mapper builds one map in the world frame.
+    /// The scans' rays are then cast again at the map and at the scene.
+    #[arg(long)]
+    pub moving: bool,
     /// Print one JSON object (the map's report and the files written) instead of the text.
     #[arg(long)]
     pub json: bool,

@@ -13,35 +13,12 @@ use mema::io::write_cloud::write_ply;
 use mema::mapping::{EntityChoice, Model, ShellModel};
 use mema::progress::stage;
 use mema::render::draw::{Style, View};
-use mema::render::picture::{Size, render};
+use mema::render::picture::render;
 use serde::Serialize;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
+use super::demo_files::{DemoFiles, PICTURE, shell_word};
 use crate::cli::args::DemoArgs;
-
-/// The picture's size: large enough to read the legend, small enough to draw in a second.
-const PICTURE: Size = Size {
-    width: 1200,
-    height: 900,
-};
-
-/// The files the demo writes, all in `--out-dir`.
-#[derive(Serialize)]
-struct DemoFiles {
-    scan: PathBuf,
-    map: PathBuf,
-    picture: PathBuf,
-}
-
-impl DemoFiles {
-    fn in_dir(dir: &Path) -> Self {
-        Self {
-            scan: dir.join("scan.ply"),
-            map: dir.join("map.mema"),
-            picture: dir.join("picture.png"),
-        }
-    }
-}
 
 /// `mema demo --json`: the map's report (as `mema map --json` gives it) and the files.
 #[derive(Serialize)]
@@ -105,19 +82,6 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
 /// Millimetres, for lengths a newcomer reads at a glance.
 fn mm(metres: f64) -> String {
     format!("{:.1} mm", 1000.0 * metres)
-}
-
-/// `path` as a shell word: quoted only where it has to be.
-fn shell_word(path: &Path) -> String {
-    let text = path.display().to_string();
-    let plain = text
-        .chars()
-        .all(|c| c.is_ascii_alphanumeric() || "._/-+,:@".contains(c));
-    if plain {
-        text
-    } else {
-        format!("'{}'", text.replace('\'', r"'\''"))
-    }
 }
 
 fn explain(r: &MapReport, files: &DemoFiles, dir: &Path, noise: f64) {

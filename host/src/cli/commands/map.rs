@@ -7,8 +7,10 @@ use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance}
 use mema::io::Units;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
 use mema::io::read::input_name;
+use mema::link::scanner::{scans_of, unit_name};
+use mema::link::stream::{Capacity, link_params, stream_scans};
 use mema::mapping::filter::{self, FilterCounts, check_voxel};
-use mema::mapping::{MIN_POINTS_PER_ENTITY, Model, ShellModel, most_entities};
+use mema::mapping::{MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel, most_entities};
 use mema_core::shell::ShellParams;
 
 use super::read_in_metres;
@@ -53,6 +55,9 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let mut config = args.fit.config(k)?;
     let voxel = args.voxel.map(check_voxel).transpose()?;
     check_map_output(&args.output)?;
+    if args.stream {
+        return stream_map(args, &config, model);
+    }
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
@@ -86,6 +91,52 @@ pub fn map(args: &MapArgs) -> Result<()> {
         warn_if_on_bounds(&report, args, &units);
     }
     print_map_report(&report, &units, args.json)
+}
+
+/// `mema map --stream`: the bytes `mema scanner-sim` would send of the file, through the
+/// receiver and the streaming mapper `mema stream` maps with.
+fn stream_map(args: &MapArgs, config: &PipelineConfig, model: Model) -> Result<()> {
+    let capacity = Capacity::checked(config.k, args.working, false)?;
+    let scans = scans_of(&args.input, args.units.units.as_ref())
+        .with_context(|| args.input.display().to_string())?;
+    let (sent, link, map) = stream_scans(&scans, link_params(config, capacity, None, model))?;
+    map.write(&args.output)?;
+    let summary = StreamMapSummary {
+        map: args.output.display().to_string(),
+        scans: sent.scans,
+        points: link.mapper.stats().points,
+        unit_exponent: sent.unit_exponent,
+        spacing: sent.spacing,
+        entities: map.entities.len(),
+        origin: map.origin,
+    };
+    eprintln!(
+        "mema: map --stream: {} scans, {} points in units of {}, {} entities",
+        summary.scans,
+        summary.points,
+        unit_name(summary.unit_exponent),
+        summary.entities
+    );
+    if args.json {
+        println!("{}", serde_json::to_string(&summary)?);
+    } else {
+        println!("{}", summary.map);
+    }
+    Ok(())
+}
+
+/// `mema map --stream --json`.
+#[derive(serde::Serialize)]
+struct StreamMapSummary {
+    map: String,
+    scans: usize,
+    points: u64,
+    /// The wire's unit, `10^e` m, as scanner-sim picks it.
+    unit_exponent: i8,
+    /// The median nearest-point spacing it was picked from (metres).
+    spacing: f64,
+    entities: usize,
+    origin: [f64; 3],
 }
 
 /// A warning on stderr when most entities degenerated: clusters wider than the threshold
@@ -141,6 +192,9 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     let config = args.fit.config(1)?;
     let voxel = args.voxel.map(check_voxel).transpose()?;
     check_map_output(&args.output)?;
+    if args.stream {
+        return stream_map(args, &config, model);
+    }
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }

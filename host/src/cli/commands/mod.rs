@@ -1,6 +1,8 @@
 //! One handler per subcommand: check the arguments, call the library, print.
 pub mod bench;
 pub mod demo;
+mod demo_files;
+pub mod demo_moving;
 pub mod eval;
 pub mod info;
 pub mod map;

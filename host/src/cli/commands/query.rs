@@ -192,17 +192,8 @@ pub fn query_bench(args: &QueryBenchArgs) -> Result<()> {
             r.brute_force_queries_per_s,
             r.speedup
         );
-        if r.rays > 0 {
-            println!(
-                "  demo scan re-cast at its own map: {} rays, {} hit both, {} only the scene, {} only the map\n  range error over rays hitting both: RMSE {:.4} m, median {:.4} m, 95th percentile {:.4} m",
-                r.rays,
-                r.rays_hit_both,
-                r.rays_scene_only,
-                r.rays_map_only,
-                r.range_rmse,
-                r.range_median_abs,
-                r.range_p95_abs
-            );
+        if r.recast.rays > 0 {
+            println!("{}", r.recast.lines("demo scan re-cast at its own map"));
         }
     }
     Ok(())

@@ -8,19 +8,21 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::LocalCloud;
+use mema::io::cloud::is_registration;
+use mema::io::drive::{DriveConfig, drive};
 use mema::io::output::{check_map_output, check_output_dir};
-use mema::io::scene::{ScanConfig, Scene, scan};
+use mema::io::scene::Scene;
 use mema::link::capture::CaptureWriter;
-use mema::link::frames::{POINTS_PER_FRAME, encode_stream, quantise};
 use mema::link::port::{
     ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
 };
+use mema::link::scanner::{SensorScan, scans_of, send_scans, unit_name};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
+use mema_core::wire::DecoderStats;
 
 use crate::cli::args::{RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamShapeArgs};
-use crate::cli::errors::LinkLost;
+use crate::cli::errors::{LinkIdle, LinkLost, UsageError};
 
 /// `-k` within the host mapper's fixed capacity, and `--working` within `-k`.
 pub fn capacity(k: usize, shape: &StreamShapeArgs) -> Result<Capacity, mema::ConfigError> {
@@ -39,7 +41,8 @@ fn params(
 /// How often `stream` reports progress on stderr.
 const PROGRESS_EVERY: Duration = Duration::from_secs(5);
 
-/// Set by Ctrl-C; every loop polls it between reads.
+/// Set by Ctrl-C, SIGTERM or SIGHUP (ctrlc's `termination` feature); every loop polls it
+/// between reads, so a service manager's stop or a closed terminal writes the map as Ctrl-C does.
 fn interrupted() -> Arc<AtomicBool> {
     let flag = Arc::new(AtomicBool::new(false));
     let handler_flag = flag.clone();
@@ -49,6 +52,57 @@ fn interrupted() -> Arc<AtomicBool> {
     flag
 }
 
+/// Frames refused, by reason (they add up to `frames_rejected`).
+#[derive(Serialize)]
+pub struct Rejections {
+    pub bad_crc: u64,
+    pub bad_cobs: u64,
+    pub bad_length: u64,
+    /// An unknown version, or reserved bits set.
+    pub bad_version: u64,
+    pub oversized: u64,
+    /// A unit exponent outside the range PROTOCOL.md gives.
+    pub bad_unit: u64,
+    /// A pose frame numbered 0, with points, or whose quaternion is not a unit one.
+    pub bad_pose: u64,
+}
+
+impl Rejections {
+    fn of(s: &DecoderStats) -> Self {
+        Self {
+            bad_crc: s.bad_crc,
+            bad_cobs: s.bad_cobs,
+            bad_length: s.bad_length,
+            bad_version: s.bad_version,
+            oversized: s.oversized,
+            bad_unit: s.bad_unit,
+            bad_pose: s.bad_pose,
+        }
+    }
+
+    /// The non-zero reasons, for the summary line: " (2 bad CRC, 1 bad unit)", or nothing.
+    fn text(&self) -> String {
+        let reasons: Vec<String> = [
+            (self.bad_crc, "bad CRC"),
+            (self.bad_cobs, "bad COBS"),
+            (self.bad_length, "bad length"),
+            (self.bad_version, "bad version"),
+            (self.oversized, "oversized"),
+            (self.bad_unit, "bad unit"),
+            (self.bad_pose, "bad pose"),
+        ]
+        .iter()
+        .filter(|(n, _)| *n > 0)
+        .map(|(n, what)| format!("{n} {what}"))
+        .collect();
+        if reasons.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", reasons.join(", "))
+        }
+    }
+}
+
 #[derive(Serialize)]
 pub struct StreamSummary {
     pub map: String,
@@ -56,8 +110,19 @@ pub struct StreamSummary {
     pub points: u64,
     pub frames_accepted: u64,
     pub frames_rejected: u64,
+    pub rejected: Rejections,
     pub frames_lost: u64,
     pub frames_duplicated: u64,
+    /// Valid frames after the end-of-stream frame: counted, not mapped.
+    pub frames_after_end: u64,
+    /// Sessions the sender began (more than 1: it started again mid-stream).
+    pub sessions: u64,
+    /// Pose frames received.
+    pub poses: u64,
+    /// Points frames not mapped: the pose they name never arrived.
+    pub frames_without_pose: u64,
+    /// The map's origin (metres): the first point's 1,024 m cell.
+    pub origin: [f64; 3],
     pub bytes: u64,
     pub ellipsoids: usize,
     /// From the start of listening (or replaying) to the end.
@@ -114,8 +179,14 @@ fn summary(
         points,
         frames_accepted: s.accepted,
         frames_rejected: s.rejected,
+        rejected: Rejections::of(s),
         frames_lost: s.lost,
         frames_duplicated: s.duplicates,
+        frames_after_end: link.receiver_stats().after_end,
+        sessions: s.sessions,
+        poses: link.receiver_stats().poses,
+        frames_without_pose: link.receiver_stats().no_pose,
+        origin: link.receiver.origin(),
         bytes: s.bytes,
         ellipsoids,
         elapsed_s: elapsed,
@@ -129,12 +200,33 @@ fn summary(
 }
 
 fn report(s: &StreamSummary, json: bool) -> Result<()> {
+    let mut extra = String::new();
+    if s.frames_after_end > 0 {
+        extra.push_str(&format!(
+            ", {} after the end (not mapped)",
+            s.frames_after_end
+        ));
+    }
+    if s.sessions > 1 {
+        extra.push_str(&format!(", {} sessions", s.sessions));
+    }
+    if s.poses > 0 {
+        let plural = if s.poses == 1 { "" } else { "s" };
+        extra.push_str(&format!(", {} pose{plural}", s.poses));
+    }
+    if s.frames_without_pose > 0 {
+        extra.push_str(&format!(
+            ", {} without their pose (not mapped)",
+            s.frames_without_pose
+        ));
+    }
     eprintln!(
-        "mema: {}: {} points, frames {} accepted / {} rejected / {} lost / {} repeated, {} ellipsoids, {:.2} s, {:.0} points/s over the {:.2} s they took to arrive",
+        "mema: {}: {} points, frames {} accepted / {} rejected{} / {} lost / {} repeated{extra}, {} ellipsoids, {:.2} s, {:.0} points/s over the {:.2} s they took to arrive",
         s.end,
         s.points,
         s.frames_accepted,
         s.frames_rejected,
+        s.rejected.text(),
         s.frames_lost,
         s.frames_duplicated,
         s.ellipsoids,
@@ -150,23 +242,35 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     Ok(())
 }
 
-/// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`].
+/// How a link loop ended, before the end-of-stream frame.
+enum Stop {
+    /// Ctrl-C, SIGTERM or SIGHUP.
+    Signal,
+    /// `--idle-timeout`: no frame for this long.
+    Idle(f64),
+    /// The port closed or vanished, or the capture ended.
+    Lost(String),
+}
+
+/// Writes the final map, reports, and turns an unfinished stream into [`LinkLost`] or
+/// [`LinkIdle`].
 fn conclude(
     mut link: Link,
     output: &Path,
-    end: Option<String>,
+    end: Option<Stop>,
     (started, arrivals): (Instant, &Arrivals),
     json: bool,
 ) -> Result<()> {
     let map = link.finish();
     map.write(output)?;
-    let (end_text, lost) = match (&end, link.end_of_stream) {
-        (_, true) => ("end of stream".to_string(), false),
-        (Some(reason), false) if reason == "interrupted" => {
-            ("interrupted (Ctrl-C)".to_string(), false)
+    let end_text = match (&end, link.end_of_stream()) {
+        (_, true) => "end of stream".to_string(),
+        (Some(Stop::Signal), false) => "interrupted (Ctrl-C, SIGTERM or SIGHUP)".to_string(),
+        (Some(Stop::Idle(seconds)), false) => {
+            format!("no frame for {seconds} s (--idle-timeout), before end of stream")
         }
-        (Some(reason), false) => (format!("link lost before end of stream ({reason})"), true),
-        (None, false) => ("input ended before end of stream".to_string(), true),
+        (Some(Stop::Lost(reason)), false) => format!("link lost before end of stream ({reason})"),
+        (None, false) => "input ended before end of stream".to_string(),
     };
     report(
         &summary(
@@ -179,20 +283,29 @@ fn conclude(
         ),
         json,
     )?;
-    if lost {
-        return Err(LinkLost(format!(
-            "{end_text}; the map of what arrived is in {}",
-            output.display()
-        ))
-        .into());
+    let lost = format!(
+        "{end_text}; the map of what arrived is in {}",
+        output.display()
+    );
+    match (end, link.end_of_stream()) {
+        (_, true) | (Some(Stop::Signal), _) => Ok(()),
+        (Some(Stop::Idle(_)), _) => Err(LinkIdle(lost).into()),
+        _ => Err(LinkLost(lost).into()),
     }
-    Ok(())
 }
 
 pub fn stream(args: &StreamArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
     check_map_output(&args.output)?;
+    if let Some(t) = args.idle_timeout
+        && !(t > 0.0 && t.is_finite())
+    {
+        return Err(UsageError(format!(
+            "--idle-timeout {t} must be a positive number of seconds"
+        ))
+        .into());
+    }
     let mut port = open_for_reading(&args.port, args.baud)?;
     let mut record = match &args.record {
         Some(path) => Some(CaptureWriter::create(path)?),
@@ -205,6 +318,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     let mut arrivals = Arrivals::default();
     let mut last_snapshot = Instant::now();
     let mut last_progress = Instant::now();
+    let mut last_frame = Instant::now();
     let mut buf = [0u8; 4096];
     let end = loop {
         if last_progress.elapsed() >= PROGRESS_EVERY {
@@ -221,7 +335,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
             last_progress = Instant::now();
         }
         if stop.load(Ordering::SeqCst) {
-            break Some("interrupted".to_string());
+            break Some(Stop::Signal);
         }
         match read_some(port.as_mut(), &mut buf) {
             ReadOutcome::Bytes(n) => {
@@ -229,24 +343,37 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
                 if let Some(r) = record.as_mut() {
                     r.write(bytes)?;
                 }
+                let frames = link.stats().accepted;
                 link.feed(bytes);
                 arrivals.note(link.mapper.stats().points);
-                if link.end_of_stream {
+                if link.stats().accepted > frames {
+                    last_frame = Instant::now();
+                }
+                if link.end_of_stream() {
                     break None;
                 }
             }
             ReadOutcome::Idle => {}
-            ReadOutcome::Gone(reason) => break Some(reason),
+            ReadOutcome::Gone(reason) => break Some(Stop::Lost(reason)),
+        }
+        if let Some(seconds) = args.idle_timeout
+            && last_frame.elapsed() >= Duration::from_secs_f64(seconds)
+        {
+            break Some(Stop::Idle(seconds));
         }
         if let Some(every) = args.snapshot_every
             && last_snapshot.elapsed() >= Duration::from_secs_f64(every)
         {
-            link.snapshot().write(&args.output)?;
-            eprintln!(
-                "mema: snapshot: {} points, {} ellipsoids",
-                link.mapper.stats().points,
-                link.mapper.clusters().len()
-            );
+            // A full disk or a vanished directory must not end the stream: the map in memory
+            // is the only copy of what arrived, and the next snapshot or the end may succeed.
+            match link.snapshot().write(&args.output) {
+                Ok(()) => eprintln!(
+                    "mema: snapshot: {} points, {} ellipsoids",
+                    link.mapper.stats().points,
+                    link.mapper.clusters().len()
+                ),
+                Err(e) => eprintln!("mema: snapshot failed, the stream goes on: {e:#}"),
+            }
             last_snapshot = Instant::now();
         }
     };
@@ -324,12 +451,15 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
     let mut end = None;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
         if stop.load(Ordering::SeqCst) {
-            end = Some("interrupted".to_string());
+            end = Some(Stop::Signal);
             break;
         }
+        // Past the end-of-stream frame the rest is still fed: it is only counted, and then
+        // counted whole whatever the chunk size.
+        let paced = !link.end_of_stream();
         link.feed(chunk);
         arrivals.note(link.mapper.stats().points);
-        if let Some(rate) = args.rate {
+        if let Some(rate) = args.rate.filter(|_| paced) {
             // Pace by points delivered, as the scanner would have.
             let due = link.mapper.stats().points as f64 / rate;
             let ahead = due - started.elapsed().as_secs_f64();
@@ -337,34 +467,49 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
                 std::thread::sleep(Duration::from_secs_f64(ahead));
             }
         }
-        if link.end_of_stream {
-            break;
-        }
     }
     conclude(link, &output, end, (started, &arrivals), args.json)
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
-    let cloud = match &args.cloud {
-        Some(path) => super::read_in_metres(path, &args.units)?.0,
-        None => {
-            let scan = scan(&Scene::demo(), &ScanConfig::default());
-            LocalCloud::from_world(&scan.points)
+    let scans = match (&args.conf, &args.cloud) {
+        (Some(conf), _) => {
+            if !is_registration(conf) {
+                bail!(
+                    "{}: not a registration file (lines `bmesh FILE tx ty tz qx qy qz qw`)",
+                    conf.display()
+                );
+            }
+            scans_of(conf, args.units.units.as_ref())?
         }
+        (None, Some(path)) => vec![SensorScan::of_cloud(
+            &super::read_in_metres(path, &args.units)?.0,
+        )?],
+        // The robot driving through the demo scene: each stop's scan after its pose.
+        (None, None) => drive(&Scene::demo(), &DriveConfig::default())
+            .iter()
+            .map(SensorScan::of_drive)
+            .collect(),
     };
-    if cloud.points.is_empty() {
+    if scans.iter().all(|s| s.points.is_empty()) {
         bail!("the cloud has no points to send");
     }
-    let wire: Vec<[i32; 3]> = cloud
-        .points
-        .iter()
-        .map(|p| quantise(*p))
-        .collect::<Result<_>>()?;
-    let bytes = encode_stream(&wire)?;
+    let sending = send_scans(&scans)?;
+    let half = 0.5 * mema_core::wire::unit_scale(sending.unit_exponent).unwrap_or(f64::NAN);
+    eprintln!(
+        "mema: scanner-sim: {} scan{}, unit {} (10^{} m) for a point spacing of {:.3} mm: rounding moves a coordinate by at most {:.3} mm",
+        sending.scans,
+        if sending.scans == 1 { "" } else { "s" },
+        unit_name(sending.unit_exponent),
+        sending.unit_exponent,
+        sending.spacing * 1e3,
+        half * 1e3
+    );
+    let bytes = sending.bytes;
     let mut port = open_for_writing(&args.port, args.baud)?;
     let stop = interrupted();
     let started = Instant::now();
-    let bytes_per_point = bytes.len() as f64 / wire.len() as f64;
+    let bytes_per_point = bytes.len() as f64 / sending.points.max(1) as f64;
     let mut sent = 0usize;
     for chunk in bytes.chunks(args.chunk_bytes.max(1)) {
         if stop.load(Ordering::SeqCst) {
@@ -383,7 +528,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     }
     port.flush()
         .with_context(|| format!("{}: flush failed", args.port.display()))?;
-    let frames = wire.len().div_ceil(POINTS_PER_FRAME);
+    let frames = sending.frames;
     // A device is a port; a FIFO is someone's reader; a regular file is what was made.
     let to_file =
         !is_terminal_device(&args.port) && std::fs::metadata(&args.port).is_ok_and(|m| m.is_file());
@@ -392,12 +537,12 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
         let path = args.port.display();
         eprintln!(
             "mema: scanner-sim: {path} is not a serial port or terminal device, so it is now a capture file: {} points in {frames} frames, {sent} bytes; map it with `mema replay {path}`",
-            wire.len()
+            sending.points
         );
     } else {
         eprintln!(
             "mema: scanner-sim: sent {} points in {frames} frames, {sent} bytes, {:.2} s",
-            wire.len(),
+            sending.points,
             started.elapsed().as_secs_f64()
         );
     }

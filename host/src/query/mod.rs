@@ -24,6 +24,8 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod recast;
+
 use anyhow::{Context, Result};
 use mema_core::query::MapIndex;
 use mema_core::transform::RigidTransform;

@@ -1,0 +1,254 @@
+//! The receiver: bytes from the link become points in the map's frame, exactly as PROTOCOL.md's
+//! "What the receiver does" says, in fixed memory and the same on the host and the device.
+//!
+//! [`Receiver`] owns the frame [`Decoder`] and adds what a stream means beyond one frame:
+//! - **Poses** (version 2). A pose frame sets the sensor's pose, sensor to world; a points
+//!   frame names the pose its points were measured at, and they are mapped through it into the
+//!   world frame. A points frame whose pose never arrived (its frame lost, or a session that
+//!   began since) is counted and not mapped: a wrong pose would invent a surface. Each session
+//!   starts at pose 0, the identity; version 1 frames are always at the identity.
+//! - **Sessions.** When the decoder sees the sender start again (a session-start flag, or its
+//!   sequence numbers), the pose goes back to the identity; the map goes on.
+//! - **The end.** Frames after the end-of-stream frame are counted and never mapped, so the map
+//!   does not depend on how many of them arrived in the same chunk as the end.
+//! - **The map's frame.** The mapper works in f32, which near 2,000 km resolves only 0.25 m. The
+//!   receiver therefore keeps an f64 origin, taken from the first point mapped (in the world)
+//!   and rounded to [`ORIGIN_CELL`], and hands the mapper points relative to it: millimetres
+//!   stay millimetres within 16 km of the origin, wherever on the link's range the map lies. A
+//!   stream within 512 m of 0 keeps origin 0, so its points reach the mapper with the same bits
+//!   as before there was an origin.
+
+mod placement;
+
+pub use placement::{Placement, Pose};
+
+use crate::wire::{
+    Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
+};
+
+/// The map origin is the first mapped point rounded to a multiple of this (metres): a power of
+/// two, so the origin is exact in f64 and the same on every target.
+pub const ORIGIN_CELL: f64 = 1024.0;
+
+/// Why a frame was not mapped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Skip {
+    /// The decoder refused it (its reason and counter are the decoder's).
+    Rejected(FrameError),
+    /// It came after the end-of-stream frame.
+    AfterEnd,
+    /// Its points name a pose the receiver does not hold.
+    NoPose { pose: u32 },
+}
+
+/// What one call to [`Receiver::feed`] produced; every variant but `Consumed` carries the rest
+/// of the input, to be fed next.
+#[derive(Debug)]
+pub enum Received<'r, 'i> {
+    /// All input was taken; no frame ended in it.
+    Consumed,
+    /// A frame whose points go into the map, placed by `placement`.
+    Points {
+        frame: Frame<&'r [u8]>,
+        placement: Placement,
+        remaining: &'i [u8],
+    },
+    /// A pose frame: pose `number` now holds.
+    Pose { number: u32, remaining: &'i [u8] },
+    /// A frame that ended and is not mapped.
+    Skipped { why: Skip, remaining: &'i [u8] },
+}
+
+/// The receiver's own counters; the decoder's are [`Receiver::decoder_stats`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReceiverStats {
+    /// Valid frames after the end-of-stream frame, not mapped.
+    pub after_end: u64,
+    /// Pose frames taken.
+    pub poses: u64,
+    /// Points frames not mapped because the receiver did not hold their pose.
+    pub no_pose: u64,
+}
+
+/// What the receiver needs of a frame the decoder accepted, read before the frame's borrow of
+/// the decoder ends.
+struct Accepted {
+    end_of_stream: bool,
+    posed: bool,
+    kind: Option<FrameKind>,
+    pose_number: u32,
+    pose: Option<WirePose>,
+    exponent: i8,
+    first: Option<[i32; 3]>,
+}
+
+/// Decoder, poses, sessions, end of stream and the map's frame, in fixed memory.
+#[derive(Clone, Debug)]
+pub struct Receiver {
+    decoder: Decoder,
+    origin: Option<[f64; 3]>,
+    pose: Pose,
+    /// The decoder's session count when the pose was last reset.
+    session: u64,
+    ended: bool,
+    stats: ReceiverStats,
+}
+
+impl Default for Receiver {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Receiver {
+    #[inline(always)]
+    pub const fn new() -> Self {
+        Self::resuming(None)
+    }
+
+    /// A receiver after a reset of the device: the decoder and the stream start afresh (the
+    /// pose too: points wait for the next pose frame), but the map kept in memory that survived
+    /// (a snapshot) lies around `origin` ([`Receiver::map_origin`] when the snapshot was taken),
+    /// so points keep going there.
+    #[inline(always)]
+    pub const fn resuming(origin: Option<[f64; 3]>) -> Self {
+        Self {
+            decoder: Decoder::new(),
+            origin,
+            pose: Pose::START,
+            session: 0,
+            ended: false,
+            stats: ReceiverStats {
+                after_end: 0,
+                poses: 0,
+                no_pose: 0,
+            },
+        }
+    }
+
+    /// Takes bytes until a frame ends or the input runs out, like [`Decoder::feed`].
+    // Out of line: inlined into the firmware's tick it doubled there and took the image's
+    // flash past 64 KiB.
+    #[inline(never)]
+    pub fn feed<'r, 'i>(&'r mut self, input: &'i [u8]) -> Received<'r, 'i> {
+        let (frame, remaining) = match self.decoder.feed(input) {
+            Decoded::Consumed => return Received::Consumed,
+            Decoded::Rejected { error, remaining } => {
+                return Received::Skipped {
+                    why: Skip::Rejected(error),
+                    remaining,
+                };
+            }
+            Decoded::Frame { frame, remaining } => (
+                Accepted {
+                    end_of_stream: frame.end_of_stream(),
+                    posed: frame.version() != VERSION_1,
+                    kind: frame.kind(),
+                    pose_number: frame.pose_number(),
+                    pose: frame.pose(),
+                    exponent: frame.unit_exponent(),
+                    first: frame.point(0),
+                },
+                remaining,
+            ),
+        };
+        let sessions = self.decoder.stats().sessions;
+        if sessions != self.session {
+            self.session = sessions;
+            self.pose = Pose::START;
+        }
+        if self.ended {
+            self.stats.after_end += 1;
+            return Received::Skipped {
+                why: Skip::AfterEnd,
+                remaining,
+            };
+        }
+        self.ended = frame.end_of_stream;
+        if frame.kind == Some(FrameKind::Pose) {
+            if let Some(wire) = frame.pose {
+                let scale = crate::wire::unit_scale(frame.exponent).unwrap_or(f64::NAN);
+                self.pose = Pose::of_wire(frame.pose_number, &wire, scale);
+                self.stats.poses += 1;
+            }
+            return Received::Pose {
+                number: frame.pose_number,
+                remaining,
+            };
+        }
+        if frame.posed && frame.pose_number != self.pose.number {
+            self.stats.no_pose += 1;
+            return Received::Skipped {
+                why: Skip::NoPose {
+                    pose: frame.pose_number,
+                },
+                remaining,
+            };
+        }
+        let pose = if frame.posed { self.pose } else { Pose::START };
+        if self.origin.is_none()
+            && let Some(first) = frame.first
+        {
+            let world = Placement::new([0.0; 3], frame.exponent, &pose).world(first);
+            // `+ 0.0` turns the -0 that rounding a small negative value gives into 0: the
+            // origin is written in the map file, and 0 is what a map near 0 had before.
+            self.origin = Some(world.map(|v| libm::round(v / ORIGIN_CELL) * ORIGIN_CELL + 0.0));
+        }
+        let placement = Placement::new(self.origin(), frame.exponent, &pose);
+        match self.decoder.held_frame() {
+            Some(frame) => Received::Points {
+                frame,
+                placement,
+                remaining,
+            },
+            // The decoder holds the frame it just accepted until the next feed.
+            None => Received::Consumed,
+        }
+    }
+
+    /// Where the points of the frame [`Receiver::held_frame`] holds go.
+    pub fn placement(&self) -> Placement {
+        let (exponent, posed) = self.held_frame().map_or((0, false), |f| {
+            (f.unit_exponent(), f.version() != VERSION_1)
+        });
+        let pose = if posed { self.pose } else { Pose::START };
+        Placement::new(self.origin(), exponent, &pose)
+    }
+
+    /// The frame the last [`Receiver::feed`] returned, until the next `feed`: a caller can map
+    /// its points over several calls (the firmware's bounded ticks).
+    pub fn held_frame(&self) -> Option<Frame<&[u8]>> {
+        self.decoder.held_frame()
+    }
+
+    /// The map's origin in the world frame (metres); 0 until a point has arrived.
+    pub fn origin(&self) -> [f64; 3] {
+        self.origin.unwrap_or([0.0; 3])
+    }
+
+    /// The map's origin once the first point has set it.
+    pub const fn map_origin(&self) -> Option<[f64; 3]> {
+        self.origin
+    }
+
+    /// The pose that holds now (sensor to world).
+    pub const fn pose(&self) -> &Pose {
+        &self.pose
+    }
+
+    /// Whether the end-of-stream frame has arrived.
+    pub const fn ended(&self) -> bool {
+        self.ended
+    }
+
+    pub const fn stats(&self) -> &ReceiverStats {
+        &self.stats
+    }
+
+    pub const fn decoder_stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+}
+
+#[cfg(test)]
+mod tests;

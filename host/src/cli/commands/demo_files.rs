@@ -1,0 +1,44 @@
+//! What both demos write and how they name it: the files in `--out-dir`, the picture's size,
+//! paths as the shell words printed in their "Next:" lines.
+
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+use mema::render::picture::Size;
+
+/// The picture's size: large enough to read the legend, small enough to draw in a second.
+pub const PICTURE: Size = Size {
+    width: 1200,
+    height: 900,
+};
+
+/// The files the demo writes, all in `--out-dir`.
+#[derive(Serialize)]
+pub struct DemoFiles {
+    pub scan: PathBuf,
+    pub map: PathBuf,
+    pub picture: PathBuf,
+}
+
+impl DemoFiles {
+    pub fn in_dir(dir: &Path) -> Self {
+        Self {
+            scan: dir.join("scan.ply"),
+            map: dir.join("map.mema"),
+            picture: dir.join("picture.png"),
+        }
+    }
+}
+
+/// `path` as a shell word: quoted only where it has to be.
+pub fn shell_word(path: &Path) -> String {
+    let text = path.display().to_string();
+    let plain = text
+        .chars()
+        .all(|c| c.is_ascii_alphanumeric() || "._/-+,:@".contains(c));
+    if plain {
+        text
+    } else {
+        format!("'{}'", text.replace('\'', r"'\''"))
+    }
+}
