@@ -34,6 +34,8 @@ echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are te
 (cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
+echo "== the library's documentation builds without warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== tests (release profile: real clouds)"
 cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"
