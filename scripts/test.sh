@@ -34,6 +34,8 @@ echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are te
 (cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
+echo "== the library's documentation builds without warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 echo "== tests (release profile: real clouds)"
 cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"
@@ -48,7 +50,7 @@ if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
   $sudo_ apt-get update -qq && $sudo_ apt-get install -y -qq python3-venv
 fi
 [ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
-CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy
+CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 # The tests compare the package with the command line built above by `cargo test --release`.
 cargo build --release -p mema --quiet
 MEMA_BIN="$PWD/target/release/mema" target/py-venv/bin/python -m pytest -q host/python/tests

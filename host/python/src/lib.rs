@@ -9,6 +9,7 @@ mod arrays;
 mod cloud;
 mod errors;
 mod map;
+mod merge;
 mod options;
 
 use mema::batch::ToleranceOptions;
@@ -226,5 +227,6 @@ fn _mema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(rotation_degrees, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::merge, m)?)?;
     Ok(())
 }
