@@ -34,6 +34,8 @@ echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are te
 (cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
+echo "== the library's documentation builds without warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
 # A virtual environment for the Python package's tests (below) and the bag tests' independent
 # writer (tests/bags/write_bag.py: rosbags, pure Python, writes ROS 2 bags without ROS).
 if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
@@ -51,7 +53,7 @@ echo "== the Python package: lint, pip install into a fresh virtual environment,
 # Its own workspace (host/python), built into the main target directory.
 (cd host/python && cargo fmt --check)
 CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path host/python/Cargo.toml --all-targets -- -D warnings
-CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy
+CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 # The tests compare the package with the command line built above by `cargo test --release`.
 cargo build --release -p mema --quiet
 MEMA_BIN="$PWD/target/release/mema" target/py-venv/bin/python -m pytest -q host/python/tests

@@ -20,6 +20,13 @@ fn main() -> ExitCode {
             .copied()
             .or_else(|| payload.downcast_ref::<String>().map(String::as_str))
             .unwrap_or("a panic");
+        // std panics in a new thread (rayon's, or the query index's) whose signal stack cannot
+        // be mapped: under a memory limit that is running out of memory, not a bug, and the
+        // process must end with the one line and exit 1 it gives every other allocation failure.
+        if what.starts_with("failed to allocate an alternative stack") {
+            eprintln!("mema: out of memory: a new thread's signal stack could not be allocated");
+            std::process::exit(1);
+        }
         match info.location() {
             Some(at) => eprintln!("mema: internal error: {what} ({}:{})", at.file(), at.line()),
             None => eprintln!("mema: internal error: {what}"),

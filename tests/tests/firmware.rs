@@ -416,7 +416,7 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
 /// point and per freeze/merge/refit as the image measured that capture under QEMU (`budget`,
 /// rounded up). The test finds the slowest processor (instructions per second) that loses no
 /// byte: there the map is the unpaced one and the longest tick is under a third of the ring's
-/// fill time. That rate is held to today's (car6 200 M/s, the demo 345 M/s, 5% slack), which a
+/// fill time. That rate is held to today's (car6 200 M/s, the demo drive 392 M/s, 5% slack), which a
 /// 168 MHz Cortex-M4F does not reach: its 250 freezes (a DE fit each) come in one stretch that
 /// outruns a saturated link, though the average over each capture is within it (README's
 /// Firmware section: the cost per wire byte in that stretch, not any one tick, is what binds).
@@ -443,7 +443,7 @@ fn the_ring_keeps_up_with_the_link_above_a_known_rate() {
             cost(9_600.0, 310_000.0),
             200e6,
         ),
-        ("demo", demo, cost(9_300.0, 460_000.0), 345e6),
+        ("demo", demo, cost(11_600.0, 392_000.0), 392e6),
     ] {
         let play = |instructions_per_s: f64| -> PacedReport {
             let link = Link {

@@ -9,6 +9,7 @@ mod arrays;
 mod cloud;
 mod errors;
 mod map;
+mod merge;
 mod options;
 
 use mema::batch::ToleranceOptions;
@@ -81,8 +82,10 @@ type ReadCloud<'py> = (
 /// entities as that many bytes of `.mema` file hold) or `tolerance` (metres of eq. 13 error per
 /// cluster). A `mema.Cloud` from `read_cloud` maps in the frame its reader chose, so the same
 /// cloud and options give the same map bytes as `mema map` on its file (as long as the array
-/// still holds what was read); another array is centred as a reader centres a file. The GIL
-/// is released while mapping.
+/// still holds what was read); another array is centred as a reader centres a file.
+/// `stream=True` maps as `mema map --stream` does: the streaming mapper, fed the bytes
+/// `mema scanner-sim` would send (`working=` as `--working`). The GIL is released while
+/// mapping.
 #[pyfunction(name = "map")]
 #[pyo3(signature = (
     points, k = None, bytes = None, seed = 0, paper = false, *,
@@ -90,7 +93,7 @@ type ReadCloud<'py> = (
     tolerance = None, capacity = 16384, voronoi_rounds = 0, entity = "ellipsoid",
     alpha = 0.8, threshold = 4.0, sphere_tolerance = 0.01, bounds = "spread",
     out_of_bounds = "clamp", volume = "exact", init = "seeded", generations = 50,
-    max_iterations = 100, crop = None, voxel = None
+    max_iterations = 100, crop = None, voxel = None, stream = false, working = None
 ))]
 // One keyword an option, as Python callers expect (and as `mema map` has them).
 #[allow(clippy::too_many_arguments)]
@@ -120,6 +123,8 @@ fn map_points<'py>(
     max_iterations: i64,
     crop: Option<Vec<f64>>,
     voxel: Option<f64>,
+    stream: bool,
+    working: Option<i64>,
 ) -> PyResult<Map> {
     let k = k.map(|k| count::<usize>("k", k)).transpose()?;
     let bytes = bytes.map(|b| count::<usize>("bytes", b)).transpose()?;
@@ -172,6 +177,11 @@ fn map_points<'py>(
         },
         crop: options::crop(crop)?,
         voxel,
+        stream: match (stream, working) {
+            (true, working) => Some(working.map(|w| count("working", w)).transpose()?),
+            (false, None) => None,
+            (false, Some(_)) => return Err(bad_value("working", "takes stream=True")),
+        },
     };
     let input = cloud::input(points, "points")?;
     let made = py.detach(|| options::run(&input, &options)).into_py()?;
@@ -217,5 +227,6 @@ fn _mema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(rotation_degrees, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::merge, m)?)?;
     Ok(())
 }

@@ -3,6 +3,8 @@
 
 use anyhow::{Context, Result};
 use mema::batch::{ToleranceOptions, build_map, map_to_tolerance};
+use mema::link::scanner::SensorScan;
+use mema::link::stream::{Capacity, link_params, stream_scans};
 use mema::mapping::filter::{self, CropBox, check_voxel};
 use mema::mapping::{EntityChoice, FitOptions, Model, ShellModel, most_entities};
 use mema_core::de::OutOfBounds;
@@ -148,6 +150,9 @@ pub struct MapOptions {
     pub fit: FitOptions,
     pub crop: Option<CropBox>,
     pub voxel: Option<f64>,
+    /// `--stream`: the streaming mapper, fed the bytes `mema scanner-sim` would send of the
+    /// points, with at most this many clusters working (`--working`; all of k when `None`).
+    pub stream: Option<Option<usize>>,
 }
 
 /// What a run made, and what the caller should hear about it.
@@ -191,6 +196,9 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
             warnings: Vec::new(),
         });
     }
+    if let Some(working) = options.stream {
+        return stream(input, options, working);
+    }
     let k = match size {
         Size::Bytes(bytes) => model.entities_in(bytes)?,
         Size::K(k) => k,
@@ -227,6 +235,37 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
         report,
         labels: built.labels,
         warnings,
+    })
+}
+
+/// `stream=True`: as `mema map --stream` maps a cloud's file, the points sent as one scan whose
+/// sensor sits at their bounding-box centre, through the receiver and the streaming mapper.
+fn stream(input: &Input, options: &MapOptions, working: Option<usize>) -> Result<Made> {
+    let Size::K(k) = options.size else {
+        anyhow::bail!("stream=True takes k entities, not a budget of bytes or a tolerance");
+    };
+    if options.crop.is_some() || options.voxel.is_some() {
+        anyhow::bail!("stream=True maps the points as sent: no crop or voxel");
+    }
+    let config = options.fit.config(k)?;
+    let capacity = Capacity::checked(config.k, working, false)?;
+    let (cloud, _) = input.cloud().map_err(anyhow::Error::msg)?;
+    let scans = [SensorScan::of_cloud(&cloud)?];
+    let (sent, link, map) =
+        stream_scans(&scans, link_params(&config, capacity, None, options.model))?;
+    let report = serde_json::json!({
+        "scans": sent.scans,
+        "points": link.mapper.stats().points,
+        "unit_exponent": sent.unit_exponent,
+        "spacing": sent.spacing,
+        "entities": map.entities.len(),
+        "origin": map.origin,
+    });
+    Ok(Made {
+        map,
+        report,
+        labels: Vec::new(),
+        warnings: Vec::new(),
     })
 }
 

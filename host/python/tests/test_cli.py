@@ -24,6 +24,20 @@ def test_the_issues_example_gives_the_clis_bytes(cli, tmp_path):
     assert same_bytes(tmp_path / "cli.mema", tmp_path / "py.mema")
 
 
+def test_stream_maps_as_the_clis_map_stream(cli, tmp_path):
+    # The streaming mapper fed what scanner-sim would send: the CLI's bytes, and a map unlike
+    # the batch one (so the keyword is not ignored).
+    p = cloud("car6.pcd")
+    cli.run("map", p, "--stream", "-k", 150, "--working", 100, "-o", tmp_path / "cli.mema")
+    made = mema.map(mema.read_cloud(p), k=150, stream=True, working=100)
+    made.save(tmp_path / "py.mema")
+    assert same_bytes(tmp_path / "cli.mema", tmp_path / "py.mema")
+    mema.map(mema.read_cloud(p), k=150).save(tmp_path / "batch.mema")
+    assert not same_bytes(tmp_path / "batch.mema", tmp_path / "py.mema")
+    with pytest.raises(ValueError, match="working"):
+        mema.map(mema.read_cloud(p), k=150, working=100)
+
+
 @pytest.mark.parametrize("name", CLOUDS)
 def test_every_shared_cloud_maps_as_the_cli_maps_it(cli, tmp_path, name):
     # A one-entity map holds the cloud's origin and mean, so it sees every point's bits.

@@ -304,8 +304,10 @@ mod tests {
         assert_eq!(choose_unit(0.0005, 0.2).unwrap(), -4);
         assert_eq!(choose_unit(0.004, 3.0).unwrap(), -3);
         assert_eq!(choose_unit(0.05, 3.0).unwrap(), -2);
-        // 1,000 km does not fit 0.1 mm units (214 km): 1 mm does not either, 1 cm does.
-        assert_eq!(choose_unit(0.0005, 1.0e6).unwrap(), -2);
+        // 1,000 km does not fit 0.1 mm units (214 km); 1 mm (2,147 km) does.
+        assert_eq!(choose_unit(0.0005, 1.0e6).unwrap(), -3);
+        // 3,000 km fits neither: 1 cm.
+        assert_eq!(choose_unit(0.0005, 3.0e6).unwrap(), -2);
         // Duplicates only: the finest unit that reaches.
         assert_eq!(choose_unit(0.0, 1.0).unwrap(), -9);
     }
