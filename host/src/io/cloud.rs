@@ -43,6 +43,25 @@ pub enum WorldCloudError {
     },
 }
 
+/// The centre of `points`' bounding box, `(lo + hi) / 2` per axis; 0 for no points.
+pub fn bounding_box_centre(points: &[[f64; 3]]) -> [f64; 3] {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for j in 0..3 {
+            lo[j] = lo[j].min(p[j]);
+            hi[j] = hi[j].max(p[j]);
+        }
+    }
+    [0, 1, 2].map(|j| {
+        if points.is_empty() {
+            0.0
+        } else {
+            0.5 * (lo[j] + hi[j])
+        }
+    })
+}
+
 impl LocalCloud {
     /// From world coordinates: the bounding-box centre becomes the origin.
     ///
@@ -54,22 +73,20 @@ impl LocalCloud {
     /// assert_eq!(cloud.points[1].to_array(), [1.0, 2.0, 0.5]);
     /// ```
     pub fn from_world(points: &[[f64; 3]]) -> Self {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for j in 0..3 {
-                lo[j] = lo[j].min(p[j]);
-                hi[j] = hi[j].max(p[j]);
-            }
-        }
-        let origin = [0, 1, 2].map(|j| {
-            if points.is_empty() {
-                0.0
-            } else {
-                0.5 * (lo[j] + hi[j])
-            }
-        });
-        Self::around(origin, points.iter(), 0)
+        Self::around(bounding_box_centre(points), points.iter(), 0)
+    }
+
+    /// The points in world coordinates: `origin + p` in f64, exactly as the readers' origin
+    /// and offsets give them.
+    pub fn world_points(&self) -> Vec<[f64; 3]> {
+        let o = self.origin;
+        self.points
+            .iter()
+            .map(|p| {
+                let q = p.to_f64();
+                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
+            })
+            .collect()
     }
 
     /// From world coordinates of outside origin (a caller's array), centred exactly as the
@@ -283,15 +300,7 @@ pub fn read_scans_in_metres(
         let (cloud, units) = load_cloud_in_metres(&scan.path, given)
             .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
         let scale = units.unit.metres;
-        let o = cloud.origin;
-        let points = cloud
-            .points
-            .iter()
-            .map(|p| {
-                let q = p.to_f64();
-                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
-            })
-            .collect();
+        let points = cloud.world_points();
         let scan = RegisteredScan {
             translation: scan.translation.map(|v| v * scale),
             ..scan

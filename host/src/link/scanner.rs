@@ -23,7 +23,8 @@ use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
 use crate::io::bag::{BagOptions, read_bag};
 use crate::io::cloud::{
-    LocalCloud, is_bag, is_registration, load_cloud_in_metres, read_scans_in_metres,
+    LocalCloud, bounding_box_centre, is_bag, is_registration, load_cloud_in_metres,
+    read_scans_in_metres,
 };
 use crate::io::drive::DriveScan;
 use crate::io::units::LengthUnit;
@@ -42,16 +43,7 @@ pub struct SensorScan {
 impl SensorScan {
     /// A cloud read in its local frame, given in the world's frame (the file's) as one scan.
     pub fn of_cloud(cloud: &LocalCloud) -> Result<Self> {
-        let o = cloud.origin;
-        let world: Vec<[f64; 3]> = cloud
-            .points
-            .iter()
-            .map(|p| {
-                let q = p.to_f64();
-                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
-            })
-            .collect();
-        Self::of_world(&world)
+        Self::of_world(&cloud.world_points())
     }
 
     /// A stop of the drive through the demo scene: its points in the sensor's frame, its pose.
@@ -66,21 +58,7 @@ impl SensorScan {
     /// A cloud given in the world's frame as one scan: the sensor at the bounding-box centre
     /// rounded to whole metres, turned by nothing, so the points stay small.
     pub fn of_world(points: &[[f64; 3]]) -> Result<Self> {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for j in 0..3 {
-                lo[j] = lo[j].min(p[j]);
-                hi[j] = hi[j].max(p[j]);
-            }
-        }
-        let centre = [0, 1, 2].map(|j| {
-            if points.is_empty() {
-                0.0
-            } else {
-                0.5 * (lo[j] + hi[j])
-            }
-        });
+        let centre = bounding_box_centre(points);
         // Whole metres: exact in any unit of 1 m or less, and the receiver's origin sits on
         // whole metres too.
         let translation = centre.map(f64::round);
