@@ -34,21 +34,26 @@ echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are te
 (cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
-echo "== tests (release profile: real clouds)"
-cargo test --workspace --release
-echo "== firmware: bit for bit across builds and targets, and the budget"
-firmware-sim/check.sh
-echo "== the Python package: lint, pip install into a fresh virtual environment, pytest"
-# Its own workspace (host/python), built into the main target directory.
-(cd host/python && cargo fmt --check)
-CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path host/python/Cargo.toml --all-targets -- -D warnings
+echo "== the library's documentation builds without warnings"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --quiet
+# A virtual environment for the Python package's tests (below) and the bag tests' independent
+# writer (tests/bags/write_bag.py: rosbags, pure Python, writes ROS 2 bags without ROS).
 if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
   echo "== installing python3-venv"
   sudo_=""; [ "$(id -u)" = 0 ] || sudo_=sudo
   $sudo_ apt-get update -qq && $sudo_ apt-get install -y -qq python3-venv
 fi
 [ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
-CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy
+target/py-venv/bin/python -m pip install --quiet rosbags==0.11.9 numpy
+echo "== tests (release profile: real clouds)"
+MEMA_PY="$PWD/target/py-venv/bin/python" cargo test --workspace --release
+echo "== firmware: bit for bit across builds and targets, and the budget"
+firmware-sim/check.sh
+echo "== the Python package: lint, pip install into a fresh virtual environment, pytest"
+# Its own workspace (host/python), built into the main target directory.
+(cd host/python && cargo fmt --check)
+CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path host/python/Cargo.toml --all-targets -- -D warnings
+CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 # The tests compare the package with the command line built above by `cargo test --release`.
 cargo build --release -p mema --quiet
 MEMA_BIN="$PWD/target/release/mema" target/py-venv/bin/python -m pytest -q host/python/tests

@@ -5,7 +5,7 @@
 //! reconstruction next to the batch map of the registered scans.
 
 use crate::stream::{PtyPair, finish, spawn_mema};
-use crate::util::{Dir, MemaCommand, shared};
+use crate::util::{Dir, MemaCommand, eval_chamfer, shared};
 use mema::analysis::fidelity::kdtree::KdTree;
 use mema::io::load_cloud;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
@@ -109,16 +109,7 @@ fn the_registered_bunny_scans_lie_on_the_merged_bunny() {
 
 /// eval's two-way score (Chamfer, metres) of `map` against bun_zipper.ply.
 fn chamfer(dir: &Dir, map: &str) -> f64 {
-    MemaCommand::new(dir)
-        .arg("eval")
-        .arg(shared("bun_zipper.ply"))
-        .arg(dir.join(map))
-        .arg("--json")
-        .run()
-        .assert_ok()
-        .json()["chamfer"]
-        .as_f64()
-        .expect("chamfer")
+    eval_chamfer(dir, &shared("bun_zipper.ply"), map)
 }
 
 /// Acceptance 1: the five scans with their poses, `scanner-sim --conf` into `stream` over a
@@ -236,18 +227,7 @@ fn a_streamed_map_lines_up_with_its_file() {
         .args(["-k", &n, "-o", "batch.mema"])
         .run()
         .assert_ok();
-    let score = |map: &str| {
-        MemaCommand::new(&dir)
-            .arg("eval")
-            .arg(&car)
-            .arg(dir.join(map))
-            .arg("--json")
-            .run()
-            .assert_ok()
-            .json()["chamfer"]
-            .as_f64()
-            .expect("chamfer")
-    };
+    let score = |map: &str| eval_chamfer(&dir, &car, map);
     let (s, b) = (score("car.mema"), score("batch.mema"));
     eprintln!("car6 streamed Chamfer {s} m, batch {b} m");
     assert!(s < 1.5 * b, "streamed {s} m, batch {b} m");

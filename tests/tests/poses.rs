@@ -2,7 +2,7 @@
 //! always was. Poses and sensor-frame points are computed here with nalgebra, independently of
 //! the core's quaternion arithmetic.
 
-use crate::util::{Dir, MemaCommand, shared};
+use crate::util::{Dir, MemaCommand, eval_chamfer, shared};
 use mema::io::load_cloud;
 use mema::link::frames::{
     PosedScan, encode_posed_stream, encode_stream, push_frame_v2, quantise, wire_pose,
@@ -216,18 +216,7 @@ fn a_moving_sensor_maps_in_one_world_frame() {
         .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
         .collect();
     let cloud = dir.write("world.xyz", text.as_bytes());
-    let chamfer = |map: &str| {
-        MemaCommand::new(&dir)
-            .arg("eval")
-            .arg(&cloud)
-            .arg(dir.join(map))
-            .arg("--json")
-            .run()
-            .assert_ok()
-            .json()["chamfer"]
-            .as_f64()
-            .expect("chamfer")
-    };
+    let chamfer = |map: &str| eval_chamfer(&dir, &cloud, map);
     let (posed, unposed) = (chamfer("posed.mema"), chamfer("plain.mema"));
     eprintln!("car6 in three posed views: Chamfer {posed} m; unposed {unposed} m");
     assert!(

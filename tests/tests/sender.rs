@@ -2,7 +2,7 @@
 //! no code with mema): its bytes are mema's own, byte for byte, for the same wire integers, and
 //! the bunny scans it reads and sends itself map like `mema map --stream` of the .conf.
 
-use crate::util::{Dir, MemaCommand, shared};
+use crate::util::{Dir, MemaCommand, eval_chamfer, shared};
 use mema::link::scanner::{WireScans, quantise_scans, scans_of, send_scans};
 use serde_json::json;
 use std::path::PathBuf;
@@ -88,18 +88,7 @@ fn the_bunny_scans_from_the_independent_sender_map_like_mema_own() {
         .args(["map", conf, "--stream", "-k", "400", "-o", "ours.mema"])
         .run()
         .assert_ok();
-    let chamfer = |map: &str| {
-        MemaCommand::new(&dir)
-            .arg("eval")
-            .arg(shared("bun_zipper.ply"))
-            .arg(dir.join(map))
-            .arg("--json")
-            .run()
-            .assert_ok()
-            .json()["chamfer"]
-            .as_f64()
-            .expect("chamfer")
-    };
+    let chamfer = |map: &str| eval_chamfer(&dir, &shared("bun_zipper.ply"), map);
     let (theirs, ours) = (chamfer("theirs.mema"), chamfer("ours.mema"));
     eprintln!("bunny views: independent sender Chamfer {theirs} m, mema's {ours} m");
     assert!(

@@ -50,6 +50,9 @@ mod multiview;
 mod drive;
 // The independent sender written from PROTOCOL.md alone.
 mod sender;
+// ROS 2 bags written by rosbags: the bunny scans in frame world map as bun.conf does, bit for
+// bit; awkward layouts decode as numpy does; missing topics, transforms and damage are errors.
+mod bags;
 // Surface following: closer maps on real scans, labels that match the shells, thread-free.
 mod surface_clusters;
 // Shells in the streaming mapper: each entity against its cluster's direct f64 covariance,

@@ -228,6 +228,20 @@ impl Ran {
     }
 }
 
+/// `mema eval CLOUD dir/MAP --json`'s Chamfer distance (the two-way score, metres).
+pub fn eval_chamfer(dir: &Dir, cloud: &Path, map: &str) -> f64 {
+    MemaCommand::new(dir)
+        .arg("eval")
+        .arg(cloud)
+        .arg(dir.join(map))
+        .arg("--json")
+        .run()
+        .assert_ok()
+        .json()["chamfer"]
+        .as_f64()
+        .expect("eval --json gives chamfer")
+}
+
 /// The rotation matrix of the quaternion `(x, y, z, w)` (scalar last, normalised here), written
 /// out in the tests rather than taken from the core, so checks of oriented maps do not trust the
 /// code they check.

@@ -9,6 +9,7 @@ mod arrays;
 mod cloud;
 mod errors;
 mod map;
+mod merge;
 mod options;
 
 use mema::batch::ToleranceOptions;
@@ -38,19 +39,29 @@ pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
 }
 
 /// `mema.read_cloud`'s reading (`python/mema/_cloud.py` wraps it into a `mema.Cloud`): the
-/// cloud in metres as `mema map` reads it, `units` as `--units`. Gives the world coordinates
+/// cloud in metres as `mema map` reads it, `units` as `--units`, `topic` and `frame` as a
+/// ROS 2 bag's `--topic` and `--frame`. Gives the world coordinates
 /// `(N, 3)` float64, the reader's f32 offsets `(N, 3)` and f64 origin `(3,)`, the unit as
 /// `mema eval --json` gives it (JSON text), and the points dropped for a non-finite coordinate.
 #[pyfunction]
-#[pyo3(signature = (path, units = None))]
+#[pyo3(signature = (path, units = None, topic = None, frame = None))]
 fn _read_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
     units: Option<&str>,
+    topic: Option<String>,
+    frame: Option<String>,
 ) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
+    let bag = mema::io::bag::BagOptions { topic, frame };
+    if (bag.topic.is_some() || bag.frame.is_some()) && !mema::io::bag::is_bag(&path) {
+        return Err(errors::bad_value(
+            "topic, frame",
+            "choose a ROS 2 bag's messages, and this file is not a bag (an MCAP file)",
+        ));
+    }
     let (cloud, unit) = py
-        .detach(|| mema::io::load_cloud_in_metres(&path, given.as_ref()))
+        .detach(|| mema::io::cloud::load_input_in_metres(&path, given.as_ref(), &bag))
         .into_py()?;
     let world = py.detach(|| cloud::world_points(&cloud));
     let local: Vec<f32> = cloud.points.iter().flat_map(|p| p.to_array()).collect();
@@ -226,5 +237,6 @@ fn _mema(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(rotation_degrees, m)?)?;
+    m.add_function(wrap_pyfunction!(merge::merge, m)?)?;
     Ok(())
 }

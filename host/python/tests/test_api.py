@@ -152,3 +152,27 @@ def test_the_gil_is_released_while_mapping():
     inner = [t for t in ticks if start + 0.1 * (end - start) < t < end - 0.1 * (end - start)]
     assert end - start > 0.2, "the map is too quick to tell"
     assert len(inner) >= 10, f"{len(inner)} ticks in {end - start:.2f} s of mapping"
+
+
+def test_read_cloud_reads_a_ros2_bag_in_a_frame(tmp_path):
+    # The bunny bag the Rust tests use (tests/bags/write_bag.py, written by rosbags), read in
+    # frame world: the same points, bit for bit, as the registration file it was made from.
+    import subprocess
+    import sys
+
+    from conftest import DATA, ROOT
+
+    subprocess.run(
+        [sys.executable, str(ROOT / "tests" / "bags" / "write_bag.py"), "--data", str(DATA),
+         str(tmp_path / "bags")],
+        check=True,
+    )
+    bag = tmp_path / "bags" / "bunny" / "bunny.mcap"
+    in_world = mema.read_cloud(bag, topic="/points", frame="world")
+    conf = mema.read_cloud(DATA / "bun.conf")
+    assert in_world.shape == conf.shape == (175_509, 3)
+    assert np.array_equal(in_world, conf)
+    # Without a frame each scan stays in its sensor's frame: other points.
+    assert not np.array_equal(mema.read_cloud(bag), conf)
+    with pytest.raises(ValueError, match="not a bag"):
+        mema.read_cloud(DATA / "car6.pcd", frame="world")

@@ -1,9 +1,11 @@
 //! How a failed command reads and exits. The library's errors name its own terms; here they
 //! become the flags the user typed, and the exit status says what kind of failure it was:
-//! 1 bad input or I/O, 2 bad usage (clap's own status for its errors), 3 a stream that ended
+//! 1 bad input or I/O, 2 bad usage (clap's own status for its errors; also a bag's topic or
+//! frame that is not in it), 3 a stream that ended
 //! before its end-of-stream frame, 4 a stream ended by `--idle-timeout`.
 
 use mema::ConfigError;
+use mema::io::bag::BagError;
 use mema::mapping::filter::FilterError;
 
 /// A value the user gave that cannot work; reported with exit status 2, like clap's own errors.
@@ -25,7 +27,11 @@ pub struct LinkIdle(pub String);
 
 /// The exit status for `e`.
 pub fn exit_status(e: &anyhow::Error) -> u8 {
-    if e.downcast_ref::<UsageError>().is_some() || e.downcast_ref::<ConfigError>().is_some() {
+    let bag_usage = e.downcast_ref::<BagError>().is_some_and(BagError::is_usage);
+    if e.downcast_ref::<UsageError>().is_some()
+        || e.downcast_ref::<ConfigError>().is_some()
+        || bag_usage
+    {
         2
     } else if e.downcast_ref::<LinkLost>().is_some() {
         3

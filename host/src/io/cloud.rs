@@ -4,6 +4,8 @@ use anyhow::{Context, Result, bail};
 use mema_core::Point3;
 use std::path::Path;
 
+pub use super::bag::is_bag;
+use super::bag::{BagOptions, read_bag};
 pub use super::conf::is_registration;
 use super::conf::{RegisteredScan, read_registration};
 use super::read::{Cloud, read_cloud, read_cloud_in_metres};
@@ -41,6 +43,25 @@ pub enum WorldCloudError {
     },
 }
 
+/// The centre of `points`' bounding box, `(lo + hi) / 2` per axis; 0 for no points.
+pub fn bounding_box_centre(points: &[[f64; 3]]) -> [f64; 3] {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for j in 0..3 {
+            lo[j] = lo[j].min(p[j]);
+            hi[j] = hi[j].max(p[j]);
+        }
+    }
+    [0, 1, 2].map(|j| {
+        if points.is_empty() {
+            0.0
+        } else {
+            0.5 * (lo[j] + hi[j])
+        }
+    })
+}
+
 impl LocalCloud {
     /// From world coordinates: the bounding-box centre becomes the origin.
     ///
@@ -52,22 +73,20 @@ impl LocalCloud {
     /// assert_eq!(cloud.points[1].to_array(), [1.0, 2.0, 0.5]);
     /// ```
     pub fn from_world(points: &[[f64; 3]]) -> Self {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for j in 0..3 {
-                lo[j] = lo[j].min(p[j]);
-                hi[j] = hi[j].max(p[j]);
-            }
-        }
-        let origin = [0, 1, 2].map(|j| {
-            if points.is_empty() {
-                0.0
-            } else {
-                0.5 * (lo[j] + hi[j])
-            }
-        });
-        Self::around(origin, points.iter(), 0)
+        Self::around(bounding_box_centre(points), points.iter(), 0)
+    }
+
+    /// The points in world coordinates: `origin + p` in f64, exactly as the readers' origin
+    /// and offsets give them.
+    pub fn world_points(&self) -> Vec<[f64; 3]> {
+        let o = self.origin;
+        self.points
+            .iter()
+            .map(|p| {
+                let q = p.to_f64();
+                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
+            })
+            .collect()
     }
 
     /// From world coordinates of outside origin (a caller's array), centred exactly as the
@@ -195,6 +214,9 @@ pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
     if is_registration(path) {
         return Ok(load_registered_in_metres(path, None)?.0);
     }
+    if is_bag(path) {
+        return Ok(load_bag_in_metres(path, &BagOptions::default(), None)?.0);
+    }
     Ok(local(read_cloud(path)?))
 }
 
@@ -223,9 +245,22 @@ pub fn load_cloud_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
+    load_input_in_metres(path, given, &BagOptions::default())
+}
+
+/// [`load_cloud_in_metres`] with the topic and frame of a ROS 2 bag (see
+/// [`crate::io::bag`]); `bag` is ignored for every other input.
+pub fn load_input_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    bag: &BagOptions,
+) -> Result<(LocalCloud, Units)> {
     // Several registered scans (a `.conf`): all of them, in their common frame.
     if is_registration(path) {
         return load_registered_in_metres(path, given);
+    }
+    if is_bag(path) {
+        return load_bag_in_metres(path, bag, given);
     }
     let mut cloud = read_cloud_in_metres(path, given)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
@@ -265,15 +300,7 @@ pub fn read_scans_in_metres(
         let (cloud, units) = load_cloud_in_metres(&scan.path, given)
             .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
         let scale = units.unit.metres;
-        let o = cloud.origin;
-        let points = cloud
-            .points
-            .iter()
-            .map(|p| {
-                let q = p.to_f64();
-                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
-            })
-            .collect();
+        let points = cloud.world_points();
         let scan = RegisteredScan {
             translation: scan.translation.map(|v| v * scale),
             ..scan
@@ -300,4 +327,33 @@ pub fn load_registered_in_metres(
         source: "scaled to metres",
     });
     Ok((cloud, units))
+}
+
+/// The PointCloud2 messages of a ROS 2 bag as one cloud in metres: each message's points in
+/// `options.frame` (or as they are without one), gathered and centred exactly as
+/// [`load_registered_in_metres`] gathers a registration file's scans, so a bag of those scans
+/// with their poses on `/tf` gives the same cloud, bit for bit.
+///
+/// ```no_run
+/// use mema::io::bag::BagOptions;
+///
+/// let options = BagOptions { topic: Some("/points".into()), frame: Some("world".into()) };
+/// let (cloud, _) = mema::io::cloud::load_bag_in_metres("scans.mcap".as_ref(), &options, None)?;
+/// println!("{} points around {:?}", cloud.points.len(), cloud.origin);
+/// # Ok::<(), anyhow::Error>(())
+/// ```
+pub fn load_bag_in_metres(
+    path: &Path,
+    options: &BagOptions,
+    given: Option<&LengthUnit>,
+) -> Result<(LocalCloud, Units)> {
+    let bag = read_bag(path, options, given)?;
+    let world: Vec<[f64; 3]> = bag.scans.iter().flat_map(|s| s.world_points()).collect();
+    let mut cloud = LocalCloud::from_world(&world);
+    cloud.dropped_non_finite = usize::try_from(bag.dropped_non_finite).unwrap_or(usize::MAX);
+    cloud.unit = Some(FileUnit::Length {
+        unit: LengthUnit::metre(),
+        source: "scaled to metres",
+    });
+    Ok((cloud, bag.units))
 }

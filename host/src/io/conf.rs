@@ -35,10 +35,18 @@ impl RegisteredScan {
 
     /// `x_scan` in the common frame: `R(q)^T x_scan + t`, in f64.
     pub fn to_world(&self, p: [f64; 3]) -> [f64; 3] {
-        let m = quaternion_matrix(self.sensor_to_world());
-        let t = self.translation;
-        [0, 1, 2].map(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + t[i])
+        to_world(self.translation, self.sensor_to_world(), p)
     }
+}
+
+/// A point of a sensor's frame in the world's, given the sensor's pose (sensor to world):
+/// `R(rotation) p + translation`, in f64, with `rotation` `[x, y, z, w]`. Every scan with a
+/// pose (a registration file's, a bag's) goes to the world through this one expression, so the
+/// same numbers give the same bits.
+pub fn to_world(translation: [f64; 3], rotation: [f64; 4], p: [f64; 3]) -> [f64; 3] {
+    let m = quaternion_matrix(rotation);
+    let t = translation;
+    [0, 1, 2].map(|i| m[i][0] * p[0] + m[i][1] * p[1] + m[i][2] * p[2] + t[i])
 }
 
 /// Whether `path` is a registration file: its first line that says anything starts with

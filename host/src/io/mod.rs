@@ -3,6 +3,7 @@
 //! Nothing here depends on the rest of the crate but [`crate::error`]: every other layer reads
 //! and writes through it.
 pub mod atomic;
+pub mod bag;
 pub mod cloud;
 pub mod conf;
 pub mod drive;

@@ -31,6 +31,18 @@ pub fn dequantise(q: [i32; 3]) -> Point3 {
     )
 }
 
+/// Appends `raw`, COBS-encoded, and the delimiter to `out`.
+fn push_framed(out: &mut Vec<u8>, raw: &[u8]) -> Result<()> {
+    let start = out.len();
+    out.resize(start + MAX_FRAME_LEN, 0);
+    let Some(n) = cobs_encode(raw, &mut out[start..]) else {
+        bail!("COBS buffer too small");
+    };
+    out.truncate(start + n);
+    out.push(0);
+    Ok(())
+}
+
 /// Appends one framed (COBS + delimiter) frame to `out`.
 pub fn push_frame(
     out: &mut Vec<u8>,
@@ -48,14 +60,7 @@ pub fn push_frame(
     let Some(len) = repr.emit(&mut raw) else {
         bail!("a frame holds at most {MAX_POINTS} points");
     };
-    let start = out.len();
-    out.resize(start + MAX_FRAME_LEN, 0);
-    let Some(n) = cobs_encode(raw.get(..len).unwrap_or(&[]), &mut out[start..]) else {
-        bail!("COBS buffer too small");
-    };
-    out.truncate(start + n);
-    out.push(0);
-    Ok(())
+    push_framed(out, raw.get(..len).unwrap_or(&[]))
 }
 
 /// The whole wire byte stream for a cloud: a leading delimiter (so a receiver that saw noise
@@ -88,14 +93,7 @@ pub fn push_frame_v2(out: &mut Vec<u8>, repr: &FrameReprV2<'_>) -> Result<()> {
     let Some(len) = repr.emit(&mut raw) else {
         bail!("a frame holds at most {MAX_POINTS} points");
     };
-    let start = out.len();
-    out.resize(start + MAX_FRAME_LEN, 0);
-    let Some(n) = cobs_encode(raw.get(..len).unwrap_or(&[]), &mut out[start..]) else {
-        bail!("COBS buffer too small");
-    };
-    out.truncate(start + n);
-    out.push(0);
-    Ok(())
+    push_framed(out, raw.get(..len).unwrap_or(&[]))
 }
 
 /// The whole version 2 byte stream of a moving sensor: a leading delimiter, then per scan its

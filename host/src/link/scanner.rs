@@ -21,7 +21,11 @@ use std::path::Path;
 use super::frames::{POINTS_PER_FRAME, PosedScan, encode_posed_stream, wire_pose};
 use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
-use crate::io::cloud::{LocalCloud, is_registration, load_cloud_in_metres, read_scans_in_metres};
+use crate::io::bag::{BagOptions, read_bag};
+use crate::io::cloud::{
+    LocalCloud, bounding_box_centre, is_bag, is_registration, load_cloud_in_metres,
+    read_scans_in_metres,
+};
 use crate::io::drive::DriveScan;
 use crate::io::units::LengthUnit;
 use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
@@ -39,16 +43,7 @@ pub struct SensorScan {
 impl SensorScan {
     /// A cloud read in its local frame, given in the world's frame (the file's) as one scan.
     pub fn of_cloud(cloud: &LocalCloud) -> Result<Self> {
-        let o = cloud.origin;
-        let world: Vec<[f64; 3]> = cloud
-            .points
-            .iter()
-            .map(|p| {
-                let q = p.to_f64();
-                [o[0] + q[0], o[1] + q[1], o[2] + q[2]]
-            })
-            .collect();
-        Self::of_world(&world)
+        Self::of_world(&cloud.world_points())
     }
 
     /// A stop of the drive through the demo scene: its points in the sensor's frame, its pose.
@@ -63,21 +58,7 @@ impl SensorScan {
     /// A cloud given in the world's frame as one scan: the sensor at the bounding-box centre
     /// rounded to whole metres, turned by nothing, so the points stay small.
     pub fn of_world(points: &[[f64; 3]]) -> Result<Self> {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for p in points {
-            for j in 0..3 {
-                lo[j] = lo[j].min(p[j]);
-                hi[j] = hi[j].max(p[j]);
-            }
-        }
-        let centre = [0, 1, 2].map(|j| {
-            if points.is_empty() {
-                0.0
-            } else {
-                0.5 * (lo[j] + hi[j])
-            }
-        });
+        let centre = bounding_box_centre(points);
         // Whole metres: exact in any unit of 1 m or less, and the receiver's origin sits on
         // whole metres too.
         let translation = centre.map(f64::round);
@@ -112,6 +93,34 @@ pub struct SentScans {
 /// in its own sensor frame with its pose, or a cloud as one scan in the file's frame; in metres
 /// (`given`: `--units`).
 pub fn scans_of(path: &Path, given: Option<&LengthUnit>) -> Result<Vec<SensorScan>> {
+    scans_of_input(path, given, &BagOptions::default())
+}
+
+/// [`scans_of`] with the topic and frame of a ROS 2 bag ([`crate::io::bag`]): with a frame,
+/// each PointCloud2 message is a scan in its own frame with its pose at its stamp, as a
+/// registration file's scans are; without one, the messages' points are one cloud, sent as a
+/// single cloud is. `bag` is ignored for every other input.
+pub fn scans_of_input(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    bag: &BagOptions,
+) -> Result<Vec<SensorScan>> {
+    if is_bag(path) {
+        let read = read_bag(path, bag, given)?;
+        if read.frame.is_none() {
+            let world: Vec<[f64; 3]> = read.scans.iter().flat_map(|s| s.world_points()).collect();
+            return Ok(vec![SensorScan::of_world(&world)?]);
+        }
+        return Ok(read
+            .scans
+            .into_iter()
+            .map(|s| SensorScan {
+                translation: s.pose.translation,
+                rotation: s.pose.rotation,
+                points: s.points,
+            })
+            .collect());
+    }
     if is_registration(path) {
         let (scans, _) = read_scans_in_metres(path, given)?;
         return Ok(scans

@@ -47,13 +47,15 @@ def _rebuild(points, origin, local, unit, dropped_non_finite):
     return Cloud(points, origin, local, unit, dropped_non_finite)
 
 
-def read_cloud(path, units=None):
+def read_cloud(path, units=None, topic=None, frame=None):
     """Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI ``.bin``: whatever ``mema
     map`` reads) as a ``Cloud``: an ``(N, 3)`` float64 array of its finite points in world
     coordinates, in metres. ``units`` (``m``, ``mm``, ``cm``, ``km``, ``in``, ``ft``,
     ``us-ft``) scales them as ``--units`` does; without it the unit the file says (a LAS
-    file's CRS) is used, else metres, as the command line reads it."""
+    file's CRS) is used, else metres, as the command line reads it. A ROS 2 bag's PointCloud2
+    messages are read from ``topic`` (the bag's only one by default), each put in ``frame``
+    through the bag's transforms when it is given, as ``--topic`` and ``--frame`` read them."""
     import json
 
-    world, local, origin, unit, dropped = _mema._read_cloud(path, units)
+    world, local, origin, unit, dropped = _mema._read_cloud(path, units, topic, frame)
     return Cloud(world, origin, local, json.loads(unit), dropped)

@@ -53,7 +53,10 @@ class Map:
     ) -> "Map": ...
 
 def _read_cloud(
-    path: _Path, units: Optional[str] = None
+    path: _Path,
+    units: Optional[str] = None,
+    topic: Optional[str] = None,
+    frame: Optional[str] = None,
 ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float32], npt.NDArray[np.float64], str, int]: ...
 def map(
     points: _Points,
@@ -81,6 +84,8 @@ def map(
     max_iterations: int = 100,
     crop: Optional[Sequence[float]] = None,
     voxel: Optional[float] = None,
+    stream: bool = False,
+    working: Optional[int] = None,
 ) -> Map: ...
 def load(path: _Path) -> Map: ...
 def from_bytes(data: bytes) -> Map: ...

@@ -3,7 +3,7 @@
 use clap::Args;
 use std::path::PathBuf;
 
-use super::{FitArgs, ModelArg, UnitsArg};
+use super::{BagArg, FitArgs, ModelArg, UnitsArg};
 
 #[derive(Args, Debug)]
 pub struct StreamArgs {
@@ -71,7 +71,9 @@ pub struct RecordArgs {
 
 #[derive(Args, Debug)]
 pub struct ReplayArgs {
-    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file).
+    /// A capture file (`mema record`, `stream --record` or `scanner-sim` to a file), or a ROS
+    /// 2 bag (.mcap), whose PointCloud2 messages are sent as `scanner-sim` sends scans
+    /// (--topic, --frame).
     pub capture: PathBuf,
     /// Most ellipsoids the map may hold (at most 2,048).
     #[arg(short, default_value_t = 150)]
@@ -86,6 +88,8 @@ pub struct ReplayArgs {
     #[arg(long, default_value_t = 4096)]
     pub chunk_bytes: usize,
     #[command(flatten)]
+    pub bag: BagArg,
+    #[command(flatten)]
     pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub fit: FitArgs,
@@ -99,7 +103,9 @@ pub struct ScannerSimArgs {
     /// Serial device or pty to write to; a path that is not a device becomes a capture file.
     #[arg(long)]
     pub port: PathBuf,
-    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame; default: a robot
+    /// The cloud to play (PLY, PCD, LAS/LAZ, XYZ/CSV), in its file's frame, or a ROS 2 bag's
+    /// PointCloud2 messages (--topic; with --frame each one in its sensor frame after its
+    /// pose, as `replay BAG` sends them); default: a robot
     /// driving through the built-in demo scene, its rangefinder's scan at each of eight stops
     /// sent in the sensor's frame after the stop's pose.
     pub cloud: Option<PathBuf>,
@@ -118,11 +124,13 @@ pub struct ScannerSimArgs {
     pub baud: u32,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
 }
 
 #[derive(Args, Debug)]
 pub struct StreamBenchArgs {
-    /// The cloud to stream (any format `map` reads).
+    /// The cloud to stream (any format `map` reads, a ROS 2 bag included).
     pub input: PathBuf,
     /// Most ellipsoids the streaming map may hold (at most 2,048).
     #[arg(short)]
@@ -134,6 +142,8 @@ pub struct StreamBenchArgs {
     pub shape: StreamShapeArgs,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Print one JSON object instead of the text.

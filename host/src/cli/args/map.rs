@@ -4,7 +4,7 @@ use clap::{Args, ValueEnum};
 use mema::mapping::{EntityChoice, Model};
 use std::path::PathBuf;
 
-use super::{FitArgs, UnitsArg};
+use super::{BagArg, FitArgs, UnitsArg};
 
 /// `--model`: [`Model`] for the command line (its help text is the variants' docs).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -45,7 +45,9 @@ impl From<EntityArg> for EntityChoice {
 #[derive(Args, Debug)]
 pub struct MapArgs {
     /// The point cloud: PLY, PCD, LAS/LAZ, XYZ/CSV text or KITTI .bin, recognised by its
-    /// content; `-` reads it from standard input.
+    /// content, a registration file (.conf) of several scans, or a ROS 2 bag (.mcap, or its
+    /// rosbag2 directory) of PointCloud2 messages (--topic, --frame); `-` reads it from
+    /// standard input (not a bag or a .conf).
     pub input: PathBuf,
     /// Number of clusters, each of which becomes one entity (an ellipsoid) of the map.
     #[arg(
@@ -106,6 +108,8 @@ pub struct MapArgs {
     pub fit: FitArgs,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     /// Keep only the points inside this box, in metres in the file's frame (PCL's CropBox).
     #[arg(
         long,
@@ -132,7 +136,8 @@ pub struct MapArgs {
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
-    /// The cloud to score the map against (any format `map` reads; `-` reads standard input).
+    /// The cloud to score the map against (any format `map` reads, a ROS 2 bag with --topic
+    /// and --frame as `map` took it; `-` reads standard input).
     pub input: PathBuf,
     /// The map to score: .mema, .csv or .json.
     pub map: PathBuf,
@@ -145,6 +150,8 @@ pub struct EvalArgs {
     pub seed: u64,
     #[command(flatten)]
     pub units: UnitsArg,
+    #[command(flatten)]
+    pub bag: BagArg,
     /// Print one JSON object (its keys are in the README) instead of the tables.
     #[arg(long)]
     pub json: bool,

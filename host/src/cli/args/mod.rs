@@ -1,12 +1,14 @@
 //! Command-line arguments: what the user typed, checked only for syntax. Each subcommand's
 //! handler in [`super::commands`] turns them into the library's configuration.
 
+pub mod bag;
 pub mod fit;
 pub mod link;
 pub mod map;
 pub mod tools;
 pub mod units;
 
+pub use bag::BagArg;
 pub use fit::FitArgs;
 pub use link::{
     RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamBenchArgs, StreamShapeArgs,
@@ -23,7 +25,8 @@ use clap::{Parser, Subcommand};
 /// The words the help texts use, defined once under `mema --help`.
 const TERMS: &str = "\
 Terms:
-  cloud       3D points from a scanner (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI .bin), read in metres
+  cloud       3D points from a scanner (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI .bin, a ROS 2 bag's
+              PointCloud2 messages), read in metres
   map         a few hundred entities standing for a cloud, in a .mema, .csv or .json file
   entity      one ellipsoid of the map, made from one cluster of the cloud's points; an axis
               past --threshold is infinite: one such axis gives a pseudocylinder, two a pair

@@ -5,8 +5,8 @@ use anyhow::{Context, Result};
 use mema::bench::{ablation, stream};
 use mema::io::read::input_name;
 
-use super::read_in_metres;
 use super::serial::capacity;
+use super::{read_in_metres, read_input};
 use crate::cli::args::{AblationArgs, BenchArgs, StreamBenchArgs};
 
 pub fn bench(args: &BenchArgs) -> Result<()> {
@@ -21,7 +21,7 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
-    let (cloud, _) = read_in_metres(&args.input, &args.units)?;
+    let (cloud, _) = read_input(&args.input, &args.units, &args.bag)?;
     let r = stream::run(
         &cloud,
         &config,

@@ -6,18 +6,16 @@ use anyhow::{Context, Result};
 use mema::analysis::stats;
 use mema::batch::{MapReport, map_cloud_with};
 use mema::io::cloud::LocalCloud;
-use mema::io::mapfile::{HostMap, write_file_atomically};
+use mema::io::mapfile::HostMap;
 use mema::io::output::check_output_file;
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::io::write_cloud::write_ply;
 use mema::mapping::{EntityChoice, Model, ShellModel};
 use mema::progress::stage;
-use mema::render::draw::{Style, View};
-use mema::render::picture::render;
 use serde::Serialize;
 use std::path::Path;
 
-use super::demo_files::{DemoFiles, PICTURE, shell_word};
+use super::demo_files::{DemoFiles, shell_word, write_picture};
 use crate::cli::args::DemoArgs;
 
 /// `mema demo --json`: the map's report (as `mema map --json` gives it) and the files.
@@ -55,18 +53,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     )
     .context("demo scene")?;
     let map = HostMap::read(&files.map)?;
-    let (raster, _) = stage("drawing", || {
-        render(
-            &cloud,
-            &[("map.mema".to_owned(), map)],
-            View::Iso,
-            None,
-            PICTURE,
-            Style::Shaded,
-        )
-    })?;
-    let png = raster.encode_png().context("PNG encoding")?;
-    write_file_atomically(&files.picture, &png, "picture")?;
+    write_picture(&cloud, map, &files.picture)?;
     if args.json {
         let doc = DemoJson {
             report: &report,

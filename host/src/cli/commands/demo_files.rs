@@ -1,13 +1,18 @@
 //! What both demos write and how they name it: the files in `--out-dir`, the picture's size,
 //! paths as the shell words printed in their "Next:" lines.
 
+use anyhow::{Context, Result};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
-use mema::render::picture::Size;
+use mema::io::cloud::LocalCloud;
+use mema::io::mapfile::{HostMap, write_file_atomically};
+use mema::progress::stage;
+use mema::render::draw::{Style, View};
+use mema::render::picture::{Size, render};
 
 /// The picture's size: large enough to read the legend, small enough to draw in a second.
-pub const PICTURE: Size = Size {
+const PICTURE: Size = Size {
     width: 1200,
     height: 900,
 };
@@ -41,4 +46,21 @@ pub fn shell_word(path: &Path) -> String {
     } else {
         format!("'{}'", text.replace('\'', r"'\''"))
     }
+}
+
+/// The picture both demos write: `map`'s entities shaded over `cloud`'s points, seen from the
+/// iso view, as a PNG at `path` (written whole or not at all).
+pub fn write_picture(cloud: &LocalCloud, map: HostMap, path: &Path) -> Result<()> {
+    let (raster, _) = stage("drawing", || {
+        render(
+            cloud,
+            &[("map.mema".to_owned(), map)],
+            View::Iso,
+            None,
+            PICTURE,
+            Style::Shaded,
+        )
+    })?;
+    let png = raster.encode_png().context("PNG encoding")?;
+    write_file_atomically(path, &png, "picture")
 }

@@ -8,7 +8,6 @@ use anyhow::{Context, Result};
 use mema::analysis::fidelity::{FidelityScore, two_way_score};
 use mema::io::cloud::LocalCloud;
 use mema::io::drive::{DriveConfig, drive};
-use mema::io::mapfile::write_file_atomically;
 use mema::io::output::check_output_file;
 use mema::io::scene::Scene;
 use mema::io::write_cloud::write_ply;
@@ -17,11 +16,9 @@ use mema::link::stream::{Capacity, link_params, stream_scans};
 use mema::mapping::Model;
 use mema::progress::stage;
 use mema::query::recast::{Recast, recast};
-use mema::render::draw::{Style, View};
-use mema::render::picture::render;
 use serde::Serialize;
 
-use super::demo_files::{DemoFiles, PICTURE, shell_word};
+use super::demo_files::{DemoFiles, shell_word, write_picture};
 use crate::cli::args::DemoArgs;
 
 /// Surface samples of the two-way score: eval's default.
@@ -78,18 +75,7 @@ pub fn demo_moving(args: &DemoArgs) -> Result<()> {
         two_way_score(&in_map, &entities, config.seed, SCORE_SAMPLES)
     })?;
     let cloud = LocalCloud::from_world(&world);
-    let (raster, _) = stage("drawing", || {
-        render(
-            &cloud,
-            &[("map.mema".to_owned(), map.clone())],
-            View::Iso,
-            None,
-            PICTURE,
-            Style::Shaded,
-        )
-    })?;
-    let png = raster.encode_png().context("PNG encoding")?;
-    write_file_atomically(&files.picture, &png, "picture")?;
+    write_picture(&cloud, map.clone(), &files.picture)?;
     let doc = MovingDemo {
         stops: stops.len(),
         points: sent.points,

@@ -12,7 +12,7 @@ use mema::io::mapfile::HostMap;
 use mema::io::read::input_name;
 use mema::progress::stage;
 
-use super::read_in_metres;
+use super::read_input;
 use crate::cli::args::EvalArgs;
 use crate::cli::errors::UsageError;
 
@@ -24,7 +24,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         ))
         .into());
     }
-    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
     let map = HostMap::read(&args.map)?;
     if map.entities.is_empty() {
         anyhow::bail!("{}: the map has no entities", args.map.display());

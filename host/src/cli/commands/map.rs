@@ -7,13 +7,13 @@ use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance}
 use mema::io::Units;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
 use mema::io::read::input_name;
-use mema::link::scanner::{scans_of, unit_name};
+use mema::link::scanner::{scans_of_input, unit_name};
 use mema::link::stream::{Capacity, link_params, stream_scans};
 use mema::mapping::filter::{self, FilterCounts, check_voxel};
 use mema::mapping::{MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel, most_entities};
 use mema_core::shell::ShellParams;
 
-use super::read_in_metres;
+use super::{check_bag_args, read_input};
 use crate::cli::args::fit::BoundsArg;
 use crate::cli::args::{EntityArg, MapArgs};
 use crate::cli::errors::UsageError;
@@ -61,7 +61,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
@@ -97,7 +97,8 @@ pub fn map(args: &MapArgs) -> Result<()> {
 /// receiver and the streaming mapper `mema stream` maps with.
 fn stream_map(args: &MapArgs, config: &PipelineConfig, model: Model) -> Result<()> {
     let capacity = Capacity::checked(config.k, args.working, false)?;
-    let scans = scans_of(&args.input, args.units.units.as_ref())
+    check_bag_args(&args.input, &args.bag)?;
+    let scans = scans_of_input(&args.input, args.units.units.as_ref(), &args.bag.options())
         .with_context(|| args.input.display().to_string())?;
     let (sent, link, map) = stream_scans(&scans, link_params(config, capacity, None, model))?;
     map.write(&args.output)?;
@@ -198,7 +199,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, units) = read_in_metres(&args.input, &args.units)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     let built = map_to_tolerance(&cloud, &options, &config, model, shell)

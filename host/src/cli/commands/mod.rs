@@ -12,18 +12,39 @@ pub mod toolbox;
 
 use anyhow::Result;
 use mema::io::Units;
-use mema::io::cloud::{LocalCloud, load_cloud_in_metres};
+use mema::io::cloud::{LocalCloud, is_bag, load_input_in_metres};
 use mema::progress::stage;
 use std::path::Path;
 
-use crate::cli::args::UnitsArg;
+use crate::cli::args::{BagArg, UnitsArg};
+use crate::cli::errors::UsageError;
 
 /// Reads a cloud for mapping or comparing with a map: in metres, scaled by `--units` or the
 /// unit its file gives (see `mema::io::units`). Says on stderr when `--units` overrides a
 /// different unit the file gives.
 pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Units)> {
+    read_input(path, units, &BagArg::default())
+}
+
+/// `--topic` and `--frame` name a ROS 2 bag's messages: given for any other input, they are a
+/// usage error rather than ignored.
+pub fn check_bag_args(path: &Path, bag: &BagArg) -> Result<()> {
+    if bag.given() && !is_bag(path) {
+        return Err(UsageError(format!(
+            "--topic and --frame choose a ROS 2 bag's messages, and {} is not a bag (an MCAP file)",
+            mema::io::read::input_name(path)
+        ))
+        .into());
+    }
+    Ok(())
+}
+
+/// [`read_in_metres`] of any input, a ROS 2 bag's PointCloud2 messages with `bag`'s topic and
+/// frame included.
+pub fn read_input(path: &Path, units: &UnitsArg, bag: &BagArg) -> Result<(LocalCloud, Units)> {
+    check_bag_args(path, bag)?;
     let (cloud, units) = stage("reading", || {
-        load_cloud_in_metres(path, units.units.as_ref())
+        load_input_in_metres(path, units.units.as_ref(), &bag.options())
     })?;
     if let Some(file) = &units.overrides {
         eprintln!(

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::is_registration;
+use mema::io::cloud::{is_bag, is_registration};
 use mema::io::drive::{DriveConfig, drive};
 use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::Scene;
@@ -16,7 +16,7 @@ use mema::link::capture::CaptureWriter;
 use mema::link::port::{
     ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
 };
-use mema::link::scanner::{SensorScan, scans_of, send_scans, unit_name};
+use mema::link::scanner::{SensorScan, scans_of, scans_of_input, send_scans, unit_name};
 use mema::link::stream::{Capacity, Link, link_params};
 use mema_core::stream::StreamParams;
 use mema_core::wire::DecoderStats;
@@ -443,7 +443,15 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| args.capture.with_extension("mema"));
     check_map_output(&output)?;
-    let bytes = mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?;
+    super::check_bag_args(&args.capture, &args.bag)?;
+    let bytes = if is_bag(&args.capture) {
+        // A bag's scans, as `scanner-sim` would send them: what `map BAG --stream` maps.
+        let scans = scans_of_input(&args.capture, None, &args.bag.options())
+            .with_context(|| args.capture.display().to_string())?;
+        send_scans(&scans)?.bytes
+    } else {
+        mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?
+    };
     let stop = interrupted();
     let mut link = Link::with_params(params(&config, capacity, &args.shape));
     let started = Instant::now();
@@ -472,6 +480,17 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
 }
 
 pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
+    match (&args.cloud, &args.conf) {
+        (Some(path), _) => super::check_bag_args(path, &args.bag)?,
+        (None, Some(conf)) => super::check_bag_args(conf, &args.bag)?,
+        (None, None) if args.bag.given() => {
+            return Err(UsageError(
+                "--topic and --frame choose a ROS 2 bag's messages; name the bag".into(),
+            )
+            .into());
+        }
+        (None, None) => {}
+    }
     let scans = match (&args.conf, &args.cloud) {
         (Some(conf), _) => {
             if !is_registration(conf) {
@@ -481,6 +500,10 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
                 );
             }
             scans_of(conf, args.units.units.as_ref())?
+        }
+        (None, Some(path)) if is_bag(path) => {
+            scans_of_input(path, args.units.units.as_ref(), &args.bag.options())
+                .with_context(|| path.display().to_string())?
         }
         (None, Some(path)) => vec![SensorScan::of_cloud(
             &super::read_in_metres(path, &args.units)?.0,

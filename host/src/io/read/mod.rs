@@ -78,6 +78,8 @@ pub enum Format {
     Las,
     Laz,
     KittiBin,
+    /// A ROS 2 bag's PointCloud2 messages ([`crate::io::bag`]).
+    RosBag,
 }
 
 impl fmt::Display for Format {
@@ -93,6 +95,7 @@ impl fmt::Display for Format {
             Format::Las => "LAS",
             Format::Laz => "LAZ",
             Format::KittiBin => "KITTI bin",
+            Format::RosBag => "ROS 2 bag (MCAP)",
         })
     }
 }
@@ -369,6 +372,11 @@ pub(crate) enum Scaling<'a> {
 impl<'a> Ctx<'a> {
     pub(crate) const fn new(name: &'a str) -> Self {
         Ctx(name, Scaling::File)
+    }
+
+    /// A cloud to be read in metres: by `given`, else the file's unit, else none.
+    pub(crate) const fn in_metres(name: &'a str, given: Option<&'a LengthUnit>) -> Self {
+        Ctx(name, Scaling::Metres(given))
     }
 
     /// The unit to scale by, if the cloud is to be in metres, given what the file says.
