@@ -321,7 +321,7 @@ pub struct De32Result<const D: usize> {
 /// DE/rand/1/bin (eqs. 7-9) over the box `[lo, hi]^D` in f32, the paper's algorithm as
 /// [`crate::de::minimize`] runs it: synchronous generations, selection by `<=`, the seed
 /// candidate replacing the first random member. The draws, in order: `D` per initial member
-/// (24-bit uniforms), then two per trial ([`trial_draws`]): one split into the three donors and
+/// (24-bit uniforms), then two per trial (`trial_draws`): one split into the three donors and
 /// the forced coordinate, one whose 10-bit slices decide the crossovers (`D <= 3`).
 pub fn minimize32<const D: usize, const POP: usize, R, F>(
     objective: F,
