@@ -373,15 +373,7 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     params: &FitParams,
     rng: &mut R,
 ) -> Fit {
-    let terms = FitnessTerms::new(moments, params.alpha, params.volume);
-    let search = SearchBox::new(moments, params);
-    let fast = Fitness32::new(&terms, search.scale);
-    let seed = match params.initialisation {
-        Initialisation::Random => None,
-        Initialisation::MomentSeeded => Some(moment_candidate32(moments, &fast, &search)),
-    };
-    let (semi_axes, evaluations) =
-        search.minimize32::<3, POP, R>(|r| fast.fitness(r), seed, params, rng);
+    let (terms, search, semi_axes, evaluations) = search_ellipsoid::<POP, R>(moments, params, rng);
     finish(
         moments,
         &terms,
@@ -391,6 +383,41 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
         params,
         false,
     )
+}
+
+/// The DE search of [`fit_ellipsoid`]: its terms, box, semi-axes and evaluation count.
+fn search_ellipsoid<const POP: usize, R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> (FitnessTerms, SearchBox, [f64; 3], u32) {
+    let terms = FitnessTerms::new(moments, params.alpha, params.volume);
+    let search = SearchBox::new(moments, params);
+    let fast = Fitness32::new(&terms, search.scale);
+    let seed = match params.initialisation {
+        Initialisation::Random => None,
+        Initialisation::MomentSeeded => Some(moment_candidate32(moments, &fast, &search)),
+    };
+    let (semi_axes, evaluations) =
+        search.minimize32::<3, POP, R>(|r| fast.fitness(r), seed, params, rng);
+    (terms, search, semi_axes, evaluations)
+}
+
+/// The entity of [`fit_ellipsoid_paper`], the same bits, without the fit's statistics (eq. 12
+/// in f64, its residual and volume term, the bound counts): the streaming mapper keeps only
+/// the entity, and on a Cortex-M4F those soft-float sums cost about 7,000 instructions a fit.
+pub fn fit_entity_paper<R: Rng + ?Sized>(
+    moments: &CentralMoments,
+    params: &FitParams,
+    rng: &mut R,
+) -> Entity {
+    let (_, _, semi_axes, _) = search_ellipsoid::<PAPER_POPULATION, R>(moments, params, rng);
+    let center = Point3::new(
+        moments.mean[0] as f32,
+        moments.mean[1] as f32,
+        moments.mean[2] as f32,
+    );
+    Entity::from_semi_axes(center, semi_axes, &params.degeneration)
 }
 
 /// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.

@@ -34,6 +34,9 @@ fn recovers_the_semi_axes_of_a_sampled_ellipsoid() -> TestResult {
             ..FitParams::default()
         };
         let fit = fit_ellipsoid_paper(&moments, &params, &mut stream_rng(0, 0));
+        // The streaming mapper's entity-only fit is the same entity, bit for bit.
+        let entity = fit_entity_paper(&moments, &params, &mut stream_rng(0, 0));
+        assert_eq!(entity, fit.entity);
         for (got, want) in fit.semi_axes.iter().zip(axes.iter()) {
             assert!(
                 (got - want).abs() < tolerance * want,

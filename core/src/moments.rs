@@ -213,6 +213,25 @@ impl Moments {
         ])
     }
 
+    /// The mean in single precision: `shift + (sum u) / n`, each term rounded to f32 first, so
+    /// the division is the FPU's and not a software f64 routine (on a Cortex-M4F three f64
+    /// divisions cost about as much as the rest of a point's clustering). Within an ulp or two
+    /// of [`Moments::mean`] rounded to f32, and the same bits on every target.
+    pub fn mean32(&self) -> Option<[f32; 3]> {
+        if self.count == 0 {
+            return None;
+        }
+        // Counts past 2^32 saturate; the mean's rounding is then far below an f32 ulp anyway.
+        let n = u32::try_from(self.count).unwrap_or(u32::MAX) as f32;
+        Some([0, 1, 2].map(|j| {
+            let (shift, sum) = match (self.shift.get(j), self.axis.get(j)) {
+                (Some(&shift), Some(sums)) => (shift, sums[0]),
+                _ => (0.0, 0.0),
+            };
+            shift as f32 + sum as f32 / n
+        }))
+    }
+
     /// Mean and covariance `E[d_j d_k]` (`d = x - mean`, divided by n), or `None` for an empty
     /// cluster: all an oriented shell needs. The diagonal is [`CentralMoments::second`] to the
     /// bit, from the same expression.

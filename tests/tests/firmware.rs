@@ -440,10 +440,10 @@ fn the_ring_keeps_up_with_the_link_above_a_known_rate() {
         (
             "car6",
             capture_of("car6.pcd"),
-            cost(9_600.0, 310_000.0),
-            200e6,
+            cost(7_700.0, 226_000.0),
+            150e6,
         ),
-        ("demo", demo, cost(11_600.0, 392_000.0), 392e6),
+        ("demo", demo, cost(8_300.0, 278_000.0), 280e6),
     ] {
         let play = |instructions_per_s: f64| -> PacedReport {
             let link = Link {

@@ -15,7 +15,7 @@
 //! refitted on the schedule above, or oriented shells, which are a function of the moments
 //! alone and so are computed when the map is read, with no refits at all; see [`shells`].
 
-use crate::fit::{FitParams, fit_ellipsoid_paper, surface_error_estimate};
+use crate::fit::{FitParams, fit_entity_paper, surface_error_estimate};
 use crate::geometry::{AxisEntity, Entity, Point3};
 use crate::grid::CentreGrid;
 use crate::map::MapEntity;
@@ -117,13 +117,25 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
 /// favours small neighbours over big ones, as k-means' objective would.
 fn ward(a: &Moments, b: &Moments, d2: f32) -> f32 {
-    let (na, nb) = (a.count() as f32, b.count() as f32);
+    let (na, nb) = (count32(a), count32(b));
     na * nb / (na + nb) * d2
 }
 
+/// The centre the clustering uses (nearest-centre search, merges): the f32 mean, computed in f32
+/// ([`Moments::mean32`]); the map's entities take theirs from the f64 fit.
+/// A cluster's count as f32, the same value as `count as f32`: through u32 when it fits, which the
+/// FPU converts in one instruction where u64 takes a software routine.
+#[inline]
+fn count32(m: &Moments) -> f32 {
+    match u32::try_from(m.count()) {
+        Ok(n) => n as f32,
+        Err(_) => m.count() as f32,
+    }
+}
+
 fn center_of(m: &Moments) -> Point3 {
-    let c = m.mean().unwrap_or([0.0; 3]);
-    Point3::new(c[0] as f32, c[1] as f32, c[2] as f32)
+    let c = m.mean32().unwrap_or([0.0; 3]);
+    Point3::new(c[0], c[1], c[2])
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
@@ -419,12 +431,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn fit(&self, index: usize, cluster: &StreamCluster) -> Option<Entity> {
         let central = cluster.moments.central()?;
         let stream = (index as u64) << 32 | (self.stats.points & 0xFFFF_FFFF);
-        let fit = fit_ellipsoid_paper(
+        Some(fit_entity_paper(
             &central,
             &self.params.fit,
             &mut stream_rng(self.params.seed, stream),
-        );
-        Some(fit.entity)
+        ))
     }
 
     /// Refits the cluster with the most points added since its last fit (ties: lowest index).
@@ -502,13 +513,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         for i in 0..self.clusters.len() {
             let central = self.clusters.get(i).and_then(|c| c.moments.central());
             if let Some(central) = central {
-                let fit = fit_ellipsoid_paper(
+                let entity = fit_entity_paper(
                     &central,
                     &self.params.fit,
                     &mut stream_rng(self.params.seed, i as u64),
                 );
                 if let Some(c) = self.clusters.get_mut(i) {
-                    c.entity = AxisEntity::of_axis_aligned(&fit.entity);
+                    c.entity = AxisEntity::of_axis_aligned(&entity);
                     c.stale = 0;
                 }
             }

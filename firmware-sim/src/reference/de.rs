@@ -1,7 +1,8 @@
 //! DE/rand/1/bin on the direct fitness, drawing from the PCG32 stream exactly as the paper's
-//! algorithm is specified in the core (init draws, seed member, then per target: three distinct
-//! donors, the forced coordinate, one crossover draw per other coordinate), so both runs see the
-//! same random numbers. Everything else is computed here, in f64 and in the cloud's unit where
+//! algorithm is specified in the core (init draws, seed member, then per target two draws: one
+//! read as a binary fraction that yields the three distinct donors and the forced coordinate,
+//! one whose 10-bit slices from the top decide the crossovers), so both runs see the same
+//! random numbers. Everything else is computed here, in f64 and in the cloud's unit where
 //! the core searches in f32 and in units of the cluster's spread: vectors, box, start candidate.
 
 use mema_core::de::DeParams;
@@ -19,18 +20,22 @@ fn uniform(rng: &mut Pcg32) -> f64 {
     f64::from(rng.next_u32() >> 8) / 16_777_216.0
 }
 
-/// A crossover: one draw, passing with probability `rate` (`u / 2^32 <= rate`).
-fn crosses(rng: &mut Pcg32, rate: f64) -> bool {
-    f64::from(rng.next_u32()) <= rate * 4_294_967_296.0
+/// A crossover: a 10-bit slice `u` of a draw, passing with probability `rate` (`u / 2^10 <= rate`).
+fn crosses(slice: u32, rate: f64) -> bool {
+    f64::from(slice) <= rate * 1024.0
 }
 
-fn index_below(rng: &mut Pcg32, n: usize) -> usize {
-    ((u64::from(rng.next_u32()) * n as u64) >> 32) as usize
+/// The integer part of `fraction * n`, `fraction` the draw read as a 32-bit binary fraction;
+/// the fractional part of the product is left as the next fraction (one draw, several choices).
+fn take(fraction: &mut u32, n: usize) -> usize {
+    let product = u64::from(*fraction) * n as u64;
+    *fraction = (product & 0xffff_ffff) as u32;
+    (product >> 32) as usize
 }
 
-/// The k-th index not in `taken`, k uniform.
-fn pick(rng: &mut Pcg32, taken: &[usize]) -> usize {
-    let mut k = index_below(rng, POP - taken.len());
+/// The k-th index not in `taken`.
+fn pick(k: usize, taken: &[usize]) -> usize {
+    let mut k = k;
     let mut sorted = taken.to_vec();
     sorted.sort();
     for t in sorted {
@@ -81,13 +86,16 @@ pub fn minimize(
         let mut next = pop.clone();
         let mut next_score = score.clone();
         for i in 0..POP {
-            let r1 = pick(rng, &[i]);
-            let r2 = pick(rng, &[i, r1]);
-            let r3 = pick(rng, &[i, r1, r2]);
-            let forced = index_below(rng, 3);
+            let mut fraction = rng.next_u32();
+            let r1 = pick(take(&mut fraction, POP - 1), &[i]);
+            let r2 = pick(take(&mut fraction, POP - 2), &[i, r1]);
+            let r3 = pick(take(&mut fraction, POP - 3), &[i, r1, r2]);
+            let forced = take(&mut fraction, 3);
+            let slices = rng.next_u32();
             let mut trial = pop[i];
             for j in 0..3 {
-                if j == forced || crosses(rng, de.crossover) {
+                let slice = (slices >> (22 - 10 * j)) & 0x3ff;
+                if j == forced || crosses(slice, de.crossover) {
                     trial[j] = clamp32(pop[r1][j] + mutation * (pop[r2][j] - pop[r3][j]));
                 }
             }
