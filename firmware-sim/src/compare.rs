@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use mema_core::Point3;
 use mema_core::closest_point::SurfaceError;
 use mema_core::fit::{FitParams, fit_ellipsoid_paper};
-use mema_core::moments::Moments;
+use mema_core::moments::{FixedMoments, Moments};
 use mema_core::rng::stream_rng;
 use mema_core::stream::{StreamMapper, StreamParams};
 use nalgebra::Vector3;
@@ -290,12 +290,23 @@ fn compare_cluster(
         relative: relative(core, reference),
         flat: false,
     };
-    let mut moments = Moments::new();
-    for p in points {
-        moments.add_f64([p.x, p.y, p.z]);
-        moments = moments.with_significand_bits(setup.sum_bits);
-    }
-    let Some(central) = moments.central() else {
+    // The stream's integer sums, fed the f32 points as the mapper is; narrower f64 sums only
+    // when `--sum-bits` asks what a cheaper store would lose.
+    let central = if setup.sum_bits >= 53 {
+        let mut moments = FixedMoments::new();
+        for p in points {
+            moments.add(Point3::new(p.x as f32, p.y as f32, p.z as f32));
+        }
+        moments.central()
+    } else {
+        let mut moments = Moments::new();
+        for p in points {
+            moments.add_f64([p.x, p.y, p.z]);
+            moments = moments.with_significand_bits(setup.sum_bits);
+        }
+        moments.central()
+    };
+    let Some(central) = central else {
         return Vec::new();
     };
     let core = fit_ellipsoid_paper(&central, params, &mut stream_rng(seed, i as u64));

@@ -19,7 +19,7 @@ use crate::fit::{FitParams, fit_entity_paper, surface_error_estimate};
 use crate::geometry::{AxisEntity, Entity, Point3};
 use crate::grid::CentreGrid;
 use crate::map::MapEntity;
-use crate::moments::Moments;
+use crate::moments::FixedMoments;
 use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
@@ -77,7 +77,7 @@ pub struct StreamParams {
 /// One cluster: its moments, running centre and latest fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StreamCluster {
-    pub moments: Moments,
+    pub moments: FixedMoments,
     pub center: Point3,
     /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes (shells are
     /// computed from the moments instead, and leave the sphere the cluster opened with).
@@ -116,24 +116,24 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
 
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
 /// favours small neighbours over big ones, as k-means' objective would.
-fn ward(a: &Moments, b: &Moments, d2: f32) -> f32 {
+fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
     let (na, nb) = (count32(a), count32(b));
     na * nb / (na + nb) * d2
 }
 
 /// The centre the clustering uses (nearest-centre search, merges): the f32 mean, computed in f32
-/// ([`Moments::mean32`]); the map's entities take theirs from the f64 fit.
+/// ([`FixedMoments::mean32`]); the map's entities take theirs from the f64 fit.
 /// A cluster's count as f32, the same value as `count as f32`: through u32 when it fits, which the
 /// FPU converts in one instruction where u64 takes a software routine.
 #[inline]
-fn count32(m: &Moments) -> f32 {
+fn count32(m: &FixedMoments) -> f32 {
     match u32::try_from(m.count()) {
         Ok(n) => n as f32,
         Err(_) => m.count() as f32,
     }
 }
 
-fn center_of(m: &Moments) -> Point3 {
+fn center_of(m: &FixedMoments) -> Point3 {
     let c = m.mean32().unwrap_or([0.0; 3]);
     Point3::new(c[0], c[1], c[2])
 }
@@ -265,7 +265,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// A new cluster of `p` at the end (dropped, as the point is, if no room was made).
     fn open(&mut self, p: Point3, observer: &mut impl Observer) {
-        let mut moments = Moments::new();
+        let mut moments = FixedMoments::new();
         moments.add(p);
         let cluster = StreamCluster {
             moments,

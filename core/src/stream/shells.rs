@@ -13,11 +13,11 @@ use super::{StreamCluster, StreamMapper, StreamModel};
 use crate::geometry::Entity;
 use crate::map::record::Quantization;
 use crate::map::{EncodeError, Layout, MapEntity, encode_as, encode_pieces_as};
-use crate::moments::Moments;
+use crate::moments::FixedMoments;
 use crate::shell::{ShellParams, shell};
 
 /// The shell of a cluster's moments; `None` for an empty cluster or a non-finite covariance.
-pub fn shell_of(moments: &Moments, params: &ShellParams) -> Option<Entity> {
+pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> {
     let (mean, covariance) = moments.covariance()?;
     shell(mean, covariance, params)
 }

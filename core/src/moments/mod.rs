@@ -14,6 +14,9 @@
 
 use crate::geometry::Point3;
 
+pub mod fixed;
+pub use fixed::FixedMoments;
+
 /// Number of pairs (x,y), (x,z), (y,z).
 const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 

@@ -1,0 +1,399 @@
+//! The stream's power sums: integers, so a point costs a few hundred instructions on a Cortex-M4F
+//! instead of 45 soft-float operations (about 4,300 instructions, half of a point's whole cost).
+//!
+//! Scheme: each coordinate of a point's offset from the cluster's anchor (its first point) is
+//! rounded to a grid of pitch `2^quantum[j]` per axis, chosen so every offset seen on that axis is
+//! at most [`OFFSET_LIMIT`] = 2^24 steps, as fine as f32 holds the offset. The products of those
+//! integers up to order 4 are exact (orders 3 and 4 in two words), and each of the 24 sums is an i64 mantissa under 2^62 with its own
+//! binary exponent: an exact integer until it outgrows 62 bits, then rounded once per halving,
+//! 9 bits finer than f64. A farther point coarsens its axis's grid, which for each sum is an
+//! exponent change.
+//!
+//! Why rounding to a grid is harmless: the pitch is at most `2^-23` of the largest offset on its
+//! axis, so it moves a point by at most 6e-8 of the cluster's extent on that axis (the f32
+//! rounding of the offset itself), far below any scanner's noise; the comparison with the f64 reference on every shared cloud bounds its effect on the
+//! fits (`mema-firmware-sim reference`).
+//!
+//! Everything else (central moments, merging, covariance) goes through the f64 [`Moments`] the
+//! sums convert to, once per fit or merge rather than once per point.
+
+use super::{CentralMoments, Moments};
+use crate::geometry::Point3;
+
+/// The largest offset, in grid steps, as fine as an f32 offset itself: squares fit 48 bits,
+/// cubes 72 and fourth powers 96 (their products are formed in two words).
+pub const OFFSET_LIMIT: i32 = 1 << 24;
+
+/// Grid pitch below the largest offset: `2^-PITCH_BITS` of its binade.
+const PITCH_BITS: i32 = 23;
+
+/// Mantissas stay below this in magnitude, and a term is added only once it is below half of
+/// it, so no addition can overflow.
+const MANTISSA_LIMIT: i64 = 1 << 62;
+
+/// The three axis pairs, in the order of the mixed sums.
+const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// An axis's pitch exponent before any non-zero offset on it has been seen.
+const NO_PITCH: i8 = i8::MIN;
+/// Pitches from 2^-110 (offsets below 1e-27 round to zero: no scanner resolves them) to 2^104
+/// (the largest f32 offset, 2^128, in 2^24 steps): every unit f32 and f64 need stays normal.
+const MIN_QUANTUM: i32 = -110;
+const MAX_QUANTUM: i32 = 104;
+
+/// The 24 sums: per axis j, `n_j^p` for p = 1..=4 (slots `4 j + p - 1`), then per pair (j, k)
+/// `n_j n_k`, `n_j^2 n_k`, `n_j n_k^2`, `n_j^2 n_k^2` (slots `12 + 4 pair + i`).
+const SLOTS: usize = 24;
+
+/// The powers of each axis in each slot: what a change of that axis's pitch scales it by.
+const POWERS: [[u8; 3]; SLOTS] = {
+    let mut out = [[0u8; 3]; SLOTS];
+    let mut j = 0;
+    while j < 3 {
+        let mut p = 0;
+        while p < 4 {
+            out[4 * j + p][j] = p as u8 + 1;
+            p += 1;
+        }
+        j += 1;
+    }
+    let mixed = [(1u8, 1u8), (2, 1), (1, 2), (2, 2)];
+    let mut pair = 0;
+    while pair < 3 {
+        let (j, k) = PAIRS[pair];
+        let mut i = 0;
+        while i < 4 {
+            out[12 + 4 * pair + i][j] = mixed[i].0;
+            out[12 + 4 * pair + i][k] = mixed[i].1;
+            i += 1;
+        }
+        pair += 1;
+    }
+    out
+};
+
+/// Mergeable, incrementally updated power sums of a cluster in integer arithmetic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FixedMoments {
+    anchor: [f32; 3],
+    count: u64,
+    /// Slot `i` holds `sums[i] * 2^shift[i]` in units of its axes' pitches.
+    sums: [i64; SLOTS],
+    shift: [u8; SLOTS],
+    /// Offsets on axis j are counted in steps of `2^quantum[j]`; [`NO_PITCH`] while all are 0.
+    quantum: [i8; 3],
+}
+
+/// `2^e` as an f32, for `e` within f32's normal exponents (clamped to them).
+fn pow2_32(e: i32) -> f32 {
+    f32::from_bits(((e.clamp(-126, 127) + 127) as u32) << 23)
+}
+
+/// `2^e` as an f64, for `e` within f64's normal exponents (clamped to them).
+fn pow2_64(e: i32) -> f64 {
+    f64::from_bits(((e.clamp(-1022, 1023) + 1023) as u64) << 52)
+}
+
+/// The exponent `e` with `2^e <= x < 2^(e + 1)` of a positive normal f32 (bit pattern, exact).
+fn exponent32(x: f32) -> i32 {
+    ((x.to_bits() >> 23) & 0xff) as i32 - 127
+}
+
+/// `m / 2^s`, rounded half up.
+#[inline]
+fn shifted(m: i64, s: u32) -> i64 {
+    match s {
+        0 => m,
+        1..=63 => (m >> s) + ((m >> (s - 1)) & 1),
+        _ => 0,
+    }
+}
+
+/// `a b / 2^s` rounded half up, for `a, b < 2^48` (so `a b < 2^96`), or `None` when that is
+/// 2^61 or more. Formed in two 64-bit words from 32-bit halves: on a 32-bit core four
+/// multiplies, where a u128 product calls a routine.
+#[inline]
+fn product_shifted(a: u64, b: u64, s: u32) -> Option<u64> {
+    let (ah, al) = (a >> 32, a & 0xffff_ffff);
+    let (bh, bl) = (b >> 32, b & 0xffff_ffff);
+    let low = al * bl;
+    // Each cross product is below 2^48, their sum below 2^49.
+    let cross = ah * bl + al * bh;
+    let lo = low.wrapping_add(cross << 32);
+    let hi = ah * bh + (cross >> 32) + u64::from(lo < low);
+    let value = match s {
+        0 => (hi == 0).then_some(lo)?,
+        1..=63 => {
+            if hi >> s != 0 {
+                return None;
+            }
+            let v = (hi << (64 - s)) | (lo >> s);
+            v.checked_add((lo >> (s - 1)) & 1)?
+        }
+        _ => 0,
+    };
+    (value < 1 << 61).then_some(value)
+}
+
+impl Default for FixedMoments {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FixedMoments {
+    pub const fn new() -> Self {
+        Self {
+            anchor: [0.0; 3],
+            count: 0,
+            sums: [0; SLOTS],
+            shift: [0; SLOTS],
+            quantum: [NO_PITCH; 3],
+        }
+    }
+
+    pub const fn count(&self) -> u64 {
+        self.count
+    }
+
+    pub const fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    /// Adds one finite point (non-finite points are the caller's to reject).
+    pub fn add(&mut self, p: Point3) {
+        if self.count == 0 {
+            self.anchor = [p.x, p.y, p.z];
+        }
+        self.count = self.count.saturating_add(1);
+        let d = [p.x - self.anchor[0], p.y - self.anchor[1], p.z - self.anchor[2]];
+        let mut n = [0i32; 3];
+        for j in 0..3 {
+            n[j] = self.steps(j, d[j]);
+        }
+        if n != [0; 3] {
+            self.accumulate(n);
+        }
+    }
+
+    /// Offset `d` on axis `j` in grid steps, coarsening that axis's grid first if it must.
+    fn steps(&mut self, j: usize, d: f32) -> i32 {
+        let size = libm::fabsf(d);
+        if !(size > 0.0) {
+            return 0;
+        }
+        // The pitch that puts this offset within the limit: 2^-23 of its binade, or finer.
+        let needed = (exponent32(size) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM);
+        let Some(q) = self.quantum.get_mut(j) else {
+            return 0;
+        };
+        if *q == NO_PITCH {
+            *q = needed as i8;
+        } else if needed > i32::from(*q) {
+            let levels = needed - i32::from(*q);
+            self.coarsen(j, levels);
+        }
+        let q = self.quantum.get(j).copied().map_or(0, i32::from);
+        let x = d * pow2_32(-q);
+        // Round half away from zero; `as` saturates, so an offset near f32's range stays bounded.
+        let n = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32;
+        n.clamp(-OFFSET_LIMIT, OFFSET_LIMIT)
+    }
+
+    /// Makes axis `j`'s pitch `2^levels` times coarser: a sum with `n_j^a` in it becomes
+    /// `2^(-a levels)` of itself in the new steps, an exponent change while the exponent allows.
+    fn coarsen(&mut self, j: usize, levels: i32) {
+        let levels = levels.clamp(0, 64) as u32;
+        if let Some(q) = self.quantum.get_mut(j) {
+            *q = (i32::from(*q) + levels as i32).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
+        }
+        for ((sum, shift), powers) in self.sums.iter_mut().zip(self.shift.iter_mut()).zip(POWERS) {
+            let wanted = u32::from(powers.get(j).copied().unwrap_or(0)) * levels;
+            let have = u32::from(*shift);
+            if have >= wanted {
+                *shift = (have - wanted) as u8;
+            } else {
+                *sum = shifted(*sum, wanted - have);
+                *shift = 0;
+            }
+        }
+    }
+
+    /// Adds term `t` (below 2^61 after its shift) to slot `i`, halving the slot past 2^62.
+    #[inline]
+    fn add_term(&mut self, i: usize, t: i64) {
+        if let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) {
+            *sum += shifted(t, u32::from(*shift));
+            if !(-MANTISSA_LIMIT..MANTISSA_LIMIT).contains(sum) {
+                *sum = shifted(*sum, 1);
+                *shift += 1;
+            }
+        }
+    }
+
+    /// Adds `a b` (`a, b < 2^48`, negated if `negative`) to slot `i`, first raising the slot's
+    /// exponent while the shifted product would not stay under 2^61.
+    #[inline]
+    fn add_product(&mut self, i: usize, a: u64, b: u64, negative: bool) {
+        let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) else {
+            return;
+        };
+        loop {
+            if let Some(t) = product_shifted(a, b, u32::from(*shift)) {
+                // Below 2^61: the conversion and the negation are exact.
+                let t = t as i64;
+                *sum += if negative { -t } else { t };
+                if !(-MANTISSA_LIMIT..MANTISSA_LIMIT).contains(sum) {
+                    *sum = shifted(*sum, 1);
+                    *shift += 1;
+                }
+                return;
+            }
+            if *shift >= 63 {
+                return;
+            }
+            *sum = shifted(*sum, 1);
+            *shift += 1;
+        }
+    }
+
+    /// Adds the products of one offset `n` (each within [`OFFSET_LIMIT`]).
+    #[inline]
+    fn accumulate(&mut self, n: [i32; 3]) {
+        let v = n.map(i64::from);
+        let size = n.map(|x| u64::from(x.unsigned_abs()));
+        let sq = size.map(|x| x * x);
+        for j in 0..3 {
+            self.add_term(4 * j, v[j]);
+            self.add_term(4 * j + 1, sq[j] as i64);
+            self.add_product(4 * j + 2, sq[j], size[j], v[j] < 0);
+            self.add_product(4 * j + 3, sq[j], sq[j], false);
+        }
+        for (pair, &(j, k)) in PAIRS.iter().enumerate() {
+            let base = 12 + 4 * pair;
+            let mixed = size[j] * size[k];
+            self.add_term(base, v[j] * v[k]);
+            self.add_product(base + 1, sq[j], size[k], v[k] < 0);
+            self.add_product(base + 2, size[j], sq[k], v[j] < 0);
+            self.add_product(base + 3, mixed, mixed, false);
+        }
+    }
+
+    /// The unit of slot `i` as an f64 power of two: its axes' pitches to their powers, times
+    /// `2^shift`.
+    fn unit(&self, i: usize) -> f64 {
+        let powers = POWERS.get(i).copied().unwrap_or([0; 3]);
+        let mut e = self.shift.get(i).copied().map_or(0, i32::from);
+        for (p, q) in powers.iter().zip(self.quantum) {
+            if *p > 0 && q != NO_PITCH {
+                e += i32::from(*p) * i32::from(q);
+            }
+        }
+        pow2_64(e)
+    }
+
+    /// The same sums as f64 power sums about the anchor: each mantissa rounded once to 53 bits.
+    pub fn to_moments(&self) -> Moments {
+        let mut out = Moments::with_shift(self.anchor.map(f64::from));
+        out.count = self.count;
+        for (i, &m) in self.sums.iter().enumerate() {
+            let value = m as f64 * self.unit(i);
+            let (row, col) = ((i % 12) / 4, i % 4);
+            let target = if i < 12 {
+                &mut out.axis
+            } else {
+                &mut out.pair
+            };
+            if let Some(slot) = target.get_mut(row).and_then(|r| r.get_mut(col)) {
+                *slot = value;
+            }
+        }
+        out
+    }
+
+    /// f64 power sums about `anchor` as integers on the grids `quantum`: each slot's exponent is
+    /// the smallest that keeps its mantissa under 2^62.
+    fn from_moments(m: &Moments, anchor: [f32; 3], quantum: [i8; 3]) -> Self {
+        let mut out = Self {
+            anchor,
+            count: m.count,
+            quantum,
+            ..Self::new()
+        };
+        let m = m.reshifted(anchor.map(f64::from));
+        for i in 0..SLOTS {
+            let (row, col) = ((i % 12) / 4, i % 4);
+            let source = if i < 12 { &m.axis } else { &m.pair };
+            let value = source.get(row).and_then(|r| r.get(col)).copied().unwrap_or(0.0);
+            // Slots of an axis without a pitch hold only zeros (`unit` leaves that axis out).
+            let steps = value / out.unit(i);
+            let mut shift = 0u8;
+            while shift < 63 && libm::fabs(steps) >= pow2_64(61 + i32::from(shift)) {
+                shift += 1;
+            }
+            if let (Some(sum), Some(s)) = (out.sums.get_mut(i), out.shift.get_mut(i)) {
+                *sum = libm::round(steps / pow2_64(i32::from(shift))) as i64;
+                *s = shift;
+            }
+        }
+        out
+    }
+
+    /// Merges another cluster's sums into these (about this anchor, each axis on the coarser
+    /// of the two grids). Exact up to the f64 rounding of the merge itself; merges are rare.
+    pub fn merge(&mut self, other: &FixedMoments) {
+        if other.count == 0 {
+            return;
+        }
+        if self.count == 0 {
+            *self = *other;
+            return;
+        }
+        let mut sum = self.to_moments();
+        sum.merge(&other.to_moments());
+        let mut quantum = self.quantum;
+        for (q, theirs) in quantum.iter_mut().zip(other.quantum) {
+            *q = (*q).max(theirs);
+        }
+        *self = Self::from_moments(&sum, self.anchor, quantum);
+    }
+
+    /// The mean in single precision: the anchor plus the mean offset, all in f32 operations
+    /// (the centre the clustering uses, once per point).
+    pub fn mean32(&self) -> Option<[f32; 3]> {
+        if self.count == 0 {
+            return None;
+        }
+        let n = u32::try_from(self.count).unwrap_or(u32::MAX) as f32;
+        Some([0, 1, 2].map(|j| {
+            let anchor = self.anchor.get(j).copied().unwrap_or(0.0);
+            let q = self.quantum.get(j).copied().unwrap_or(NO_PITCH);
+            if q == NO_PITCH {
+                return anchor;
+            }
+            let slot = 4 * j;
+            let sum = self.sums.get(slot).copied().unwrap_or(0);
+            let unit = pow2_32(i32::from(q) + self.shift.get(slot).copied().map_or(0, i32::from));
+            // Below 2^31 (a cluster of up to 2^7 points at the largest offsets) the FPU converts it.
+            let sum = match i32::try_from(sum) {
+                Ok(v) => v as f32,
+                Err(_) => sum as f32,
+            };
+            anchor + sum * unit / n
+        }))
+    }
+
+    /// Central moments about the mean (through the f64 sums), or `None` for an empty cluster.
+    pub fn central(&self) -> Option<CentralMoments> {
+        self.to_moments().central()
+    }
+
+    /// Mean and covariance (through the f64 sums), or `None` for an empty cluster.
+    pub fn covariance(&self) -> Option<([f64; 3], [[f64; 3]; 3])> {
+        self.to_moments().covariance()
+    }
+}
+
+#[cfg(test)]
+#[path = "fixed_tests.rs"]
+mod tests;

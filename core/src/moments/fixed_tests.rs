@@ -1,0 +1,220 @@
+use super::*;
+use crate::test_support::{OrFail, TestResult};
+
+/// A noisy ellipsoidal shell of `n` f32 points about `centre`, from a fixed LCG.
+fn shell_points(n: usize, seed: u64, centre: [f32; 3], axes: [f32; 3]) -> [Point3; 512] {
+    let mut out = [Point3::new(0.0, 0.0, 0.0); 512];
+    let mut s = seed;
+    let mut next = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for p in out.iter_mut().take(n) {
+        let (t, u) = (next() * 6.283, next() * 3.1416);
+        let noise = 1.0 + (next() - 0.5) * 0.02;
+        let d = [
+            libm::cos(t) * libm::sin(u),
+            libm::sin(t) * libm::sin(u),
+            libm::cos(u),
+        ];
+        *p = Point3::new(
+            centre[0] + (d[0] * noise) as f32 * axes[0],
+            centre[1] + (d[1] * noise) as f32 * axes[1],
+            centre[2] + (d[2] * noise) as f32 * axes[2],
+        );
+    }
+    out
+}
+
+/// Direct two-pass central moments in f64 of the f32 points: the independent check.
+fn direct(points: &[Point3]) -> CentralMoments {
+    let n = points.len() as f64;
+    let pts = points.iter().map(|p| p.to_f64());
+    let mut mean = [0.0; 3];
+    for p in pts.clone() {
+        for j in 0..3 {
+            mean[j] += p[j] / n;
+        }
+    }
+    let mut second = [0.0; 3];
+    let mut fourth = [[0.0; 3]; 3];
+    for p in pts {
+        let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
+        for j in 0..3 {
+            second[j] += d[j] * d[j] / n;
+            for k in 0..3 {
+                fourth[j][k] += d[j] * d[j] * d[k] * d[k] / n;
+            }
+        }
+    }
+    CentralMoments {
+        count: points.len() as u64,
+        mean,
+        second,
+        fourth,
+    }
+}
+
+/// The grid's pitch is at most 2^-23 of an axis's largest offset, so rounding moves each
+/// coordinate by up to about 6e-8 of the extent; over a few hundred points the moments then
+/// move by well under 1e-7 relative, against 1e-16 for f64 sums of points already on the grid.
+const GRID: f64 = 1e-7;
+
+/// Relative differences of `got` from `want`: mean (in units of the spread), second, fourth.
+fn worst(got: &CentralMoments, want: &CentralMoments) -> [f64; 3] {
+    let spread = libm::sqrt(want.second.iter().sum::<f64>());
+    let mut out = [0.0f64; 3];
+    for j in 0..3 {
+        out[0] = out[0].max(libm::fabs(got.mean[j] - want.mean[j]) / spread);
+        out[1] = out[1].max(libm::fabs(got.second[j] - want.second[j]) / want.second[j]);
+        for k in 0..3 {
+            let (g, w) = (got.fourth[j][k], want.fourth[j][k]);
+            out[2] = out[2].max(libm::fabs(g - w) / w);
+        }
+    }
+    out
+}
+
+#[test]
+fn matches_two_pass_sums_far_from_the_origin() -> TestResult {
+    // 1 km out, a 30 cm shell: f32 holds the points to 61 micrometres there.
+    let pts = shell_points(400, 3, [1000.0, -250.0, 30.0], [0.3, 0.2, 0.1]);
+    let mut m = FixedMoments::new();
+    for p in &pts[..400] {
+        m.add(*p);
+    }
+    let got = m.central().or_fail("points")?;
+    let [mean, second, fourth] = worst(&got, &direct(&pts[..400]));
+        // The points are on the grid here (f32's spacing 1 km out is coarser): no rounding at all.
+    if mean > 1e-11 || second > 1e-11 || fourth > 1e-11 {
+        return Err("fixed-point moments differ from the two-pass f64 moments");
+    }
+    Ok(())
+}
+
+#[test]
+fn coarsening_and_halving_keep_the_sums() -> TestResult {
+    // The first offset is tiny (fine pitch), the later ones 10^6 times larger: the grid
+    // coarsens by about 20 levels, and 5,000 points push the fourth-order sums past 2^62.
+    let mut pts = [Point3::new(0.0, 0.0, 0.0); 512];
+    pts[0] = Point3::new(5.0, 5.0, 5.0);
+    pts[1] = Point3::new(5.000001, 5.0, 5.0);
+    let far = shell_points(510, 9, [5.5, 4.5, 5.2], [2.0, 1.0, 0.5]);
+    pts[2..].copy_from_slice(&far[..510]);
+    let mut m = FixedMoments::new();
+    let mut all = [Point3::new(0.0, 0.0, 0.0); 512];
+    for round in 0..10 {
+        for (i, p) in pts.iter().enumerate() {
+            m.add(*p);
+            if round == 0 {
+                all[i] = *p;
+            }
+        }
+    }
+    if m.shift[3] == 0 {
+        return Err("the test must push the fourth-order sums past 2^62");
+    }
+    let got = m.central().or_fail("points")?;
+    // Ten copies of the same points have the same central moments.
+    let [mean, second, fourth] = worst(&got, &direct(&all));
+    if mean > GRID || second > GRID || fourth > GRID {
+        return Err("sums drifted through coarsening and halving");
+    }
+    Ok(())
+}
+
+#[test]
+fn merge_equals_one_cluster_of_both() -> TestResult {
+    let a = shell_points(300, 1, [10.0, 2.0, -3.0], [0.3, 0.3, 0.1]);
+    let b = shell_points(200, 2, [10.4, 2.1, -3.0], [0.2, 0.3, 0.1]);
+    let (mut ma, mut mb) = (FixedMoments::new(), FixedMoments::new());
+    let mut all = [Point3::new(0.0, 0.0, 0.0); 500];
+    for (i, p) in a[..300].iter().enumerate() {
+        ma.add(*p);
+        all[i] = *p;
+    }
+    for (i, p) in b[..200].iter().enumerate() {
+        mb.add(*p);
+        all[300 + i] = *p;
+    }
+    ma.merge(&mb);
+    if ma.count() != 500 {
+        return Err("merged count");
+    }
+    let [mean, second, fourth] = worst(&ma.central().or_fail("points")?, &direct(&all));
+    if mean > GRID || second > GRID || fourth > GRID {
+        return Err("merged moments differ from the two-pass moments of both");
+    }
+    // The merged sums keep growing correctly.
+    let c = shell_points(100, 4, [10.2, 2.0, -3.1], [0.3, 0.2, 0.2]);
+    let mut every = [Point3::new(0.0, 0.0, 0.0); 600];
+    every[..500].copy_from_slice(&all);
+    for (i, p) in c[..100].iter().enumerate() {
+        ma.add(*p);
+        every[500 + i] = *p;
+    }
+    let [mean, second, fourth] = worst(&ma.central().or_fail("points")?, &direct(&every));
+    if mean > GRID || second > GRID || fourth > GRID {
+        return Err("points added after a merge");
+    }
+    Ok(())
+}
+
+#[test]
+fn mean32_is_the_mean_and_coincident_points_have_no_spread() -> TestResult {
+    let pts = shell_points(64, 5, [-3.0, 7.0, 0.25], [0.05, 0.05, 0.05]);
+    let mut m = FixedMoments::new();
+    for p in &pts[..64] {
+        m.add(*p);
+    }
+    let want = direct(&pts[..64]).mean;
+    let got = m.mean32().or_fail("points")?;
+    for j in 0..3 {
+        if libm::fabs(f64::from(got[j]) - want[j]) > 1e-6 {
+            return Err("mean32 differs from the two-pass mean");
+        }
+    }
+    let mut same = FixedMoments::new();
+    for _ in 0..5 {
+        same.add(Point3::new(1.5, -2.0, 3.0));
+    }
+    let c = same.central().or_fail("points")?;
+    if c.mean != [1.5, -2.0, 3.0] || c.second != [0.0; 3] || same.count() != 5 {
+        return Err("coincident points");
+    }
+    if FixedMoments::new().central().is_some() || FixedMoments::new().mean32().is_some() {
+        return Err("empty moments have no mean");
+    }
+    Ok(())
+}
+
+
+#[test]
+fn wide_products_are_exact() {
+    // Against u128 arithmetic: every shift, products up to 2^96 and the rounding bit's edges.
+    let mut state = 11u64;
+    let mut draw = |i: u64| {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
+        match i % 4 {
+            0 => state >> 16,
+            1 => (1u64 << 48) - 1 - (state >> 50),
+            2 => state >> (16 + i % 48),
+            _ => (state >> 33) | 1,
+        }
+    };
+    for i in 0..20_000u64 {
+        let (a, b) = (draw(i), draw(i / 3));
+        for s in 0..64u32 {
+            let exact = u128::from(a) * u128::from(b);
+            let rounded = if s == 0 {
+                exact
+            } else {
+                (exact >> s) + ((exact >> (s - 1)) & 1)
+            };
+            let want = (rounded < 1 << 61).then_some(rounded as u64);
+            assert_eq!(product_shifted(a, b, s), want, "{a} {b} {s}");
+        }
+    }
+}
