@@ -45,6 +45,27 @@ const MAX_QUANTUM: i32 = 104;
 /// `n_j n_k`, `n_j^2 n_k`, `n_j n_k^2`, `n_j^2 n_k^2` (slots `12 + 4 pair + i`).
 const SLOTS: usize = 24;
 
+/// The slots of orders 3 and 4 as products of two factors of `accumulate`'s bank (0-2:
+/// `|n_j|`, 3-5: `n_j^2`, 6-8: `|n_j n_k|` of pairs xy, xz, yz), negative when axis `sign`'s
+/// offset is (3: never).
+const WIDE: [(u8, u8, u8, u8); 15] = [
+    (2, 3, 0, 0),
+    (3, 3, 3, 3),
+    (6, 4, 1, 1),
+    (7, 4, 4, 3),
+    (10, 5, 2, 2),
+    (11, 5, 5, 3),
+    (13, 3, 1, 1),
+    (14, 0, 4, 0),
+    (15, 6, 6, 3),
+    (17, 3, 2, 2),
+    (18, 0, 5, 0),
+    (19, 7, 7, 3),
+    (21, 4, 2, 2),
+    (22, 1, 5, 1),
+    (23, 8, 8, 3),
+];
+
 /// The powers of each axis in each slot: what a change of that axis's pitch scales it by.
 const POWERS: [[u8; 3]; SLOTS] = {
     let mut out = [[0u8; 3]; SLOTS];
@@ -109,30 +130,66 @@ fn shifted(m: i64, s: u32) -> i64 {
     }
 }
 
-/// `a b / 2^s` rounded half up, for `a, b < 2^48` (so `a b < 2^96`), or `None` when that is
-/// 2^61 or more. Formed in two 64-bit words from 32-bit halves: on a 32-bit core four
-/// multiplies, where a u128 product calls a routine.
+/// `a b` for `a, b < 2^48`, exactly, as two 64-bit words `(high, low)` formed from 32-bit
+/// halves: on a 32-bit core four multiplies, where a u128 product calls a routine.
 #[inline]
-fn product_shifted(a: u64, b: u64, s: u32) -> Option<u64> {
+fn wide_product(a: u64, b: u64) -> (u64, u64) {
     let (ah, al) = (a >> 32, a & 0xffff_ffff);
     let (bh, bl) = (b >> 32, b & 0xffff_ffff);
     let low = al * bl;
     // Each cross product is below 2^48, their sum below 2^49.
     let cross = ah * bl + al * bh;
     let lo = low.wrapping_add(cross << 32);
-    let hi = ah * bh + (cross >> 32) + u64::from(lo < low);
-    let value = match s {
-        0 => (hi == 0).then_some(lo)?,
-        1..=63 => {
-            if hi >> s != 0 {
-                return None;
-            }
-            let v = (hi << (64 - s)) | (lo >> s);
-            v.checked_add((lo >> (s - 1)) & 1)?
-        }
-        _ => 0,
+    (ah * bh + (cross >> 32) + u64::from(lo < low), lo)
+}
+
+/// The shift that brings `(high, low)` under 2^60: its bit length minus 60, or 0.
+#[inline]
+fn shift_for(high: u64, low: u64) -> u32 {
+    let bits = if high != 0 {
+        128 - high.leading_zeros()
+    } else {
+        64 - low.leading_zeros()
     };
-    (value < 1 << 61).then_some(value)
+    bits.saturating_sub(60)
+}
+
+/// `(high, low) / 2^s` rounded half up, for `s` at least [`shift_for`] (so below 2^61) and
+/// `high < 2^32` (a product below 2^96). Past 32 bits, which is where the sums of a grown
+/// cluster sit, the shift is of one 64-bit word.
+#[inline]
+fn wide_shifted(high: u64, low: u64, s: u32) -> u64 {
+    if s >= 32 {
+        let middle = (high << 32) | (low >> 32);
+        return match s - 32 {
+            0 => middle + ((low >> 31) & 1),
+            r @ 1..=31 => (middle >> r) + ((middle >> (r - 1)) & 1),
+            _ => 0,
+        };
+    }
+    match s {
+        0 => low,
+        _ => ((high << (64 - s)) | (low >> s)) + ((low >> (s - 1)) & 1),
+    }
+}
+
+/// Halves a sum's mantissa and doubles its unit. Rare (once per doubling of a sum), so out of
+/// line: flash, not time, is what the image runs short of.
+#[cold]
+#[inline(never)]
+fn halve(sum: &mut i64, shift: &mut u8) {
+    *sum = shifted(*sum, 1);
+    *shift = shift.saturating_add(1);
+}
+
+/// Raises a sum's exponent to `to` (at most 63), rounding its mantissa once: what a large term
+/// arriving at a small sum needs (typically the second point of a cluster), so out of line.
+#[cold]
+#[inline(never)]
+fn raise(sum: &mut i64, shift: &mut u8, to: u32) {
+    let to = to.min(63);
+    *sum = shifted(*sum, to.saturating_sub(u32::from(*shift)));
+    *shift = to as u8;
 }
 
 impl Default for FixedMoments {
@@ -166,10 +223,11 @@ impl FixedMoments {
             self.anchor = [p.x, p.y, p.z];
         }
         self.count = self.count.saturating_add(1);
-        let d = [p.x - self.anchor[0], p.y - self.anchor[1], p.z - self.anchor[2]];
+        let [ax, ay, az] = self.anchor;
+        let d = [p.x - ax, p.y - ay, p.z - az];
         let mut n = [0i32; 3];
-        for j in 0..3 {
-            n[j] = self.steps(j, d[j]);
+        for (j, (n, d)) in n.iter_mut().zip(d).enumerate() {
+            *n = self.steps(j, d);
         }
         if n != [0; 3] {
             self.accumulate(n);
@@ -200,6 +258,10 @@ impl FixedMoments {
         n.clamp(-OFFSET_LIMIT, OFFSET_LIMIT)
     }
 
+    // Rare (a cluster's grid coarsens a few times in its life): out of line, to keep the image
+    // under its 64 KiB of flash.
+    #[cold]
+    #[inline(never)]
     /// Makes axis `j`'s pitch `2^levels` times coarser: a sum with `n_j^a` in it becomes
     /// `2^(-a levels)` of itself in the new steps, an exponent change while the exponent allows.
     fn coarsen(&mut self, j: usize, levels: i32) {
@@ -225,57 +287,67 @@ impl FixedMoments {
         if let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) {
             *sum += shifted(t, u32::from(*shift));
             if !(-MANTISSA_LIMIT..MANTISSA_LIMIT).contains(sum) {
-                *sum = shifted(*sum, 1);
-                *shift += 1;
+                halve(sum, shift);
             }
         }
     }
 
     /// Adds `a b` (`a, b < 2^48`, negated if `negative`) to slot `i`, first raising the slot's
-    /// exponent while the shifted product would not stay under 2^61.
-    #[inline]
+    /// exponent if the shifted product would not stay under 2^61.
     fn add_product(&mut self, i: usize, a: u64, b: u64, negative: bool) {
         let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) else {
             return;
         };
-        loop {
-            if let Some(t) = product_shifted(a, b, u32::from(*shift)) {
-                // Below 2^61: the conversion and the negation are exact.
-                let t = t as i64;
-                *sum += if negative { -t } else { t };
-                if !(-MANTISSA_LIMIT..MANTISSA_LIMIT).contains(sum) {
-                    *sum = shifted(*sum, 1);
-                    *shift += 1;
-                }
-                return;
-            }
-            if *shift >= 63 {
-                return;
-            }
-            *sum = shifted(*sum, 1);
-            *shift += 1;
+        let (high, low) = wide_product(a, b);
+        let needed = shift_for(high, low);
+        if needed > u32::from(*shift) {
+            raise(sum, shift, needed);
+        }
+        // Below 2^61: the conversion and the negation are exact.
+        let t = wide_shifted(high, low, u32::from(*shift)) as i64;
+        *sum += if negative { -t } else { t };
+        if !(-MANTISSA_LIMIT..MANTISSA_LIMIT).contains(sum) {
+            halve(sum, shift);
         }
     }
 
     /// Adds the products of one offset `n` (each within [`OFFSET_LIMIT`]).
     #[inline]
     fn accumulate(&mut self, n: [i32; 3]) {
-        let v = n.map(i64::from);
-        let size = n.map(|x| u64::from(x.unsigned_abs()));
-        let sq = size.map(|x| x * x);
-        for j in 0..3 {
-            self.add_term(4 * j, v[j]);
-            self.add_term(4 * j + 1, sq[j] as i64);
-            self.add_product(4 * j + 2, sq[j], size[j], v[j] < 0);
-            self.add_product(4 * j + 3, sq[j], sq[j], false);
+        let [x, y, z] = n.map(i64::from);
+        let size = n.map(|v| u64::from(v.unsigned_abs()));
+        let [sx, sy, sz] = size;
+        // The factors the wide slots multiply: |n_j|, n_j^2, |n_j n_k|.
+        let bank = [
+            sx,
+            sy,
+            sz,
+            sx * sx,
+            sy * sy,
+            sz * sz,
+            sx * sy,
+            sx * sz,
+            sy * sz,
+        ];
+        let narrow = [
+            (0, x),
+            (1, (sx * sx) as i64),
+            (4, y),
+            (5, (sy * sy) as i64),
+            (8, z),
+            (9, (sz * sz) as i64),
+            (12, x * y),
+            (16, x * z),
+            (20, y * z),
+        ];
+        for (slot, term) in narrow {
+            self.add_term(slot, term);
         }
-        for (pair, &(j, k)) in PAIRS.iter().enumerate() {
-            let base = 12 + 4 * pair;
-            let mixed = size[j] * size[k];
-            self.add_term(base, v[j] * v[k]);
-            self.add_product(base + 1, sq[j], size[k], v[k] < 0);
-            self.add_product(base + 2, size[j], sq[k], v[j] < 0);
-            self.add_product(base + 3, mixed, mixed, false);
+        // Orders 3 and 4 (15 slots) in one loop, so the two-word arithmetic is in the image once.
+        for &(slot, a, b, sign) in WIDE.iter() {
+            let factor = |f: u8| bank.get(usize::from(f)).copied().unwrap_or(0);
+            let negative = n.get(usize::from(sign)).is_some_and(|&v| v < 0);
+            self.add_product(usize::from(slot), factor(a), factor(b), negative);
         }
     }
 
@@ -311,8 +383,8 @@ impl FixedMoments {
         out
     }
 
-    /// f64 power sums about `anchor` as integers on the grids `quantum`: each slot's exponent is
-    /// the smallest that keeps its mantissa under 2^62.
+    /// f64 power sums about `anchor` (their shift) as integers on the grids `quantum`: each
+    /// slot's exponent is the smallest that keeps its mantissa under 2^62.
     fn from_moments(m: &Moments, anchor: [f32; 3], quantum: [i8; 3]) -> Self {
         let mut out = Self {
             anchor,
@@ -320,7 +392,6 @@ impl FixedMoments {
             quantum,
             ..Self::new()
         };
-        let m = m.reshifted(anchor.map(f64::from));
         for i in 0..SLOTS {
             let (row, col) = ((i % 12) / 4, i % 4);
             let source = if i < 12 { &m.axis } else { &m.pair };
@@ -332,7 +403,8 @@ impl FixedMoments {
                 shift += 1;
             }
             if let (Some(sum), Some(s)) = (out.sums.get_mut(i), out.shift.get_mut(i)) {
-                *sum = libm::round(steps / pow2_64(i32::from(shift))) as i64;
+                let x = steps / pow2_64(i32::from(shift));
+                *sum = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i64;
                 *s = shift;
             }
         }
@@ -349,6 +421,7 @@ impl FixedMoments {
             *self = *other;
             return;
         }
+        // `Moments::merge` keeps the first one's shift: this anchor.
         let mut sum = self.to_moments();
         sum.merge(&other.to_moments());
         let mut quantum = self.quantum;

@@ -193,7 +193,8 @@ fn mean32_is_the_mean_and_coincident_points_have_no_spread() -> TestResult {
 
 #[test]
 fn wide_products_are_exact() {
-    // Against u128 arithmetic: every shift, products up to 2^96 and the rounding bit's edges.
+    // Against u128 arithmetic: products up to 2^96, every shift from the needed one up, and
+    // the rounding bit's edges.
     let mut state = 11u64;
     let mut draw = |i: u64| {
         state = state.wrapping_mul(6364136223846793005).wrapping_add(1);
@@ -206,15 +207,18 @@ fn wide_products_are_exact() {
     };
     for i in 0..20_000u64 {
         let (a, b) = (draw(i), draw(i / 3));
-        for s in 0..64u32 {
-            let exact = u128::from(a) * u128::from(b);
+        let exact = u128::from(a) * u128::from(b);
+        let (high, low) = wide_product(a, b);
+        assert_eq!((u128::from(high) << 64) | u128::from(low), exact, "{a} {b}");
+        let needed = shift_for(high, low);
+        assert!(exact >> needed < 1 << 60 && (needed == 0 || exact >> (needed - 1) >= 1 << 59));
+        for s in needed..64 {
             let rounded = if s == 0 {
                 exact
             } else {
                 (exact >> s) + ((exact >> (s - 1)) & 1)
             };
-            let want = (rounded < 1 << 61).then_some(rounded as u64);
-            assert_eq!(product_shifted(a, b, s), want, "{a} {b} {s}");
+            assert_eq!(u128::from(wide_shifted(high, low, s)), rounded, "{a} {b} {s}");
         }
     }
 }
