@@ -209,7 +209,7 @@ impl Report {
         let target = TARGET_BOARD.ram_bytes as u64;
         let stack = TARGET_BOARD.stack_bytes as u64;
         let mut s = format!(
-            "static RAM of the firmware state (size_of; a working cluster is {} bytes: f64 moments, centre, entity; a frozen entity {} bytes)\n\
+            "static RAM of the firmware state (size_of; a working cluster is {} bytes: 24 integer moment sums with their exponents, centre, entity; a frozen entity {} bytes)\n\
              {:>5} {:>8} {:>7} {:>7} {:>12} {:>10} {:>8} {:>14} {:>12}  under 64 KiB? (+ {} stack)\n",
             self.cluster_bytes,
             size_of::<mema_core::stream::FrozenEntity>(),
@@ -251,11 +251,11 @@ impl Report {
                 / per_cluster.max(1)
         );
         // The floor under any all-working layout that keeps the agreement: the 24 sums (u..u^4
-        // per axis; uv, u^2 v, u v^2, u^2 v^2 per pair) at f64, since 48 bits already fail the
-        // reference. Hence frozen entities for K = 400 in 64 KiB.
+        // per axis; uv, u^2 v, u v^2, u^2 v^2 per pair) at 62-bit mantissas, since 48-bit f64
+        // sums already fail the reference. Hence frozen entities for K = 400 in 64 KiB.
         s += &format!(
-            "  the f64 moment sums alone of 400 working clusters: {} (24 x 8 bytes each); narrower sums: `reference --sum-bits N`\n",
-            kib(400 * 24 * size_of::<f64>() as u64)
+            "  the moment sums alone of 400 working clusters: {} (24 x 8-byte mantissas + 24 exponent bytes each); narrower f64 sums: `reference --sum-bits N`\n",
+            kib(400 * 24 * (size_of::<i64>() + 1) as u64)
         );
         if let Some(i) = self.image {
             let yes = |fits: bool| if fits { "yes" } else { "no" };

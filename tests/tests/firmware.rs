@@ -364,10 +364,10 @@ fn readers_never_panic_on_mutated_real_files() {
     }
 }
 
-/// Why a cluster keeps f64 sums (272 bytes, so K = 400 does not fit 64 KiB): the same check
-/// with the sums rounded after every point to f32's 24 significant bits fails on 7 of the 16
-/// clouds (9 before flat optima were judged on the objective), and even 48 bits fails where
-/// 2-point clusters fit almost exactly (lamppost).
+/// Why a cluster keeps 62-bit sums (240 bytes, so K = 400 does not fit 64 KiB all working) and
+/// not narrower floats: the same check with f64 sums rounded after every point to f32's 24
+/// significant bits fails on 7 of the 16 clouds (9 before flat optima were judged on the
+/// objective), and even 48 bits fails where 2-point clusters fit almost exactly (lamppost).
 #[test]
 fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
     let clouds = shared_clouds().expect("../shared/data lists");
