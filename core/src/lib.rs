@@ -9,7 +9,7 @@
 //! Contract: every function takes caller-provided slices or fixed-size types; capacity and bad
 //! input come back as typed errors; the same input and seed give the same bits on every target
 //! (IEEE-754 f32/f64 arithmetic plus `libm`, no fused or platform math).
-#![cfg_attr(not(test), no_std)]
+#![no_std]
 #![deny(missing_debug_implementations, unsafe_code)]
 // `!(x > 0.0)` is deliberate throughout: it is true for NaN, which must take the safe branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -143,10 +143,13 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
         let (mean, r_direct, shape_direct) = direct_shell(points);
         let c = e.entity.center.to_f64();
         for j in 0..3 {
-            // The stored centre is the mean in f32: within one f32 rounding of it.
+            // The stored centre is the mean in f32: within one f32 rounding of it, plus what
+            // the moments' grid moves it by: at most half a pitch, and the pitch is at most
+            // 2^-23 of the largest offset from the cluster's first point (twice its extent).
+            let extent = points.iter().map(|p| (p[j] - mean[j]).abs()).fold(0.0, f64::max);
             let d = (c[j] - mean[j]).abs();
             assert!(
-                d <= f32::EPSILON as f64 * mean[j].abs() + 1e-12,
+                d <= f32::EPSILON as f64 * mean[j].abs() + extent / (1u64 << 23) as f64 + 1e-12,
                 "{cloud} entity {i}: centre {c:?} vs mean {mean:?}"
             );
         }
@@ -160,8 +163,16 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
             );
             continue;
         }
+        // The moments' grid moves each coordinate by at most 2^-23 of the cluster's extent on
+        // that axis: an absolute error on every semi-axis, which a thin rotated cluster's
+        // smallest one (car6 has 0.45 mm across 0.38 m) feels as 1e-5 relative.
+        let grid = (0..3)
+            .map(|j| points.iter().map(|p| (p[j] - mean[j]).abs()).fold(0.0, f64::max))
+            .fold(0.0, f64::max)
+            * 4.0
+            / (1u64 << 23) as f64;
         for j in 0..3 {
-            let rel = (r[j] - r_direct[j]).abs() / r_direct[j];
+            let rel = ((r[j] - r_direct[j]).abs() - grid).max(0.0) / r_direct[j];
             worst[0] = worst[0].max(rel);
             assert!(
                 rel < 1e-6,

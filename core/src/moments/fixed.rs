@@ -425,8 +425,15 @@ impl FixedMoments {
         let mut sum = self.to_moments();
         sum.merge(&other.to_moments());
         let mut quantum = self.quantum;
-        for (q, theirs) in quantum.iter_mut().zip(other.quantum) {
+        for ((q, theirs), squares) in quantum.iter_mut().zip(other.quantum).zip(sum.axis) {
             *q = (*q).max(theirs);
+            // Neither side had a pitch (each one's offsets were all 0, e.g. two single points),
+            // but their anchors differ: a pitch from the merged offsets, as `steps` would pick
+            // it; `sqrt(sum u^2)` bounds the largest offset.
+            let largest = libm::sqrt(squares[1]) as f32;
+            if *q == NO_PITCH && largest > 0.0 {
+                *q = (exponent32(largest) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
+            }
         }
         *self = Self::from_moments(&sum, self.anchor, quantum);
     }

@@ -222,3 +222,32 @@ fn wide_products_are_exact() {
         }
     }
 }
+
+#[test]
+fn merging_single_points_keeps_their_offsets() -> TestResult {
+    // Each cluster alone has no pitch (no non-zero offset); merged, their offsets must be
+    // represented, not rounded to whole units.
+    let pts = [
+        Point3::new(0.5476, 3.0514, -0.3480),
+        Point3::new(0.5467, 3.0499, -0.3467),
+        Point3::new(0.5472, 3.0506, -0.3474),
+    ];
+    let mut merged = FixedMoments::new();
+    for p in pts {
+        let mut one = FixedMoments::new();
+        one.add(p);
+        merged.merge(&one);
+    }
+    let got = merged.central().or_fail("points")?;
+    let want = direct(&pts);
+    for j in 0..3 {
+        if libm::fabs(got.mean[j] - want.mean[j]) > 1e-7 * libm::fabs(want.mean[j]) {
+            return Err("merged single points lost their offsets");
+        }
+    }
+    let [_, second, _] = worst(&got, &want);
+    if second > 1e-6 {
+        return Err("merged single points lost their spread");
+    }
+    Ok(())
+}
