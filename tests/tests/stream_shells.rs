@@ -146,7 +146,10 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
             // The stored centre is the mean in f32: within one f32 rounding of it, plus what
             // the moments' grid moves it by: at most half a pitch, and the pitch is at most
             // 2^-23 of the largest offset from the cluster's first point (twice its extent).
-            let extent = points.iter().map(|p| (p[j] - mean[j]).abs()).fold(0.0, f64::max);
+            let extent = points
+                .iter()
+                .map(|p| (p[j] - mean[j]).abs())
+                .fold(0.0, f64::max);
             let d = (c[j] - mean[j]).abs();
             assert!(
                 d <= f32::EPSILON as f64 * mean[j].abs() + extent / (1u64 << 23) as f64 + 1e-12,
@@ -167,7 +170,12 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
         // that axis: an absolute error on every semi-axis, which a thin rotated cluster's
         // smallest one (car6 has 0.45 mm across 0.38 m) feels as 1e-5 relative.
         let grid = (0..3)
-            .map(|j| points.iter().map(|p| (p[j] - mean[j]).abs()).fold(0.0, f64::max))
+            .map(|j| {
+                points
+                    .iter()
+                    .map(|p| (p[j] - mean[j]).abs())
+                    .fold(0.0, f64::max)
+            })
             .fold(0.0, f64::max)
             * 4.0
             / (1u64 << 23) as f64;

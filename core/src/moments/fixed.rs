@@ -120,6 +120,18 @@ fn exponent32(x: f32) -> i32 {
     ((x.to_bits() >> 23) & 0xff) as i32 - 127
 }
 
+/// `a - b` as an f32 and the error of that rounding, `(s, e)` with `s + e = a - b` exactly
+/// (Knuth's TwoSum): a point and its cluster's anchor straddling a power of two or zero
+/// differ by more bits than f32 holds, and the grid should see the offset, not its rounding.
+#[inline]
+fn exact_difference(a: f32, b: f32) -> (f32, f32) {
+    let s = a - b;
+    let b_virtual = s - a;
+    let a_virtual = s - b_virtual;
+    let e = (a - a_virtual) + (-b - b_virtual);
+    (s, e)
+}
+
 /// `m / 2^s`, rounded half up.
 #[inline]
 fn shifted(m: i64, s: u32) -> i64 {
@@ -224,7 +236,11 @@ impl FixedMoments {
         }
         self.count = self.count.saturating_add(1);
         let [ax, ay, az] = self.anchor;
-        let d = [p.x - ax, p.y - ay, p.z - az];
+        let d = [
+            exact_difference(p.x, ax),
+            exact_difference(p.y, ay),
+            exact_difference(p.z, az),
+        ];
         let mut n = [0i32; 3];
         for (j, (n, d)) in n.iter_mut().zip(d).enumerate() {
             *n = self.steps(j, d);
@@ -234,8 +250,9 @@ impl FixedMoments {
         }
     }
 
-    /// Offset `d` on axis `j` in grid steps, coarsening that axis's grid first if it must.
-    fn steps(&mut self, j: usize, d: f32) -> i32 {
+    /// Offset `d` (a pair summing to it exactly) on axis `j` in grid steps, coarsening that
+    /// axis's grid first if it must.
+    fn steps(&mut self, j: usize, (d, error): (f32, f32)) -> i32 {
         let size = libm::fabsf(d);
         if !(size > 0.0) {
             return 0;
@@ -252,9 +269,15 @@ impl FixedMoments {
             self.coarsen(j, levels);
         }
         let q = self.quantum.get(j).copied().map_or(0, i32::from);
-        let x = d * pow2_32(-q);
+        // Both scalings by a power of two are exact.
+        let scale = pow2_32(-q);
+        let (x, below) = (d * scale, error * scale);
         // Round half away from zero; `as` saturates, so an offset near f32's range stays bounded.
         let n = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32;
+        // What rounding `x` alone left out, plus the subtraction's error: exact but for the
+        // last addition, which matters only at a tie.
+        let rest = (x - n as f32) + below;
+        let n = n + i32::from(rest > 0.5) - i32::from(rest < -0.5);
         n.clamp(-OFFSET_LIMIT, OFFSET_LIMIT)
     }
 
@@ -371,11 +394,7 @@ impl FixedMoments {
         for (i, &m) in self.sums.iter().enumerate() {
             let value = m as f64 * self.unit(i);
             let (row, col) = ((i % 12) / 4, i % 4);
-            let target = if i < 12 {
-                &mut out.axis
-            } else {
-                &mut out.pair
-            };
+            let target = if i < 12 { &mut out.axis } else { &mut out.pair };
             if let Some(slot) = target.get_mut(row).and_then(|r| r.get_mut(col)) {
                 *slot = value;
             }
@@ -395,7 +414,11 @@ impl FixedMoments {
         for i in 0..SLOTS {
             let (row, col) = ((i % 12) / 4, i % 4);
             let source = if i < 12 { &m.axis } else { &m.pair };
-            let value = source.get(row).and_then(|r| r.get(col)).copied().unwrap_or(0.0);
+            let value = source
+                .get(row)
+                .and_then(|r| r.get(col))
+                .copied()
+                .unwrap_or(0.0);
             // Slots of an axis without a pitch hold only zeros (`unit` leaves that axis out).
             let steps = value / out.unit(i);
             let mut shift = 0u8;
@@ -424,15 +447,29 @@ impl FixedMoments {
         // `Moments::merge` keeps the first one's shift: this anchor.
         let mut sum = self.to_moments();
         sum.merge(&other.to_moments());
+        // Each axis on a grid that holds every merged offset within the limit: this cluster's
+        // offsets reach 2^24 steps of its pitch, the other's as far again from its own anchor.
+        let reach = |q: i8| {
+            if q == NO_PITCH {
+                0.0
+            } else {
+                pow2_64(i32::from(q) + 24)
+            }
+        };
         let mut quantum = self.quantum;
-        for ((q, theirs), squares) in quantum.iter_mut().zip(other.quantum).zip(sum.axis) {
+        for (j, q) in quantum.iter_mut().enumerate() {
+            let theirs = other.quantum.get(j).copied().unwrap_or(NO_PITCH);
+            let apart = match (self.anchor.get(j), other.anchor.get(j)) {
+                (Some(&a), Some(&b)) => libm::fabs(f64::from(b) - f64::from(a)),
+                _ => 0.0,
+            };
+            let bound = reach(*q).max(apart + reach(theirs));
             *q = (*q).max(theirs);
-            // Neither side had a pitch (each one's offsets were all 0, e.g. two single points),
-            // but their anchors differ: a pitch from the merged offsets, as `steps` would pick
-            // it; `sqrt(sum u^2)` bounds the largest offset.
-            let largest = libm::sqrt(squares[1]) as f32;
-            if *q == NO_PITCH && largest > 0.0 {
-                *q = (exponent32(largest) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
+            if *q == NO_PITCH && bound > 0.0 {
+                *q = (exponent32(bound as f32) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
+            }
+            while bound > reach(*q) && i32::from(*q) < MAX_QUANTUM {
+                *q += 1;
             }
         }
         *self = Self::from_moments(&sum, self.anchor, quantum);

@@ -87,7 +87,7 @@ fn matches_two_pass_sums_far_from_the_origin() -> TestResult {
     }
     let got = m.central().or_fail("points")?;
     let [mean, second, fourth] = worst(&got, &direct(&pts[..400]));
-        // The points are on the grid here (f32's spacing 1 km out is coarser): no rounding at all.
+    // The points are on the grid here (f32's spacing 1 km out is coarser): no rounding at all.
     if mean > 1e-11 || second > 1e-11 || fourth > 1e-11 {
         return Err("fixed-point moments differ from the two-pass f64 moments");
     }
@@ -190,7 +190,6 @@ fn mean32_is_the_mean_and_coincident_points_have_no_spread() -> TestResult {
     Ok(())
 }
 
-
 #[test]
 fn wide_products_are_exact() {
     // Against u128 arithmetic: products up to 2^96, every shift from the needed one up, and
@@ -218,7 +217,11 @@ fn wide_products_are_exact() {
             } else {
                 (exact >> s) + ((exact >> (s - 1)) & 1)
             };
-            assert_eq!(u128::from(wide_shifted(high, low, s)), rounded, "{a} {b} {s}");
+            assert_eq!(
+                u128::from(wide_shifted(high, low, s)),
+                rounded,
+                "{a} {b} {s}"
+            );
         }
     }
 }
@@ -248,6 +251,101 @@ fn merging_single_points_keeps_their_offsets() -> TestResult {
     let [_, second, _] = worst(&got, &want);
     if second > 1e-6 {
         return Err("merged single points lost their spread");
+    }
+    Ok(())
+}
+
+#[test]
+fn merging_far_clusters_keeps_their_spread() -> TestResult {
+    for (ca, cb) in [
+        ([0.0f32, 0.0, 0.0], [10.0f32, 0.0, 0.0]),
+        ([5.0, 1.0, 0.0], [-5.0, 1.0, 0.0]),
+    ] {
+        let a = shell_points(100, 7, ca, [1.0, 1.0, 1.0]);
+        let b = shell_points(100, 8, cb, [1.0, 1.0, 1.0]);
+        let (mut ma, mut mb) = (FixedMoments::new(), FixedMoments::new());
+        let mut all = [Point3::new(0.0, 0.0, 0.0); 200];
+        for (i, p) in a[..100].iter().enumerate() {
+            ma.add(*p);
+            all[i] = *p;
+        }
+        for (i, p) in b[..100].iter().enumerate() {
+            mb.add(*p);
+            all[100 + i] = *p;
+        }
+        ma.merge(&mb);
+        let [mean, second, fourth] = worst(&ma.central().or_fail("points")?, &direct(&all));
+        if mean > GRID || second > GRID || fourth > GRID {
+            return Err("far clusters merged wrongly");
+        }
+    }
+    Ok(())
+}
+
+#[test]
+fn random_adds_and_merges_match_f64_sums() -> TestResult {
+    // Small clusters of every kind merged in random order: single points, coincident points,
+    // points on a line (axes without a pitch), far apart and close, against f64 sums. Each
+    // merge puts every point on the merged cluster's grid (2^-23 of its reach), so a point
+    // moves by up to 2^-23 of the cluster's extent `e`: the second moment by `2^-22 e^2`, the
+    // fourth by `2^-21 e^4`, at most.
+    let mut state = 99u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as u32
+    };
+    for round in 0..300 {
+        let mut fixed = [FixedMoments::new(); 6];
+        let mut exact = [Moments::new(); 6];
+        let (mut low, mut high) = ([f64::MAX; 3], [f64::MIN; 3]);
+        for (f, e) in fixed.iter_mut().zip(exact.iter_mut()) {
+            let n = 1 + next() % if round % 5 == 0 { 200 } else { 4 };
+            let centre = [(next() % 21) as f32 - 10.0, (next() % 3) as f32, 0.0];
+            for _ in 0..n {
+                let jitter = |v: u32| {
+                    if round % 3 == 0 {
+                        0.0
+                    } else {
+                        // Every seventh round tight clusters (fine grids) far apart.
+                        let scale = if round % 7 == 0 { 1e-4 } else { 1.0 };
+                        ((v % 1000) as f32 * 1e-3 - 0.5) * scale
+                    }
+                };
+                let p = Point3::new(
+                    centre[0] + jitter(next()),
+                    centre[1] + if round % 2 == 0 { 0.0 } else { jitter(next()) },
+                    centre[2],
+                );
+                f.add(p);
+                e.add(p);
+                for (j, v) in p.to_f64().iter().enumerate() {
+                    low[j] = low[j].min(*v);
+                    high[j] = high[j].max(*v);
+                }
+            }
+        }
+        for i in 1..6 {
+            let (f, e) = (fixed[i], exact[i]);
+            fixed[0].merge(&f);
+            exact[0].merge(&e);
+        }
+        let (got, want) = (
+            fixed[0].central().or_fail("points")?,
+            exact[0].central().or_fail("points")?,
+        );
+        let step = 1.0 / (1u64 << 23) as f64;
+        for j in 0..3 {
+            let e = high[j] - low[j];
+            if libm::fabs(got.mean[j] - want.mean[j]) > step * e + 1e-12
+                || libm::fabs(got.second[j] - want.second[j]) > 2.0 * step * e * e + 1e-24
+                || libm::fabs(got.fourth[j][j] - want.fourth[j][j])
+                    > 4.0 * step * e * e * e * e + 1e-48
+            {
+                return Err("merged moments differ from f64 sums beyond the grid");
+            }
+        }
     }
     Ok(())
 }
