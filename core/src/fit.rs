@@ -1,7 +1,8 @@
 //! Fitting one cluster's semi-axes by DE on eq. 12 (Section 3), ellipsoid or one-radius sphere.
 
 use crate::de::{DeParams, OutOfBounds, PAPER_POPULATION, minimize};
-use crate::fit32::{Fitness32, minimize32};
+use crate::de32::minimize32;
+use crate::fit32::Fitness32;
 use crate::fitness::{FitnessTerms, PAPER_ALPHA, VolumeTerm};
 use crate::geometry::{Degeneration, Entity, Point3};
 use crate::moments::CentralMoments;
@@ -255,49 +256,9 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
     clamp(1.0 / libm::sqrt(0.5 * (a + b)), lo, hi)
 }
 
-/// [`optimal_sphere_radius`] on the f32 form, in units of `s`: the candidate of the f32 search.
-fn optimal_sphere_radius32(fast: &Fitness32, lo: f32, hi: f32) -> f32 {
-    let fitness_of_weight = |w: f32| {
-        let r = 1.0 / crate::fit32::sqrt32(w);
-        fast.fitness(&[r; 3])
-    };
-    let (mut a, mut b) = (1.0 / (hi * hi), 1.0 / (lo * lo));
-    const INV_PHI: f32 = 0.618_034;
-    let mut c = b - INV_PHI * (b - a);
-    let mut d = a + INV_PHI * (b - a);
-    let (mut fc, mut fd) = (fitness_of_weight(c), fitness_of_weight(d));
-    // 48 steps shrink the bracket by 0.618^48 ~ 1e-10 of its width, past f32's resolution of
-    // the weights in the default box (1/9 to 400 in units of s).
-    for _ in 0..48 {
-        if fc <= fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - INV_PHI * (b - a);
-            fc = fitness_of_weight(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + INV_PHI * (b - a);
-            fd = fitness_of_weight(d);
-        }
-    }
-    let r = 1.0 / crate::fit32::sqrt32(0.5 * (a + b));
-    if r < lo {
-        lo
-    } else if r > hi {
-        hi
-    } else {
-        r
-    }
-}
-
-/// The optimal sphere's radius in units of `s`: found in f32, then made exact in f64.
+/// The optimal sphere's radius in units of `s`, to f64's precision (`fit32::sphere`).
 fn exact_sphere(fast: &Fitness32, search: &SearchBox) -> f64 {
-    let (lo, hi) = (search.lo / search.scale, search.hi / search.scale);
-    let start = optimal_sphere_radius32(fast, lo as f32, hi as f32);
-    fast.optimal_sphere(lo, hi, f64::from(start))
+    fast.optimal_sphere(search.lo / search.scale, search.hi / search.scale)
 }
 
 /// The f32 search's start candidate: the better, by the f32 form, of the least-squares

@@ -1,0 +1,389 @@
+//! DE/rand/1/bin (eqs. 7-9) in f32: the search every fit of the core runs.
+//!
+//! The algorithm is [`crate::de::minimize`]'s, the paper's: synchronous generations, selection by
+//! `<=`, the moment candidate replacing the first random member, F and CR as given. What differs
+//! is how it is paid for on a 32-bit core with an f32-only FPU (README, "Firmware"): the
+//! population is f32, the two generations are two buffers whose roles swap (no copy of the
+//! population per generation), and the random numbers come from a 32-bit generator seeded once
+//! per run from the fit's own stream ([`DeRng`]).
+//!
+//! The draws, in order, so that an independent implementation can replay them (the firmware
+//! simulator's f64 reference does): two draws of the caller's stream seed the [`DeRng`]; then,
+//! from it, `D` per initial member (24-bit uniforms); then per trial one draw split into the
+//! three donors and the forced coordinate, and one per coordinate deciding its crossover (taken
+//! even for the forced coordinate, so every trial draws the same count), each followed, under
+//! [`OutOfBounds::Resample`] and only if the donor left the box, by the redraw.
+
+use crate::de::{DeParams, OutOfBounds};
+use crate::rng::DeRng;
+use rand_core::Rng;
+
+/// `x.clamp(lo, hi)` without the standard one's panicking assertion; NaN passes through.
+#[inline]
+pub(crate) fn clamp32(x: f32, lo: f32, hi: f32) -> f32 {
+    let mut x = x;
+    if x < lo {
+        x = lo;
+    }
+    if x > hi {
+        x = hi;
+    }
+    x
+}
+
+/// Uniform in [0, 1) with the 24 bits an f32 holds (exact conversion).
+#[inline]
+fn unit(draw: u32) -> f32 {
+    (draw >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// The crossover rate CR as a 31-bit threshold `t`: a coordinate crosses when its draw `u`
+/// has `u >> 1 < t`, which `t` of the 2^31 values of `u >> 1` do. With `t = round(CR 2^31)` the
+/// probability is CR to within 2^-32 for every CR in [0, 1]; CR = 0 never crosses, CR = 1
+/// always. (Before, the rate was a 10-bit slice: 717/1024 = 0.70020 for CR = 0.7.)
+pub(crate) fn crossover_threshold(rate: f64) -> u32 {
+    const SCALE: f64 = (1u64 << 31) as f64;
+    if !(rate > 0.0) {
+        // NaN and negative rates never cross; the forced coordinate still does.
+        0
+    } else if rate >= 1.0 {
+        1 << 31
+    } else {
+        // rate * 2^31 is exact (a power of two); + 0.5 then truncation rounds it.
+        (rate * SCALE + 0.5) as u32
+    }
+}
+
+/// `n` uniform outcomes from the high bits of `x` by Lemire's multiply-shift, leaving the low
+/// 32 bits of the product in `x` for the next split (each split's bias is at most the product
+/// of the earlier `n`s over 2^32: 1,512 / 2^32 = 3.5e-7 for a population of 10).
+#[inline]
+fn split(x: &mut u32, n: usize) -> usize {
+    let t = u64::from(*x) * n as u64;
+    *x = t as u32;
+    (t >> 32) as usize
+}
+
+/// One trial's donors, distinct from each other and from `target` (uniform among the
+/// `POP - 1`, `POP - 2`, `POP - 3` left), and its forced coordinate, all split from one draw.
+#[inline]
+fn donors<const POP: usize, const D: usize>(target: usize, draw: u32) -> ([usize; 3], usize) {
+    let mut x = draw;
+    let k1 = split(&mut x, POP - 1);
+    let k2 = split(&mut x, POP - 2);
+    let k3 = split(&mut x, POP - 3);
+    let forced = split(&mut x, D);
+    // The k-th index not yet taken: step over the taken ones in increasing order.
+    let r1 = k1 + usize::from(k1 >= target);
+    let (a, b) = if r1 < target {
+        (r1, target)
+    } else {
+        (target, r1)
+    };
+    let mut r2 = k2;
+    r2 += usize::from(r2 >= a);
+    r2 += usize::from(r2 >= b);
+    let (a, b, c) = if r2 < a {
+        (r2, a, b)
+    } else if r2 < b {
+        (a, r2, b)
+    } else {
+        (a, b, r2)
+    };
+    let mut r3 = k3;
+    r3 += usize::from(r3 >= a);
+    r3 += usize::from(r3 >= b);
+    r3 += usize::from(r3 >= c);
+    // All < POP already; the min lets the compiler drop the population's bounds checks.
+    ([r1.min(POP - 1), r2.min(POP - 1), r3.min(POP - 1)], forced)
+}
+
+/// A donor coordinate outside `[lo, hi]` brought back in by `rule`.
+#[cold]
+fn repair(value: f32, lo: f32, hi: f32, rule: OutOfBounds, draws: &mut DeRng) -> f32 {
+    match rule {
+        OutOfBounds::Clamp => clamp32(value, lo, hi),
+        OutOfBounds::Reflect => {
+            let mirrored = if value < lo {
+                2.0 * lo - value
+            } else {
+                2.0 * hi - value
+            };
+            if hi > lo {
+                clamp32(mirrored, lo, hi)
+            } else {
+                lo
+            }
+        }
+        OutOfBounds::Resample => lo + unit(draws.next()) * (hi - lo),
+    }
+}
+
+/// A NaN fitness never wins, so a broken objective cannot take over the population.
+#[inline]
+fn no_worse(candidate: f32, incumbent: f32) -> bool {
+    candidate <= incumbent || (incumbent.is_nan() && !candidate.is_nan())
+}
+
+/// What a DE run found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct De32Result<const D: usize> {
+    pub best: [f32; D],
+    pub fitness: f32,
+    pub evaluations: u32,
+}
+
+/// DE/rand/1/bin over the box `[lo, hi]^D` in f32 (the draws: module doc).
+pub fn minimize32<const D: usize, const POP: usize, R, F>(
+    objective: F,
+    lo: f32,
+    hi: f32,
+    params: &DeParams,
+    out_of_bounds: OutOfBounds,
+    seed_candidate: Option<[f32; D]>,
+    rng: &mut R,
+) -> De32Result<D>
+where
+    R: Rng + ?Sized,
+    F: Fn(&[f32; D]) -> f32,
+{
+    const {
+        assert!(
+            POP >= 4,
+            "DE/rand/1 needs the target and three distinct others"
+        )
+    };
+    const { assert!(D >= 1) };
+    let mut draws = DeRng::from_stream(rng);
+    let mutation = params.mutation as f32;
+    let crossover = crossover_threshold(params.crossover);
+    let mut first = [[0.0f32; D]; POP];
+    let mut first_scores = [f32::INFINITY; POP];
+    let mut evaluations = 0u32;
+    for (member, score) in first.iter_mut().zip(first_scores.iter_mut()) {
+        for x in member.iter_mut() {
+            *x = lo + unit(draws.next()) * (hi - lo);
+        }
+        *score = objective(member);
+        evaluations += 1;
+    }
+    if let (Some(seed), Some(member), Some(score)) =
+        (seed_candidate, first.first_mut(), first_scores.first_mut())
+    {
+        *member = seed.map(|s| if s.is_nan() { lo } else { clamp32(s, lo, hi) });
+        *score = objective(member);
+        evaluations += 1;
+    }
+
+    // Generation g reads `population` and writes `next`; then they trade places.
+    let mut second = first;
+    let mut second_scores = first_scores;
+    let (mut population, mut next) = (&mut first, &mut second);
+    let (mut scores, mut next_scores) = (&mut first_scores, &mut second_scores);
+    for _ in 0..params.generations {
+        for i in 0..POP {
+            let ([r1, r2, r3], forced) = donors::<POP, D>(i, draws.next());
+            let current = population[i];
+            let current_score = scores[i];
+            let (x1, x2, x3) = (population[r1], population[r2], population[r3]);
+            let mut trial = current;
+            for j in 0..D {
+                let crosses = (draws.next() >> 1) < crossover;
+                if crosses || j == forced {
+                    let donor = x1[j] + mutation * (x2[j] - x3[j]);
+                    trial[j] = if donor >= lo && donor <= hi {
+                        donor
+                    } else {
+                        repair(donor, lo, hi, out_of_bounds, &mut draws)
+                    };
+                }
+            }
+            let score = objective(&trial);
+            evaluations += 1;
+            let (member, member_score) = if no_worse(score, current_score) {
+                (trial, score)
+            } else {
+                (current, current_score)
+            };
+            next[i] = member;
+            next_scores[i] = member_score;
+        }
+        core::mem::swap(&mut population, &mut next);
+        core::mem::swap(&mut scores, &mut next_scores);
+    }
+
+    // Strictly better only, so ties keep the lowest index and the result is order-stable.
+    let mut best = 0;
+    let mut best_score = scores[0];
+    for (i, &s) in scores.iter().enumerate().skip(1) {
+        if no_worse(s, best_score) && s != best_score {
+            best = i;
+            best_score = s;
+        }
+    }
+    De32Result {
+        best: population.get(best).copied().unwrap_or([lo; D]),
+        fitness: best_score,
+        evaluations,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::stream_rng;
+
+    #[test]
+    fn de_finds_a_bowl_and_keeps_the_bounds() {
+        let mut rng = stream_rng(3, 0);
+        let target = [0.3f32, 1.2, 2.5];
+        let result = minimize32::<3, 20, _, _>(
+            |x| {
+                (0..3)
+                    .map(|j| (x[j] - target[j]) * (x[j] - target[j]))
+                    .sum()
+            },
+            0.0,
+            5.0,
+            &DeParams {
+                generations: 200,
+                ..DeParams::default()
+            },
+            OutOfBounds::Clamp,
+            None,
+            &mut rng,
+        );
+        for (x, t) in result.best.iter().zip(target.iter()) {
+            assert!((x - t).abs() < 1e-3, "{:?}", result.best);
+        }
+        assert_eq!(result.evaluations, 20 + 200 * 20);
+        for rule in [OutOfBounds::Reflect, OutOfBounds::Resample] {
+            let r = minimize32::<3, 10, _, _>(
+                |x| {
+                    assert!(x.iter().all(|v| (0.5..=2.0).contains(v)), "{rule:?}");
+                    x[0]
+                },
+                0.5,
+                2.0,
+                &DeParams::default(),
+                rule,
+                Some([1.7, 0.6, 9.0]),
+                &mut rng,
+            );
+            assert!(r.fitness >= 0.5);
+        }
+    }
+
+    #[test]
+    fn crossover_threshold_is_the_rate() {
+        let scale = (1u64 << 31) as f64;
+        assert_eq!(crossover_threshold(1.0), 1 << 31);
+        assert_eq!(crossover_threshold(2.0), 1 << 31);
+        assert_eq!(crossover_threshold(0.0), 0);
+        assert_eq!(crossover_threshold(-0.5), 0);
+        assert_eq!(crossover_threshold(f64::NAN), 0);
+        // The probability of a pass is t / 2^31: within 2^-32 of the rate, for every rate.
+        for i in 0..=10_000 {
+            let rate = i as f64 / 10_000.0;
+            let p = f64::from(crossover_threshold(rate)) / scale;
+            assert!((p - rate).abs() <= 0.5 / scale, "{rate}: {p}");
+        }
+    }
+
+    /// The fraction of trial coordinates that differ from the member they replace, over
+    /// `runs` runs on a constant objective (every trial wins, so each generation is the
+    /// previous one's trials). A coordinate crosses if it is the forced one (1/3) or else
+    /// with probability CR: 1/3 + 2/3 CR in all.
+    fn crossed_fraction(rate: f64, runs: u64) -> f64 {
+        // A small F keeps donors inside the box and apart from their targets (a donor clamped
+        // to a bound can equal a target already there).
+        let params = DeParams {
+            crossover: rate,
+            mutation: 0.05,
+            ..DeParams::default()
+        };
+        let (mut changed, mut total) = (0u64, 0u64);
+        for run in 0..runs {
+            // Previous generation, this one, evaluations so far, changed, compared.
+            let log = core::cell::RefCell::new(([[0f32; 3]; 10], [[0f32; 3]; 10], 0, 0, 0));
+            minimize32::<3, 10, _, _>(
+                |x| {
+                    let mut guard = log.borrow_mut();
+                    let (previous, current, n, changed, total) = &mut *guard;
+                    if *n < 10 {
+                        previous[*n] = *x;
+                    } else {
+                        let i = (*n - 10) % 10;
+                        for j in 0..3 {
+                            *total += 1;
+                            *changed += u64::from(x[j] != previous[i][j]);
+                        }
+                        current[i] = *x;
+                        if i == 9 {
+                            *previous = *current;
+                        }
+                    }
+                    *n += 1;
+                    1.0
+                },
+                -1.0,
+                1.0,
+                &params,
+                OutOfBounds::Clamp,
+                None,
+                &mut stream_rng(run, 17),
+            );
+            let (_, _, _, c, t) = log.into_inner();
+            changed += c;
+            total += t;
+        }
+        changed as f64 / total as f64
+    }
+
+    #[test]
+    fn coordinates_cross_at_the_rate() {
+        // 100 runs of 500 trials of 3 coordinates: the standard error of the fraction is at
+        // most 0.0017; 5 of them bound it.
+        for rate in [0.0, 0.1, 0.7, 1.0] {
+            let f = crossed_fraction(rate, 100);
+            let want = (1.0 + 2.0 * rate) / 3.0;
+            assert!((f - want).abs() <= 0.0085, "{rate}: {f} vs {want}");
+        }
+    }
+
+    #[test]
+    fn donors_are_distinct_and_uniform() {
+        let mut g = DeRng::from_stream(&mut stream_rng(5, 5));
+        let mut seen = [[0u32; 10]; 3];
+        let mut forced_seen = [0u32; 3];
+        for n in 0..90_000 {
+            let target = n % 10;
+            let ([a, b, c], forced) = donors::<10, 3>(target, g.next());
+            let all = [target, a, b, c];
+            for i in 0..4 {
+                assert!(all[i] < 10);
+                for j in 0..i {
+                    assert_ne!(all[i], all[j], "{all:?}");
+                }
+            }
+            for (count, r) in seen.iter_mut().zip([a, b, c]) {
+                count[r] += 1;
+            }
+            forced_seen[forced] += 1;
+        }
+        // Each donor slot is uniform over the 9 indices other than the target: 9,000 each.
+        for count in seen.iter().flatten() {
+            assert!((8_500..9_500).contains(count), "{seen:?}");
+        }
+        for count in forced_seen {
+            assert!((29_000..31_000).contains(&count), "{forced_seen:?}");
+        }
+        // POP = 4 leaves exactly one choice for the third donor.
+        for target in 0..4 {
+            let ([a, b, c], _) = donors::<4, 1>(target, g.next());
+            let mut all = [target, a, b, c];
+            all.sort_unstable();
+            assert_eq!(all, [0, 1, 2, 3]);
+        }
+    }
+}
