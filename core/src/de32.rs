@@ -10,9 +10,9 @@
 //! The draws, in order, so that an independent implementation can replay them (the firmware
 //! simulator's f64 reference does): two draws of the caller's stream seed the [`DeRng`]; then,
 //! from it, `D` per initial member (24-bit uniforms); then per trial one draw split into the
-//! three donors and the forced coordinate, and one per coordinate deciding its crossover (taken
-//! even for the forced coordinate, so every trial draws the same count), each followed, under
-//! [`OutOfBounds::Resample`] and only if the donor left the box, by the redraw.
+//! three donors and the forced coordinate, then one per coordinate deciding its crossover
+//! (taken even for the forced coordinate, so every trial draws the same count), then, under
+//! [`OutOfBounds::Resample`] only, one per crossing coordinate whose donor left the box.
 
 use crate::de::{DeParams, OutOfBounds};
 use crate::rng::DeRng;
@@ -66,36 +66,23 @@ fn split(x: &mut u32, n: usize) -> usize {
 
 /// One trial's donors, distinct from each other and from `target` (uniform among the
 /// `POP - 1`, `POP - 2`, `POP - 3` left), and its forced coordinate, all split from one draw.
+/// The donors are drawn as distinct ranks among the `POP - 1` members other than the target
+/// (each the k-th rank not yet taken), and a rank `a` is member `a + (a >= target)`.
 #[inline]
 fn donors<const POP: usize, const D: usize>(target: usize, draw: u32) -> ([usize; 3], usize) {
     let mut x = draw;
-    let k1 = split(&mut x, POP - 1);
-    let k2 = split(&mut x, POP - 2);
-    let k3 = split(&mut x, POP - 3);
+    let a = split(&mut x, POP - 1);
+    let mut b = split(&mut x, POP - 2);
+    b += usize::from(b >= a);
+    let (low, high) = if a < b { (a, b) } else { (b, a) };
+    let mut c = split(&mut x, POP - 3);
+    c += usize::from(c >= low);
+    c += usize::from(c >= high);
     let forced = split(&mut x, D);
-    // The k-th index not yet taken: step over the taken ones in increasing order.
-    let r1 = k1 + usize::from(k1 >= target);
-    let (a, b) = if r1 < target {
-        (r1, target)
-    } else {
-        (target, r1)
-    };
-    let mut r2 = k2;
-    r2 += usize::from(r2 >= a);
-    r2 += usize::from(r2 >= b);
-    let (a, b, c) = if r2 < a {
-        (r2, a, b)
-    } else if r2 < b {
-        (a, r2, b)
-    } else {
-        (a, b, r2)
-    };
-    let mut r3 = k3;
-    r3 += usize::from(r3 >= a);
-    r3 += usize::from(r3 >= b);
-    r3 += usize::from(r3 >= c);
-    // All < POP already; the min lets the compiler drop the population's bounds checks.
-    ([r1.min(POP - 1), r2.min(POP - 1), r3.min(POP - 1)], forced)
+    // Ranks are < POP - 1, so members are < POP; the min lets the compiler drop the
+    // population's bounds checks.
+    let member = |rank: usize| (rank + usize::from(rank >= target)).min(POP - 1);
+    ([member(a), member(b), member(c)], forced)
 }
 
 /// A donor coordinate outside `[lo, hi]` brought back in by `rule`.
@@ -119,10 +106,12 @@ fn repair(value: f32, lo: f32, hi: f32, rule: OutOfBounds, draws: &mut DeRng) ->
     }
 }
 
-/// A NaN fitness never wins, so a broken objective cannot take over the population.
+/// A NaN fitness never wins, so a broken objective cannot take over the population: `candidate
+/// <= incumbent`, or the incumbent is NaN and the candidate not. (Written so that a worse
+/// candidate, the common case, is decided by one comparison.)
 #[inline]
 fn no_worse(candidate: f32, incumbent: f32) -> bool {
-    candidate <= incumbent || (incumbent.is_nan() && !candidate.is_nan())
+    !(candidate > incumbent) && !candidate.is_nan()
 }
 
 /// What a DE run found.
@@ -153,7 +142,12 @@ where
             "DE/rand/1 needs the target and three distinct others"
         )
     };
-    const { assert!(D >= 1) };
+    const {
+        assert!(
+            D >= 1 && D <= 32,
+            "a trial's crossovers are the bits of a u32"
+        )
+    };
     let mut draws = DeRng::from_stream(rng);
     let mutation = params.mutation as f32;
     let crossover = crossover_threshold(params.crossover);
@@ -188,8 +182,7 @@ where
             let (x1, x2, x3) = (population[r1], population[r2], population[r3]);
             let mut trial = current;
             for j in 0..D {
-                let crosses = (draws.next() >> 1) < crossover;
-                if crosses || j == forced {
+                if (draws.next() >> 1) < crossover || j == forced {
                     let donor = x1[j] + mutation * (x2[j] - x3[j]);
                     trial[j] = if donor >= lo && donor <= hi {
                         donor

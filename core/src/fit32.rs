@@ -94,17 +94,45 @@ fn cholesky_psd([c00, c10, c11, c20, c21, c22]: [f64; 6]) -> [f64; 6] {
     [l00, l10, l11, l20, l21, l22]
 }
 
-impl Fitness32 {
+/// `E[q']` and `E[q' q'^T]` of `q'_j = d_j^2 / s^2`, in f64: what a fit in units of `s` needs
+/// of the cluster's moments (eq. 12's terms, and the least-squares candidate's system).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UnitMoments {
+    pub mean: [f64; 3],
+    pub raw: [[f64; 3]; 3],
+}
+
+impl UnitMoments {
     /// From the f64 terms of one cluster whose RMS radius is `s > 0`.
     pub fn new(terms: &FitnessTerms, s: f64) -> Self {
         // Products by 1/s^2 and 1/s^4 rather than quotients: a division is about twice a
         // multiplication in the M4F's software f64, and this runs once per fit.
         let inv_s2 = 1.0 / (s * s);
         let inv_s4 = inv_s2 * inv_s2;
-        let mean = terms.second.map(|v| v * inv_s2);
         let f = &terms.fourth;
+        let (r10, r20, r21) = (f[1][0] * inv_s4, f[2][0] * inv_s4, f[2][1] * inv_s4);
+        Self {
+            mean: terms.second.map(|v| v * inv_s2),
+            raw: [
+                [f[0][0] * inv_s4, r10, r20],
+                [r10, f[1][1] * inv_s4, r21],
+                [r20, r21, f[2][2] * inv_s4],
+            ],
+        }
+    }
+}
+
+impl Fitness32 {
+    /// From the f64 terms of one cluster whose RMS radius is `s > 0`.
+    pub fn new(terms: &FitnessTerms, s: f64) -> Self {
+        Self::of_unit(&UnitMoments::new(terms, s), terms, s)
+    }
+
+    /// From the cluster's moments in units of `s` ([`UnitMoments::new`] of the same terms).
+    pub fn of_unit(unit: &UnitMoments, terms: &FitnessTerms, s: f64) -> Self {
+        let (mean, raw) = (unit.mean, &unit.raw);
         // Cov(q') = E[q' q'^T] - E[q'] E[q']^T, symmetric: its lower triangle, once per fit in f64.
-        let cov = |j: usize, k: usize| f[j][k] * inv_s4 - mean[j] * mean[k];
+        let cov = |j: usize, k: usize| raw[j][k] - mean[j] * mean[k];
         let lower = [
             cov(0, 0),
             cov(1, 0),

@@ -14,10 +14,10 @@
 //! square root of the arithmetic's precision, a root to the precision itself. The DE starts
 //! from this radius rounded to f32, and an independent computation (the firmware simulator's
 //! f64 reference) must find the same f32, or the two DE runs part. Newton's method on `k` runs
-//! in f32 (a few steps of about twenty FPU operations on the Cortex-M4F), then one step in f64
-//! takes the root from f32's precision to about its square, where before a golden-section
-//! search in f32 and five f64 Newton steps (software square roots and divisions) cost about
-//! 25,000 instructions.
+//! in f32 (a few steps of about twenty FPU operations on the Cortex-M4F), then one step with `k`
+//! in f64 takes the root from f32's precision to about its square (the step's size needs
+//! only f32's `k'`), where before a golden-section search in f32 and five f64 Newton steps
+//! (software square roots and divisions) cost about 25,000 instructions.
 
 /// Eq. 12 restricted to spheres (module doc), in f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -43,22 +43,17 @@ impl SphereTerms {
         }
     }
 
-    /// One Newton step on `k` in f64: the step to subtract from `w`.
-    fn newton_step64(&self, w: f64) -> f64 {
+    /// `k` in f64 (module doc), with one square root: `w^(5/2) / sqrt(e) = w^3 / sqrt(w e)`.
+    fn k64(&self, w: f64) -> f64 {
         let Self { m, q, v, h } = *self;
         let a = 1.0 - w * m;
         let slope = w * q - m * a;
-        let e = a * a + w * w * q;
-        if !(e > 0.0) {
-            // The kink of a perfect fit (q = 0, w = 1/m): no step.
-            return 0.0;
+        let we = w * (a * a + w * w * q);
+        if !(we > 0.0) {
+            // The kink of a perfect fit (q = 0, w = 1/m), as from its right (`k32`).
+            return -1.5 * v;
         }
-        let inverse_root_e = 1.0 / libm::sqrt(e);
-        let w_root = w * libm::sqrt(w);
-        let k = h * slope * (w * w_root) * inverse_root_e - 1.5 * v;
-        let dk =
-            h * w_root * (w * q * (inverse_root_e * inverse_root_e) + 2.5 * slope) * inverse_root_e;
-        k / dk
+        h * slope * (w * w * w) / libm::sqrt(we) - 1.5 * v
     }
 
     /// The radius in `[lo, hi]` (units of `s`) of the sphere minimising eq. 12.
@@ -89,7 +84,8 @@ impl SphereTerms {
                 * inverse_root_e;
             (k, dk)
         };
-        let (mut left, mut right) = ((1.0 / (hi * hi)) as f32, (1.0 / (lo * lo)) as f32);
+        let (lo32, hi32) = (lo as f32, hi as f32);
+        let (mut left, mut right) = (1.0 / (hi32 * hi32), 1.0 / (lo32 * lo32));
         if !(k32(right).0 > 0.0) {
             return lo;
         }
@@ -136,8 +132,9 @@ impl SphereTerms {
         );
         let mut w64 = f64::from(w);
         for _ in 0..4 {
-            let step = self.newton_step64(w64);
-            let next = w64 - step;
+            // k in f64 decides where the root is; its slope, in f32, only scales the step.
+            let step = (self.k64(w64) as f32) / k32(w64 as f32).1;
+            let next = w64 - f64::from(step);
             if !(next >= left && next <= right) {
                 // k jumps: the kink of e at w = 1/m, where a perfect fit's residual is zero.
                 let kink = 1.0 / m;
@@ -147,7 +144,7 @@ impl SphereTerms {
                 break;
             }
             w64 = next;
-            if !((step as f32).abs() > CONVERGED * (w64 as f32)) {
+            if !(step.abs() > CONVERGED * (w64 as f32)) {
                 break;
             }
         }

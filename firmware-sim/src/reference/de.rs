@@ -1,8 +1,8 @@
 //! DE/rand/1/bin on the direct fitness, drawing the same random numbers as the core's f32 DE
-//! (`mema_core::de32`, module doc): two PCG32 draws seed a 32-bit PCG (RXS M XS), which
-//! then gives the initial members, and per target one draw read as a binary fraction that
-//! yields the three distinct donors and the forced coordinate, then one draw per coordinate
-//! that crosses with probability CR. Everything else is computed here, in f64 and in the
+//! (`mema_core::de32`, module doc): one PCG32 draw seeds a 32-bit xorshift generator with a
+//! multiplicative output, which then gives the initial members, and per target one draw read
+//! as a binary fraction that yields the three distinct donors and the forced coordinate, then
+//! one draw per coordinate that crosses with probability CR. Everything else is computed here, in f64 and in the
 //! cloud's unit where the core searches in f32 and in units of the cluster's spread: vectors,
 //! box, start candidate.
 
@@ -16,31 +16,32 @@ use super::moments::DirectMoments;
 
 const POP: usize = mema_core::de::PAPER_POPULATION;
 
-/// PCG's RXS M XS 32/32 generator (O'Neill 2014, `pcg_output_rxs_m_xs_32_32` of the state
-/// before each LCG step), in 64-bit arithmetic reduced mod 2^32.
-struct Pcg32RxsMXs {
+/// Marsaglia's xorshift32 (shifts 13, 17, 5) whose output is the new state times Knuth's
+/// 2654435761, in 64-bit arithmetic reduced mod 2^32.
+struct XorShift32Star {
     state: u64,
-    increment: u64,
 }
 
-impl Pcg32RxsMXs {
-    /// State and stream (the odd increment) from the next two draws of the fit's PCG32.
+impl XorShift32Star {
+    /// The state from the next draw of the fit's PCG32, made odd (never zero).
     fn seeded(rng: &mut Pcg32) -> Self {
-        let state = u64::from(rng.next_u32());
-        let increment = u64::from(rng.next_u32()) | 1;
-        Self { state, increment }
+        Self {
+            state: u64::from(rng.next_u32() | 1),
+        }
     }
 
     fn next_u32(&mut self) -> u32 {
         const MOD: u64 = 1 << 32;
-        let old = self.state;
-        self.state = (old * 747_796_405 + self.increment) % MOD;
-        let word = (((old >> ((old >> 28) + 4)) ^ old) * 277_803_737) % MOD;
-        ((word >> 22) ^ word) as u32
+        let mut x = self.state;
+        x ^= (x << 13) % MOD;
+        x ^= x >> 17;
+        x ^= (x << 5) % MOD;
+        self.state = x;
+        ((x * 2_654_435_761) % MOD) as u32
     }
 }
 
-fn uniform(rng: &mut Pcg32RxsMXs) -> f64 {
+fn uniform(rng: &mut XorShift32Star) -> f64 {
     // The top 24 bits of one draw, scaled into [0, 1).
     f64::from(rng.next_u32() >> 8) / 16_777_216.0
 }
@@ -87,7 +88,7 @@ pub fn minimize(
     de: &DeParams,
     rng: &mut Pcg32,
 ) -> (Vector3<f64>, f64) {
-    let rng = &mut Pcg32RxsMXs::seeded(rng);
+    let rng = &mut XorShift32Star::seeded(rng);
     let (lo32, hi32) = ((lo / s) as f32, (hi / s) as f32);
     let clamp32 = |v: f32| v.max(lo32).min(hi32);
     let axes = |x: &[f32; 3]| Vector3::from_fn(|j, _| (f64::from(x[j]) * s).max(lo).min(hi));
