@@ -102,7 +102,7 @@ fn repair(value: f32, lo: f32, hi: f32, rule: OutOfBounds, draws: &mut DeRng) ->
                 lo
             }
         }
-        OutOfBounds::Resample => lo + unit(draws.next()) * (hi - lo),
+        OutOfBounds::Resample => lo + unit(draws.next_u32()) * (hi - lo),
     }
 }
 
@@ -156,7 +156,7 @@ where
     let mut evaluations = 0u32;
     for (member, score) in first.iter_mut().zip(first_scores.iter_mut()) {
         for x in member.iter_mut() {
-            *x = lo + unit(draws.next()) * (hi - lo);
+            *x = lo + unit(draws.next_u32()) * (hi - lo);
         }
         *score = objective(member);
         evaluations += 1;
@@ -176,13 +176,13 @@ where
     let (mut scores, mut next_scores) = (&mut first_scores, &mut second_scores);
     for _ in 0..params.generations {
         for i in 0..POP {
-            let ([r1, r2, r3], forced) = donors::<POP, D>(i, draws.next());
+            let ([r1, r2, r3], forced) = donors::<POP, D>(i, draws.next_u32());
             let current = population[i];
             let current_score = scores[i];
             let (x1, x2, x3) = (population[r1], population[r2], population[r3]);
             let mut trial = current;
             for j in 0..D {
-                if (draws.next() >> 1) < crossover || j == forced {
+                if (draws.next_u32() >> 1) < crossover || j == forced {
                     let donor = x1[j] + mutation * (x2[j] - x3[j]);
                     trial[j] = if donor >= lo && donor <= hi {
                         donor
@@ -351,7 +351,7 @@ mod tests {
         let mut forced_seen = [0u32; 3];
         for n in 0..90_000 {
             let target = n % 10;
-            let ([a, b, c], forced) = donors::<10, 3>(target, g.next());
+            let ([a, b, c], forced) = donors::<10, 3>(target, g.next_u32());
             let all = [target, a, b, c];
             for i in 0..4 {
                 assert!(all[i] < 10);
@@ -373,7 +373,7 @@ mod tests {
         }
         // POP = 4 leaves exactly one choice for the third donor.
         for target in 0..4 {
-            let ([a, b, c], _) = donors::<4, 1>(target, g.next());
+            let ([a, b, c], _) = donors::<4, 1>(target, g.next_u32());
             let mut all = [target, a, b, c];
             all.sort_unstable();
             assert_eq!(all, [0, 1, 2, 3]);

@@ -56,7 +56,7 @@ impl DeRng {
 
     /// The next 32 uniform bits.
     #[inline(always)]
-    pub fn next(&mut self) -> u32 {
+    pub fn next_u32(&mut self) -> u32 {
         let mut x = self.state;
         x ^= x << 13;
         x ^= x >> 17;
@@ -111,7 +111,7 @@ mod tests {
             state ^= (state << 13) % (1 << 32);
             state ^= state >> 17;
             state ^= (state << 5) % (1 << 32);
-            assert_eq!(g.next(), ((state * 2_654_435_761) % (1 << 32)) as u32);
+            assert_eq!(g.next_u32(), ((state * 2_654_435_761) % (1 << 32)) as u32);
         }
         // Uniform: each of 16 top-bit buckets within 5 sigma of 1/16 over 2^16 draws, and so
         // is each of the 16 x 16 pairs of consecutive draws' top nibbles; no value repeats.
@@ -121,7 +121,7 @@ mod tests {
         let mut all = [0u32; 1 << 16];
         let mut previous = 0;
         for (i, x) in all.iter_mut().enumerate() {
-            *x = g.next();
+            *x = g.next_u32();
             let top = (*x >> 28) as usize;
             buckets[top] += 1;
             if i % 2 == 1 {
