@@ -115,9 +115,9 @@ fn donors<const POP: usize, const D: usize>(target: usize, draw: u32) -> ([usize
         ranks(k, n)
     };
     let forced = split(&mut x, D);
-    // Ranks are < POP - 1, so members are < POP; the min lets the compiler drop the
-    // population's bounds checks.
-    let member = |rank: usize| (rank + usize::from(rank >= target)).min(POP - 1);
+    // Ranks are < POP - 1, so members are < POP <= SLOTS; the mask changes nothing but lets
+    // the compiler drop the population's bounds checks in one instruction.
+    let member = |rank: usize| (rank + usize::from(rank >= target)) & (SLOTS - 1);
     ([member(a), member(b), member(c)], forced)
 }
 
@@ -149,6 +149,10 @@ fn repair(value: f32, lo: f32, hi: f32, rule: OutOfBounds, draws: &mut DeRng) ->
 fn no_worse(candidate: f32, incumbent: f32) -> bool {
     !(candidate > incumbent) && !candidate.is_nan()
 }
+
+/// The population's storage: `POP <= SLOTS` members, in arrays of a power of two so that a
+/// member index is bounded by a mask (see `donors`).
+const SLOTS: usize = 16;
 
 /// One member of the population: its coordinates and their fitness, side by side so that a
 /// trial's winner is stored (and its target loaded) as one block.
@@ -183,8 +187,8 @@ where
 {
     const {
         assert!(
-            POP >= 4,
-            "DE/rand/1 needs the target and three distinct others"
+            POP >= 4 && POP <= SLOTS,
+            "DE/rand/1 needs the target and three distinct others, in SLOTS"
         )
     };
     const {
@@ -199,9 +203,9 @@ where
     let mut first = [Member {
         x: [0.0f32; D],
         score: f32::INFINITY,
-    }; POP];
+    }; SLOTS];
     let mut evaluations = 0u32;
-    for member in first.iter_mut() {
+    for member in first.iter_mut().take(POP) {
         for x in member.x.iter_mut() {
             *x = lo + unit(draws.next_u32()) * (hi - lo);
         }
@@ -220,9 +224,12 @@ where
     for _ in 0..params.generations {
         for i in 0..POP {
             let ([r1, r2, r3], forced) = donors::<POP, D>(i, draws.next_u32());
-            let current = population[i];
+            // The target goes to the next generation unless its trial wins: copied now, as one
+            // block, and overwritten by a winner.
+            next[i] = population[i];
+            let current_score = population[i].score;
             let (x1, x2, x3) = (population[r1].x, population[r2].x, population[r3].x);
-            let mut trial = current.x;
+            let mut trial = population[i].x;
             for j in 0..D {
                 if (draws.next_u32() >> 1) < crossover || j == forced {
                     let donor = x1[j] + mutation * (x2[j] - x3[j]);
@@ -235,18 +242,16 @@ where
             }
             let score = objective(&trial);
             evaluations += 1;
-            next[i] = if no_worse(score, current.score) {
-                Member { x: trial, score }
-            } else {
-                current
-            };
+            if no_worse(score, current_score) {
+                next[i] = Member { x: trial, score };
+            }
         }
         core::mem::swap(&mut population, &mut next);
     }
 
     // Strictly better only, so ties keep the lowest index and the result is order-stable.
     let mut best = population[0];
-    for member in population.iter().skip(1) {
+    for member in population.iter().take(POP).skip(1) {
         if no_worse(member.score, best.score) && member.score != best.score {
             best = *member;
         }
@@ -267,7 +272,7 @@ mod tests {
     fn de_finds_a_bowl_and_keeps_the_bounds() {
         let mut rng = stream_rng(3, 0);
         let target = [0.3f32, 1.2, 2.5];
-        let result = minimize32::<3, 20, _, _>(
+        let result = minimize32::<3, 16, _, _>(
             |x| {
                 (0..3)
                     .map(|j| (x[j] - target[j]) * (x[j] - target[j]))
@@ -286,7 +291,7 @@ mod tests {
         for (x, t) in result.best.iter().zip(target.iter()) {
             assert!((x - t).abs() < 1e-3, "{:?}", result.best);
         }
-        assert_eq!(result.evaluations, 20 + 200 * 20);
+        assert_eq!(result.evaluations, 16 + 200 * 16);
         for rule in [OutOfBounds::Reflect, OutOfBounds::Resample] {
             let r = minimize32::<3, 10, _, _>(
                 |x| {
