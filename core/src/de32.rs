@@ -229,16 +229,20 @@ where
             next[i] = population[i];
             let current_score = population[i].score;
             let (x1, x2, x3) = (population[r1].x, population[r2].x, population[r3].x);
-            let mut trial = population[i].x;
+            let current = population[i].x;
+            // Built coordinate by coordinate, so that the trial stays in FPU registers.
+            let mut trial = [0.0f32; D];
             for j in 0..D {
-                if (draws.next_u32() >> 1) < crossover || j == forced {
+                trial[j] = if (draws.next_u32() >> 1) < crossover || j == forced {
                     let donor = x1[j] + mutation * (x2[j] - x3[j]);
-                    trial[j] = if donor >= lo && donor <= hi {
+                    if donor >= lo && donor <= hi {
                         donor
                     } else {
                         repair(donor, lo, hi, out_of_bounds, &mut draws)
-                    };
-                }
+                    }
+                } else {
+                    current[j]
+                };
             }
             let score = objective(&trial);
             evaluations += 1;
