@@ -1,7 +1,8 @@
 //! Fitting one cluster's semi-axes by DE on eq. 12 (Section 3), ellipsoid or one-radius sphere.
 
 use crate::de::{DeParams, OutOfBounds, PAPER_POPULATION, minimize};
-use crate::fit32::{Fitness32, minimize32};
+use crate::de32::minimize32;
+use crate::fit32::{Fitness32, UnitMoments};
 use crate::fitness::{FitnessTerms, PAPER_ALPHA, VolumeTerm};
 use crate::geometry::{Degeneration, Entity, Point3};
 use crate::moments::CentralMoments;
@@ -98,6 +99,9 @@ struct SearchBox {
     log_space: bool,
     /// The cluster's RMS radius (or a positive stand-in): the f32 search's unit of length.
     scale: f64,
+    /// `lo` and `hi` in units of `scale`.
+    unit_lo: f64,
+    unit_hi: f64,
 }
 
 impl SearchBox {
@@ -112,18 +116,20 @@ impl SearchBox {
             SemiAxisBounds::Threshold { lower } => (lower, params.degeneration.threshold, true),
         };
         let lo = (lower * s).max(f64::MIN_POSITIVE);
+        let hi = upper.max(lo);
         Self {
             lo,
-            hi: upper.max(lo),
+            hi,
             log_space,
             scale: s,
+            unit_lo: lo / s,
+            unit_hi: hi / s,
         }
     }
 
-    /// The f32 search coordinate of semi-axis `r`: `r / s`, or its log.
-    fn coordinate32(&self, r: f64) -> f32 {
-        let x = r / self.scale;
-        (if self.log_space { libm::log(x) } else { x }) as f32
+    /// The f32 search coordinate of a semi-axis `u` in units of `s`: `u`, or its log.
+    fn coordinate32(&self, u: f64) -> f32 {
+        (if self.log_space { libm::log(u) } else { u }) as f32
     }
 
     /// The semi-axis, in units of `s`, at f32 search coordinate `x`.
@@ -140,7 +146,8 @@ impl SearchBox {
         )
     }
 
-    /// [`SearchBox::minimize`] in f32 on [`Fitness32`]: the fit the core runs.
+    /// [`SearchBox::minimize`] in f32 on [`Fitness32`]: the fit the core runs. The seed's
+    /// semi-axes are in units of `s`, as the objective's.
     fn minimize32<const D: usize, const POP: usize, R: Rng + ?Sized>(
         &self,
         objective: impl Fn(&[f32; D]) -> f32,
@@ -148,13 +155,25 @@ impl SearchBox {
         params: &FitParams,
         rng: &mut R,
     ) -> ([f64; D], u32) {
+        let (lo, hi) = (
+            self.coordinate32(self.unit_lo),
+            self.coordinate32(self.unit_hi),
+        );
+        let seed = seed.map(|r| r.map(|v| self.coordinate32(v)));
+        let (de, rule) = (&params.de, params.out_of_bounds);
         let result = minimize32::<D, POP, R, _>(
-            |x| objective(&x.map(|v| self.unit_axis32(v))),
-            self.coordinate32(self.lo),
-            self.coordinate32(self.hi),
-            &params.de,
-            params.out_of_bounds,
-            seed.map(|r| r.map(|v| self.coordinate32(v))),
+            |x| {
+                if self.log_space {
+                    objective(&exp_axes(x))
+                } else {
+                    objective(x)
+                }
+            },
+            lo,
+            hi,
+            de,
+            rule,
+            seed,
             rng,
         );
         (
@@ -192,6 +211,15 @@ impl SearchBox {
     }
 }
 
+/// The semi-axes at log-box coordinates `x`. Out of line and cold: the log box is not the
+/// default, and a call the register allocator sees as cold leaves the DE loop's registers
+/// alone on the linear path (inlined, it cost the default fit 7 instructions a trial).
+#[cold]
+#[inline(never)]
+fn exp_axes<const D: usize>(x: &[f32; D]) -> [f32; D] {
+    x.map(libm::expf)
+}
+
 /// Solves the 3x3 system `a x = b` by Gaussian elimination with partial pivoting.
 fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
     for col in 0..3 {
@@ -208,7 +236,8 @@ fn solve3(mut a: [[f64; 3]; 3], mut b: [f64; 3]) -> Option<[f64; 3]> {
         b.swap(col, pivot);
         for row in col + 1..3 {
             let factor = a[row][col] / a[col][col];
-            for k in col..3 {
+            // Column `col` below the pivot is never read again: only the columns right of it.
+            for k in col + 1..3 {
                 a[row][k] -= factor * a[col][k];
             }
             b[row] -= factor * b[col];
@@ -255,70 +284,34 @@ fn optimal_sphere_radius(terms: &FitnessTerms, lo: f64, hi: f64) -> f64 {
     clamp(1.0 / libm::sqrt(0.5 * (a + b)), lo, hi)
 }
 
-/// [`optimal_sphere_radius`] on the f32 form, in units of `s`: the candidate of the f32 search.
-fn optimal_sphere_radius32(fast: &Fitness32, lo: f32, hi: f32) -> f32 {
-    let fitness_of_weight = |w: f32| {
-        let r = 1.0 / crate::fit32::sqrt32(w);
-        fast.fitness(&[r; 3])
-    };
-    let (mut a, mut b) = (1.0 / (hi * hi), 1.0 / (lo * lo));
-    const INV_PHI: f32 = 0.618_034;
-    let mut c = b - INV_PHI * (b - a);
-    let mut d = a + INV_PHI * (b - a);
-    let (mut fc, mut fd) = (fitness_of_weight(c), fitness_of_weight(d));
-    // 48 steps shrink the bracket by 0.618^48 ~ 1e-10 of its width, past f32's resolution of
-    // the weights in the default box (1/9 to 400 in units of s).
-    for _ in 0..48 {
-        if fc <= fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - INV_PHI * (b - a);
-            fc = fitness_of_weight(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + INV_PHI * (b - a);
-            fd = fitness_of_weight(d);
-        }
-    }
-    let r = 1.0 / crate::fit32::sqrt32(0.5 * (a + b));
-    if r < lo {
-        lo
-    } else if r > hi {
-        hi
-    } else {
-        r
-    }
-}
-
-/// The optimal sphere's radius in units of `s`: found in f32, then made exact in f64.
+/// The optimal sphere's radius in units of `s`, to f64's precision (`fit32::sphere`).
 fn exact_sphere(fast: &Fitness32, search: &SearchBox) -> f64 {
-    let (lo, hi) = (search.lo / search.scale, search.hi / search.scale);
-    let start = optimal_sphere_radius32(fast, lo as f32, hi as f32);
-    fast.optimal_sphere(lo, hi, f64::from(start))
+    fast.optimal_sphere(search.unit_lo, search.unit_hi)
 }
 
 /// The f32 search's start candidate: the better, by the f32 form, of the least-squares
-/// ellipsoid and the optimal sphere, as semi-axes in the cloud's unit.
-fn moment_candidate32(moments: &CentralMoments, fast: &Fitness32, search: &SearchBox) -> [f64; 3] {
-    let s = search.scale;
+/// ellipsoid and the optimal sphere, as semi-axes in units of `s`.
+fn moment_candidate32(unit: &UnitMoments, fast: &Fitness32, search: &SearchBox) -> [f64; 3] {
     let sphere = exact_sphere(fast, search);
-    let sphere_axes = [sphere * s; 3];
-    match least_squares_semi_axes(moments, search.lo, search.hi) {
-        Some(e)
-            if fast.fitness(&e.map(|r| (r / s) as f32)) <= fast.fitness(&[sphere as f32; 3]) =>
-        {
-            e
-        }
-        _ => sphere_axes,
+    match least_squares_axes(unit.raw, unit.mean, search.unit_lo, search.unit_hi) {
+        Some(e) if fast.fitness(&e.map(|r| r as f32)) <= fast.fitness(&[sphere as f32; 3]) => e,
+        _ => [sphere; 3],
     }
 }
 
 /// Semi-axes minimising eq. 12's residual, `w = E[q q^T]^-1 E[q]`, each clamped into the box.
 fn least_squares_semi_axes(moments: &CentralMoments, lo: f64, hi: f64) -> Option<[f64; 3]> {
-    let w = solve3(moments.fourth, moments.second)?;
+    least_squares_axes(moments.fourth, moments.second, lo, hi)
+}
+
+/// [`least_squares_semi_axes`] from `E[q q^T]` and `E[q]` in any unit of length.
+fn least_squares_axes(
+    fourth: [[f64; 3]; 3],
+    second: [f64; 3],
+    lo: f64,
+    hi: f64,
+) -> Option<[f64; 3]> {
+    let w = solve3(fourth, second)?;
     Some(w.map(|w| {
         if w > 0.0 {
             clamp(1.0 / libm::sqrt(w), lo, hi)
@@ -393,10 +386,11 @@ fn search_ellipsoid<const POP: usize, R: Rng + ?Sized>(
 ) -> (FitnessTerms, SearchBox, [f64; 3], u32) {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
-    let fast = Fitness32::new(&terms, search.scale);
+    let unit = UnitMoments::new(&terms, search.scale);
+    let fast = Fitness32::of_unit(&unit, &terms, search.scale);
     let seed = match params.initialisation {
         Initialisation::Random => None,
-        Initialisation::MomentSeeded => Some(moment_candidate32(moments, &fast, &search)),
+        Initialisation::MomentSeeded => Some(moment_candidate32(&unit, &fast, &search)),
     };
     let (semi_axes, evaluations) =
         search.minimize32::<3, POP, R>(|r| fast.fitness(r), seed, params, rng);
@@ -429,10 +423,9 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
     let fast = Fitness32::new(&terms, search.scale);
-    let s = search.scale;
     let seed = match params.initialisation {
         Initialisation::Random => None,
-        Initialisation::MomentSeeded => Some([exact_sphere(&fast, &search) * s]),
+        Initialisation::MomentSeeded => Some([exact_sphere(&fast, &search)]),
     };
     let ([radius], evaluations) =
         search.minimize32::<1, POP, R>(|r| fast.fitness(&[r[0]; 3]), seed, params, rng);

@@ -97,7 +97,17 @@ fn a_cylinder_patch_degenerates_under_threshold_bounds() -> TestResult {
         },
         ..FitParams::default()
     };
+    // The spread box caps the axis at 3 s: nothing degenerates, and the long axis is z. (Where
+    // in the box it ends is DE's luck: 50 generations do not settle this flat valley, and the
+    // runs of six streams end between 0.72 and the bound, 1.05.)
     let spread = fit_ellipsoid_paper(&moments, &spread_params, &mut stream_rng(1, 0));
-    assert_eq!(spread.on_upper_bound, 1, "{:?}", spread.semi_axes);
+    let s = moments.rms_radius();
+    assert!(
+        spread.entity.weights.iter().all(|&w| w > 0.0)
+            && spread.semi_axes[2] <= 3.0 * s * (1.0 + 1e-6)
+            && spread.semi_axes[2] > 2.0 * spread.semi_axes[0].max(spread.semi_axes[1]),
+        "{:?}",
+        spread.semi_axes
+    );
     Ok(())
 }

@@ -19,6 +19,7 @@
 pub mod closest_point;
 pub mod crc32;
 pub mod de;
+pub mod de32;
 pub mod fit;
 pub mod fit32;
 pub mod fitness;

@@ -1,9 +1,10 @@
-//! DE/rand/1/bin on the direct fitness, drawing from the PCG32 stream exactly as the paper's
-//! algorithm is specified in the core (init draws, seed member, then per target two draws: one
-//! read as a binary fraction that yields the three distinct donors and the forced coordinate,
-//! one whose 10-bit slices from the top decide the crossovers), so both runs see the same
-//! random numbers. Everything else is computed here, in f64 and in the cloud's unit where
-//! the core searches in f32 and in units of the cluster's spread: vectors, box, start candidate.
+//! DE/rand/1/bin on the direct fitness, drawing the same random numbers as the core's f32 DE
+//! (`mema_core::de32`, module doc): one PCG32 draw seeds a 32-bit xorshift generator with a
+//! multiplicative output, which then gives the initial members, and per target one draw read
+//! as a binary fraction that yields the three distinct donors and the forced coordinate, then
+//! one draw per coordinate that crosses with probability CR. Everything else is computed here, in f64 and in the
+//! cloud's unit where the core searches in f32 and in units of the cluster's spread: vectors,
+//! box, start candidate.
 
 use mema_core::de::DeParams;
 use mema_core::rng::Pcg32;
@@ -15,14 +16,39 @@ use super::moments::DirectMoments;
 
 const POP: usize = mema_core::de::PAPER_POPULATION;
 
-fn uniform(rng: &mut Pcg32) -> f64 {
+/// Marsaglia's xorshift32 (shifts 13, 17, 5) whose output is the new state times Knuth's
+/// 2654435761, in 64-bit arithmetic reduced mod 2^32.
+struct XorShift32Star {
+    state: u64,
+}
+
+impl XorShift32Star {
+    /// The state from the next draw of the fit's PCG32, made odd (never zero).
+    fn seeded(rng: &mut Pcg32) -> Self {
+        Self {
+            state: u64::from(rng.next_u32() | 1),
+        }
+    }
+
+    fn next_u32(&mut self) -> u32 {
+        const MOD: u64 = 1 << 32;
+        let mut x = self.state;
+        x ^= (x << 13) % MOD;
+        x ^= x >> 17;
+        x ^= (x << 5) % MOD;
+        self.state = x;
+        ((x * 2_654_435_761) % MOD) as u32
+    }
+}
+
+fn uniform(rng: &mut XorShift32Star) -> f64 {
     // The top 24 bits of one draw, scaled into [0, 1).
     f64::from(rng.next_u32() >> 8) / 16_777_216.0
 }
 
-/// A crossover: a 10-bit slice `u` of a draw, passing with probability `rate` (`u / 2^10 <= rate`).
-fn crosses(slice: u32, rate: f64) -> bool {
-    f64::from(slice) <= rate * 1024.0
+/// A crossover: the draw's top 31 bits below CR 2^31 rounded, probability CR within 2^-32.
+fn crosses(draw: u32, rate: f64) -> bool {
+    f64::from(draw >> 1) < (rate * 2f64.powi(31)).round()
 }
 
 /// The integer part of `fraction * n`, `fraction` the draw read as a 32-bit binary fraction;
@@ -62,6 +88,7 @@ pub fn minimize(
     de: &DeParams,
     rng: &mut Pcg32,
 ) -> (Vector3<f64>, f64) {
+    let rng = &mut XorShift32Star::seeded(rng);
     let (lo32, hi32) = ((lo / s) as f32, (hi / s) as f32);
     let clamp32 = |v: f32| v.max(lo32).min(hi32);
     let axes = |x: &[f32; 3]| Vector3::from_fn(|j, _| (f64::from(x[j]) * s).max(lo).min(hi));
@@ -91,11 +118,9 @@ pub fn minimize(
             let r2 = pick(take(&mut fraction, POP - 2), &[i, r1]);
             let r3 = pick(take(&mut fraction, POP - 3), &[i, r1, r2]);
             let forced = take(&mut fraction, 3);
-            let slices = rng.next_u32();
             let mut trial = pop[i];
             for j in 0..3 {
-                let slice = (slices >> (22 - 10 * j)) & 0x3ff;
-                if j == forced || crosses(slice, de.crossover) {
+                if crosses(rng.next_u32(), de.crossover) || j == forced {
                     trial[j] = clamp32(pop[r1][j] + mutation * (pop[r2][j] - pop[r3][j]));
                 }
             }
