@@ -225,6 +225,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
         let mut best: Option<(usize, f32)> = None;
+        // Offers centre `i`; returns the squared distance a centre must not exceed to matter.
         let mut offer = |i: usize, c: &StreamCluster| {
             let d = p.distance_squared(c.center);
             let better = match best {
@@ -234,6 +235,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if d <= r2 && better {
                 best = Some((i, d));
             }
+            best.map_or(r2, |(_, d)| d)
         };
         if r2 == 0.0 {
             // Until the first merge the radius is 0 and the cells so small that every centre
@@ -243,11 +245,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 offer(i, c);
             }
         } else {
-            self.grid.for_each_within_half_cell(p, |i| {
-                if let Some(c) = self.clusters.get(i) {
-                    offer(i, c);
-                }
-            });
+            self.grid
+                .for_each_within_half_cell(p, r2, |i| match self.clusters.get(i) {
+                    Some(c) => offer(i, c),
+                    None => r2,
+                });
         }
         best.map(|(i, _)| i)
     }
