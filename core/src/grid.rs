@@ -33,6 +33,25 @@ const X: u32 = 73_856_093;
 const Y: u32 = 19_349_663;
 const Z: u32 = 83_492_791;
 
+/// A cell, then its 13 neighbours that come after it (larger x; the same x and larger y; the
+/// same x and y and larger z), as offsets: [`CentreGrid::for_each_ahead`].
+const AHEAD: [[i8; 3]; 14] = [
+    [0, 0, 0],
+    [0, 0, 1],
+    [0, 1, -1],
+    [0, 1, 0],
+    [0, 1, 1],
+    [1, -1, -1],
+    [1, -1, 0],
+    [1, -1, 1],
+    [1, 0, -1],
+    [1, 0, 0],
+    [1, 0, 1],
+    [1, 1, -1],
+    [1, 1, 0],
+    [1, 1, 1],
+];
+
 #[inline(always)]
 fn term(coordinate: i32, multiplier: u32) -> u32 {
     (coordinate as u32).wrapping_mul(multiplier)
@@ -161,10 +180,6 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
         }
     }
 
-    fn visit_cell(&self, c: [i32; 3], f: impl FnMut(usize)) {
-        self.visit_bucket(Self::bucket(c), c, f);
-    }
-
     /// Calls `f` for the centres filed in cell `c`, whose bucket is `bucket`.
     fn visit_bucket(&self, bucket: usize, c: [i32; 3], mut f: impl FnMut(usize)) {
         let mut at = self.heads.get(bucket).copied().unwrap_or(NONE);
@@ -176,21 +191,24 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
         }
     }
 
-    /// Calls `f` for every filed centre whose cell is within one cell of `p`'s on each axis
-    /// (27 cells): all centres closer to `p` than `cell`, and possibly some farther.
-    pub fn for_each_near(&self, p: Point3, mut f: impl FnMut(usize)) {
-        let c = self.cell_of(p);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let n = [
-                        c[0].saturating_add(dx),
-                        c[1].saturating_add(dy),
-                        c[2].saturating_add(dz),
-                    ];
-                    self.visit_cell(n, &mut f);
-                }
-            }
+    /// Calls `f(b, own)` for the filed centres of `p`'s cell (`own`) and of the 13 of its 26
+    /// neighbours that come after it (larger x; the same x and larger y; the same x and y and
+    /// larger z). Queried at every centre, this meets each pair of centres in adjacent cells
+    /// once, from the earlier cell, and each pair sharing a cell twice, once from each centre
+    /// (`own`): every pair closer than `cell`, and possibly some farther.
+    pub fn for_each_ahead(&self, p: Point3, mut f: impl FnMut(usize, bool)) {
+        let [cx, cy, cz] = self.cell_of(p);
+        // Past i32's cells the coordinates wrap, onto cells as far away as can be: a caller's
+        // distance test drops what it meets there, and no cell comes up twice.
+        for (t, &[dx, dy, dz]) in AHEAD.iter().enumerate() {
+            let [x, y, z] = [
+                cx.wrapping_add(dx.into()),
+                cy.wrapping_add(dy.into()),
+                cz.wrapping_add(dz.into()),
+            ];
+            let bucket = Self::bucket_of(term(x, X), term(y, Y), term(z, Z));
+            let own = t == 0;
+            self.visit_bucket(bucket, [x, y, z], |b| f(b, own));
         }
     }
 
@@ -234,14 +252,15 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
         mut f: impl FnMut(usize) -> f32,
     ) {
         let [x, y, z] = [self.axis(p.x, X), self.axis(p.y, Y), self.axis(p.z, Z)];
+        // Each cell's bound, by its mask: bit j set, the neighbour along axis j.
+        let (xy, xz, yz) = (x.bound + y.bound, x.bound + z.bound, y.bound + z.bound);
+        let bounds = [0.0, x.bound, y.bound, xy, z.bound, xz, yz, xy + z.bound];
         let mut best = limit;
-        for mask in 0..8u8 {
-            // Bit j set: the neighbour along axis j rather than p's own cell.
-            let [i, j, k] = [0, 1, 2].map(|bit| mask >> bit & 1 != 0);
-            let bound = x.bound_if(i) + y.bound_if(j) + z.bound_if(k);
+        for (mask, &bound) in bounds.iter().enumerate() {
             if bound > best {
                 continue;
             }
+            let [i, j, k] = [0, 1, 2].map(|bit| mask >> bit & 1 != 0);
             let cell = [x.cell_if(i), y.cell_if(j), z.cell_if(k)];
             let bucket = Self::bucket_of(x.term_if(i), y.term_if(j), z.term_if(k));
             self.visit_bucket(bucket, cell, |c| best = f(c));
@@ -268,11 +287,6 @@ impl Axis {
     fn term_if(&self, neighbour: bool) -> u32 {
         let [own, other] = self.term;
         if neighbour { other } else { own }
-    }
-
-    #[inline(always)]
-    fn bound_if(&self, neighbour: bool) -> f32 {
-        if neighbour { self.bound } else { 0.0 }
     }
 }
 
@@ -452,19 +466,28 @@ mod tests {
                     seen[i] = true;
                     f32::INFINITY
                 });
-                let mut near = [false; 64];
-                grid.for_each_near(p, |i| near[i] = true);
                 for (i, c) in centres.iter().enumerate() {
                     let d = libm::sqrtf(p.distance_squared(*c));
                     if d <= 0.5 * grid.cell() {
                         assert!(seen[i], "round {round}: centre {i} at {d} missed");
                     }
-                    if d < grid.cell() {
-                        assert!(
-                            near[i],
-                            "round {round}: centre {i} at {d} missed by the 27-cell query"
-                        );
+                }
+            }
+            // Every pair of centres closer than a cell, once, from the queries ahead.
+            let mut met = [[0u8; 64]; 64];
+            for (a, c) in centres.iter().enumerate() {
+                grid.for_each_ahead(*c, |b, own| {
+                    if !own || b > a {
+                        met[a.min(b)][a.max(b)] += 1;
                     }
+                });
+            }
+            for (a, ca) in centres.iter().enumerate() {
+                for (b, cb) in centres.iter().enumerate().skip(a + 1) {
+                    let close = ca.distance_squared(*cb) < grid.cell() * grid.cell();
+                    let times = met[a][b];
+                    assert!(times <= 1, "round {round}: pair {a} {b} met {times} times");
+                    assert!(!close || times == 1, "round {round}: pair {a} {b} missed");
                 }
             }
             // Move half the centres, remove one, then continue checking.
@@ -475,7 +498,7 @@ mod tests {
         }
         grid.rebuild(2.5, centres.iter().copied());
         let mut count = 0;
-        grid.for_each_near(Point3::default(), |_| count += 1);
+        grid.for_each_ahead(Point3::default(), |_, _| count += 1);
         assert!(count > 0);
     }
 }
