@@ -26,6 +26,37 @@ fn same_cell(filed: Option<&[i32; 3]>, c: &[i32; 3]) -> bool {
     filed.is_some_and(|f| f[0] == c[0] && f[1] == c[1] && f[2] == c[2])
 }
 
+// Large odd multipliers (Teschner et al.'s spatial hash) spread neighbouring cells: a cell's
+// hash is the XOR of its coordinates' terms, so a query of cells that share coordinates
+// multiplies each coordinate once.
+const X: u32 = 73_856_093;
+const Y: u32 = 19_349_663;
+const Z: u32 = 83_492_791;
+
+/// A cell, then its 13 neighbours that come after it (larger x; the same x and larger y; the
+/// same x and y and larger z), as offsets: [`CentreGrid::for_each_ahead`].
+const AHEAD: [[i8; 3]; 14] = [
+    [0, 0, 0],
+    [0, 0, 1],
+    [0, 1, -1],
+    [0, 1, 0],
+    [0, 1, 1],
+    [1, -1, -1],
+    [1, -1, 0],
+    [1, -1, 1],
+    [1, 0, -1],
+    [1, 0, 0],
+    [1, 0, 1],
+    [1, 1, -1],
+    [1, 1, 0],
+    [1, 1, 1],
+];
+
+#[inline(always)]
+fn term(coordinate: i32, multiplier: u32) -> u32 {
+    (coordinate as u32).wrapping_mul(multiplier)
+}
+
 fn cell_coordinate(v: f32, cell: f32) -> i32 {
     // Saturating float-to-int: coordinates beyond i32 cells share the edge cell, still correct.
     floor_to_i32(v / cell)
@@ -72,11 +103,13 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
     }
 
     fn bucket(c: [i32; 3]) -> usize {
-        // Large odd multipliers (Teschner et al.'s spatial hash) spread neighbouring cells.
-        let h = (c[0] as u32).wrapping_mul(73_856_093)
-            ^ (c[1] as u32).wrapping_mul(19_349_663)
-            ^ (c[2] as u32).wrapping_mul(83_492_791);
-        h as usize % G
+        Self::bucket_of(term(c[0], X), term(c[1], Y), term(c[2], Z))
+    }
+
+    /// The bucket of the cell whose coordinates have hash terms `x`, `y`, `z` ([`term`]).
+    #[inline(always)]
+    fn bucket_of(x: u32, y: u32, z: u32) -> usize {
+        (x ^ y ^ z) as usize % G
     }
 
     /// Files centre `index` at `p`.
@@ -147,8 +180,9 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
         }
     }
 
-    fn visit_cell(&self, c: [i32; 3], mut f: impl FnMut(usize)) {
-        let mut at = self.heads.get(Self::bucket(c)).copied().unwrap_or(NONE);
+    /// Calls `f` for the centres filed in cell `c`, whose bucket is `bucket`.
+    fn visit_bucket(&self, bucket: usize, c: [i32; 3], mut f: impl FnMut(usize)) {
+        let mut at = self.heads.get(bucket).copied().unwrap_or(NONE);
         while at != NONE {
             if same_cell(self.cells.get(at as usize), &c) {
                 f(at as usize);
@@ -157,49 +191,102 @@ impl<const K: usize, const G: usize> CentreGrid<K, G> {
         }
     }
 
-    /// Calls `f` for every filed centre whose cell is within one cell of `p`'s on each axis
-    /// (27 cells): all centres closer to `p` than `cell`, and possibly some farther.
-    pub fn for_each_near(&self, p: Point3, mut f: impl FnMut(usize)) {
-        let c = self.cell_of(p);
-        for dx in -1..=1 {
-            for dy in -1..=1 {
-                for dz in -1..=1 {
-                    let n = [
-                        c[0].saturating_add(dx),
-                        c[1].saturating_add(dy),
-                        c[2].saturating_add(dz),
-                    ];
-                    self.visit_cell(n, &mut f);
-                }
-            }
+    /// Calls `f(b, own)` for the filed centres of `p`'s cell (`own`) and of the 13 of its 26
+    /// neighbours that come after it (larger x; the same x and larger y; the same x and y and
+    /// larger z). Queried at every centre, this meets each pair of centres in adjacent cells
+    /// once, from the earlier cell, and each pair sharing a cell twice, once from each centre
+    /// (`own`): every pair closer than `cell`, and possibly some farther.
+    pub fn for_each_ahead(&self, p: Point3, mut f: impl FnMut(usize, bool)) {
+        let [cx, cy, cz] = self.cell_of(p);
+        // Past i32's cells the coordinates wrap, onto cells as far away as can be: a caller's
+        // distance test drops what it meets there, and no cell comes up twice.
+        for (t, &[dx, dy, dz]) in AHEAD.iter().enumerate() {
+            let [x, y, z] = [
+                cx.wrapping_add(dx.into()),
+                cy.wrapping_add(dy.into()),
+                cz.wrapping_add(dz.into()),
+            ];
+            let bucket = Self::bucket_of(term(x, X), term(y, Y), term(z, Z));
+            let own = t == 0;
+            self.visit_bucket(bucket, [x, y, z], |b| f(b, own));
         }
     }
 
-    /// Calls `f` for the centres of the 8 cells that can hold a centre within `cell / 2` of `p`.
-    pub fn for_each_within_half_cell(&self, p: Point3, mut f: impl FnMut(usize)) {
-        let c = self.cell_of(p);
-        let side = |v: f32, ci: i32| {
-            // Which neighbour along this axis: the one on the side of the cell p is nearer.
-            let frac = v / self.cell - ci as f32;
-            if frac < 0.5 {
-                ci.saturating_sub(1)
-            } else {
-                ci.saturating_add(1)
-            }
+    /// Where `v` lies along one axis: its cell, the neighbour on the side it is nearer, their
+    /// hash terms, and a lower bound on the squared distance from `v` to that neighbour.
+    #[inline(always)]
+    fn axis(&self, v: f32, multiplier: u32) -> Axis {
+        let q = v / self.cell;
+        let c = floor_to_i32(q);
+        let (other, gap) = if q - (c as f32) < 0.5 {
+            (c.saturating_sub(1), v - c as f32 * self.cell)
+        } else {
+            (c.saturating_add(1), (c as f32 + 1.0) * self.cell - v)
         };
-        let other = [side(p.x, c[0]), side(p.y, c[1]), side(p.z, c[2])];
-        for mask in 0..8u8 {
-            let pick = |axis: usize| {
-                if mask & (1 << axis) != 0 {
-                    other.get(axis)
-                } else {
-                    c.get(axis)
-                }
-            };
-            if let (Some(&x), Some(&y), Some(&z)) = (pick(0), pick(1), pick(2)) {
-                self.visit_cell([x, y, z], &mut f);
-            }
+        // The true gap can be smaller than this f32 one: a centre is filed by its rounded
+        // quotient, and the gap and the caller's distances are rounded too. Each error is
+        // within a few f32 ulps of |v| + 2 cells; 2^-19 of that is ample. Beyond 2^22 cells
+        // the cell index itself is inexact: no bound.
+        let slack = (v.abs() + 2.0 * self.cell) * (1.0 / (1u32 << 19) as f32);
+        let near = gap - slack;
+        let bound = if near > 0.0 && c.unsigned_abs() < 1 << 22 {
+            near * near
+        } else {
+            0.0
+        };
+        Axis {
+            cell: [c, other],
+            term: [term(c, multiplier), term(other, multiplier)],
+            bound,
         }
+    }
+
+    /// Calls `f` for the centres of the 8 cells that can hold a centre within `cell / 2` of `p`,
+    /// `p`'s own cell first, and skips a cell that lies farther from `p` than the squared
+    /// distance `f` last returned (`limit` before it is called): a nearest-centre search
+    /// returns its best so far and so never walks a cell that cannot hold a better centre.
+    pub fn for_each_within_half_cell(
+        &self,
+        p: Point3,
+        limit: f32,
+        mut f: impl FnMut(usize) -> f32,
+    ) {
+        let [x, y, z] = [self.axis(p.x, X), self.axis(p.y, Y), self.axis(p.z, Z)];
+        // Each cell's bound, by its mask: bit j set, the neighbour along axis j.
+        let (xy, xz, yz) = (x.bound + y.bound, x.bound + z.bound, y.bound + z.bound);
+        let bounds = [0.0, x.bound, y.bound, xy, z.bound, xz, yz, xy + z.bound];
+        let mut best = limit;
+        for (mask, &bound) in bounds.iter().enumerate() {
+            if bound > best {
+                continue;
+            }
+            let [i, j, k] = [0, 1, 2].map(|bit| mask >> bit & 1 != 0);
+            let cell = [x.cell_if(i), y.cell_if(j), z.cell_if(k)];
+            let bucket = Self::bucket_of(x.term_if(i), y.term_if(j), z.term_if(k));
+            self.visit_bucket(bucket, cell, |c| best = f(c));
+        }
+    }
+}
+
+/// One axis of a half-cell query ([`CentreGrid::axis`]): p's cell and the neighbour.
+struct Axis {
+    cell: [i32; 2],
+    term: [u32; 2],
+    /// At most the squared distance from p to the neighbour's side.
+    bound: f32,
+}
+
+impl Axis {
+    #[inline(always)]
+    fn cell_if(&self, neighbour: bool) -> i32 {
+        let [own, other] = self.cell;
+        if neighbour { other } else { own }
+    }
+
+    #[inline(always)]
+    fn term_if(&self, neighbour: bool) -> u32 {
+        let [own, other] = self.term;
+        if neighbour { other } else { own }
     }
 }
 
@@ -245,6 +332,117 @@ mod tests {
         }
     }
 
+    /// The nearest centre within half a cell (ties: the lowest index) by the pruned query, as
+    /// the mapper searches, against a scan of every centre: on random points, on points and
+    /// centres a few ulps either side of cell boundaries, near 0 and far from it.
+    #[test]
+    fn the_pruned_query_finds_the_nearest_centre() {
+        let mut s = 11u32;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s
+        };
+        for (cell, at) in [
+            (1.0f32, 0.0f32),
+            (0.37, 1000.0),
+            (2.5e-3, -20.0),
+            (64.0, 1e5),
+        ] {
+            // Coordinates on a grid of eighth cells, some nudged by a few ulps.
+            let coordinate = |next: &mut dyn FnMut() -> u32| {
+                let v = at + (next() % 48) as f32 * cell / 8.0 - 3.0 * cell;
+                match next() % 4 {
+                    0 => (0..next() % 4).fold(v, |v, _| v.next_up()),
+                    1 => (0..next() % 4).fold(v, |v, _| v.next_down()),
+                    2 => v + (next() % 1000) as f32 * cell / 8000.0,
+                    _ => v,
+                }
+            };
+            let mut grid = CentreGrid::<64, 16>::new(cell);
+            let mut centres = [Point3::default(); 64];
+            for (i, c) in centres.iter_mut().enumerate() {
+                *c = Point3::new(
+                    coordinate(&mut next),
+                    coordinate(&mut next),
+                    coordinate(&mut next),
+                );
+                grid.insert(i, *c);
+            }
+            let r2 = (0.5 * cell) * (0.5 * cell);
+            let better = |i: usize, d: f32, best: Option<(usize, f32)>| {
+                d <= r2 && best.is_none_or(|(bi, bd)| d < bd || (d == bd && i < bi))
+            };
+            for _ in 0..20_000 {
+                let p = Point3::new(
+                    coordinate(&mut next),
+                    coordinate(&mut next),
+                    coordinate(&mut next),
+                );
+                let mut scanned = None;
+                for (i, c) in centres.iter().enumerate() {
+                    let d = p.distance_squared(*c);
+                    if better(i, d, scanned) {
+                        scanned = Some((i, d));
+                    }
+                }
+                let mut searched = None;
+                grid.for_each_within_half_cell(p, r2, |i| {
+                    let d = p.distance_squared(centres[i]);
+                    if better(i, d, searched) {
+                        searched = Some((i, d));
+                    }
+                    searched.map_or(r2, |(_, d)| d)
+                });
+                assert_eq!(searched, scanned, "cell {cell} at {at}: {p:?}");
+            }
+            // The cases pruning decides: a centre just across a cell boundary from `p` and
+            // another in `p`'s cell at about the same distance, a few ulps either way.
+            let ulps = |v: f32, n: u32| match n % 7 {
+                k @ 0..3 => (0..=k).fold(v, |v, _| v.next_down()),
+                k @ 3..6 => (3..=k).fold(v, |v, _| v.next_up()),
+                _ => v,
+            };
+            let base = (at / cell).floor() * cell;
+            for _ in 0..20_000 {
+                let b = base + ((next() % 7) as f32 - 3.0) * cell;
+                let g = (1 + next() % 999) as f32 / 2000.0 * cell;
+                let below = next() % 2 == 0;
+                let x = if below { b - g } else { b + g };
+                let (y, z) = (base + 0.5 * cell, base - 1.5 * cell);
+                let across = Point3::new(ulps(b, next()), y, z);
+                let along = Point3::new(x, y + ulps((b - x).abs(), next()), z);
+                let mut grid = CentreGrid::<4, 4>::new(cell);
+                let pair = if next() % 2 == 0 {
+                    [across, along]
+                } else {
+                    [along, across]
+                };
+                for (i, c) in pair.iter().enumerate() {
+                    grid.insert(i, *c);
+                }
+                let p = Point3::new(x, y, z);
+                let mut scanned = None;
+                for (i, c) in pair.iter().enumerate() {
+                    let d = p.distance_squared(*c);
+                    if better(i, d, scanned) {
+                        scanned = Some((i, d));
+                    }
+                }
+                let mut searched = None;
+                grid.for_each_within_half_cell(p, r2, |i| {
+                    let d = p.distance_squared(pair[i]);
+                    if better(i, d, searched) {
+                        searched = Some((i, d));
+                    }
+                    searched.map_or(r2, |(_, d)| d)
+                });
+                assert_eq!(searched, scanned, "cell {cell} at {at}: {p:?} {pair:?}");
+            }
+        }
+    }
+
     #[test]
     fn finds_every_centre_within_half_a_cell_and_survives_moves() {
         let mut grid = CentreGrid::<64, 16>::new(1.0);
@@ -264,20 +462,32 @@ mod tests {
             for _ in 0..2000 {
                 let p = Point3::new(next(), next(), next());
                 let mut seen = [false; 64];
-                grid.for_each_within_half_cell(p, |i| seen[i] = true);
-                let mut near = [false; 64];
-                grid.for_each_near(p, |i| near[i] = true);
+                grid.for_each_within_half_cell(p, f32::INFINITY, |i| {
+                    seen[i] = true;
+                    f32::INFINITY
+                });
                 for (i, c) in centres.iter().enumerate() {
                     let d = libm::sqrtf(p.distance_squared(*c));
                     if d <= 0.5 * grid.cell() {
                         assert!(seen[i], "round {round}: centre {i} at {d} missed");
                     }
-                    if d < grid.cell() {
-                        assert!(
-                            near[i],
-                            "round {round}: centre {i} at {d} missed by the 27-cell query"
-                        );
+                }
+            }
+            // Every pair of centres closer than a cell, once, from the queries ahead.
+            let mut met = [[0u8; 64]; 64];
+            for (a, c) in centres.iter().enumerate() {
+                grid.for_each_ahead(*c, |b, own| {
+                    if !own || b > a {
+                        met[a.min(b)][a.max(b)] += 1;
                     }
+                });
+            }
+            for (a, ca) in centres.iter().enumerate() {
+                for (b, cb) in centres.iter().enumerate().skip(a + 1) {
+                    let close = ca.distance_squared(*cb) < grid.cell() * grid.cell();
+                    let times = met[a][b];
+                    assert!(times <= 1, "round {round}: pair {a} {b} met {times} times");
+                    assert!(!close || times == 1, "round {round}: pair {a} {b} missed");
                 }
             }
             // Move half the centres, remove one, then continue checking.
@@ -288,7 +498,7 @@ mod tests {
         }
         grid.rebuild(2.5, centres.iter().copied());
         let mut count = 0;
-        grid.for_each_near(Point3::default(), |_| count += 1);
+        grid.for_each_ahead(Point3::default(), |_, _| count += 1);
         assert!(count > 0);
     }
 }

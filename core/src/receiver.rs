@@ -50,7 +50,7 @@ pub enum Received<'r, 'i> {
     /// A frame whose points go into the map, placed by `placement`.
     Points {
         frame: Frame<&'r [u8]>,
-        placement: Placement,
+        placement: &'r Placement,
         remaining: &'i [u8],
     },
     /// A pose frame: pose `number` now holds.
@@ -91,6 +91,9 @@ pub struct Receiver {
     /// The decoder's session count when the pose was last reset.
     session: u64,
     ended: bool,
+    /// Where the points of the last points frame go: worked out once, used by every tick that
+    /// maps part of it.
+    placement: Placement,
     stats: ReceiverStats,
 }
 
@@ -118,6 +121,7 @@ impl Receiver {
             pose: Pose::START,
             session: 0,
             ended: false,
+            placement: Placement::NONE,
             stats: ReceiverStats {
                 after_end: 0,
                 poses: 0,
@@ -167,8 +171,7 @@ impl Receiver {
         self.ended = frame.end_of_stream;
         if frame.kind == Some(FrameKind::Pose) {
             if let Some(wire) = frame.pose {
-                let scale = crate::wire::unit_scale(frame.exponent).unwrap_or(f64::NAN);
-                self.pose = Pose::of_wire(frame.pose_number, &wire, scale);
+                self.pose = Pose::of_wire(frame.pose_number, &wire, frame.exponent);
                 self.stats.poses += 1;
             }
             return Received::Pose {
@@ -194,11 +197,12 @@ impl Receiver {
             // origin is written in the map file, and 0 is what a map near 0 had before.
             self.origin = Some(world.map(|v| libm::round(v / ORIGIN_CELL) * ORIGIN_CELL + 0.0));
         }
-        let placement = Placement::new(self.origin(), frame.exponent, &pose);
-        match self.decoder.held_frame() {
+        self.placement = Placement::new(self.origin(), frame.exponent, &pose);
+        let this: &'r Self = self;
+        match this.decoder.held_frame() {
             Some(frame) => Received::Points {
                 frame,
-                placement,
+                placement: &this.placement,
                 remaining,
             },
             // The decoder holds the frame it just accepted until the next feed.
@@ -207,12 +211,8 @@ impl Receiver {
     }
 
     /// Where the points of the frame [`Receiver::held_frame`] holds go.
-    pub fn placement(&self) -> Placement {
-        let (exponent, posed) = self.held_frame().map_or((0, false), |f| {
-            (f.unit_exponent(), f.version() != VERSION_1)
-        });
-        let pose = if posed { self.pose } else { Pose::START };
-        Placement::new(self.origin(), exponent, &pose)
+    pub fn placement(&self) -> &Placement {
+        &self.placement
     }
 
     /// The frame the last [`Receiver::feed`] returned, until the next `feed`: a caller can map

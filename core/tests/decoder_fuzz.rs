@@ -1,8 +1,12 @@
 //! Decoder fuzzing in the test suite: 10^6 random and mutated byte sequences, in random chunks.
-//! No panic, and every frame the decoder hands out is valid and counted. (A coverage-guided
-//! cargo-fuzz target would need nightly; this seeded loop runs on stable in CI, in ~1 s.)
+//! No panic, every frame the decoder hands out is valid and counted, and every block comes out
+//! as a plain split-decode-check of the same bytes says it should. (A coverage-guided
+//! cargo-fuzz target would need nightly; this seeded loop runs on stable in CI, in seconds.)
 
-use mema_core::wire::{Decoded, Decoder, Frame, FrameRepr, MAX_RAW_LEN, cobs_encode};
+use mema_core::wire::{
+    Decoded, Decoder, Frame, FrameError, FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN,
+    cobs_decode_in_place, cobs_encode,
+};
 
 struct XorShift(u64);
 
@@ -68,17 +72,81 @@ fn mutate(rng: &mut XorShift, bytes: &mut Vec<u8>) {
     }
 }
 
+/// What the decoder made of one block.
+#[derive(Debug, PartialEq)]
+enum Outcome {
+    Frame(Vec<u8>),
+    /// A valid frame that repeats the last one (the decoder hands out no bytes).
+    Repeat,
+    Error(FrameError),
+}
+
+/// The decoder's blocks the plain way, as an independent reference: the bytes between
+/// delimiters, refused past the largest frame, decoded by `cobs_decode_in_place`, checked by
+/// `Frame::new_checked`.
+#[derive(Default)]
+struct Reference {
+    block: Vec<u8>,
+    outcomes: Vec<Outcome>,
+}
+
+impl Reference {
+    fn feed(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if b != 0 {
+                self.block.push(b);
+                continue;
+            }
+            let mut block = std::mem::take(&mut self.block);
+            if block.len() > MAX_FRAME_LEN {
+                self.outcomes.push(Outcome::Error(FrameError::Oversized));
+            } else if !block.is_empty() {
+                self.outcomes.push(match cobs_decode_in_place(&mut block) {
+                    None => Outcome::Error(FrameError::BadCobs),
+                    Some(n) => match Frame::new_checked(&block[..n]) {
+                        Ok(_) => Outcome::Frame(block[..n].to_vec()),
+                        Err(e) => Outcome::Error(e),
+                    },
+                });
+            }
+        }
+    }
+
+    /// Checks the decoder's outcomes against this one's, and forgets both.
+    fn check(&mut self, decoded: &mut Vec<Outcome>) {
+        assert_eq!(decoded.len(), self.outcomes.len(), "{decoded:?}");
+        for (got, want) in decoded.iter().zip(&self.outcomes) {
+            match got {
+                Outcome::Repeat => assert!(matches!(want, Outcome::Frame(_)), "{want:?}"),
+                Outcome::Error(FrameError::Duplicate { .. }) => unreachable!(),
+                _ => assert_eq!(got, want),
+            }
+        }
+        decoded.clear();
+        self.outcomes.clear();
+    }
+}
+
 #[test]
 fn a_million_hostile_sequences() {
     let mut rng = XorShift(0x00C0_FFEE_D00D_F00D);
     let mut decoder = Decoder::new();
     let mut accepted = 0u64;
+    let mut reference = Reference::default();
+    let mut decoded = Vec::new();
     let sequences = 1_000_000;
     for i in 0..sequences {
         let bytes = if i % 2 == 0 {
             // Random bytes with a random share of zeros (delimiters).
-            let zero_every = 1 + rng.below(300);
-            (0..rng.below(400))
+            // Now and then a block around the largest frame's length, to reach the limit.
+            let long = rng.below(200) == 0;
+            let zero_every = if long { 5000 } else { 1 + rng.below(300) };
+            let len = if long {
+                MAX_FRAME_LEN - 100 + rng.below(200)
+            } else {
+                rng.below(400)
+            };
+            (0..len)
                 .map(|_| {
                     if rng.below(zero_every) == 0 {
                         0
@@ -95,7 +163,9 @@ fn a_million_hostile_sequences() {
         // A fresh decoder now and then; otherwise state carries across sequences, as on a link.
         if rng.below(16) == 0 {
             decoder = Decoder::new();
+            reference = Reference::default();
         }
+        reference.feed(&bytes);
         let before = *decoder.stats();
         let mut at = 0;
         while at < bytes.len() {
@@ -104,9 +174,16 @@ fn a_million_hostile_sequences() {
             loop {
                 match decoder.feed(window) {
                     Decoded::Consumed => break,
-                    Decoded::Rejected { remaining, .. } => window = remaining,
+                    Decoded::Rejected { error, remaining } => {
+                        decoded.push(match error {
+                            FrameError::Duplicate { .. } => Outcome::Repeat,
+                            e => Outcome::Error(e),
+                        });
+                        window = remaining;
+                    }
                     Decoded::Frame { frame, remaining } => {
                         let raw: &[u8] = frame.into_inner();
+                        decoded.push(Outcome::Frame(raw.to_vec()));
                         assert!(
                             Frame::new_checked(raw).is_ok(),
                             "handed out an invalid frame"
@@ -118,6 +195,7 @@ fn a_million_hostile_sequences() {
             }
             at += n;
         }
+        reference.check(&mut decoded);
         let after = decoder.stats();
         assert_eq!(after.bytes - before.bytes, bytes.len() as u64);
         let delimiters = bytes.iter().filter(|&&b| b == 0).count() as u64;
@@ -133,4 +211,34 @@ fn a_million_hostile_sequences() {
         "mutations should leave many frames intact: {accepted}"
     );
     eprintln!("decoder fuzz: {sequences} sequences, {accepted} frames accepted");
+}
+
+/// Blocks at the largest frame's length and one byte either side, as the reference splits them.
+#[test]
+fn blocks_at_the_length_limit() {
+    let mut rng = XorShift(0x5EED);
+    for len in MAX_FRAME_LEN - 1..=MAX_FRAME_LEN + 1 {
+        for _ in 0..50 {
+            let mut bytes: Vec<u8> = (0..len).map(|_| 1 + rng.below(255) as u8).collect();
+            bytes.push(0);
+            let (mut decoder, mut reference) = (Decoder::new(), Reference::default());
+            reference.feed(&bytes);
+            let mut decoded = Vec::new();
+            let mut window = &bytes[..];
+            loop {
+                match decoder.feed(window) {
+                    Decoded::Consumed => break,
+                    Decoded::Rejected { error, remaining } => {
+                        decoded.push(Outcome::Error(error));
+                        window = remaining;
+                    }
+                    Decoded::Frame { frame, remaining } => {
+                        decoded.push(Outcome::Frame(frame.into_inner().to_vec()));
+                        window = remaining;
+                    }
+                }
+            }
+            reference.check(&mut decoded);
+        }
+    }
 }

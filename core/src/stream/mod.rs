@@ -110,6 +110,10 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     frozen: heapless::Vec<FrozenEntity, F>,
     grid: CentreGrid<K, G>,
     radius: f32,
+    /// The cluster the last point went to: a scan's next point is likely nearest to it, and
+    /// offered first it lets the grid query skip the cells that cannot hold a nearer one.
+    /// Only a hint (indices move), so the nearest centre never depends on it.
+    recent: usize,
     params: StreamParams,
     stats: StreamStats,
 }
@@ -117,18 +121,24 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
 /// favours small neighbours over big ones, as k-means' objective would.
 fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
-    let (na, nb) = (count32(a), count32(b));
+    ward_of(count32(a), count32(b), d2)
+}
+
+/// [`ward`] from the clusters' counts (as f32), the same in either order.
+fn ward_of(na: f32, nb: f32, d2: f32) -> f32 {
     na * nb / (na + nb) * d2
 }
 
 /// The centre the clustering uses (nearest-centre search, merges): the f32 mean, computed in f32
 /// ([`FixedMoments::mean32`]); the map's entities take theirs from the f64 fit.
 /// A cluster's count as f32, the same value as `count as f32`: through u32 when it fits, which the
-/// FPU converts in one instruction where u64 takes a software routine.
+/// FPU converts in one instruction where u64 takes a software routine. The compiler sees that
+/// both arms agree and folds them back into the routine (216 instructions a point on the
+/// firmware): `black_box` hides the u32 from it.
 #[inline]
 fn count32(m: &FixedMoments) -> f32 {
     match u32::try_from(m.count()) {
-        Ok(n) => n as f32,
+        Ok(n) => core::hint::black_box(n) as f32,
         Err(_) => m.count() as f32,
     }
 }
@@ -148,6 +158,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             frozen: heapless::Vec::new(),
             grid: CentreGrid::new(f32::MIN_POSITIVE),
             radius: 0.0,
+            recent: 0,
             params,
             stats: StreamStats {
                 points: 0,
@@ -204,12 +215,14 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             Some(i) => {
                 observer.joined(i);
                 self.grow(i, p);
+                self.recent = i;
             }
             None => {
                 if self.clusters.len() >= self.limit() && !self.freeze_one(observer) {
                     self.merge_closest_pairs(observer);
                 }
                 self.open(p, observer);
+                self.recent = self.clusters.len().saturating_sub(1);
             }
         }
         let interval = self.params.refit_interval as u64;
@@ -225,6 +238,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
         let mut best: Option<(usize, f32)> = None;
+        // Offers centre `i`; returns the squared distance a centre must not exceed to matter.
         let mut offer = |i: usize, c: &StreamCluster| {
             let d = p.distance_squared(c.center);
             let better = match best {
@@ -234,6 +248,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if d <= r2 && better {
                 best = Some((i, d));
             }
+            best.map_or(r2, |(_, d)| d)
         };
         if r2 == 0.0 {
             // Until the first merge the radius is 0 and the cells so small that every centre
@@ -243,11 +258,15 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 offer(i, c);
             }
         } else {
-            self.grid.for_each_within_half_cell(p, |i| {
-                if let Some(c) = self.clusters.get(i) {
-                    offer(i, c);
-                }
-            });
+            let limit = match self.clusters.get(self.recent) {
+                Some(c) => offer(self.recent, c),
+                None => r2,
+            };
+            self.grid
+                .for_each_within_half_cell(p, limit, |i| match self.clusters.get(i) {
+                    Some(c) => offer(i, c),
+                    None => r2,
+                });
         }
         best.map(|(i, _)| i)
     }
@@ -294,13 +313,21 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             &[]
         };
         for (a, ca) in near.iter().enumerate() {
-            self.grid.for_each_near(ca.center, |b| {
-                if let Some(cb) = self.clusters.get(b) {
-                    let d = ca.center.distance_squared(cb.center);
-                    // Only pairs closer than a cell are all seen by the 27-cell queries.
-                    if d < cell2 {
-                        closest.offer(a, b, ward(&ca.moments, &cb.moments, d));
-                    }
+            let na = count32(&ca.moments);
+            self.grid.for_each_ahead(ca.center, |b, own| {
+                // Pairs in one cell come up from both centres: take them once, as (a, b > a).
+                if own && b <= a {
+                    return;
+                }
+                let Some(cb) = self.clusters.get(b) else {
+                    return;
+                };
+                // Each pair once, as (lower index, higher): the distance and the cost are
+                // the same either way round.
+                let d = ca.center.distance_squared(cb.center);
+                // Only pairs closer than a cell are all seen by the neighbour queries.
+                if d < cell2 {
+                    closest.offer(a.min(b), a.max(b), ward_of(na, count32(&cb.moments), d));
                 }
             });
         }

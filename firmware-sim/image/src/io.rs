@@ -56,15 +56,31 @@ pub fn print(pieces: &[&[u8]]) {
 }
 
 /// `value` in decimal, in `buf`.
+// Digits in u32 where the value fits (all of the report's do), nine at a time by a u64
+// division above: u64 arithmetic by a constant, unrolled over the buffer and over the report's
+// 27 values, was 1.5 KB of a 64 KiB part's flash.
+#[inline(never)]
 pub fn decimal(mut value: u64, buf: &mut [u8; 20]) -> &[u8] {
     let mut at = buf.len();
     loop {
-        at -= 1;
-        if let Some(d) = buf.get_mut(at) {
-            *d = b'0' + (value % 10) as u8;
+        // The low nine digits of a value past u32, zero-padded; else all of it.
+        let (mut digits, width, more) = match u32::try_from(value) {
+            Ok(v) => (v, 1, false),
+            Err(_) => ((value % 1_000_000_000) as u32, 9, true),
+        };
+        value /= 1_000_000_000;
+        let end = at;
+        loop {
+            at = at.wrapping_sub(1);
+            if let Some(d) = buf.get_mut(at) {
+                *d = b'0' + (digits % 10) as u8;
+            }
+            digits /= 10;
+            if digits == 0 && end.wrapping_sub(at) >= width {
+                break;
+            }
         }
-        value /= 10;
-        if value == 0 || at == 0 {
+        if !more {
             break;
         }
     }
