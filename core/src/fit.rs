@@ -137,6 +137,13 @@ impl SearchBox {
         if self.log_space { libm::expf(x) } else { x }
     }
 
+    /// The entity at f32 search coordinates `x`, its semi-axes in f32 ([`Entity::from_semi_axes32`]).
+    fn entity32(&self, center: Point3, x: [f32; 3], degeneration: &Degeneration) -> Entity {
+        let (s, lo, hi) = (self.scale as f32, self.lo as f32, self.hi as f32);
+        let axes = x.map(|x| crate::de32::clamp32(self.unit_axis32(x) * s, lo, hi));
+        Entity::from_semi_axes32(center, axes, degeneration)
+    }
+
     /// The semi-axis in the cloud's unit at f32 search coordinate `x`.
     fn semi_axis_of32(&self, x: f32) -> f64 {
         clamp(
@@ -147,14 +154,15 @@ impl SearchBox {
     }
 
     /// [`SearchBox::minimize`] in f32 on [`Fitness32`]: the fit the core runs. The seed's
-    /// semi-axes are in units of `s`, as the objective's.
+    /// semi-axes are in units of `s`, as the objective's; the result is the best member's
+    /// search coordinates.
     fn minimize32<const D: usize, const POP: usize, R: Rng + ?Sized>(
         &self,
         objective: impl Fn(&[f32; D]) -> f32,
         seed: Option<[f64; D]>,
         params: &FitParams,
         rng: &mut R,
-    ) -> ([f64; D], u32) {
+    ) -> ([f32; D], u32) {
         let (lo, hi) = (
             self.coordinate32(self.unit_lo),
             self.coordinate32(self.unit_hi),
@@ -176,10 +184,7 @@ impl SearchBox {
             seed,
             rng,
         );
-        (
-            result.best.map(|v| self.semi_axis_of32(v)),
-            result.evaluations,
-        )
+        (result.best, result.evaluations)
     }
 
     fn search_coordinate(&self, r: f64) -> f64 {
@@ -366,24 +371,24 @@ pub fn fit_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     params: &FitParams,
     rng: &mut R,
 ) -> Fit {
-    let (terms, search, semi_axes, evaluations) = search_ellipsoid::<POP, R>(moments, params, rng);
+    let (terms, search, best, evaluations) = search_ellipsoid::<POP, R>(moments, params, rng);
     finish(
-        moments,
         &terms,
-        semi_axes,
+        search.entity32(center_of(moments), best, &params.degeneration),
+        best.map(|x| search.semi_axis_of32(x)),
         (search.lo, search.hi),
         evaluations,
-        params,
         false,
     )
 }
 
-/// The DE search of [`fit_ellipsoid`]: its terms, box, semi-axes and evaluation count.
+/// The DE search of [`fit_ellipsoid`]: its terms, box, best search coordinates and evaluation
+/// count.
 fn search_ellipsoid<const POP: usize, R: Rng + ?Sized>(
     moments: &CentralMoments,
     params: &FitParams,
     rng: &mut R,
-) -> (FitnessTerms, SearchBox, [f64; 3], u32) {
+) -> (FitnessTerms, SearchBox, [f32; 3], u32) {
     let terms = FitnessTerms::new(moments, params.alpha, params.volume);
     let search = SearchBox::new(moments, params);
     let unit = UnitMoments::new(&terms, search.scale);
@@ -392,9 +397,9 @@ fn search_ellipsoid<const POP: usize, R: Rng + ?Sized>(
         Initialisation::Random => None,
         Initialisation::MomentSeeded => Some(moment_candidate32(&unit, &fast, &search)),
     };
-    let (semi_axes, evaluations) =
+    let (best, evaluations) =
         search.minimize32::<3, POP, R>(|r| fast.fitness(r), seed, params, rng);
-    (terms, search, semi_axes, evaluations)
+    (terms, search, best, evaluations)
 }
 
 /// The entity of [`fit_ellipsoid_paper`], the same bits, without the fit's statistics (eq. 12
@@ -405,13 +410,8 @@ pub fn fit_entity_paper<R: Rng + ?Sized>(
     params: &FitParams,
     rng: &mut R,
 ) -> Entity {
-    let (_, _, semi_axes, _) = search_ellipsoid::<PAPER_POPULATION, R>(moments, params, rng);
-    let center = Point3::new(
-        moments.mean[0] as f32,
-        moments.mean[1] as f32,
-        moments.mean[2] as f32,
-    );
-    Entity::from_semi_axes(center, semi_axes, &params.degeneration)
+    let (_, search, best, _) = search_ellipsoid::<PAPER_POPULATION, R>(moments, params, rng);
+    search.entity32(center_of(moments), best, &params.degeneration)
 }
 
 /// Fits one radius (the spherical map of Section 4.5), by the same DE on eq. 12.
@@ -427,15 +427,15 @@ pub fn fit_sphere<const POP: usize, R: Rng + ?Sized>(
         Initialisation::Random => None,
         Initialisation::MomentSeeded => Some([exact_sphere(&fast, &search)]),
     };
-    let ([radius], evaluations) =
+    let ([best], evaluations) =
         search.minimize32::<1, POP, R>(|r| fast.fitness(&[r[0]; 3]), seed, params, rng);
+    let radius = search.semi_axis_of32(best);
     finish(
-        moments,
         &terms,
+        Entity::sphere(center_of(moments), radius),
         [radius; 3],
         (search.lo, search.hi),
         evaluations,
-        params,
         true,
     )
 }
@@ -457,12 +457,11 @@ pub fn fit_ellipsoid_f64<const POP: usize, R: Rng + ?Sized>(
     let (semi_axes, evaluations) =
         search.minimize::<3, POP, R>(|r| terms.fitness(r), seed, params, rng);
     finish(
-        moments,
         &terms,
+        Entity::from_semi_axes(center_of(moments), semi_axes, &params.degeneration),
         semi_axes,
         bounds,
         evaluations,
-        params,
         false,
     )
 }
@@ -482,12 +481,11 @@ pub fn fit_sphere_f64<const POP: usize, R: Rng + ?Sized>(
     let ([radius], evaluations) =
         search.minimize::<1, POP, R>(|r| terms.sphere_fitness(r[0]), seed, params, rng);
     finish(
-        moments,
         &terms,
+        Entity::sphere(center_of(moments), radius),
         [radius; 3],
         (search.lo, search.hi),
         evaluations,
-        params,
         true,
     )
 }
@@ -496,25 +494,24 @@ pub fn fit_sphere_f64<const POP: usize, R: Rng + ?Sized>(
 /// to f32's precision (6e-8), the f64 one exactly.
 const ON_BOUND: f64 = 1e-6;
 
-fn finish(
-    moments: &CentralMoments,
-    terms: &FitnessTerms,
-    semi_axes: [f64; 3],
-    (lo, hi): (f64, f64),
-    evaluations: u32,
-    params: &FitParams,
-    sphere: bool,
-) -> Fit {
-    let center = Point3::new(
+/// The entity's centre: the cluster's mean.
+fn center_of(moments: &CentralMoments) -> Point3 {
+    Point3::new(
         moments.mean[0] as f32,
         moments.mean[1] as f32,
         moments.mean[2] as f32,
-    );
-    let entity = if sphere {
-        Entity::sphere(center, semi_axes[0])
-    } else {
-        Entity::from_semi_axes(center, semi_axes, &params.degeneration)
-    };
+    )
+}
+
+/// A fit's report: `entity` and the f64 statistics of eq. 12 at `semi_axes`.
+fn finish(
+    terms: &FitnessTerms,
+    entity: Entity,
+    semi_axes: [f64; 3],
+    (lo, hi): (f64, f64),
+    evaluations: u32,
+    sphere: bool,
+) -> Fit {
     let weights = semi_axes.map(|r| 1.0 / (r * r));
     // A sphere's three semi-axes are one radius: it counts once.
     let axes = semi_axes.iter().take(if sphere { 1 } else { 3 });

@@ -195,6 +195,49 @@ impl Entity {
         }
     }
 
+    /// [`Entity::from_semi_axes`] from f32 semi-axes, by the same rules in f32 arithmetic: the f32
+    /// search's fits (`fit`) end here, and on the Cortex-M4F the f64 form's divisions and
+    /// comparisons are software routines (about 1,600 instructions a fit).
+    pub fn from_semi_axes32(
+        center: Point3,
+        semi_axes: [f32; 3],
+        degeneration: &Degeneration,
+    ) -> Self {
+        let threshold = degeneration.threshold as f32;
+        let weight = |r: f32| {
+            let w = 1.0 / (r * r);
+            if w.is_finite() { w } else { f32::MAX }
+        };
+        let mut weights = [0.0f32; 3];
+        let mut thinnest = 0;
+        let mut smallest = semi_axes[0];
+        for (j, &r) in semi_axes.iter().enumerate() {
+            if r < smallest {
+                thinnest = j;
+                smallest = r;
+            }
+        }
+        for (j, (w, &r)) in weights.iter_mut().zip(semi_axes.iter()).enumerate() {
+            let degenerated = !(r < threshold) && j != thinnest;
+            *w = if degenerated || !(r > 0.0) {
+                0.0
+            } else {
+                weight(r)
+            };
+        }
+        if weights.iter().all(|&w| w == 0.0) {
+            let r = if smallest > 0.0 && smallest.is_finite() {
+                smallest
+            } else {
+                threshold
+            };
+            if let Some(w) = weights.get_mut(thinnest) {
+                *w = weight(r);
+            }
+        }
+        Self::axis_aligned(center, weights)
+    }
+
     /// An axis-aligned entity of these weights (the paper's, and the stored form of version 1).
     pub const fn axis_aligned(center: Point3, weights: [f32; 3]) -> Self {
         Self {
@@ -341,6 +384,32 @@ pub fn psi_inner_product(psi1: &[f64; 7], psi2: &[f64; 7]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_f32_entity_follows_the_f64_rules() {
+        let degeneration = Degeneration::default();
+        let center = Point3::new(1.0, 2.0, 3.0);
+        let mut state = 3u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            // Semi-axes from 1e-18 to 100, under and over the threshold. (Below, r^2 is
+            // subnormal in f32 and the weight, near f32's largest, loses bits.)
+            libm::powf(10.0, (state >> 8) as f32 / 16_777_216.0 * 20.0 - 18.0)
+        };
+        for i in 0..20_000 {
+            let mut r = [next(), next(), next()];
+            if i % 7 == 0 {
+                r[i % 3] = 0.0;
+            }
+            let a = Entity::from_semi_axes32(center, r, &degeneration);
+            let b = Entity::from_semi_axes(center, r.map(f64::from), &degeneration);
+            for (x, y) in a.weights.iter().zip(b.weights.iter()) {
+                // One rounding more in f32 (the square) than in f64: within two ulps.
+                let ulps = (i64::from(x.to_bits()) - i64::from(y.to_bits())).abs();
+                assert!(ulps <= 2, "{r:?}: {:?} vs {:?}", a.weights, b.weights);
+            }
+        }
+    }
 
     #[test]
     fn psi_product_equals_closed_form() {
