@@ -235,6 +235,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
+    #[inline(never)]
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
         let mut best: Option<(usize, f32)> = None;
