@@ -89,7 +89,7 @@ mod tests {
             s ^= s << 13;
             s ^= s >> 17;
             s ^= s << 5;
-            if s % 2 == 0 {
+            if s.is_multiple_of(2) {
                 let mut bytes = [0u8; 10];
                 let n = (s % 11) as usize;
                 for (k, b) in bytes.iter_mut().enumerate() {
