@@ -210,6 +210,26 @@ impl Receiver {
         }
     }
 
+    /// Feeds all of `input`, calling `points` with each points frame to map and where its
+    /// points go: the loop over [`Receiver::feed`] a caller that maps frames whole would write.
+    pub fn feed_all(&mut self, input: &[u8], mut points: impl FnMut(Frame<&[u8]>, &Placement)) {
+        let mut window = input;
+        loop {
+            window = match self.feed(window) {
+                Received::Consumed => return,
+                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => remaining,
+                Received::Points {
+                    frame,
+                    placement,
+                    remaining,
+                } => {
+                    points(frame, placement);
+                    remaining
+                }
+            };
+        }
+    }
+
     /// Where the points of the frame [`Receiver::held_frame`] holds go.
     pub fn placement(&self) -> &Placement {
         &self.placement

@@ -25,6 +25,9 @@ use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::wire::{DecoderStats, MAX_FRAME_LEN};
 
+mod ring;
+pub use ring::Ring;
+
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next lands.
 pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 
@@ -120,7 +123,7 @@ pub struct AcceptedFrame {
 /// The application state. `K` working clusters, `G` centre-hash buckets, `F` frozen entities.
 #[derive(Debug)]
 pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
-    rx: heapless::Deque<u8, RX_CAPACITY>,
+    rx: Ring<RX_CAPACITY>,
     receiver: Receiver,
     mapper: StreamMapper<K, G, F>,
     /// The next point to map of the decoder's held frame, while a frame is part mapped.
@@ -169,7 +172,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
         Self {
-            rx: heapless::Deque::new(),
+            rx: Ring::new(),
             receiver: Receiver::new(),
             mapper: StreamMapper::new(params),
             cursor: None,
@@ -189,14 +192,8 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// The receive interrupt: copies bytes into the ring; bytes past its capacity are dropped and
     /// counted, as a UART overrun drops them. Returns the bytes kept.
     pub fn on_receive(&mut self, bytes: &[u8]) -> usize {
-        let mut kept = 0;
-        for &b in bytes {
-            if self.rx.push_back(b).is_err() {
-                self.stats.ring_overruns += (bytes.len() - kept) as u64;
-                break;
-            }
-            kept += 1;
-        }
+        let kept = self.rx.push(bytes);
+        self.stats.ring_overruns += (bytes.len() - kept) as u64;
         kept
     }
 
@@ -259,8 +256,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// Feeds the ring to the decoder until it accepts a frame (true) or the ring is empty.
     fn decode_next(&mut self) -> bool {
         loop {
-            let pending = self.rx.len();
-            let (front, _) = self.rx.as_slices();
+            let front = self.rx.front();
             if front.is_empty() {
                 return false;
             }
@@ -271,7 +267,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
                 }
                 Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
             };
-            self.rx.retain_back(pending - taken);
+            self.rx.consume(taken);
             if accepted {
                 self.cursor = Some(0);
                 return true;

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use mema_core::Point3;
 use mema_core::map::EncodeError;
-use mema_core::receiver::{Received, Receiver};
+use mema_core::receiver::Receiver;
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::wire::DecoderStats;
 
@@ -171,25 +171,10 @@ fn drive<
 /// Every points frame of a clean capture, by sequence number, as the mapper receives its points
 /// (through their pose, around the receiver's origin, which the tests' captures keep at 0).
 pub fn frames_of(capture: &[u8]) -> HashMap<u32, Vec<Point3>> {
-    let mut receiver = Receiver::new();
     let mut frames = HashMap::new();
-    let mut window = capture;
-    loop {
-        match receiver.feed(window) {
-            Received::Consumed => break,
-            Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
-                window = remaining
-            }
-            Received::Points {
-                frame,
-                placement,
-                remaining,
-            } => {
-                frames.insert(frame.sequence(), placement.points(&frame).collect());
-                window = remaining;
-            }
-        }
-    }
+    Receiver::new().feed_all(capture, |frame, placement| {
+        frames.insert(frame.sequence(), placement.points(&frame).collect());
+    });
     frames
 }
 

@@ -225,8 +225,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 self.recent = self.clusters.len().saturating_sub(1);
             }
         }
-        let interval = self.params.refit_interval as u64;
-        interval > 0 && self.stats.points.is_multiple_of(interval)
+        // In u32 while the count fits: a u64 remainder is a software routine on a device.
+        let interval = self.params.refit_interval;
+        match u32::try_from(self.stats.points) {
+            Ok(points) => interval > 0 && points.is_multiple_of(interval),
+            Err(_) => interval > 0 && self.stats.points.is_multiple_of(interval.into()),
+        }
     }
 
     pub fn add_all(&mut self, points: &[Point3]) {
@@ -235,6 +239,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
+    #[inline(never)]
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
         let mut best: Option<(usize, f32)> = None;

@@ -133,41 +133,17 @@ impl Decoder {
         // Bytes before `counted` are in the stats already (idle delimiters skipped in place:
         // recursing once per idle byte overflowed a small stack on a run of zeros).
         let mut counted = 0;
-        // The block's state in locals: stores into `buf` may alias the fields to the compiler.
-        let (mut len, mut out, mut run, mut zero) = (self.len, self.out, self.run, self.zero);
-        for (i, &byte) in input.iter().enumerate() {
-            if byte != 0 {
-                if len == MAX_FRAME_LEN {
-                    self.overflowed = true;
-                    continue;
-                }
-                len += 1;
-                let value = if run == 0 {
-                    // A code byte: the zero the previous code stood for, if any, then its data.
-                    let pending = zero;
-                    run = byte - 1;
-                    zero = byte != 0xFF;
-                    if !pending {
-                        continue;
-                    }
-                    0
-                } else {
-                    run -= 1;
-                    byte
-                };
-                // The decoded block is shorter than the encoded one, so `out < len` fits.
-                if let Some(slot) = self.buf.get_mut(out) {
-                    *slot = value;
-                    out += 1;
-                }
-                continue;
-            }
-            let remaining = input.get(i + 1..).unwrap_or(&[]);
-            self.stats.bytes += (i + 1 - counted) as u64;
-            counted = i + 1;
-            let (block_len, raw_len, unfinished) = (len, out, run != 0);
-            (len, out, run, zero) = (0, 0, 0, false);
-            (self.len, self.out, self.run, self.zero) = (len, out, run, zero);
+        loop {
+            let rest = input.get(counted..).unwrap_or(&[]);
+            let Some(at) = self.accumulate(rest) else {
+                self.stats.bytes += rest.len() as u64;
+                return Decoded::Consumed;
+            };
+            let remaining = rest.get(at + 1..).unwrap_or(&[]);
+            self.stats.bytes += (at + 1) as u64;
+            counted += at + 1;
+            let (block_len, raw_len, unfinished) = (self.len, self.out, self.run != 0);
+            (self.len, self.out, self.run, self.zero) = (0, 0, 0, false);
             if core::mem::take(&mut self.overflowed) {
                 return self.reject(FrameError::Oversized, remaining);
             }
@@ -216,9 +192,54 @@ impl Decoder {
                 remaining,
             };
         }
-        self.stats.bytes += (input.len() - counted) as u64;
-        (self.len, self.out, self.run, self.zero) = (len, out, run, zero);
-        Decoded::Consumed
+    }
+
+    /// COBS-decodes `input` into the block up to its first delimiter, and returns where that is
+    /// (`None`: the input ran out first).
+    // Out of line: inlined into the frame checks, its state went to the stack.
+    #[inline(never)]
+    fn accumulate(&mut self, input: &[u8]) -> Option<usize> {
+        let Self {
+            buf,
+            len,
+            out,
+            run,
+            zero,
+            overflowed,
+            ..
+        } = self;
+        // The block's state in locals: stores into `buf` may alias the fields to the compiler.
+        let (mut l, mut o, mut r, mut z) = (*len, *out, *run, *zero);
+        let mut end = None;
+        for (i, &byte) in input.iter().enumerate() {
+            if byte == 0 {
+                end = Some(i);
+                break;
+            }
+            if l == MAX_FRAME_LEN {
+                *overflowed = true;
+                continue;
+            }
+            l += 1;
+            // The decoded block is shorter than the encoded one, so `o < l` fits in `buf`.
+            if r != 0 {
+                r -= 1;
+                if let Some(slot) = buf.get_mut(o) {
+                    *slot = byte;
+                    o += 1;
+                }
+            } else {
+                // A code byte: the zero the previous code stood for, if any, then its data.
+                if z && let Some(slot) = buf.get_mut(o) {
+                    *slot = 0;
+                    o += 1;
+                }
+                r = byte - 1;
+                z = byte != 0xFF;
+            }
+        }
+        (*len, *out, *run, *zero) = (l, o, r, z);
+        end
     }
 
     fn reject<'d, 'i>(&'d mut self, error: FrameError, remaining: &'i [u8]) -> Decoded<'d, 'i> {

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use mema_core::fit::FitParams;
-use mema_core::receiver::{Received, Receiver, ReceiverStats};
+use mema_core::receiver::{Receiver, ReceiverStats};
 use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::DecoderStats;
 
@@ -203,25 +203,12 @@ impl Link {
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
-        let mut window = chunk;
-        loop {
-            match self.receiver.feed(window) {
-                Received::Consumed => break,
-                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
-                    window = remaining
-                }
-                Received::Points {
-                    frame,
-                    placement,
-                    remaining,
-                } => {
-                    for p in placement.points(&frame) {
-                        self.mapper.add(p);
-                    }
-                    window = remaining;
-                }
+        let mapper = &mut self.mapper;
+        self.receiver.feed_all(chunk, |frame, placement| {
+            for p in placement.points(&frame) {
+                mapper.add(p);
             }
-        }
+        });
     }
 
     /// Whether the end-of-stream frame has arrived.

@@ -18,8 +18,8 @@ fn distance(c: f32, n: i64, e: i8) -> i128 {
     let d = u32::from((-e).max(0).unsigned_abs());
     let up = u32::from(e.max(0).unsigned_abs());
     let (m, k) = parts(c);
-    let c_scaled = m * 10i128.pow(d) << (k + 64);
-    let target = i128::from(n) * 10i128.pow(up) << 64;
+    let c_scaled = (m * 10i128.pow(d)) << (k + 64);
+    let target = (i128::from(n) * 10i128.pow(up)) << 64;
     (c_scaled - target).abs()
 }
 
