@@ -299,8 +299,9 @@ fn coverage_difference(a: &[[u8; 3]], b: &[[u8; 3]], width: usize) -> (usize, us
 #[test]
 fn draw_of_a_turned_scene_is_the_same_picture() {
     let r3 = rotate_30_20_10();
-    // Rops: ellipsoids and tubes; simple.las: plane pairs far from the world's origin.
-    for (name, k) in [("rops_cloud.pcd", "30"), ("simple.las", "30")] {
+    // Rops: ellipsoids and tubes (5 at k = 40; at 30 the DE of issue 13 leaves one, hidden in
+    // the iso view, so no clip shows); simple.las: plane pairs far from the world's origin.
+    for (name, k) in [("rops_cloud.pcd", "40"), ("simple.las", "30")] {
         let dir = Dir::new("draw-oriented");
         let (a, r) = map_and_turn(&dir, name, k);
         assert!(
