@@ -12,7 +12,10 @@ fn shell_points(n: usize, seed: u64, centre: [f32; 3], axes: [f32; 3]) -> [Point
         (s >> 11) as f64 / (1u64 << 53) as f64
     };
     for p in out.iter_mut().take(n) {
-        let (t, u) = (next() * 6.283, next() * 3.1416);
+        let (t, u) = (
+            next() * core::f64::consts::TAU,
+            next() * core::f64::consts::PI,
+        );
         let noise = 1.0 + (next() - 0.5) * 0.02;
         let d = [
             libm::cos(t) * libm::sin(u),
