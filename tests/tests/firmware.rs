@@ -416,9 +416,9 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
 /// point and per freeze/merge/refit as the image measured that capture under QEMU (`budget`,
 /// rounded up). The test finds the slowest processor (instructions per second) that loses no
 /// byte: there the map is the unpaced one and the longest tick is under a third of the ring's
-/// fill time. That rate is held to today's (car6 114 M/s, the demo drive 231 M/s, 5% slack; the
+/// fill time. That rate is held to today's (car6 113 M/s, the demo drive 230 M/s, 5% slack; the
 /// freezes priced after issue 13's cheaper DE fit). A 168 MHz Cortex-M4F reaches car6's at up
-/// to 1.47 cycles an instruction, not the demo drive's: its 250 freezes (a DE fit each) come in
+/// to 1.49 cycles an instruction, not the demo drive's: its 250 freezes (a DE fit each) come in
 /// one stretch that outruns a saturated link, though the average over the capture is within it
 /// (README's Firmware section: the cost per wire byte in that stretch, not any one tick, is what
 /// binds).
@@ -442,10 +442,10 @@ fn the_ring_keeps_up_with_the_link_above_a_known_rate() {
         (
             "car6",
             capture_of("car6.pcd"),
-            cost(7_700.0, 142_000.0),
-            115e6,
+            cost(7_700.0, 140_000.0),
+            113e6,
         ),
-        ("demo", demo, cost(8_300.0, 218_000.0), 232e6),
+        ("demo", demo, cost(8_300.0, 216_000.0), 230e6),
     ] {
         let play = |instructions_per_s: f64| -> PacedReport {
             let link = Link {
