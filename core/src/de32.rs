@@ -195,6 +195,7 @@ where
     let mut draws = DeRng::from_stream(rng);
     let mutation = params.mutation as f32;
     let crossover = crossover_threshold(params.crossover);
+    let clamps = out_of_bounds == OutOfBounds::Clamp;
     let mut first = [Member {
         x: [0.0f32; D],
         score: f32::INFINITY,
@@ -232,6 +233,11 @@ where
                     let donor = x1[j] + mutation * (x2[j] - x3[j]);
                     if donor >= lo && donor <= hi {
                         donor
+                    } else if clamps {
+                        // F = 1.2 sends about one donor in six out of the box on real
+                        // clusters: the default rule inline. (`repair` stays out of line at
+                        // the image's low inline thresholds: 4,400 instructions a fit at 25.)
+                        clamp32(donor, lo, hi)
                     } else {
                         repair(donor, lo, hi, out_of_bounds, &mut draws)
                     }
