@@ -19,7 +19,7 @@
 mod sphere;
 
 use crate::fitness::FitnessTerms;
-pub use sphere::SphereTerms;
+pub use sphere::{SphereEstimate, SphereTerms};
 
 /// The correctly rounded square root of an f32: the FPU's VSQRT on a hard-float ARM core,
 /// `libm::sqrtf` elsewhere (SSE's `sqrtss` on x86-64, or libm's own exact routine). Both are
@@ -162,6 +162,11 @@ impl Fitness32 {
     /// ([`SphereTerms::optimal_radius`]).
     pub fn optimal_sphere(&self, lo: f64, hi: f64) -> f64 {
         self.sphere.optimal_radius(lo, hi)
+    }
+
+    /// Eq. 12 restricted to spheres, for the optimal sphere in two steps.
+    pub fn sphere(&self) -> &SphereTerms {
+        &self.sphere
     }
 
     /// Eq. 12 at semi-axes `r' = r / s`.

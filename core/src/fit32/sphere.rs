@@ -19,33 +19,60 @@
 //! only f32's `k'`), where before a golden-section search in f32 and five f64 Newton steps
 //! (software square roots and divisions) cost about 25,000 instructions.
 
-/// Eq. 12 restricted to spheres (module doc), in f64.
+/// Eq. 12 restricted to spheres (module doc), in f64 and rounded to f32.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SphereTerms {
     m: f64,
     q: f64,
     v: f64,
     h: f64,
+    /// `m`, `q`, `m^2 + q`, `h`, `v` in f32, for the f32 steps.
+    f32s: [f32; 5],
 }
 
 /// `2^-21`: a Newton step this small, relative to `w`, leaves an error of about its square.
 const CONVERGED: f32 = 1.0 / 2_097_152.0;
 
+/// The sphere's radius to f32's precision ([`SphereTerms::estimate`]), ready to be made exact.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SphereEstimate {
+    /// A bound of the box where the minimum lies on it (exact already).
+    bound: Option<f64>,
+    /// Else the f32 root of `k` and the bracket around it.
+    w: f32,
+    left: f32,
+    right: f32,
+    lo: f64,
+    hi: f64,
+}
+
+impl SphereEstimate {
+    /// The radius in f32: within a few f32 ulps of the exact one.
+    pub fn radius32(&self) -> f32 {
+        match self.bound {
+            Some(r) => r as f32,
+            None => 1.0 / crate::fit32::sqrt32(self.w),
+        }
+    }
+}
+
 impl SphereTerms {
     /// `m = sum_j E[q'_j]`, `q = 1^T Cov(q') 1` (a rounding below zero is taken as zero), `v`
     /// the volume term's factor and `h = alpha / 2`.
     pub fn new(m: f64, q: f64, v: f64, h: f64) -> Self {
+        let q = if q > 0.0 { q } else { 0.0 };
         Self {
             m,
-            q: if q > 0.0 { q } else { 0.0 },
+            q,
             v,
             h,
+            f32s: [m as f32, q as f32, (m * m + q) as f32, h as f32, v as f32],
         }
     }
 
     /// `k` in f64 (module doc), with one square root: `w^(5/2) / sqrt(e) = w^3 / sqrt(w e)`.
     fn k64(&self, w: f64) -> f64 {
-        let Self { m, q, v, h } = *self;
+        let Self { m, q, v, h, .. } = *self;
         let a = 1.0 - w * m;
         let slope = w * q - m * a;
         let we = w * (a * a + w * w * q);
@@ -56,53 +83,65 @@ impl SphereTerms {
         h * slope * (w * w * w) / libm::sqrt(we) - 1.5 * v
     }
 
-    /// The radius in `[lo, hi]` (units of `s`) of the sphere minimising eq. 12.
-    pub fn optimal_radius(&self, lo: f64, hi: f64) -> f64 {
-        let Self { m, q, v, h } = *self;
-        let mq = m * m + q;
-        // Without a residual term (or without points) the smallest volume wins.
-        if !(h > 0.0) || !(mq > 0.0) {
-            return lo;
-        }
+    /// `k` and `k'` in f32 (module doc).
+    fn k32(&self, w: f32) -> (f32, f32) {
+        let [m, q, _, h, v] = self.f32s;
         let sqrt32 = crate::fit32::sqrt32;
-        let (m32, q32, mq32, h32, v32) = (m as f32, q as f32, mq as f32, h as f32, v as f32);
-        let k32 = |w: f32| {
-            let a = 1.0 - w * m32;
-            let slope = w * q32 - m32 * a;
-            let e = a * a + w * w * q32;
-            let w_root = w * sqrt32(w);
-            if !(e > 0.0) {
-                // The kink of a perfect fit (q = 0, w = 1/m): as if from its right, where the
-                // residual term's slope is zero; bisection then closes in on it.
-                return (-1.5 * v32, h32 * w_root * 2.5 * slope);
-            }
-            let inverse_root_e = 1.0 / sqrt32(e);
-            let k = h32 * slope * (w * w_root) * inverse_root_e - 1.5 * v32;
-            let dk = h32
-                * w_root
-                * (w * q32 * (inverse_root_e * inverse_root_e) + 2.5 * slope)
-                * inverse_root_e;
-            (k, dk)
-        };
+        let a = 1.0 - w * m;
+        let slope = w * q - m * a;
+        let e = a * a + w * w * q;
+        let w_root = w * sqrt32(w);
+        if !(e > 0.0) {
+            // The kink of a perfect fit (q = 0, w = 1/m): as if from its right, where the
+            // residual term's slope is zero; bisection then closes in on it.
+            return (-1.5 * v, h * w_root * 2.5 * slope);
+        }
+        let inverse_root_e = 1.0 / sqrt32(e);
+        let k = h * slope * (w * w_root) * inverse_root_e - 1.5 * v;
+        let dk =
+            h * w_root * (w * q * (inverse_root_e * inverse_root_e) + 2.5 * slope) * inverse_root_e;
+        (k, dk)
+    }
+
+    /// The radius in `[lo, hi]` (units of `s`) of the sphere minimising eq. 12, to f64's
+    /// precision: [`SphereTerms::estimate`] then [`SphereTerms::exact`].
+    pub fn optimal_radius(&self, lo: f64, hi: f64) -> f64 {
+        self.exact(&self.estimate(lo, hi))
+    }
+
+    /// The minimum to f32's precision, by Newton's method on `k` in f32 kept inside a bracket.
+    pub fn estimate(&self, lo: f64, hi: f64) -> SphereEstimate {
+        let [m, q, mq, h, v] = self.f32s;
+        let sqrt32 = crate::fit32::sqrt32;
         let (lo32, hi32) = (lo as f32, hi as f32);
         let (mut left, mut right) = (1.0 / (hi32 * hi32), 1.0 / (lo32 * lo32));
-        if !(k32(right).0 > 0.0) {
-            return lo;
+        let at = |bound: f64| SphereEstimate {
+            bound: Some(bound),
+            w: 0.0,
+            left,
+            right,
+            lo,
+            hi,
+        };
+        // Without a residual term (or without points) the smallest volume wins.
+        if !(self.h > 0.0) || !(self.m * self.m + self.q > 0.0) {
+            return at(lo);
         }
-        if !(k32(left).0 < 0.0) {
-            return hi;
+        if !(self.k32(right).0 > 0.0) {
+            return at(lo);
+        }
+        if !(self.k32(left).0 < 0.0) {
+            return at(hi);
         }
         // Start where the residual's minimum, w_ls = m / (m^2 + q), moves under the volume
         // term (k linearised about w_ls, where slope = 0 and e = q / (m^2 + q)).
-        let w_ls = m32 / mq32;
-        let mut w =
-            w_ls + 1.5 * v32 * sqrt32(q32 / mq32) / (h32 * mq32 * (w_ls * w_ls * sqrt32(w_ls)));
+        let w_ls = m / mq;
+        let mut w = w_ls + 1.5 * v * sqrt32(q / mq) / (h * mq * (w_ls * w_ls * sqrt32(w_ls)));
         if !(w > left && w < right) {
             w = 0.5 * (left + right);
         }
-        // Newton's method kept inside the bracket by bisection.
         for _ in 0..64 {
-            let (k, dk) = k32(w);
+            let (k, dk) = self.k32(w);
             if k < 0.0 {
                 left = w;
             } else if k > 0.0 {
@@ -122,9 +161,31 @@ impl SphereTerms {
                 break;
             }
         }
-        // Newton's steps in f64, from f32's precision to about its square, within the f32
-        // bracket widened by f32's evaluation error (a step out of it is not converging: at
-        // the kink of a perfect fit, k jumps and the bracket is the answer).
+        SphereEstimate {
+            bound: None,
+            w,
+            left,
+            right,
+            lo,
+            hi,
+        }
+    }
+
+    /// The estimate made exact: Newton's steps on `k` in f64, from f32's precision to about its
+    /// square, within the f32 bracket widened by f32's evaluation error (a step out of it is not
+    /// converging: at the kink of a perfect fit, k jumps and the bracket is the answer).
+    pub fn exact(&self, estimate: &SphereEstimate) -> f64 {
+        let SphereEstimate {
+            bound,
+            w,
+            left,
+            right,
+            lo,
+            hi,
+        } = *estimate;
+        if let Some(r) = bound {
+            return r;
+        }
         let slack = 1.0 / 1_048_576.0;
         let (left, right) = (
             f64::from(left) * (1.0 - slack),
@@ -133,11 +194,11 @@ impl SphereTerms {
         let mut w64 = f64::from(w);
         for _ in 0..4 {
             // k in f64 decides where the root is; its slope, in f32, only scales the step.
-            let step = (self.k64(w64) as f32) / k32(w64 as f32).1;
+            let step = (self.k64(w64) as f32) / self.k32(w64 as f32).1;
             let next = w64 - f64::from(step);
             if !(next >= left && next <= right) {
                 // k jumps: the kink of e at w = 1/m, where a perfect fit's residual is zero.
-                let kink = 1.0 / m;
+                let kink = 1.0 / self.m;
                 if kink >= left && kink <= right {
                     w64 = kink;
                 }

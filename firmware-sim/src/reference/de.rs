@@ -144,7 +144,7 @@ pub fn minimize(
 }
 
 /// The start candidate: the better (by direct fitness) of the least-squares ellipsoid, solved
-/// by LU, and the best sphere, found by golden section over `r`.
+/// by LU, and the best sphere (`best_sphere`: bisection on the derivative in `w = 1/r^2`).
 pub fn moment_candidate(m: &DirectMoments, f: &DirectFitness, lo: f64, hi: f64) -> Vector3<f64> {
     let sphere = Vector3::repeat(best_sphere(f, lo, hi));
     let least_squares = m

@@ -2,10 +2,12 @@
 //! - [`moments`]: mean, second and fourth central moments by direct two-pass sums, not the
 //!   core's shifted power sums;
 //! - [`fitness`]: eq. 12 as a per-point sum over the cluster, not the core's O(1) quadratic form;
-//! - [`de`]: DE/rand/1/bin driven by the same PCG32 stream as the core (the same draws in the
-//!   same order, which is what "the same random sequence" means), on that direct fitness; its
-//!   moment-derived start solves the least-squares system with nalgebra's LU and finds the best
-//!   sphere by golden section in `r` (the core searches `w = 1/r^2`);
+//! - [`de`]: DE/rand/1/bin driven by the same random numbers as the core (the cluster's PCG32
+//!   stream seeds the DE's 32-bit generator, written here apart from the core: the same draws in
+//!   the same order, which is what "the same random sequence" means), on that direct fitness;
+//!   its moment-derived start solves the least-squares system with nalgebra's LU and finds the
+//!   best sphere by bisection on the direct sum's derivative in `w = 1/r^2` (the core: Newton's
+//!   method on the moment form);
 //! - [`closest_point`]: eq. 13 by Newton's method on the Lagrange condition, safeguarded by a
 //!   bracket, not Eberly's bisection.
 
