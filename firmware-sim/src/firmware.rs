@@ -222,10 +222,9 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         let fitted = |s: &StreamStats| (s.frozen, s.merges, s.refits);
         let before = fitted(self.mapper.stats());
         let mut next = start;
-        // Indices, not `points().skip(start)`: skipping an iterator of points converts the
-        // points it skips, a third of a frame's conversions again at 32 points a tick.
-        let count = usize::from(frame.point_count());
-        for point in (start..count).filter_map(|i| placement.point(&frame, i)) {
+        // From `start`, not `points().skip(start)`: skipping an iterator of points converts
+        // the points it skips, a third of a frame's conversions again at 32 points a tick.
+        for point in frame.points_from(start).map(|raw| placement.place(raw)) {
             next += 1;
             let refit = self.mapper.ingest_observed(point, &mut ());
             let fitted_now = fitted(self.mapper.stats()) != before;

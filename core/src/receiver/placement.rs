@@ -206,13 +206,14 @@ impl Placement {
     /// points. `frame` is the frame this placement was made for.
     #[inline]
     pub fn point<T: AsRef<[u8]>>(&self, frame: &Frame<T>, i: usize) -> Option<Point3> {
-        let [x, y, z] = frame.point(i)?;
+        frame.point(i).map(|raw| self.place(raw))
+    }
+
+    /// Raw point `[x, y, z]` of the frame this placement was made for, in the map's frame.
+    #[inline]
+    pub fn place(&self, [x, y, z]: [i32; 3]) -> Point3 {
         if let Some([sx, sy, sz]) = self.shift {
-            return Some(Point3::new(
-                self.metres(x, sx),
-                self.metres(y, sy),
-                self.metres(z, sz),
-            ));
+            return Point3::new(self.metres(x, sx), self.metres(y, sy), self.metres(z, sz));
         }
         let p = [x, y, z].map(|v| self.metres(v, 0));
         let [px, py, pz] = p;
@@ -222,11 +223,7 @@ impl Placement {
         };
         let [ox, oy, oz] = self.offset32;
         let [rx, ry, rz] = r;
-        Some(Point3::new(
-            add_offset(rx, ox),
-            add_offset(ry, oy),
-            add_offset(rz, oz),
-        ))
+        Point3::new(add_offset(rx, ox), add_offset(ry, oy), add_offset(rz, oz))
     }
 
     /// Every point of `frame`, as [`Placement::point`] gives them.
@@ -234,7 +231,7 @@ impl Placement {
         &'a self,
         frame: &'a Frame<T>,
     ) -> impl Iterator<Item = Point3> + 'a {
-        (0..usize::from(frame.point_count())).filter_map(move |i| self.point(frame, i))
+        frame.points_from(0).map(|raw| self.place(raw))
     }
 
     /// Raw point `raw` in the world frame (metres, f64): where the map's origin comes from.

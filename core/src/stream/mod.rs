@@ -242,18 +242,16 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     #[inline(never)]
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         let r2 = self.radius * self.radius;
-        let mut best: Option<(usize, f32)> = None;
+        // The best so far, (index, squared distance); starting from (none, r2) makes "within
+        // r, and nearer, or as near at a lower index" one comparison.
+        let mut best = (usize::MAX, r2);
         // Offers centre `i`; returns the squared distance a centre must not exceed to matter.
         let mut offer = |i: usize, c: &StreamCluster| {
             let d = p.distance_squared(c.center);
-            let better = match best {
-                None => true,
-                Some((bi, bd)) => d < bd || (d == bd && i < bi),
-            };
-            if d <= r2 && better {
-                best = Some((i, d));
+            if d < best.1 || (d == best.1 && i < best.0) {
+                best = (i, d);
             }
-            best.map_or(r2, |(_, d)| d)
+            best.1
         };
         if r2 == 0.0 {
             // Until the first merge the radius is 0 and the cells so small that every centre
@@ -273,7 +271,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                     None => r2,
                 });
         }
-        best.map(|(i, _)| i)
+        (best.0 != usize::MAX).then_some(best.0)
     }
 
     fn grow(&mut self, i: usize, p: Point3) {

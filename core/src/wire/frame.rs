@@ -268,6 +268,20 @@ impl<T: AsRef<[u8]>> Frame<T> {
         }
     }
 
+    /// The points from `first` on, as raw integers: the loop over [`Frame::point`] without its
+    /// header reads per point.
+    pub fn points_from(&self, first: usize) -> impl Iterator<Item = [i32; 3]> + '_ {
+        let count = match self.kind() {
+            Some(FrameKind::Points) => usize::from(self.point_count()),
+            _ => 0,
+        };
+        let header = self.header_len();
+        let body = self.buffer.as_ref().get(header..header + POINT_LEN * count);
+        let body = body.unwrap_or(&[]).get(POINT_LEN * first..).unwrap_or(&[]);
+        body.chunks_exact(POINT_LEN)
+            .map(|p| [i32_at(p, 0), i32_at(p, 4), i32_at(p, 8)])
+    }
+
     /// Point `i` as raw integers, or `None` past the points present.
     pub fn point(&self, i: usize) -> Option<[i32; 3]> {
         if i >= self.point_count() as usize || self.kind() != Some(FrameKind::Points) {

@@ -23,6 +23,13 @@ fn emit_then_parse() -> TestResult {
         assert_eq!(frame.point(i), Some(*p));
     }
     assert_eq!(frame.point(3), None);
+    for first in 0..=4 {
+        assert!(
+            frame
+                .points_from(first)
+                .eq((first..3).filter_map(|i| frame.point(i)))
+        );
+    }
     let metres: [[f64; 3]; 1] = [frame.points_metres().next().or_fail("one point")?];
     assert_eq!(metres[0], [0.001, -0.002, 0.003]);
     // Byte layout, field by field (the PROTOCOL.md example).
