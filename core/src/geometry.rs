@@ -312,9 +312,11 @@ impl Entity {
                     lo = lo.min(w);
                     hi = hi.max(w);
                 }
-                // Weights go as 1/r^2, so the axis ratio is sqrt(hi/lo).
-                let ratio = libm::sqrt(hi as f64 / lo as f64);
-                if ratio <= 1.0 + sphere_tolerance {
+                // Weights go as 1/r^2, so the axis ratio is sqrt(hi/lo), compared squared and
+                // without the division: on a Cortex-M4F the square root and division in
+                // soft f64 cost about 500 instructions, for every entity a map encodes.
+                let bound = 1.0 + sphere_tolerance;
+                if f64::from(hi) <= f64::from(lo) * (bound * bound) {
                     EntityKind::Sphere
                 } else {
                     EntityKind::Ellipsoid
