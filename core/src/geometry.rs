@@ -309,14 +309,19 @@ impl Entity {
             0 => {
                 let (mut lo, mut hi) = (f32::INFINITY, 0.0f32);
                 for &w in &self.weights {
-                    lo = lo.min(w);
-                    hi = hi.max(w);
+                    // Comparisons, not `min`/`max`: those are calls on a Cortex-M4F.
+                    if w < lo {
+                        lo = w;
+                    }
+                    if w > hi {
+                        hi = w;
+                    }
                 }
                 // Weights go as 1/r^2, so the axis ratio is sqrt(hi/lo), compared squared and
-                // without the division: on a Cortex-M4F the square root and division in
-                // soft f64 cost about 500 instructions, for every entity a map encodes.
-                let bound = 1.0 + sphere_tolerance;
-                if f64::from(hi) <= f64::from(lo) * (bound * bound) {
+                // without the division, in f32: on a Cortex-M4F the square root and division
+                // in soft f64 cost about 500 instructions, for every entity a map encodes.
+                let bound = 1.0 + sphere_tolerance as f32;
+                if hi <= lo * (bound * bound) {
                     EntityKind::Sphere
                 } else {
                     EntityKind::Ellipsoid
