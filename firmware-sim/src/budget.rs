@@ -99,25 +99,45 @@ impl QemuReport {
     /// per freeze/merge/refit and per wire byte (the prices of the paced ring test).
     pub fn tick_text(&self) -> Option<String> {
         let ins = |k: &str| self.instructions(k);
-        let (plain, unit) = (ins("tick_plain_max_ticks")?, ins("tick_unit_max_ticks")?);
-        let per_point = ins("tick_plain_sum_ticks")? / self.get("tick_plain_points")?.max(1) as f64;
-        let units = self.get("unit_ticks")?;
-        let per_unit = (ins("tick_unit_sum_ticks")?
-            - per_point * self.get("tick_unit_points")? as f64)
-            / units.max(1) as f64;
+        let plain = ins("tick_plain_max_ticks")?;
+        let longest_unit = ins("tick_unit_max_ticks")?.max(ins("tick_merge_max_ticks")?);
+        let prices = self.prices()?;
+        let (fits, passes) = (self.get("unit_ticks")?, self.get("merge_ticks")?);
         let per_byte = ins("ingest_ticks")? / self.get("bytes")?.max(1) as f64;
         let fill_s = RX_CAPACITY as f64 / crate::pacing::LINK_BYTES_PER_S;
         let fill = fill_s * crate::pacing::CPU_HZ / 1.5;
         let cycles_per_byte = crate::pacing::CPU_HZ / crate::pacing::LINK_BYTES_PER_S;
         Some(format!(
-            "  ticks: {}; longest {plain:.0} instructions mapping points only (at most {}), {unit:.0} with a freeze, merge pass or refit ({units} such ticks)\n\
+            "  ticks: {}; longest {plain:.0} instructions mapping points only (at most {}), {longest_unit:.0} with a fit or a merge pass ({fits} fit ticks, {passes} merge-pass ticks)\n\
              \x20 the {RX_CAPACITY}-byte ring fills in {:.1} ms at 921,600 baud: {fill:.0} instructions at 168 MHz and 1.5 cycles each, {:.1}x the longest tick\n\
-             \x20 per point (point-only ticks) {per_point:.0} instructions, per freeze/merge/refit {per_unit:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n",
+             \x20 per point (point-only ticks) {:.0} instructions, per fit (freeze or refit) {:.0}, per merge pass {:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n",
             self.get("ticks")?,
             crate::firmware::TICK_POINTS,
             fill_s * 1e3,
-            fill / plain.max(unit),
+            fill / plain.max(longest_unit),
+            prices.per_point,
+            prices.per_fit,
+            prices.per_merge_pass,
         ))
+    }
+
+    /// The paced ring's prices ([`crate::pacing::TickCost`]): per point from the point-only
+    /// ticks, per fit and per merge pass from their ticks less their points.
+    pub fn prices(&self) -> Option<crate::pacing::TickCost> {
+        let ins = |k: &str| self.instructions(k);
+        let per_point = ins("tick_plain_sum_ticks")? / self.get("tick_plain_points")?.max(1) as f64;
+        let unit = |kind: &str, count: &str| -> Option<f64> {
+            let points = self.get(&format!("tick_{kind}_points"))? as f64;
+            Some(
+                (ins(&format!("tick_{kind}_sum_ticks"))? - per_point * points)
+                    / self.get(count)?.max(1) as f64,
+            )
+        };
+        Some(crate::pacing::TickCost {
+            per_point,
+            per_fit: unit("unit", "unit_ticks")?,
+            per_merge_pass: unit("merge", "merge_ticks")?,
+        })
     }
 
     /// Instructions of `finish` (every cluster refitted) and the map's encoding.

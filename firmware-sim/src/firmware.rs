@@ -22,7 +22,7 @@ use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
 use mema_core::map::EncodeError;
 use mema_core::receiver::{Received, Receiver, ReceiverStats};
-use mema_core::stream::{StreamMapper, StreamModel, StreamParams, StreamStats};
+use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::wire::{DecoderStats, MAX_FRAME_LEN};
 
 mod ring;
@@ -93,6 +93,7 @@ pub const fn model_params(
         refit_interval: REFIT_INTERVAL,
         tolerance: 0.0,
         model,
+        pacing: Pacing::DEVICE,
     }
 }
 

@@ -1,8 +1,8 @@
 //! The receive ring against the link's clock (issue 13). Bytes arrive at the line rate whether
 //! or not the main loop is ready; each tick takes what its work costs on the target, and the
 //! bytes that arrive meanwhile land in the ring or, when it is full, are lost (as a UART overrun
-//! loses them). A tick's cost is its points and its freeze, merge pass or refit (at most one, see
-//! [`Firmware::tick`]) priced per unit; the prices are the image's, measured under QEMU
+//! loses them). A tick's cost is its points and its fit (a freeze or a refit) or merge pass (at
+//! most one, see [`Firmware::tick`]), each at its price; the prices are the image's, measured under QEMU
 //! (`mema-firmware-sim budget` prints them), so this is a model of the device, not a run of it.
 
 use mema_core::map::EncodeError;
@@ -14,12 +14,13 @@ pub const LINK_BYTES_PER_S: f64 = 92_160.0;
 /// The issue's Cortex-M4F.
 pub const CPU_HZ: f64 = 168e6;
 
-/// Instructions a tick costs on the target: per point mapped, and per freeze, merge pass or
-/// refit (a unit) on top.
+/// Instructions a tick costs on the target: per point mapped, and per fit (a freeze or a
+/// refit) or merge pass on top.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TickCost {
     pub per_point: f64,
-    pub per_unit: f64,
+    pub per_fit: f64,
+    pub per_merge_pass: f64,
 }
 
 /// The link and the processor behind it.
@@ -67,13 +68,19 @@ pub fn run_paced<const K: usize, const G: usize, const F: usize>(
             ring_peak = ring_peak.max(firmware.pending());
             let work = |f: &Firmware<K, G, F>| {
                 let s = f.mapper_stats();
-                (s.points, (s.frozen, s.merges, s.refits))
+                (s.points, s.merges, s.frozen + s.refits)
             };
-            let (points, units) = work(firmware);
+            let (points, merges, fits) = work(firmware);
             firmware.tick(|_| {});
-            let (after, units_after) = work(firmware);
-            let unit = if units_after != units { 1.0 } else { 0.0 };
-            let cost = (after - points) as f64 * link.cost.per_point + unit * link.cost.per_unit;
+            let (points_after, merges_after, fits_after) = work(firmware);
+            let unit = if merges_after != merges {
+                link.cost.per_merge_pass
+            } else if fits_after != fits {
+                link.cost.per_fit
+            } else {
+                0.0
+            };
+            let cost = (points_after - points) as f64 * link.cost.per_point + unit;
             let dt = cost / link.instructions_per_s;
             longest = longest.max(dt);
             now += dt;

@@ -25,10 +25,12 @@ use crate::shell::ShellParams;
 
 pub mod freeze;
 mod observe;
+pub mod pacing;
 mod pairs;
 pub mod shells;
 pub use freeze::FrozenEntity;
 pub use observe::Observer;
+pub use pacing::Pacing;
 use pairs::{ClosestPairs, MAX_MERGE_BATCH};
 
 /// How a cluster becomes its entity.
@@ -72,6 +74,8 @@ pub struct StreamParams {
     /// neighbours while they stay under it, so k follows from the tolerance. 0: fixed capacity.
     pub tolerance: f64,
     pub model: StreamModel,
+    /// What freezes and merge passes cost in points of credit ([`pacing`]).
+    pub pacing: Pacing,
 }
 
 /// One cluster: its moments, running centre and latest fit.
@@ -100,6 +104,9 @@ pub struct StreamStats {
     pub forced_merges: u64,
     /// Clusters frozen into fitted entities.
     pub frozen: u64,
+    /// Points that joined their nearest centre beyond the join radius because the pacing's
+    /// credit could not pay for room ([`pacing`]).
+    pub paced_joins: u64,
 }
 
 /// The streaming mapper with capacity `K`, a `G`-bucket spatial hash over the centres, and room
@@ -114,6 +121,8 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     /// offered first it lets the grid query skip the cells that cannot hold a nearer one.
     /// Only a hint (indices move), so the nearest centre never depends on it.
     recent: usize,
+    /// Pacing credit saved, in points.
+    credit: u32,
     params: StreamParams,
     stats: StreamStats,
 }
@@ -159,6 +168,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             grid: CentreGrid::new(f32::MIN_POSITIVE),
             radius: 0.0,
             recent: 0,
+            credit: 0,
             params,
             stats: StreamStats {
                 points: 0,
@@ -168,6 +178,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 grid_rebuilds: 0,
                 forced_merges: 0,
                 frozen: 0,
+                paced_joins: 0,
             },
         }
     }
@@ -211,16 +222,23 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         }
         self.stats.points += 1;
-        match self.nearest_within_radius(p) {
+        self.credit = self.params.pacing.earn(self.credit);
+        let full = self.clusters.len() >= self.limit();
+        let join = match self.nearest_within_radius(p) {
+            Some(i) => Some(i),
+            None if full && !self.make_room(observer) => {
+                self.stats.paced_joins += 1;
+                self.nearest_within(p, f32::INFINITY)
+            }
+            None => None,
+        };
+        match join {
             Some(i) => {
                 observer.joined(i);
                 self.grow(i, p);
                 self.recent = i;
             }
             None => {
-                if self.clusters.len() >= self.limit() && !self.freeze_one(observer) {
-                    self.merge_closest_pairs(observer);
-                }
                 self.open(p, observer);
                 self.recent = self.clusters.len().saturating_sub(1);
             }
@@ -239,9 +257,32 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
+    /// Frees a working slot by a freeze, else a merge pass, as far as the pacing's credit
+    /// pays; false if it could not. Out of line: at most once a point, and the image's flash
+    /// is short.
     #[inline(never)]
+    fn make_room(&mut self, observer: &mut impl Observer) -> bool {
+        let pacing = self.params.pacing;
+        if self.credit >= pacing.freeze && self.freeze_one(observer) {
+            self.credit -= pacing.freeze;
+            return true;
+        }
+        if self.credit >= pacing.merge_pass {
+            self.credit -= pacing.merge_pass;
+            self.merge_closest_pairs(observer);
+            return true;
+        }
+        false
+    }
+
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
-        let r2 = self.radius * self.radius;
+        self.nearest_within(p, self.radius * self.radius)
+    }
+
+    /// The nearest centre within `sqrt(r2)` (ties: the lowest index); `r2` infinite: at any
+    /// distance, for a point the pacing could not make room for.
+    #[inline(never)]
+    fn nearest_within(&self, p: Point3, r2: f32) -> Option<usize> {
         // The best so far, (index, squared distance); starting from (none, r2) makes "within
         // r, and nearer, or as near at a lower index" one comparison.
         let mut best = (usize::MAX, r2);
@@ -253,10 +294,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
             best.1
         };
-        if r2 == 0.0 {
+        if r2 == 0.0 || r2 == f32::INFINITY {
             // Until the first merge the radius is 0 and the cells so small that every centre
             // is filed in one saturated cell: the grid would walk that whole chain 8 times, so
             // one pass over the centres is cheaper, and finds the same (coincident) centres.
+            // At any distance, the cells do not bound the search: the same pass.
             for (i, c) in self.clusters.iter().enumerate() {
                 offer(i, c);
             }

@@ -10,6 +10,7 @@ fn params(max_clusters: usize) -> StreamParams {
         refit_interval: 64,
         tolerance: 0.0,
         model: StreamModel::Paper,
+        pacing: Pacing::NONE,
     }
 }
 
@@ -239,4 +240,69 @@ fn shells_give_the_same_map_whatever_the_batching() {
     pieces.finish();
     assert!(!whole.frozen().is_empty());
     assert!(whole.entities().eq(pieces.entities()));
+}
+
+/// Points that are all new ground: along a line, each step 1% longer than the last, so no
+/// point lies within the join radius that merging the earlier ones gave.
+fn receding_line() -> [Point3; 3000] {
+    let mut pts = [Point3::default(); 3000];
+    let (mut x, mut step) = (0.0f32, 0.01f32);
+    for (i, p) in pts.iter_mut().enumerate() {
+        x += step;
+        step *= 1.01;
+        *p = Point3::new(x, 0.1 * (i % 7) as f32, 0.0);
+    }
+    pts
+}
+
+#[test]
+fn pacing_bounds_the_costly_steps_by_the_points() {
+    let pts = receding_line();
+    let run = |pacing: Pacing| {
+        let mut m = StreamMapper::<8, 64, 64>::new(StreamParams {
+            pacing,
+            ..frozen_params(8, 64)
+        });
+        let mut passes = 0u64;
+        let mut worst = 0u64;
+        let (mut window, mut window_points) = (0u64, 0u64);
+        for &p in &pts {
+            let (frozen, merges) = (m.stats().frozen, m.stats().merges);
+            m.add(p);
+            let pass = u64::from(m.stats().merges > merges);
+            passes += pass;
+            // Credits spent in each stretch of 100 points, against what it earned plus the burst.
+            window += (m.stats().frozen - frozen) * u64::from(pacing.freeze)
+                + pass * u64::from(pacing.merge_pass);
+            window_points += 1;
+            if window_points == 100 {
+                worst = worst.max(window);
+                (window, window_points) = (0, 0);
+            }
+        }
+        (
+            m.stats().frozen,
+            passes,
+            m.stats().paced_joins,
+            worst,
+            m.stats().points,
+        )
+    };
+    let (frozen, passes, joins, _, _) = run(Pacing::NONE);
+    // Unpaced, the new ground asks for more freezes and merge passes than the points pay for.
+    let demanded =
+        frozen * u64::from(Pacing::DEVICE.freeze) + passes * u64::from(Pacing::DEVICE.merge_pass);
+    assert!(
+        demanded > 3 * pts.len() as u64 && joins == 0,
+        "{frozen} {passes}"
+    );
+    let device = Pacing::DEVICE;
+    let (frozen, passes, joins, worst, points) = run(device);
+    let spent = frozen * u64::from(device.freeze) + passes * u64::from(device.merge_pass);
+    assert!(
+        spent <= pts.len() as u64 + u64::from(device.burst),
+        "{spent}"
+    );
+    assert!(worst <= 100 + u64::from(device.burst), "{worst}");
+    assert_eq!(points, pts.len() as u64);
 }

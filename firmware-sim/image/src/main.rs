@@ -154,9 +154,14 @@ fn run() -> Result<(), &'static str> {
         io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
 
     let mut chunk = [0u8; 256];
-    // Ticks that only mapped points, and ticks that also froze, merged or refitted (at most one
-    // of those per tick): the longest, and the sums the per-point and per-unit costs come from.
-    let (mut plain, mut unit) = (TickTimes::default(), TickTimes::default());
+    // Ticks that only mapped points, ticks that also fitted (a freeze or a refit) and ticks that
+    // also ran a merge pass (at most one of those per tick): the longest, and the sums the
+    // per-point, per-fit and per-merge-pass prices come from.
+    let (mut plain, mut unit, mut merge) = (
+        TickTimes::default(),
+        TickTimes::default(),
+        TickTimes::default(),
+    );
     let work = |s: &mema_core::stream::StreamStats| (s.frozen, s.merges, s.refits);
     let t0 = now();
     loop {
@@ -170,8 +175,11 @@ fn run() -> Result<(), &'static str> {
                     firmware.tick(|_| {});
                     let dt = now() - t;
                     let mapped = firmware.mapper_stats().points - points;
-                    let kind = if work(firmware.mapper_stats()) == before {
+                    let after = work(firmware.mapper_stats());
+                    let kind = if after == before {
                         &mut plain
+                    } else if after.1 != before.1 {
+                        &mut merge
                     } else {
                         &mut unit
                     };
@@ -210,7 +218,7 @@ fn run() -> Result<(), &'static str> {
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 27] = [
+    let fields: [(&[u8], u64); 31] = [
         (b"k", (K + F) as u64),
         (b"shells", u64::from(model != StreamModel::Paper)),
         (b"points", mapper.points),
@@ -236,6 +244,10 @@ fn run() -> Result<(), &'static str> {
         (b"tick_unit_sum_ticks", unit.sum),
         (b"tick_unit_points", unit.points),
         (b"unit_ticks", unit.ticks),
+        (b"tick_merge_max_ticks", merge.max),
+        (b"tick_merge_sum_ticks", merge.sum),
+        (b"tick_merge_points", merge.points),
+        (b"merge_ticks", merge.ticks),
         (b"ticks", fw.ticks),
         (b"tick_points_peak", fw.tick_points_peak as u64),
     ];

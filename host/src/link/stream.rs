@@ -3,7 +3,7 @@
 use anyhow::Result;
 use mema_core::fit::FitParams;
 use mema_core::receiver::{Receiver, ReceiverStats};
-use mema_core::stream::{StreamMapper, StreamModel, StreamParams};
+use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
 use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
@@ -95,6 +95,13 @@ pub fn stream_params(
         refit_interval: REFIT_INTERVAL,
         tolerance,
         model,
+        // The device's pacing, so a replay is the device's map; the tolerance mode (host only)
+        // merges to keep its promise, unpaced.
+        pacing: if tolerance > 0.0 {
+            Pacing::NONE
+        } else {
+            Pacing::DEVICE
+        },
     }
 }
 

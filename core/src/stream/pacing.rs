@@ -1,0 +1,52 @@
+//! Pacing: the stream's costly steps paid for in points, so a device that keeps up with the
+//! points keeps up with the whole stream.
+//!
+//! Making room for a point far from every centre costs a freeze (one DE fit, about 150,000
+//! instructions on the firmware's Cortex-M4F) or a merge pass (about 450,000), while a point
+//! that joins a cluster costs about 4,000. Entering new ground, a scanner can ask for room at
+//! every point: a DE fit per point outruns a 921,600-baud link whatever the processor's
+//! average, and the receive ring overflows (issue 13). So each ingested point earns one credit,
+//! a freeze or merge pass spends its price in credits, and saved credit is capped: over any
+//! stretch of `n` points the stream runs at most `(n + burst) / price` of them. When the credit
+//! is short, the point joins its nearest centre however far it is (a coarser cluster there, as
+//! if the join radius had grown), so no point is dropped and the cost of a point is bounded.
+//!
+//! Credit is counted in points, never in time: the same points give the same map on every
+//! target, at any speed, and the host's replay of a capture is the device's map.
+
+/// Prices in points of credit, and the most credit that can be saved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Pacing {
+    /// Credits a freeze spends.
+    pub freeze: u32,
+    /// Credits a merge pass spends.
+    pub merge_pass: u32,
+    /// The cap on saved credit: the largest burst of costly steps back to back.
+    pub burst: u32,
+}
+
+impl Pacing {
+    /// No pacing: every freeze and merge pass runs when room is needed.
+    pub const NONE: Self = Self {
+        freeze: 0,
+        merge_pass: 0,
+        burst: 0,
+    };
+
+    /// The firmware's (and the host's stream, so a replay is the device's map): prices in
+    /// proportion to what each step costs the Cortex-M4F (a fit 118,000-151,000 instructions,
+    /// a merge pass 420,000-471,000 on car6 and the demo drive), at most about 6,300
+    /// instructions a credit, so a point never costs more than its own work and 6,300 on
+    /// average (README, "Firmware"). The burst is five freezes, about 7 ms of the receive
+    /// ring's 34 at 168 MHz.
+    pub const DEVICE: Self = Self {
+        freeze: 24,
+        merge_pass: 80,
+        burst: 120,
+    };
+
+    /// The credit after one more point.
+    pub(super) fn earn(&self, credit: u32) -> u32 {
+        credit.saturating_add(1).min(self.burst)
+    }
+}
