@@ -222,6 +222,12 @@ fn quantize_centre(step: f32, v: f32) -> i16 {
 
 /// Smallest three: the largest component is implied (made positive, as q and -q are one
 /// rotation); the others lie in `[-1/sqrt 2, 1/sqrt 2]`.
+/// The smallest-three code of `r`. It is a fixed point of decoding and encoding again, so a map
+/// read back from its file re-encodes to the same bytes: where two components are within the
+/// code's step of each other (a turn of about 90 degrees about one axis), a stored component
+/// could round above the largest one as decoded, and encoding the decoded rotation would then
+/// drop the other (a car6 shell map read back 0.03 degrees off the map in memory). So a stored
+/// component that would come within 1e-6 of the decoded largest is moved a step toward zero.
 fn encode_rotation(r: &Rotation) -> u32 {
     let q = r.to_array().map(|v| v as f64);
     let mut largest = 3;
@@ -235,18 +241,36 @@ fn encode_rotation(r: &Rotation) -> u32 {
     } else {
         1.0
     };
-    let mut code = largest as u32;
-    let mut shift = 2;
-    for (i, &v) in q.iter().enumerate() {
-        if i == largest {
-            continue;
-        }
+    let mut bits = [0u32; 3];
+    let others = q.iter().enumerate().filter(|&(i, _)| i != largest);
+    for (b, (_, &v)) in bits.iter_mut().zip(others) {
         let unit = (sign * v * core::f64::consts::SQRT_2 + 1.0) * 0.5;
-        let bits = libm::round(crate::num::clamp(unit, 0.0, 1.0) * QUATERNION_MAX) as u32;
-        code |= bits << shift;
-        shift += QUATERNION_BITS;
+        *b = libm::round(crate::num::clamp(unit, 0.0, 1.0) * QUATERNION_MAX) as u32;
+    }
+    let middle = QUATERNION_MAX as u32 / 2;
+    for _ in 0..8 {
+        let values = bits.map(stored_component);
+        let decoded_largest =
+            libm::sqrt((1.0 - values.iter().map(|v| v * v).sum::<f64>()).max(0.0));
+        let Some(i) = (0..3).find(|&i| values[i].abs() >= decoded_largest - 1e-6) else {
+            break;
+        };
+        bits[i] = if bits[i] > middle {
+            bits[i] - 1
+        } else {
+            bits[i] + 1
+        };
+    }
+    let mut code = largest as u32;
+    for (j, b) in bits.iter().enumerate() {
+        code |= b << (2 + QUATERNION_BITS * j as u32);
     }
     code
+}
+
+/// A stored component's value from its bits.
+fn stored_component(bits: u32) -> f64 {
+    (bits as f64 / QUATERNION_MAX * 2.0 - 1.0) * core::f64::consts::FRAC_1_SQRT_2
 }
 
 fn decode_rotation(code: u32) -> Rotation {
@@ -258,8 +282,7 @@ fn decode_rotation(code: u32) -> Rotation {
         if i == largest {
             continue;
         }
-        let bits = (code >> shift) & ((1 << QUATERNION_BITS) - 1);
-        *v = (bits as f64 / QUATERNION_MAX * 2.0 - 1.0) * core::f64::consts::FRAC_1_SQRT_2;
+        *v = stored_component((code >> shift) & ((1 << QUATERNION_BITS) - 1));
         sum += *v * *v;
         shift += QUATERNION_BITS;
     }
