@@ -132,6 +132,10 @@ pub struct StreamSummary {
     /// Points over `arrival_s`: the rate the link delivered while it delivered, not diluted
     /// by the wait for the scanner to start (0 when every point came in one read).
     pub points_per_s: f64,
+    /// Points that joined their nearest cluster beyond the join radius because the device's
+    /// pacing could not pay for room (README, "Pacing"): where the map is coarser than the
+    /// points asked for.
+    pub paced_joins: u64,
 }
 
 /// When the mapper's points first and last grew: the window a rate is measured over.
@@ -196,6 +200,7 @@ fn summary(
         } else {
             0.0
         },
+        paced_joins: link.mapper.stats().paced_joins,
     }
 }
 
@@ -213,6 +218,12 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     if s.poses > 0 {
         let plural = if s.poses == 1 { "" } else { "s" };
         extra.push_str(&format!(", {} pose{plural}", s.poses));
+    }
+    if s.paced_joins > 0 {
+        extra.push_str(&format!(
+            ", {} points joined beyond the radius (paced)",
+            s.paced_joins
+        ));
     }
     if s.frames_without_pose > 0 {
         extra.push_str(&format!(
