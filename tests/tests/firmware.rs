@@ -64,6 +64,23 @@ fn unpaced_points(capture: &[u8]) -> u64 {
         .sum()
 }
 
+/// New ground at every point: a line whose spacing grows 0.07% a point (1 cm to 11 m over
+/// 10,000 points, 15.7 km in all), with a small zigzag across it, so no point lies within the
+/// join radius the earlier merges gave and every one asks for room: the most a capture can
+/// ask of the pacing's credit.
+fn receding_capture() -> Vec<u8> {
+    let (mut x, mut step) = (0.0f64, 0.01f64);
+    let wire: Vec<[i32; 3]> = (0..10_000)
+        .map(|i| {
+            x += step;
+            step *= 1.0007;
+            let p = Point3::new(x as f32, 0.05 * (i % 7) as f32, 0.02 * (i % 3) as f32);
+            quantise(p).expect("fits")
+        })
+        .collect();
+    encode_stream(&wire).expect("encodes")
+}
+
 fn play(capture: &[u8], k: usize, config: &RunConfig) -> RunReport {
     play_shaped(capture, (k, 0), config)
 }
@@ -452,9 +469,11 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
 /// 921,600 baud (the most the link can deliver) into the image's layout (K = 400: 150 working +
 /// 250 frozen, paper model), every tick taking what its work costs on the target: its points,
 /// and its fit (freeze or refit) or merge pass, at the prices the image measured under QEMU
-/// (`mema-firmware-sim budget` on each capture, rounded up). Three captures: car6 and the demo
-/// drive as scanned, and car6's points in a shuffled order, the worst case for the join
-/// search (no point near the last, room wanted everywhere).
+/// (`mema-firmware-sim budget` on each capture, rounded up). Four captures: car6 and the demo
+/// drive as scanned, car6's points in a shuffled order (no point near the last: the worst
+/// order for the join search), and a receding line, new ground at every point (room wanted
+/// at 9 points in 10: the pacing's credit all spent, and a scan of every centre for each
+/// point it could not pay for).
 ///
 /// A 168 MHz Cortex-M4F at 1.5 cycles an instruction (112 M instructions/s) loses no byte on
 /// any of them, the map is the unpaced one, and the longest tick is under a third of the
@@ -489,6 +508,11 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
             "car6 shuffled",
             shuffled_capture_of("car6.pcd"),
             cost(4_000.0, 115_000.0, 460_000.0),
+        ),
+        (
+            "receding line",
+            receding_capture(),
+            cost(6_800.0, 107_000.0, 320_000.0),
         ),
     ] {
         let play = |instructions_per_s: f64| -> PacedReport {
