@@ -1,9 +1,9 @@
 //! Pacing: the stream's costly steps paid for in points, so a device that keeps up with the
 //! points keeps up with the whole stream.
 //!
-//! Making room for a point far from every centre costs a freeze (one DE fit, about 150,000
-//! instructions on the firmware's Cortex-M4F) or a merge pass (about 450,000), while a point
-//! that joins a cluster costs about 4,000. Entering new ground, a scanner can ask for room at
+//! Making room for a point far from every centre costs a freeze (one DE fit, up to about
+//! 150,000 instructions on the firmware's Cortex-M4F) or a merge pass (up to about 460,000),
+//! while a point that joins a cluster costs about 4,000. Entering new ground, a scanner can ask for room at
 //! every point: a DE fit per point outruns a 921,600-baud link whatever the processor's
 //! average, and the receive ring overflows (issue 13). So each ingested point earns one credit,
 //! a freeze or merge pass spends its price in credits, and saved credit is capped: over any
@@ -21,7 +21,8 @@ pub struct Pacing {
     pub freeze: u32,
     /// Credits a merge pass spends.
     pub merge_pass: u32,
-    /// The cap on saved credit: the largest burst of costly steps back to back.
+    /// The cap on saved credit: the largest burst of costly steps back to back. At least the
+    /// dearer price, or that step never runs (every point short of room then joins).
     pub burst: u32,
 }
 
@@ -34,9 +35,9 @@ impl Pacing {
     };
 
     /// The firmware's (and the host's stream, so a replay is the device's map): prices in
-    /// proportion to what each step costs the Cortex-M4F (a fit 118,000-151,000 instructions,
-    /// a merge pass 420,000-471,000 on car6 and the demo drive), at most about 6,300
-    /// instructions a credit, so a point never costs more than its own work and 6,300 on
+    /// proportion to what each step costs the Cortex-M4F (a fit 106,000-149,000 instructions,
+    /// a merge pass 320,000-460,000 on the ring test's four captures), at most about 6,200
+    /// instructions a credit, so a point never costs more than its own work and 6,200 on
     /// average (README, "Firmware"). The burst is five freezes, about 7 ms of the receive
     /// ring's 34 at 168 MHz.
     pub const DEVICE: Self = Self {
