@@ -28,24 +28,23 @@ const F: usize = 256;
 type Shape = (usize, usize);
 
 fn capture_of(cloud: &str) -> Vec<u8> {
+    encode_stream(&wire_points_of(cloud)).expect("encodes")
+}
+
+/// `cloud`'s points as the wire carries them (i32 millimetres, in the cloud's local frame).
+fn wire_points_of(cloud: &str) -> Vec<[i32; 3]> {
     let cloud = mema::io::load_cloud(&shared(cloud)).expect("cloud reads");
-    let wire: Vec<[i32; 3]> = cloud
+    cloud
         .points
         .iter()
         .map(|p| quantise(*p).expect("fits"))
-        .collect();
-    encode_stream(&wire).expect("encodes")
+        .collect()
 }
 
 /// `cloud`'s capture with its points in a fixed pseudo-random order (Fisher-Yates on a 64-bit
 /// LCG): a scan without its sweep, so almost every point is far from the one before.
 fn shuffled_capture_of(cloud: &str) -> Vec<u8> {
-    let cloud = mema::io::load_cloud(&shared(cloud)).expect("cloud reads");
-    let mut wire: Vec<[i32; 3]> = cloud
-        .points
-        .iter()
-        .map(|p| quantise(*p).expect("fits"))
-        .collect();
+    let mut wire = wire_points_of(cloud);
     let mut state = 0x2545_f491_4f6c_dd1du64;
     for i in (1..wire.len()).rev() {
         state = state

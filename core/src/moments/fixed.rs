@@ -447,13 +447,13 @@ impl FixedMoments {
                 .and_then(|r| r.get(col))
                 .copied()
                 .unwrap_or(0.0);
-            // Slots of an axis without a pitch hold only zeros (`unit` leaves that axis out).
-            // Scalings by powers of two, exact as multiplications (a division is a soft-f64
-            // routine on the M4F, five times a multiplication's cost).
-            let steps = value * pow2_64(-out.unit_exponent(i));
+            // Slots of an axis without a pitch hold only zeros (`unit_exponent` leaves it out).
+            // Scalings by powers of two as exponent moves (`scaled_by_pow2`): the quotients'
+            // bits, without a soft-f64 division or multiplication on the M4F.
+            let steps = scaled_by_pow2(value, -out.unit_exponent(i));
             let shift = shift_below_2_61(steps);
             if let (Some(sum), Some(s)) = (out.sums.get_mut(i), out.shift.get_mut(i)) {
-                let x = steps * pow2_64(-i32::from(shift));
+                let x = scaled_by_pow2(steps, -i32::from(shift));
                 *sum = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i64;
                 *s = shift;
             }

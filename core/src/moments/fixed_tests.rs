@@ -33,31 +33,7 @@ fn shell_points(n: usize, seed: u64, centre: [f32; 3], axes: [f32; 3]) -> [Point
 
 /// Direct two-pass central moments in f64 of the f32 points: the independent check.
 fn direct(points: &[Point3]) -> CentralMoments {
-    let n = points.len() as f64;
-    let pts = points.iter().map(|p| p.to_f64());
-    let mut mean = [0.0; 3];
-    for p in pts.clone() {
-        for j in 0..3 {
-            mean[j] += p[j] / n;
-        }
-    }
-    let mut second = [0.0; 3];
-    let mut fourth = [[0.0; 3]; 3];
-    for p in pts {
-        let d = [p[0] - mean[0], p[1] - mean[1], p[2] - mean[2]];
-        for j in 0..3 {
-            second[j] += d[j] * d[j] / n;
-            for k in 0..3 {
-                fourth[j][k] += d[j] * d[j] * d[k] * d[k] / n;
-            }
-        }
-    }
-    CentralMoments {
-        count: points.len() as u64,
-        mean,
-        second,
-        fourth,
-    }
+    crate::moments::tests::direct_of(points.iter().map(|p| p.to_f64()))
 }
 
 /// The grid's pitch is at most 2^-23 of an axis's largest offset, so rounding moves each

@@ -353,11 +353,30 @@ mod tests {
         (out, n)
     }
 
+    /// The moments of `a` merged with those of `b`, and the points of both in one array
+    /// (together at most 64).
+    fn merged(a: &[[f64; 3]], b: &[[f64; 3]]) -> (Moments, [[f64; 3]; 64]) {
+        let (mut ma, mut mb) = (Moments::new(), Moments::new());
+        let mut all = [[0.0; 3]; 64];
+        for (slot, p) in all.iter_mut().zip(a.iter().chain(b)) {
+            *slot = *p;
+        }
+        a.iter().for_each(|p| ma.add_f64(*p));
+        b.iter().for_each(|p| mb.add_f64(*p));
+        ma.merge(&mb);
+        (ma, all)
+    }
+
     /// Direct two-pass central moments, the independent check.
     fn direct(points: &[[f64; 3]]) -> CentralMoments {
-        let n = points.len() as f64;
+        direct_of(points.iter().copied())
+    }
+
+    /// [`direct`] of any points (the integer sums' tests feed theirs as f32).
+    pub(super) fn direct_of(points: impl Iterator<Item = [f64; 3]> + Clone) -> CentralMoments {
+        let n = points.clone().count() as f64;
         let mut mean = [0.0; 3];
-        for p in points {
+        for p in points.clone() {
             for j in 0..3 {
                 mean[j] += p[j] / n;
             }
@@ -374,7 +393,7 @@ mod tests {
             }
         }
         CentralMoments {
-            count: points.len() as u64,
+            count: n as u64,
             mean,
             second,
             fourth,
@@ -426,18 +445,7 @@ mod tests {
     fn merge_equals_one_pass_and_reshift_is_exact() -> TestResult {
         let (a, na) = lcg_points(40, 1, [1.0, 2.0, 3.0]);
         let (b, nb) = lcg_points(24, 2, [1.5, 1.8, 3.1]);
-        let mut ma = Moments::new();
-        let mut mb = Moments::new();
-        let mut all = [[0.0; 3]; 64];
-        for (i, p) in a[..na].iter().enumerate() {
-            ma.add_f64(*p);
-            all[i] = *p;
-        }
-        for (i, p) in b[..nb].iter().enumerate() {
-            mb.add_f64(*p);
-            all[na + i] = *p;
-        }
-        ma.merge(&mb);
+        let (ma, all) = merged(&a[..na], &b[..nb]);
         let expected = direct(&all[..na + nb]);
         assert_close(&ma.central().or_fail("non-empty")?, &expected, 1e-9);
         // A shift 50 spreads away costs (50)^4 in cancellation: 6e6 * 1e-16, hence 1e-8.
@@ -479,17 +487,7 @@ mod tests {
         let (a, na) = lcg_points(40, 3, [1000.0, -250.0, 30.0]);
         let (b, nb) = lcg_points(24, 4, [1000.2, -250.1, 30.05]);
         let (a, b) = (tilt(a), tilt(b));
-        let (mut ma, mut mb) = (Moments::new(), Moments::new());
-        let mut all = [[0.0; 3]; 64];
-        for (i, p) in a[..na].iter().enumerate() {
-            ma.add_f64(*p);
-            all[i] = *p;
-        }
-        for (i, p) in b[..nb].iter().enumerate() {
-            mb.add_f64(*p);
-            all[na + i] = *p;
-        }
-        ma.merge(&mb);
+        let (ma, all) = merged(&a[..na], &b[..nb]);
         let (mean, cov) = ma.covariance().or_fail("non-empty")?;
         let (want_mean, want) = direct_covariance(&all[..na + nb]);
         let scale = want[0][0] + want[1][1] + want[2][2];

@@ -1,0 +1,177 @@
+//! Merging: the stream's way to make room when no cluster can be frozen, and the tolerance
+//! mode's last step. Pairs are ranked by Ward's criterion among the neighbours the centre grid
+//! offers, and a pass merges the cheapest disjoint ones at once, so the search is paid once
+//! per batch of far points.
+
+use super::pairs::{ClosestPairs, MAX_MERGE_BATCH};
+use super::{Observer, StreamMapper, center_of, count32};
+use crate::fit::surface_error_estimate;
+use crate::moments::FixedMoments;
+
+/// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
+/// favours small neighbours over big ones, as k-means' objective would.
+fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
+    ward_of(count32(a), count32(b), d2)
+}
+
+/// [`ward`] from the clusters' counts (as f32), the same in either order.
+fn ward_of(na: f32, nb: f32, d2: f32) -> f32 {
+    na * nb / (na + nb) * d2
+}
+
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// The `wanted` cheapest neighbour pairs by Ward's criterion.
+    fn candidate_pairs(&self, wanted: usize) -> ClosestPairs {
+        let mut closest = ClosestPairs::new(wanted);
+        let cell2 = self.grid.cell() * self.grid.cell();
+        // Before the join radius has grown, the cell is so small that its square is 0 and no
+        // pair can qualify: skip the 27-cell queries, which then walk every centre filed in one
+        // saturated cell (27 K^2 steps, the firmware's longest tick).
+        let near = if cell2 > 0.0 {
+            self.clusters.as_slice()
+        } else {
+            &[]
+        };
+        for (a, ca) in near.iter().enumerate() {
+            let na = count32(&ca.moments);
+            self.grid.for_each_ahead(ca.center, |b, own| {
+                // Pairs in one cell come up from both centres: take them once, as (a, b > a).
+                if own && b <= a {
+                    return;
+                }
+                let Some(cb) = self.clusters.get(b) else {
+                    return;
+                };
+                // Each pair once, as (lower index, higher): the distance and the cost are
+                // the same either way round.
+                let d = ca.center.distance_squared(cb.center);
+                // Only pairs closer than a cell are all seen by the neighbour queries.
+                if d < cell2 {
+                    closest.offer(a.min(b), a.max(b), ward_of(na, count32(&cb.moments), d));
+                }
+            });
+        }
+        if closest.len == 0 {
+            // Centres sparser than the grid: the exhaustive search, rare by construction.
+            for (a, ca) in self.clusters.iter().enumerate() {
+                for (b, cb) in self.clusters.iter().enumerate().skip(a + 1) {
+                    let d = ca.center.distance_squared(cb.center);
+                    closest.offer(a, b, ward(&ca.moments, &cb.moments, d));
+                }
+            }
+        }
+        closest
+    }
+
+    /// Whether merging clusters `a` and `b` respects the tolerance (always, without one).
+    fn within_tolerance(&self, a: usize, b: usize) -> bool {
+        if self.params.tolerance <= 0.0 {
+            return true;
+        }
+        let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+            return false;
+        };
+        let mut merged = ca.moments;
+        merged.merge(&cb.moments);
+        merged
+            .central()
+            .is_some_and(|m| surface_error_estimate(&m, &self.params.fit) <= self.params.tolerance)
+    }
+
+    /// Merges the disjoint pairs of `pairs` that respect the tolerance, cheapest first; with
+    /// `force`, the cheapest pair merges even if none does (the capacity must give way).
+    fn merge_pairs(
+        &mut self,
+        pairs: &ClosestPairs,
+        force: bool,
+        observer: &mut impl Observer,
+    ) -> usize {
+        let mut absorbed = [0usize; MAX_MERGE_BATCH];
+        let mut count = 0;
+        let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
+        // Each pair's tolerance check once (each costs a small solve).
+        let mut allowed = [false; MAX_MERGE_BATCH];
+        for (ok, &(_, a, b)) in allowed.iter_mut().zip(pairs.as_slice()) {
+            *ok = self.within_tolerance(a, b);
+        }
+        let forced = if force && !allowed.iter().any(|&ok| ok) {
+            self.stats.forced_merges += u64::from(self.params.tolerance > 0.0);
+            pairs.as_slice().first().map(|&(_, a, b)| (a, b))
+        } else {
+            None
+        };
+        for (&(_, a, b), &ok) in pairs.as_slice().iter().zip(allowed.iter()) {
+            if touched.contains(&a) || touched.contains(&b) || !(ok || forced == Some((a, b))) {
+                continue;
+            }
+            let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+                continue;
+            };
+            let (moments, d2) = (cb.moments, ca.center.distance_squared(cb.center));
+            let last_point = if self.idle(cb) < self.idle(ca) {
+                cb.last_point
+            } else {
+                ca.last_point
+            };
+            observer.merged(a, b);
+            if let Some(ca) = self.clusters.get_mut(a) {
+                ca.moments.merge(&moments);
+                ca.center = center_of(&ca.moments);
+                ca.stale = u32::MAX;
+                ca.last_point = last_point;
+            }
+            if let (Some(slot), Some(pair)) = (
+                absorbed.get_mut(count),
+                touched.get_mut(2 * count..2 * count + 2),
+            ) {
+                *slot = b;
+                pair.copy_from_slice(&[a, b]);
+                count += 1;
+            }
+            self.radius = self.radius.max(libm::sqrtf(d2));
+        }
+        // Remove from the highest index down, so swap_remove never moves a slot still to go.
+        let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
+        crate::num::insertion_sort_by(absorbed, |x, y| x > y);
+        for &b in absorbed.iter() {
+            // In range by construction.
+            if b < self.clusters.len() {
+                observer.removed(b);
+                crate::num::swap_remove(&mut self.clusters, b);
+            }
+        }
+        self.stats.merges += count as u64;
+        let cell = if self.radius * 2.0 > self.grid.cell() {
+            self.stats.grid_rebuilds += 1;
+            (self.radius * 2.0).max(f32::MIN_POSITIVE)
+        } else {
+            self.grid.cell()
+        };
+        // Indices moved and the radius may have outgrown the cells: refile every centre.
+        self.grid
+            .rebuild(cell, self.clusters.iter().map(|c| c.center));
+        count
+    }
+
+    /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
+    /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
+    /// of far points. The join radius widens to the largest merged distance.
+    pub(super) fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
+        let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
+        self.merge_pairs(&pairs, true, observer);
+    }
+
+    /// Tolerance mode's last step: neighbours keep merging while the merged estimate stays
+    /// under the tolerance, so the final k is what the tolerance needs, not the capacity.
+    pub(super) fn consolidate(&mut self, observer: &mut impl Observer) {
+        if self.params.tolerance <= 0.0 {
+            return;
+        }
+        while self.clusters.len() > 1 {
+            let pairs = self.candidate_pairs(MAX_MERGE_BATCH);
+            if self.merge_pairs(&pairs, false, observer) == 0 {
+                break;
+            }
+        }
+    }
+}
