@@ -45,15 +45,18 @@ if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
 fi
 [ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
 target/py-venv/bin/python -m pip install --quiet rosbags==0.11.9 numpy
+# The Python package goes in before the tests: the guides' commands (tests/tests/docs.rs) run
+# `python -m mema.tiles` from this environment. Its own workspace, built into the main target/.
+echo "== the Python package: pip install into the virtual environment"
+CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 echo "== tests (release profile: real clouds)"
 MEMA_PY="$PWD/target/py-venv/bin/python" cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"
 firmware-sim/check.sh
-echo "== the Python package: lint, pip install into a fresh virtual environment, pytest"
+echo "== the Python package: lint and pytest (installed above)"
 # Its own workspace (host/python), built into the main target directory.
 (cd host/python && cargo fmt --check)
 CARGO_TARGET_DIR="$PWD/target" cargo clippy --manifest-path host/python/Cargo.toml --all-targets -- -D warnings
-CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet ./host/python pytest numpy "dask==2026.8.0" "distributed==2026.8.0"
 # The tests compare the package with the command line built above by `cargo test --release`.
 cargo build --release -p mema --quiet
 MEMA_BIN="$PWD/target/release/mema" target/py-venv/bin/python -m pytest -q host/python/tests

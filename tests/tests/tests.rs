@@ -48,6 +48,8 @@ mod poses;
 mod multiview;
 // The moving robot through the demo scene, streamed with its poses.
 mod drive;
+// The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).
+mod docs;
 // The independent sender written from PROTOCOL.md alone.
 mod sender;
 // ROS 2 bags written by rosbags: the bunny scans in frame world map as bun.conf does, bit for
