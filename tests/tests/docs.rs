@@ -28,12 +28,23 @@ use crate::util::{mema_bin, shared_data};
 /// The benchmark commands whose documented runs take minutes to hours, and the arguments that
 /// bound them in CI (one small cloud, one repetition). The harness appends them.
 const LONG: &[(&str, &str)] = &[
-    ("scripts/bench.sh --only fidelity", "--clouds car6.pcd --budgets 2400"),
-    ("scripts/bench.sh --only python", "--clouds car6.pcd --repeat 1"),
-    ("mema bench --data ../shared/data --only pipeline", "--clouds car6.pcd --repeat 1"),
-    ("mema bench --data ../shared/data", "--clouds car6.pcd --repeat 1"),
+    (
+        "scripts/bench.sh --only fidelity",
+        "--clouds car6.pcd --budgets 2400",
+    ),
+    (
+        "scripts/bench.sh --only python",
+        "--clouds car6.pcd --repeat 1",
+    ),
+    (
+        "mema bench --data ../shared/data --only pipeline",
+        "--clouds car6.pcd --repeat 1",
+    ),
+    (
+        "mema bench --data ../shared/data",
+        "--clouds car6.pcd --repeat 1",
+    ),
     ("mema bench --only fitness", "--repeat 1"),
-    ("target/py-venv/bin/python scripts/bench_tiles.py", "--quick"),
 ];
 
 /// The longest any one documented command may take.
@@ -142,7 +153,9 @@ fn output_matches(pattern: &[String], actual: &[&str]) -> bool {
             (0..=actual.len()).any(|skip| output_matches(rest, &actual[skip..]))
         }
         Some((first, rest)) => {
-            !actual.is_empty() && line_matches(first, actual[0]) && output_matches(rest, &actual[1..])
+            !actual.is_empty()
+                && line_matches(first, actual[0])
+                && output_matches(rest, &actual[1..])
         }
     }
 }
@@ -274,7 +287,9 @@ fn run_file(relative: &str) -> Vec<String> {
             .status();
     }
     if std::env::var_os("MEMA_DOCS_ACTUAL").is_some() {
-        let out = root.join("target/docs-run").join(format!("{name}.actual.md"));
+        let out = root
+            .join("target/docs-run")
+            .join(format!("{name}.actual.md"));
         std::fs::write(out, actual_doc).expect("actual output");
     }
     failures
@@ -293,7 +308,10 @@ fn every_guide_is_in_the_list_below() {
         .filter(|f| f.ends_with(".md"))
         .collect();
     guides.sort();
-    assert_eq!(guides, GUIDES, "docs/ and the harness's list of guides differ");
+    assert_eq!(
+        guides, GUIDES,
+        "docs/ and the harness's list of guides differ"
+    );
 }
 
 /// The guides, each a test of its own below.
@@ -351,7 +369,10 @@ fn the_matcher_holds_to_what_is_documented() {
     assert!(output_matches(&doc("a\n...\nz"), &["a", "z"]));
     assert!(!output_matches(&doc("a\n...\nz"), &["a", "b"]));
     assert!(!output_matches(&doc("a\nb"), &["a", "b", "c"]));
-    assert!(line_matches("took [..] s, [..] points", "took 1.2 s, 30 points"));
+    assert!(line_matches(
+        "took [..] s, [..] points",
+        "took 1.2 s, 30 points"
+    ));
     assert!(!line_matches("took [..] s", "took 1.2 ms"));
     assert!(!line_matches("k = 150", "k = 151"));
     let steps = steps_of(
