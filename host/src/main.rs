@@ -27,6 +27,10 @@ fn main() -> ExitCode {
             eprintln!("mema: out of memory: a new thread's signal stack could not be allocated");
             std::process::exit(1);
         }
+        // println! to a reader that has gone (`mema info MAP | head -1`).
+        if what.starts_with("failed printing to stdout") && what.contains("Broken pipe") {
+            cli::errors::end_on_closed_stdout();
+        }
         match info.location() {
             Some(at) => eprintln!("mema: internal error: {what} ({}:{})", at.file(), at.line()),
             None => eprintln!("mema: internal error: {what}"),

@@ -1,4 +1,6 @@
-use crate::util::{Dir, MemaCommand, shared};
+use std::os::unix::fs::OpenOptionsExt;
+
+use crate::util::{Dir, MemaCommand, Ran, shared};
 
 fn map(dir: &Dir, input: &std::path::Path, k: &str) -> MemaCommand {
     MemaCommand::new(dir)
@@ -264,19 +266,12 @@ fn a_cloud_too_wide_for_f32_distances() {
     assert_nothing_written(&dir, &["wide.xyz"]);
 }
 
-/// Inputs that never end: a link to /dev/zero is read only up to a stated limit, and a FIFO that
-/// nobody writes to ends in an error after the idle timeout (it used to hang `map` and `info`
-/// forever, and `info`/`replay` on /dev/zero grew until memory ran out).
+/// Inputs that never end: a capture linked to /dev/zero is read only up to a stated limit, and a
+/// FIFO that nobody writes to ends in an error after the idle timeout (it used to hang `map` and
+/// `info` forever, and `info`/`replay` on /dev/zero grew until memory ran out).
 #[test]
 fn endless_and_silent_inputs_end_in_one_line_errors() {
     let dir = Dir::new("endless");
-    let zero_map = dir.join("zero.mema");
-    std::os::unix::fs::symlink("/dev/zero", &zero_map).expect("symlink");
-    MemaCommand::new(&dir)
-        .arg("info")
-        .arg(&zero_map)
-        .run()
-        .assert_error(1, "too large");
     let zero_capture = dir.join("zero.bin");
     std::os::unix::fs::symlink("/dev/zero", &zero_capture).expect("symlink");
     MemaCommand::new(&dir)
@@ -334,4 +329,116 @@ fn a_map_too_large_for_the_query_index_is_named() {
         .args(["--point", "0,0,0"])
         .run()
         .assert_error(1, "big.csv: ");
+}
+
+/// The bytes a `mema info` of a `.mema` FIFO took from `source` before refusing it, and its run.
+fn bytes_taken_by_info(dir: &Dir, name: &str, source: &'static str) -> (u64, Ran) {
+    use std::io::{Read, Write};
+    let fifo = dir.join(name);
+    let made = std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .expect("mkfifo runs");
+    assert!(made.success());
+    let path = fifo.clone();
+    let writer = std::thread::spawn(move || {
+        let mut from = std::fs::File::open(source).expect("source device");
+        let mut to = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&path)
+            .expect("fifo opens for writing");
+        let (mut chunk, mut taken) = (vec![0u8; 4096], 0u64);
+        // Bounded, so that a reader that never refuses fails the assertion, not the run.
+        while taken < 64 << 20 {
+            from.read_exact(&mut chunk).expect("source bytes");
+            match to.write(&chunk) {
+                Ok(n) => taken += n as u64,
+                Err(_) => break,
+            }
+        }
+        taken
+    });
+    let ran = MemaCommand::new(dir).arg("info").arg(&fifo).run();
+    // Were mema to end before opening the FIFO, this open releases the writer's (O_NONBLOCK,
+    // so that it never waits itself).
+    let unblock = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(0o4000)
+        .open(&fifo);
+    drop(unblock);
+    (writer.join().expect("writer"), ran)
+}
+
+/// A map is refused from its first bytes: `/dev/zero` or `/dev/urandom` given as a map is
+/// refused within 1 MB of reading (the whole 1 GiB limit was read before).
+#[test]
+fn a_map_is_refused_from_its_first_bytes() {
+    let dir = Dir::new("map-start");
+    for (name, source) in [("zero.mema", "/dev/zero"), ("random.mema", "/dev/urandom")] {
+        let (taken, ran) = bytes_taken_by_info(&dir, name, source);
+        ran.assert_error(1, "not a map: it starts with");
+        // The pipe's own buffer holds what mema never read: the bound is on both together.
+        assert!(taken < 1_000_000, "{source}: {taken} bytes taken");
+    }
+    for (name, said) in [
+        ("zero.csv", "a CSV map is ASCII text"),
+        ("zero.json", "a JSON map starts with '{'"),
+    ] {
+        let link = dir.join(name);
+        std::os::unix::fs::symlink("/dev/zero", &link).expect("symlink");
+        let ran = MemaCommand::new(&dir).arg("info").arg(&link).run();
+        ran.assert_error(1, said);
+    }
+}
+
+/// A reader that goes away (`mema info MAP | head -1`) ends mema as it ends Unix tools: no
+/// message, killed by SIGPIPE (it printed "internal error: failed printing to stdout").
+#[test]
+fn a_closed_pipe_ends_quietly_as_unix_tools_do() {
+    use std::os::unix::process::ExitStatusExt;
+    let dir = Dir::new("closed-pipe");
+    MemaCommand::new(&dir)
+        .arg("map")
+        .arg(shared("car6.pcd"))
+        .args(["-k", "150", "-o", "car6.mema"])
+        .run()
+        .assert_ok();
+    for args in [
+        &["info", "car6.mema"][..],
+        &["info", "car6.mema", "--json"],
+        &["man"],
+    ] {
+        let (reader, writer) = std::io::pipe().expect("pipe");
+        drop(reader);
+        let out = std::process::Command::new(crate::util::mema_bin())
+            .args(args)
+            .current_dir(&dir.path)
+            .stdout(writer)
+            .output()
+            .expect("mema runs");
+        assert_eq!(out.status.signal(), Some(13), "{args:?}: {:?}", out.status);
+        assert!(
+            out.stderr.is_empty(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let shell = std::process::Command::new("bash")
+        .arg("-c")
+        .arg(format!(
+            "{} info car6.mema | head -1; echo \"status ${{PIPESTATUS[0]}}\" >&2",
+            crate::util::mema_bin().display()
+        ))
+        .current_dir(&dir.path)
+        .output()
+        .expect("bash runs");
+    let stdout = String::from_utf8_lossy(&shell.stdout);
+    assert_eq!(stdout.lines().count(), 1, "{stdout}");
+    assert!(stdout.starts_with("car6.mema: 150 entities"), "{stdout}");
+    let stderr = String::from_utf8_lossy(&shell.stderr);
+    // 0 when all of it fit in the pipe before head left, 141 (128 + SIGPIPE) when it did not.
+    assert!(
+        stderr == "status 0\n" || stderr == "status 141\n",
+        "{stderr}"
+    );
 }

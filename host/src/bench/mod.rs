@@ -59,7 +59,8 @@ pub struct BenchOptions {
     pub only: Vec<Which>,
     /// A Python with numpy and scikit-learn, for benchmarks 4 and 5.
     pub python: Option<PathBuf>,
-    /// Fidelity: only these clouds of `data` (empty: every PLY, PCD, LAS and LAZ file there).
+    /// Only these clouds: fidelity's of `data` (empty: every PLY, PCD, LAS and LAZ file there),
+    /// the timing benchmarks' among their own cases (empty: all).
     pub clouds: Vec<String>,
     /// Fidelity: map budgets in bytes.
     pub budgets: Vec<usize>,
@@ -102,6 +103,15 @@ pub fn load(data: &Path, name: &str) -> Result<Vec<Point3>> {
     Ok(load_cloud_in_metres(&data.join(name), None)?.0.points)
 }
 
+/// The cases of a timing benchmark that `--clouds` keeps (all of them when it names none).
+fn chosen<T: Copy>(args: &BenchOptions, cases: &[(&'static str, T)]) -> Vec<(&'static str, T)> {
+    cases
+        .iter()
+        .filter(|(name, _)| args.clouds.is_empty() || args.clouds.iter().any(|c| c == name))
+        .copied()
+        .collect()
+}
+
 /// Runs the benchmarks `args` asks for, printing their tables.
 pub fn run(args: &BenchOptions) -> Result<()> {
     if let Some(case) = &args.case {
@@ -112,6 +122,15 @@ pub fn run(args: &BenchOptions) -> Result<()> {
         which = vec![Which::Fitness, Which::Kmeans, Which::Pipeline];
         if args.python.is_some() {
             which.push(Which::Python);
+        }
+    }
+    if !which.contains(&Which::Fidelity) {
+        let known =
+            |c: &String| c == "office1.pcd" || PIPELINE_CASES.iter().any(|(name, _)| name == c);
+        if let Some(unknown) = args.clouds.iter().find(|c| !known(c)) {
+            bail!(
+                "--clouds: {unknown} is none of the timing benchmarks' clouds (car6.pcd, office1.pcd, five_people.pcd, cturtle.pcd, environment)"
+            );
         }
     }
     let header = format!(
@@ -295,11 +314,15 @@ fn kmeans(args: &BenchOptions) -> Result<()> {
     );
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let two = rayon::ThreadPoolBuilder::new().num_threads(2).build()?;
-    for (name, k, cap) in [
-        ("car6.pcd", 150, None),
-        ("office1.pcd", 2000, None),
-        ("environment", 8880, Some(args.plain_cap)),
-    ] {
+    let cases = chosen(
+        args,
+        &[
+            ("car6.pcd", (150, None)),
+            ("office1.pcd", (2000, None)),
+            ("environment", (8880, Some(args.plain_cap))),
+        ],
+    );
+    for (name, (k, cap)) in cases {
         let points = load(&args.data, name)?;
         let params = KMeansParams {
             max_iterations: cap.unwrap_or(KMeansParams::default().max_iterations),
@@ -376,6 +399,14 @@ fn kmeans(args: &BenchOptions) -> Result<()> {
     Ok(())
 }
 
+/// The clouds of the pipeline and Python benchmarks, each at its k.
+const PIPELINE_CASES: &[(&str, usize)] = &[
+    ("car6.pcd", 150),
+    ("five_people.pcd", 350),
+    ("cturtle.pcd", 2000),
+    ("environment", 8880),
+];
+
 fn pipeline(args: &BenchOptions) -> Result<()> {
     println!();
     println!("3. pipeline: read + k-means + fit (ellipsoid and sphere) + eval (eq. 13, both maps)");
@@ -398,12 +429,7 @@ fn pipeline(args: &BenchOptions) -> Result<()> {
         "above",
         "same"
     );
-    for (name, k) in [
-        ("car6.pcd", 150),
-        ("five_people.pcd", 350),
-        ("cturtle.pcd", 2000),
-        ("environment", 8880),
-    ] {
+    for (name, k) in chosen(args, PIPELINE_CASES) {
         let one = pipeline_case::spawn(args, name, k, 1)?;
         println!("{}", one.format(1, true));
         let two = pipeline_case::spawn(args, name, k, 2)?;
@@ -471,12 +497,7 @@ fn python(args: &BenchOptions) -> Result<()> {
     );
     let dir = std::env::temp_dir().join(format!("mema-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
-    for (name, k) in [
-        ("car6.pcd", 150),
-        ("five_people.pcd", 350),
-        ("cturtle.pcd", 2000),
-        ("environment", 8880),
-    ] {
+    for (name, k) in chosen(args, PIPELINE_CASES) {
         let row = pipeline_case::spawn(args, name, k, rayon::current_num_threads())?;
         let points = load(&args.data, name)?;
         let npy = dir.join(format!("{name}.npy"));

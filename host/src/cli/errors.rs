@@ -25,6 +25,19 @@ pub struct LinkLost(pub String);
 #[error("{0}")]
 pub struct LinkIdle(pub String);
 
+/// Ends the process as Unix tools end when the reader of their standard output has gone
+/// (`mema info MAP | head -1`): quietly, killed by SIGPIPE. Rust ignores SIGPIPE so that a
+/// closed socket or port is an error the link code reports; only standard output ends this way.
+pub fn end_on_closed_stdout() -> ! {
+    // SAFETY: restoring the default action of one signal and raising it; no handler runs.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        libc::raise(libc::SIGPIPE);
+    }
+    // Only if the signal could not end the process: the status a shell shows for it.
+    std::process::exit(128 + libc::SIGPIPE)
+}
+
 /// The exit status for `e`.
 pub fn exit_status(e: &anyhow::Error) -> u8 {
     let bag_usage = e.downcast_ref::<BagError>().is_some_and(BagError::is_usage);

@@ -35,10 +35,34 @@ pub enum InputError {
         IDLE_TIMEOUT.as_secs()
     )]
     Idle { path: String, what: &'static str },
+    #[error("{path}: not a {what}: {why}")]
+    NotA {
+        path: String,
+        what: &'static str,
+        why: String,
+    },
 }
+
+/// How many first bytes [`read_bounded_as`] shows its check of the start.
+pub const START_LEN: usize = 4;
+
+/// A check of an input's first [`START_LEN`] bytes (fewer when it is shorter): the reason it
+/// cannot be the input asked for, if it cannot.
+pub type StartCheck = fn(&[u8]) -> Result<(), String>;
 
 /// The bytes of `path`, at most `limit` of them; `what` names the input in errors ("map").
 pub fn read_bounded(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u8>, InputError> {
+    read_bounded_as(path, limit, what, |_| Ok(()))
+}
+
+/// [`read_bounded`], refusing an input whose first bytes `start` refuses before reading on
+/// (`/dev/zero` named as a map is refused at its first bytes, not at the limit).
+pub fn read_bounded_as(
+    path: &Path,
+    limit: u64,
+    what: &'static str,
+    start: StartCheck,
+) -> Result<Vec<u8>, InputError> {
     let name = path.display().to_string();
     let io = |cause| InputError::Io {
         path: name.clone(),
@@ -55,7 +79,8 @@ pub fn read_bounded(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u
                 limit,
             });
         }
-        return std::fs::read(path).map_err(io);
+        let file = File::open(path).map_err(io)?;
+        return read_polled(file, &name, limit, what, start);
     }
     let kind = meta.file_type();
     let mut options = std::fs::OpenOptions::new();
@@ -69,7 +94,7 @@ pub fn read_bounded(path: &Path, limit: u64, what: &'static str) -> Result<Vec<u
     if kind.is_fifo() && !readable_within(&file, IDLE_TIMEOUT) {
         return Err(InputError::Idle { path: name, what });
     }
-    read_polled(file, &name, limit, what)
+    read_polled(file, &name, limit, what, start)
 }
 
 /// Reads a non-blocking source to its end, waiting at most [`IDLE_TIMEOUT`] for each piece.
@@ -78,14 +103,32 @@ fn read_polled(
     name: &str,
     limit: u64,
     what: &'static str,
+    start: StartCheck,
 ) -> Result<Vec<u8>, InputError> {
     let mut bytes = Vec::new();
     let mut chunk = vec![0u8; 64 * 1024];
+    let mut started = false;
+    let check_start = |bytes: &[u8]| {
+        start(bytes).map_err(|why| InputError::NotA {
+            path: name.to_owned(),
+            what,
+            why,
+        })
+    };
     loop {
         match file.read(&mut chunk) {
-            Ok(0) => return Ok(bytes),
+            Ok(0) => {
+                if !started {
+                    check_start(&bytes)?;
+                }
+                return Ok(bytes);
+            }
             Ok(n) => {
                 bytes.extend_from_slice(chunk.get(..n).unwrap_or(&[]));
+                if !started && bytes.len() >= START_LEN {
+                    check_start(bytes.get(..START_LEN).unwrap_or(&bytes))?;
+                    started = true;
+                }
                 if bytes.len() as u64 > limit {
                     return Err(InputError::TooLarge {
                         path: name.to_owned(),

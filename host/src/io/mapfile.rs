@@ -71,6 +71,40 @@ impl MapFormat {
     }
 }
 
+impl MapFormat {
+    /// Whether a file can be a map of this format from its first bytes: a `.mema` file starts
+    /// with its magic, a JSON map with `{` (after spaces), a CSV map with ASCII text.
+    fn start_check(self) -> crate::io::input::StartCheck {
+        match self {
+            Self::Mema => |start| {
+                let magic = &mema_core::map::MAGIC;
+                if magic.starts_with(start) || start.starts_with(magic) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "it starts with {start:02x?}, a .mema map with {magic:02x?} (\"MEMA\")"
+                    ))
+                }
+            },
+            Self::Json => |start| match start.iter().find(|b| !b.is_ascii_whitespace()) {
+                None | Some(b'{') => Ok(()),
+                Some(b) => Err(format!(
+                    "a JSON map starts with '{{', this with byte {b:#04x}"
+                )),
+            },
+            Self::Csv => |start| match start
+                .iter()
+                .find(|&&b| !(b.is_ascii_graphic() || b.is_ascii_whitespace()))
+            {
+                None => Ok(()),
+                Some(b) => Err(format!(
+                    "a CSV map is ASCII text, this starts with byte {b:#04x}"
+                )),
+            },
+        }
+    }
+}
+
 /// Entities per kind.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct KindCounts {
@@ -209,7 +243,8 @@ impl HostMap {
     /// `io::input`'s idle timeout).
     pub fn read(path: &Path) -> Result<Self> {
         let format = MapFormat::from_path(path)?;
-        let bytes = crate::io::input::read_bounded(path, MAP_LIMIT, "map")?;
+        let bytes =
+            crate::io::input::read_bounded_as(path, MAP_LIMIT, "map", format.start_check())?;
         let parsed = match format {
             MapFormat::Mema => Self::from_mema(&bytes),
             MapFormat::Csv => Self::from_csv(&String::from_utf8_lossy(&bytes)),

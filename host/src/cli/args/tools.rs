@@ -238,8 +238,9 @@ pub struct BenchArgs {
     /// and 5.
     #[arg(long)]
     pub python: Option<PathBuf>,
-    /// Fidelity: only these clouds of --data, comma-separated file names (default: every
-    /// PLY, PCD, LAS and LAZ file there).
+    /// Only these clouds, comma-separated file names (`environment` for the scene): the
+    /// fidelity benchmark's of --data (default: every PLY, PCD, LAS and LAZ file there), the
+    /// timing benchmarks' among their own cases (default: all of them).
     #[arg(long, value_delimiter = ',')]
     pub clouds: Vec<String>,
     /// Fidelity: map budgets in bytes, comma-separated.

@@ -177,11 +177,13 @@ fn write_pages(command: &clap::Command, dir: &Path, written: &mut Vec<PathBuf>) 
     Ok(())
 }
 
-/// A closed pipe (`mema man | head`) is not an error worth a message.
+/// A closed pipe (`mema man | head`) ends the process as it ends Unix tools.
 fn print_bytes(bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     match std::io::stdout().write_all(bytes) {
-        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => {
+            crate::cli::errors::end_on_closed_stdout()
+        }
         other => other.context("stdout"),
     }
 }

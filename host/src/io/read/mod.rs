@@ -270,6 +270,10 @@ fn read_unsized(path: &Path, name: &str, scaling: Scaling) -> Result<Cloud, Read
             ),
         }),
         Err(InputError::Io { cause, .. }) => Err(io(cause)),
+        Err(e @ InputError::NotA { .. }) => Err(io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            e.to_string(),
+        ))),
         Err(InputError::Idle { .. }) => Err(io(std::io::Error::new(
             std::io::ErrorKind::TimedOut,
             format!(
