@@ -65,6 +65,15 @@ fn map_bytes(dir: &Dir, cloud: &str, extra: &[&str]) -> Vec<u8> {
     std::fs::read(out).expect("map")
 }
 
+/// The map a cargo-fuzz campaign found accepted but not re-encoding to its own entities
+/// (`../shared/repro/map_decoder_no_round_trip.mema`, read in place).
+#[test]
+fn the_campaigns_no_round_trip_map_holds_the_properties() {
+    let path = crate::util::shared_data().join("../repro/map_decoder_no_round_trip.mema");
+    let bytes = std::fs::read(&path).expect("the repro map");
+    assert_eq!(map_file(&bytes), Ok(()));
+}
+
 #[test]
 fn map_decoder_holds_its_properties_on_mutated_maps_of_every_layout() {
     let dir = Dir::new("fuzz-maps");

@@ -30,6 +30,19 @@ const QUATERNION_MAX: f64 = ((1 << QUATERNION_BITS) - 1) as f64;
 ///   every semi-axis is within half a step (0.5% over a range of 10^4) of its fitted length.
 /// - Rotations: the smallest-three code, three components of 10 bits in `[-1/sqrt 2, 1/sqrt 2]`
 ///   and the index of the largest: within a quarter of a degree.
+/// The shortest semi-axis a grid may hold: its weight, `1e38`, is finite in f32 (a shorter one's
+/// overflowed, decoded as `f32::MAX`, and re-encoded one code off).
+const AXIS_MIN_FLOOR: f32 = 1e-19;
+
+/// The longest finite semi-axis a grid may hold: its weight, `1e-36`, is a normal f32 (a longer
+/// one's lost its precision or became 0, which reads as an infinite semi-axis).
+const AXIS_MAX_CEILING: f64 = 1e18;
+
+/// The finest positive step of the semi-axes' logarithm a grid may have: at it, f32's rounding
+/// of a decoded weight moves its re-encoded code by 3e-4 of a step, so every code is its own
+/// again (at 1e-10 it moved hundreds of codes).
+const AXIS_LOG_STEP_MIN: f32 = 1e-4;
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quantization {
     pub centre_step: f32,
@@ -66,7 +79,7 @@ impl Quantization {
         let (lo, hi) = (shortest, longest);
         let centre_step = if far > 0.0 {
             // A hair over far / 32767 so the farthest centre rounds inside the i16 range.
-            (far * (1.0 + 1e-6) / 32767.0) as f32
+            ((far * (1.0 + 1e-6) / 32767.0) as f32).max(f32::MIN_POSITIVE)
         } else {
             1.0
         };
@@ -77,8 +90,12 @@ impl Quantization {
                 axis_log_step: 0.0,
             };
         }
-        let lo = lo.max(hi * 1e-6);
-        let axis_log_step = (libm::log(hi / lo) / AXIS_CODE_MAX as f64) as f32;
+        let hi = hi.clamp(AXIS_MIN_FLOOR as f64, AXIS_MAX_CEILING);
+        let lo = lo.max(hi * 1e-6).max(AXIS_MIN_FLOOR as f64).min(hi);
+        let mut axis_log_step = (libm::log(hi / lo) / AXIS_CODE_MAX as f64) as f32;
+        if axis_log_step > 0.0 {
+            axis_log_step = axis_log_step.max(AXIS_LOG_STEP_MIN);
+        }
         Self {
             centre_step,
             axis_min: lo as f32,
@@ -86,18 +103,23 @@ impl Quantization {
         }
     }
 
-    /// Finite, positive, and its longest semi-axis finite in f32.
+    /// A grid every code of which decodes to a finite entity that encodes to the same code
+    /// again: a normal centre step whose farthest centre is finite, semi-axes from
+    /// [`AXIS_MIN_FLOOR`] to about [`AXIS_MAX_CEILING`], and a log step of 0 (one length) or at least
+    /// [`AXIS_LOG_STEP_MIN`].
     pub fn is_valid(&self) -> bool {
         let longest =
             self.axis_min as f64 * libm::exp(self.axis_log_step as f64 * AXIS_CODE_MAX as f64);
-        self.centre_step.is_finite()
+        let farthest = self.centre_step as f64 * -(i16::MIN as f64);
+        self.centre_step.is_normal()
             && self.centre_step > 0.0
+            && farthest < f32::MAX as f64
             && self.axis_min.is_finite()
-            && self.axis_min > 0.0
+            && self.axis_min >= AXIS_MIN_FLOOR
+            && (self.axis_log_step == 0.0 || self.axis_log_step >= AXIS_LOG_STEP_MIN)
             && self.axis_log_step.is_finite()
-            && self.axis_log_step >= 0.0
-            && longest.is_finite()
-            && longest < f32::MAX as f64
+            // Room for the log step raised to its least over a range near the ceiling.
+            && longest <= AXIS_MAX_CEILING * 1.2
     }
 
     /// The entity as its record stores it: what the file will read back.
@@ -412,6 +434,53 @@ mod tests {
                 let (a, b) = (e.entity.center.to_f64()[j], once.entity.center.to_f64()[j]);
                 assert!((a - b).abs() <= grid.centre_step as f64, "{a} vs {b}");
             }
+        }
+    }
+
+    /// Every axis code and the extreme centre codes of a valid grid decode to what encodes to
+    /// them again, at the grid's limits too (a fuzz campaign's map had a 3.9e-20 shortest axis,
+    /// whose weight overflowed); and the grids the encoder makes are valid at those limits.
+    #[test]
+    fn every_code_of_a_valid_grid_is_its_own_again() {
+        let grids = [
+            Quantization::for_extent(1.0, 1e-3, 1.0),
+            Quantization::for_extent(1e-30, 1e-25, 1e-20),
+            Quantization::for_extent(1e30, 1e17, 1e30),
+            Quantization::for_extent(5.0, 0.5, 0.5 * (1.0 + 1e-7)),
+            Quantization::for_extent(5.0, 2.0, 2.0),
+            Quantization {
+                centre_step: f32::MIN_POSITIVE,
+                axis_min: AXIS_MIN_FLOOR,
+                axis_log_step: AXIS_LOG_STEP_MIN,
+            },
+        ];
+        for grid in grids {
+            assert!(grid.is_valid(), "{grid:?}");
+            for code in 0..=AXIS_CODE_INFINITE {
+                let w = grid.axis_weight(code);
+                assert!(w.is_finite() && (w > 0.0 || code == AXIS_CODE_INFINITE));
+                let again = grid.axis_weight(grid.axis_code(w));
+                assert_eq!(again.to_bits(), w.to_bits(), "{grid:?}, code {code}");
+            }
+            for i in [i16::MIN, -1, 0, 1, 12345, i16::MAX] {
+                let c = i as f32 * grid.centre_step;
+                assert!(c.is_finite());
+                assert_eq!(quantize_centre(grid.centre_step, c), i, "{grid:?}");
+            }
+        }
+        for (step, min, log_step) in [
+            (1e-39f32, 1.0f32, 0.01f32),
+            (1e35, 1.0, 0.01),
+            (1.0, 3.9e-20, 0.01),
+            (1.0, 1.0, 1e-7),
+            (1.0, 1e17, 0.1),
+        ] {
+            let grid = Quantization {
+                centre_step: step,
+                axis_min: min,
+                axis_log_step: log_step,
+            };
+            assert!(!grid.is_valid(), "{grid:?}");
         }
     }
 }
