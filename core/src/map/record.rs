@@ -21,15 +21,6 @@ const AXIS_CODE_INFINITE: u32 = 1023;
 const QUATERNION_BITS: u32 = 10;
 const QUATERNION_MAX: f64 = ((1 << QUATERNION_BITS) - 1) as f64;
 
-/// The grid a quantized map lives on, stored in its header.
-///
-/// - Centres: `c = step * i` with `i` an i16 per axis, relative to the map's origin. With the
-///   origin at the cloud's centre the step is the half extent over 32,767: 2.4 um on a bunny,
-///   2.5 mm on a 160 m lidar frame.
-/// - Semi-axes: `r = axis_min * exp(axis_log_step * code)`, code 0..=1022 (1023 = infinite), so
-///   every semi-axis is within half a step (0.5% over a range of 10^4) of its fitted length.
-/// - Rotations: the smallest-three code, three components of 10 bits in `[-1/sqrt 2, 1/sqrt 2]`
-///   and the index of the largest: within a quarter of a degree.
 /// The shortest semi-axis a grid may hold: its weight, `1e38`, is finite in f32 (a shorter one's
 /// overflowed, decoded as `f32::MAX`, and re-encoded one code off).
 const AXIS_MIN_FLOOR: f32 = 1e-19;
@@ -43,6 +34,15 @@ const AXIS_MAX_CEILING: f64 = 1e18;
 /// again (at 1e-10 it moved hundreds of codes).
 const AXIS_LOG_STEP_MIN: f32 = 1e-4;
 
+/// The grid a quantized map lives on, stored in its header.
+///
+/// - Centres: `c = step * i` with `i` an i16 per axis, relative to the map's origin. With the
+///   origin at the cloud's centre the step is the half extent over 32,767: 2.4 um on a bunny,
+///   2.5 mm on a 160 m lidar frame.
+/// - Semi-axes: `r = axis_min * exp(axis_log_step * code)`, code 0..=1022 (1023 = infinite), so
+///   every semi-axis is within half a step (0.5% over a range of 10^4) of its fitted length.
+/// - Rotations: the smallest-three code, three components of 10 bits in `[-1/sqrt 2, 1/sqrt 2]`
+///   and the index of the largest: within a quarter of a degree.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Quantization {
     pub centre_step: f32,
