@@ -1,20 +1,30 @@
 #!/usr/bin/env bash
-# Fuzz campaigns under cargo-fuzz, each for SECONDS (default 60), from seed corpora made of the
-# shared clouds: the core's decoders (core/fuzz: the .mema map decoder, seeded with the clouds'
-# maps in every layout, and the wire decoder, with their captures) and the host's cloud readers
-# (host/fuzz: PLY, PCD, LAS/LAZ, XYZ and KITTI, seeded with the clouds themselves). The test
-# suite checks the same properties on mutations of the same seeds on stable
-# (tests/tests/fuzzing.rs); this is the long campaign.
-# Installs the nightly toolchain and cargo-fuzz when missing. Usage: scripts/fuzz.sh [SECONDS]
+# Fuzz campaigns under cargo-fuzz, every target for SECONDS each (default 60), from seed corpora
+# made of the shared data: the core's decoders (core/fuzz: `map_decoder`, seeded with the
+# clouds' maps in every layout; `wire_decoder`, with their captures) and the host's readers
+# (host/fuzz: `cloud_readers`, PLY, PCD, LAS/LAZ, XYZ and KITTI seeded with the clouds
+# themselves; `bag_messages`, the CDR of the PointCloud2 and TFMessage messages of the bags the
+# bag tests write with rosbags). The test suite checks the same properties on mutations of the
+# same seeds on stable (tests/tests/fuzzing.rs); this is the long campaign.
+#
+# A finding does not end a campaign: each runs in libFuzzer's fork mode and goes on past
+# crashes, timeouts and running out of memory, and keeps every input that caused one in
+# target/fuzz-findings/TARGET/ (earlier runs' findings stay there too). The last lines are a table of each target's runs and findings;
+# the exit status is 1 when any target had a finding.
+# Installs the nightly toolchain, cargo-fuzz and the Python environment (rosbags, numpy) when
+# missing. Usage: scripts/fuzz.sh [SECONDS]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
 
 rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
 command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz --version 0.13.2 --locked
+[ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
+target/py-venv/bin/python -m pip install --quiet --disable-pip-version-check rosbags==0.11.9 numpy
 
 cargo build -q --release -p mema
 corpus="$PWD/target/fuzz-corpus"
+findings="$PWD/target/fuzz-findings"
 mkdir -p "$corpus/map_decoder" "$corpus/wire_decoder"
 for cloud in car6.pcd lamppost.pcd bun_zipper.ply milk.pcd; do
   maps="$corpus/map_decoder/$cloud"
@@ -43,15 +53,60 @@ xyz=$(awk 'body { print $1, $2, $3 } /^DATA/ { body = 1 }' ../shared/data/lamppo
 { printf '\x04'; echo "$xyz"; } > "$readers/lamppost.xyz"
 { printf '\x05'; echo "$xyz" | perl -ne 'print pack("f<4", split(" "), 0.5)'; } > "$readers/lamppost.bin"
 
-cd core/fuzz
-for target in map_decoder wire_decoder; do
+# The bag target's first byte picks the message type (odd: PointCloud2, even: TFMessage): the
+# messages of the bags tests/bags/write_bag.py writes, read back by rosbags.
+bags="$corpus/bag_messages"
+mkdir -p "$bags"
+rm -rf target/fuzz-bags
+target/py-venv/bin/python tests/bags/write_bag.py --data ../shared/data target/fuzz-bags >/dev/null
+target/py-venv/bin/python - target/fuzz-bags "$bags" <<'EOF'
+import sys
+from pathlib import Path
+from rosbags.rosbag2 import Reader
+
+out = Path(sys.argv[2])
+for bag in sorted(Path(sys.argv[1]).iterdir()):
+    with Reader(bag) as reader:
+        for n, (conn, _, raw) in enumerate(reader.messages()):
+            pick = b"\x01" if conn.msgtype.endswith("PointCloud2") else b"\x00"
+            (out / f"{bag.name}-{n}").write_bytes(pick + bytes(raw))
+EOF
+
+# One campaign: TARGET in the fuzz crate DIR, inputs up to MAX_LEN bytes, cargo-fuzz's flags.
+# Its runs and findings are appended to the summary.
+summary=()
+total=0
+started="$PWD/target/fuzz-started"
+touch "$started"
+campaign() {
+  local dir="$1" target="$2" max_len="$3"
+  shift 3
+  local log="$PWD/target/fuzz-$target.log"
+  mkdir -p "$findings/$target"
   echo "== fuzz $target for $seconds s"
-  cargo +nightly fuzz run "$target" "$corpus/$target" -- -max_total_time="$seconds" -max_len=262144
-done
-cd ../../host/fuzz
+  (cd "$dir" && cargo +nightly fuzz run "$@" "$target" "$corpus/$target" -- \
+    -max_total_time="$seconds" -max_len="$max_len" \
+    -fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 \
+    -artifact_prefix="$findings/$target/") >"$log" 2>&1 || true
+  # Fork mode's status lines read `#RUNS: cov: ... oom/timeout/crash: O/T/C ...`.
+  local runs
+  runs=$(grep -oE '^#[0-9]+' "$log" | tail -1 | tr -d '#')
+  local found
+  found=$(find "$findings/$target" -type f -newer "$started" | wc -l)
+  total=$((total + found))
+  grep -E '^(#[0-9]+:|INFO: (fuzzed|exiting)|==[0-9]+==ERROR|.*panicked)' "$log" | tail -4 || true
+  summary+=("$(printf '%-14s %8s s %12s runs %4s findings' "$target" "$seconds" "${runs:-0}" "$found")")
+}
+
+campaign core/fuzz map_decoder 262144
+campaign core/fuzz wire_decoder 262144
 # Built as the binary ships (-O: no debug assertions). With them, the laz crate's decoder stops
-# the campaign within seconds at its own debug_assert!(sym < 1 << 16) (decoders.rs:284) on
-# corrupt arithmetic-coded data, where a release build reads on and the reader returns its
-# one-line error (the first 3-minute campaign found that and nothing else).
-echo "== fuzz cloud_readers for $seconds s"
-cargo +nightly fuzz run -O cloud_readers "$readers" -- -max_total_time="$seconds" -max_len=1048576
+# a campaign within seconds at its own debug_assert!(sym < 1 << 16) (decoders.rs:284) on corrupt
+# arithmetic-coded data, where a release build reads on and the reader returns its one-line
+# error.
+campaign host/fuzz cloud_readers 1048576 -O
+campaign host/fuzz bag_messages 1048576 -O
+
+echo "== campaigns (findings kept in $findings/TARGET, logs in target/fuzz-TARGET.log)"
+printf '%s\n' "${summary[@]}"
+[ "$total" -eq 0 ]

@@ -357,6 +357,30 @@ fn the_library_names_no_command_line() {
     }
 }
 
+/// Whether an input is a registration file, a bag or a cloud is decided in one place,
+/// `io::kind::InputKind::of` (it was decided in io/cloud.rs, link/scanner.rs and three
+/// commands, each asking the predicates again); everything else asks it.
+#[test]
+fn one_place_decides_what_an_input_is() {
+    let sources: Vec<Source> = sources(|_| true);
+    let deciders: Vec<String> = sources
+        .iter()
+        .filter(|s| names(&s.code, "is_bag") || names(&s.code, "is_registration"))
+        .filter(|s| !s.code.contains("fn is_bag") && !s.code.contains("fn is_registration"))
+        .map(|s| s.file.clone())
+        .collect();
+    assert_eq!(
+        deciders,
+        ["io/kind.rs"],
+        "asking what an input is outside io/kind.rs"
+    );
+    let askers = sources
+        .iter()
+        .filter(|s| names(&s.code, "InputKind"))
+        .count();
+    assert!(askers >= 4, "InputKind asked in {askers} files");
+}
+
 #[test]
 fn no_two_library_modules_import_each_other_in_a_circle() {
     let sources = library_sources();

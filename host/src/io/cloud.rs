@@ -4,10 +4,9 @@ use anyhow::{Context, Result, bail};
 use mema_core::Point3;
 use std::path::Path;
 
-pub use super::bag::is_bag;
 use super::bag::{BagOptions, read_bag};
-pub use super::conf::is_registration;
 use super::conf::{RegisteredScan, read_registration};
+use super::kind::InputKind;
 use super::read::{Cloud, read_cloud, read_cloud_in_metres};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
@@ -211,13 +210,11 @@ impl LocalCloud {
 /// # Ok::<(), anyhow::Error>(())
 /// ```
 pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
-    if is_registration(path) {
-        return Ok(load_registered_in_metres(path, None)?.0);
+    match InputKind::of(path) {
+        InputKind::Registration => Ok(load_registered_in_metres(path, None)?.0),
+        InputKind::Bag => Ok(load_bag_in_metres(path, &BagOptions::default(), None)?.0),
+        InputKind::StandardInput | InputKind::Cloud => Ok(local(read_cloud(path)?)),
     }
-    if is_bag(path) {
-        return Ok(load_bag_in_metres(path, &BagOptions::default(), None)?.0);
-    }
-    Ok(local(read_cloud(path)?))
 }
 
 fn local(cloud: Cloud) -> LocalCloud {
@@ -255,13 +252,20 @@ pub fn load_input_in_metres(
     given: Option<&LengthUnit>,
     bag: &BagOptions,
 ) -> Result<(LocalCloud, Units)> {
-    // Several registered scans (a `.conf`): all of them, in their common frame.
-    if is_registration(path) {
-        return load_registered_in_metres(path, given);
+    match InputKind::of(path) {
+        // Several registered scans (a `.conf`): all of them, in their common frame.
+        InputKind::Registration => load_registered_in_metres(path, given),
+        InputKind::Bag => load_bag_in_metres(path, bag, given),
+        InputKind::StandardInput | InputKind::Cloud => load_cloud_file_in_metres(path, given),
     }
-    if is_bag(path) {
-        return load_bag_in_metres(path, bag, given);
-    }
+}
+
+/// One cloud file (or standard input) in metres, as [`load_cloud_in_metres`] takes it, for
+/// callers that have already asked [`InputKind::of`] what their input is.
+pub fn load_cloud_file_in_metres(
+    path: &Path,
+    given: Option<&LengthUnit>,
+) -> Result<(LocalCloud, Units)> {
     let mut cloud = read_cloud_in_metres(path, given)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
     let mut cloud = local(cloud);
@@ -290,14 +294,20 @@ pub fn read_scans_in_metres(
     let mut out = Vec::new();
     let mut first_units = None;
     for scan in read_registration(path)? {
-        if is_registration(&scan.path) {
-            bail!(
+        match InputKind::of(&scan.path) {
+            InputKind::Registration => bail!(
                 "{}: a registration file names another, {}",
                 path.display(),
                 scan.path.display()
-            );
+            ),
+            InputKind::Bag => bail!(
+                "{}: a scan is a cloud file, and {} is a ROS 2 bag",
+                path.display(),
+                scan.path.display()
+            ),
+            InputKind::StandardInput | InputKind::Cloud => {}
         }
-        let (cloud, units) = load_cloud_in_metres(&scan.path, given)
+        let (cloud, units) = load_cloud_file_in_metres(&scan.path, given)
             .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
         let scale = units.unit.metres;
         let points = cloud.world_points();

@@ -52,7 +52,7 @@ pub fn to_world(translation: [f64; 3], rotation: [f64; 4], p: [f64; 3]) -> [f64;
 /// Whether `path` is a registration file: its first line that says anything starts with
 /// `bmesh` or `camera`. Point-cloud readers recognise their formats by content, and so does
 /// this, so a `.conf` is never taken for XYZ text.
-pub fn is_registration(path: &Path) -> bool {
+pub(crate) fn is_registration(path: &Path) -> bool {
     let Ok(meta) = std::fs::metadata(path) else {
         return false;
     };

@@ -8,6 +8,7 @@ pub mod cloud;
 pub mod conf;
 pub mod drive;
 pub mod input;
+pub mod kind;
 pub mod mapfile;
 pub mod output;
 pub mod read;

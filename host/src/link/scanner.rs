@@ -23,10 +23,10 @@ use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
 use crate::io::bag::{BagOptions, read_bag};
 use crate::io::cloud::{
-    LocalCloud, bounding_box_centre, is_bag, is_registration, load_cloud_in_metres,
-    read_scans_in_metres,
+    LocalCloud, bounding_box_centre, load_cloud_file_in_metres, read_scans_in_metres,
 };
 use crate::io::drive::DriveScan;
+use crate::io::kind::InputKind;
 use crate::io::units::LengthUnit;
 use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
 
@@ -105,35 +105,40 @@ pub fn scans_of_input(
     given: Option<&LengthUnit>,
     bag: &BagOptions,
 ) -> Result<Vec<SensorScan>> {
-    if is_bag(path) {
-        let read = read_bag(path, bag, given)?;
-        if read.frame.is_none() {
-            let world: Vec<[f64; 3]> = read.scans.iter().flat_map(|s| s.world_points()).collect();
-            return Ok(vec![SensorScan::of_world(&world)?]);
+    match InputKind::of(path) {
+        InputKind::Bag => {
+            let read = read_bag(path, bag, given)?;
+            if read.frame.is_none() {
+                let world: Vec<[f64; 3]> =
+                    read.scans.iter().flat_map(|s| s.world_points()).collect();
+                return Ok(vec![SensorScan::of_world(&world)?]);
+            }
+            Ok(read
+                .scans
+                .into_iter()
+                .map(|s| SensorScan {
+                    translation: s.pose.translation,
+                    rotation: s.pose.rotation,
+                    points: s.points,
+                })
+                .collect())
         }
-        return Ok(read
-            .scans
-            .into_iter()
-            .map(|s| SensorScan {
-                translation: s.pose.translation,
-                rotation: s.pose.rotation,
-                points: s.points,
-            })
-            .collect());
+        InputKind::Registration => {
+            let (scans, _) = read_scans_in_metres(path, given)?;
+            Ok(scans
+                .into_iter()
+                .map(|s| SensorScan {
+                    translation: s.scan.translation,
+                    rotation: s.scan.sensor_to_world(),
+                    points: s.points,
+                })
+                .collect())
+        }
+        InputKind::StandardInput | InputKind::Cloud => {
+            let (cloud, _) = load_cloud_file_in_metres(path, given)?;
+            Ok(vec![SensorScan::of_cloud(&cloud)?])
+        }
     }
-    if is_registration(path) {
-        let (scans, _) = read_scans_in_metres(path, given)?;
-        return Ok(scans
-            .into_iter()
-            .map(|s| SensorScan {
-                translation: s.scan.translation,
-                rotation: s.scan.sensor_to_world(),
-                points: s.points,
-            })
-            .collect());
-    }
-    let (cloud, _) = load_cloud_in_metres(path, given)?;
-    Ok(vec![SensorScan::of_cloud(&cloud)?])
 }
 
 /// The median distance from a point to its nearest other point, over every scan (each scan's

@@ -12,7 +12,8 @@ pub mod toolbox;
 
 use anyhow::Result;
 use mema::io::Units;
-use mema::io::cloud::{LocalCloud, is_bag, load_input_in_metres};
+use mema::io::cloud::{LocalCloud, load_input_in_metres};
+use mema::io::kind::InputKind;
 use mema::progress::stage;
 use std::path::Path;
 
@@ -29,7 +30,7 @@ pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Unit
 /// `--topic` and `--frame` name a ROS 2 bag's messages: given for any other input, they are a
 /// usage error rather than ignored.
 pub fn check_bag_args(path: &Path, bag: &BagArg) -> Result<()> {
-    if bag.given() && !is_bag(path) {
+    if bag.given() && InputKind::of(path) != InputKind::Bag {
         return Err(UsageError(format!(
             "--topic and --frame choose a ROS 2 bag's messages, and {} is not a bag (an MCAP file)",
             mema::io::read::input_name(path)

@@ -8,8 +8,8 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use mema::io::cloud::{is_bag, is_registration};
 use mema::io::drive::{DriveConfig, drive};
+use mema::io::kind::InputKind;
 use mema::io::output::{check_map_output, check_output_dir};
 use mema::io::scene::Scene;
 use mema::link::capture::CaptureWriter;
@@ -455,7 +455,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         .unwrap_or_else(|| args.capture.with_extension("mema"));
     check_map_output(&output)?;
     super::check_bag_args(&args.capture, &args.bag)?;
-    let bytes = if is_bag(&args.capture) {
+    let bytes = if InputKind::of(&args.capture) == InputKind::Bag {
         // A bag's scans, as `scanner-sim` would send them: what `map BAG --stream` maps.
         let scans = scans_of_input(&args.capture, None, &args.bag.options())
             .with_context(|| args.capture.display().to_string())?;
@@ -504,7 +504,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
     }
     let scans = match (&args.conf, &args.cloud) {
         (Some(conf), _) => {
-            if !is_registration(conf) {
+            if InputKind::of(conf) != InputKind::Registration {
                 bail!(
                     "{}: not a registration file (lines `bmesh FILE tx ty tz qx qy qz qw`)",
                     conf.display()
@@ -512,7 +512,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
             }
             scans_of(conf, args.units.units.as_ref())?
         }
-        (None, Some(path)) if is_bag(path) => {
+        (None, Some(path)) if InputKind::of(path) == InputKind::Bag => {
             scans_of_input(path, args.units.units.as_ref(), &args.bag.options())
                 .with_context(|| path.display().to_string())?
         }

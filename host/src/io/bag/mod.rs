@@ -217,7 +217,7 @@ fn choose_hint(available: &[String]) -> String {
 /// Whether `path` is a bag: an MCAP file (a regular file that starts with the MCAP magic), or
 /// a rosbag2 directory (as `ros2 bag record` and rosbags write it: `metadata.yaml` beside one
 /// or more MCAP files).
-pub fn is_bag(path: &Path) -> bool {
+pub(crate) fn is_bag(path: &Path) -> bool {
     bag_files(path).is_some()
 }
 
