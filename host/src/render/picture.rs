@@ -38,10 +38,22 @@ impl FromStr for Size {
     }
 }
 
+/// Which mean eq. 13 error a panel's title shows.
+#[derive(Clone, Copy, Debug)]
+pub enum TitleError<'a> {
+    /// Each point joining its nearest centre, as `mema eval` and `mema draw` report it.
+    NearestCentre,
+    /// Each map's own, as its caller measured and printed it (the demo: its clusters', the
+    /// mean of the paper's Table 4), one per map.
+    TableFour(&'a [f64]),
+}
+
 /// One panel of `mema draw --json`.
 #[derive(Serialize)]
 pub struct Panel {
     pub map: String,
+    /// The title written over the panel.
+    pub title: String,
     pub entities: usize,
     pub kinds: KindCounts,
     /// Eq. 13 over the cloud, as `mema eval` reports it.
@@ -83,7 +95,7 @@ pub struct DrawReport {
 /// ```
 /// use mema::io::{HostMap, LocalCloud};
 /// use mema::render::draw::{Style, View};
-/// use mema::render::picture::{Size, render};
+/// use mema::render::picture::{Size, TitleError, render};
 /// use mema_core::{Entity, MapEntity, Point3};
 ///
 /// let points = [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, -1.0]];
@@ -93,7 +105,7 @@ pub struct DrawReport {
 /// let map = HostMap::new([0.0; 3], vec![entity]);
 /// let size: Size = "400x300".parse().map_err(anyhow::Error::msg)?;
 /// let maps = [("sphere".to_string(), map)];
-/// let (raster, report) = render(&cloud, &maps, View::Iso, None, size, Style::Shaded)?;
+/// let (raster, report) = render(&cloud, &maps, View::Iso, None, size, Style::Shaded, TitleError::NearestCentre)?;
 /// assert_eq!(report.panels[0].entities, 1);
 /// assert!(raster.encode_png()?.starts_with(b"\x89PNG"));
 /// # Ok::<(), anyhow::Error>(())
@@ -105,6 +117,7 @@ pub fn render(
     up: Option<Up>,
     size: Size,
     style: Style,
+    title_error: TitleError,
 ) -> Result<(Raster, DrawReport), ConfigError> {
     let n = maps.len() as u32;
     let panel_w = size.width / n;
@@ -166,11 +179,18 @@ pub fn render(
         };
         let cost = draw::draw_panel(&mut raster, &scene, map, &|| progress.inc(1));
         let errors = evaluate(cloud, map).errors;
-        let title = format!(
-            "{name}: {} entities, mean e {:.4}",
-            map.entities.len(),
-            errors.mean
-        );
+        let title = match title_error {
+            TitleError::NearestCentre => format!(
+                "{name}: {} entities, mean eq. 13 error {:.6}",
+                map.entities.len(),
+                errors.mean
+            ),
+            TitleError::TableFour(means) => format!(
+                "{name}: {} entities, Table 4 mean {:.6}",
+                map.entities.len(),
+                means.get(i).copied().unwrap_or(f64::NAN)
+            ),
+        };
         raster.text(i64::from(x0) + 8, 6, ts, &title, draw::INK);
         let legend_y = i64::from(top + plot_h) + 8;
         let legend = draw::draw_legend(
@@ -198,6 +218,7 @@ pub fn render(
         }
         panels.push(Panel {
             map: name.clone(),
+            title,
             entities: map.entities.len(),
             kinds: KindCounts::of(map),
             mean_error: errors.mean,

@@ -17,6 +17,7 @@ use std::path::Path;
 
 use super::demo_files::{DemoFiles, shell_word, write_picture};
 use crate::cli::args::DemoArgs;
+use mema::render::picture::TitleError;
 
 /// `mema demo --json`: the map's report (as `mema map --json` gives it) and the files.
 #[derive(Serialize)]
@@ -24,6 +25,8 @@ struct DemoJson<'a> {
     #[serde(flatten)]
     report: &'a MapReport,
     files: &'a DemoFiles,
+    /// The picture's title, with the mean of Table 4 as `report` has it.
+    picture_title: String,
 }
 
 pub fn demo(args: &DemoArgs) -> Result<()> {
@@ -53,11 +56,17 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     )
     .context("demo scene")?;
     let map = HostMap::read(&files.map)?;
-    write_picture(&cloud, map, &files.picture)?;
+    let picture_title = write_picture(
+        &cloud,
+        map,
+        &files.picture,
+        TitleError::TableFour(&[report.ellipsoidal.mean]),
+    )?;
     if args.json {
         let doc = DemoJson {
             report: &report,
             files: &files,
+            picture_title,
         };
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());

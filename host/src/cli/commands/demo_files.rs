@@ -9,7 +9,7 @@ use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::{HostMap, write_file_atomically};
 use mema::progress::stage;
 use mema::render::draw::{Style, View};
-use mema::render::picture::{Size, render};
+use mema::render::picture::{Size, TitleError, render};
 
 /// The picture's size: large enough to read the legend, small enough to draw in a second.
 const PICTURE: Size = Size {
@@ -49,9 +49,15 @@ pub fn shell_word(path: &Path) -> String {
 }
 
 /// The picture both demos write: `map`'s entities shaded over `cloud`'s points, seen from the
-/// iso view, as a PNG at `path` (written whole or not at all).
-pub fn write_picture(cloud: &LocalCloud, map: HostMap, path: &Path) -> Result<()> {
-    let (raster, _) = stage("drawing", || {
+/// iso view, as a PNG at `path` (written whole or not at all), titled with the error the demo
+/// printed; the title.
+pub fn write_picture(
+    cloud: &LocalCloud,
+    map: HostMap,
+    path: &Path,
+    title_error: TitleError,
+) -> Result<String> {
+    let (raster, report) = stage("drawing", || {
         render(
             cloud,
             &[("map.mema".to_owned(), map)],
@@ -59,8 +65,15 @@ pub fn write_picture(cloud: &LocalCloud, map: HostMap, path: &Path) -> Result<()
             None,
             PICTURE,
             Style::Shaded,
+            title_error,
         )
     })?;
     let png = raster.encode_png().context("PNG encoding")?;
-    write_file_atomically(path, &png, "picture")
+    write_file_atomically(path, &png, "picture")?;
+    Ok(report
+        .panels
+        .into_iter()
+        .next()
+        .map(|p| p.title)
+        .unwrap_or_default())
 }

@@ -20,6 +20,7 @@ use serde::Serialize;
 
 use super::demo_files::{DemoFiles, shell_word, write_picture};
 use crate::cli::args::DemoArgs;
+use mema::render::picture::TitleError;
 
 /// Surface samples of the two-way score: eval's default.
 const SCORE_SAMPLES: usize = 200_000;
@@ -75,7 +76,12 @@ pub fn demo_moving(args: &DemoArgs) -> Result<()> {
         two_way_score(&in_map, &entities, config.seed, SCORE_SAMPLES)
     })?;
     let cloud = LocalCloud::from_world(&world);
-    write_picture(&cloud, map.clone(), &files.picture)?;
+    write_picture(
+        &cloud,
+        map.clone(),
+        &files.picture,
+        TitleError::NearestCentre,
+    )?;
     let doc = MovingDemo {
         stops: stops.len(),
         points: sent.points,

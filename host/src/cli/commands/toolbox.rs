@@ -8,7 +8,7 @@ use mema::progress::stage;
 use mema::render::export::{
     self as mesh, Bounds, ExportReport, MeshFormat, MeshSize, Tessellation,
 };
-use mema::render::picture::render;
+use mema::render::picture::{TitleError, render};
 use std::path::{Path, PathBuf};
 
 use super::read_in_metres;
@@ -55,6 +55,7 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
         args.up.map(Into::into),
         args.size,
         args.style.into(),
+        TitleError::NearestCentre,
     )?;
     let png = raster.encode_png().context("PNG encoding")?;
     write_file_atomically(&args.output, &png, "picture")
