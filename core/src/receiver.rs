@@ -14,9 +14,10 @@
 //! - **The map's frame.** The mapper works in f32, which near 2,000 km resolves only 0.25 m. The
 //!   receiver therefore keeps an f64 origin, taken from the first point mapped (in the world)
 //!   and rounded to [`ORIGIN_CELL`], and hands the mapper points relative to it: millimetres
-//!   stay millimetres within 16 km of the origin, wherever on the link's range the map lies. A
-//!   stream within 512 m of 0 keeps origin 0, so its points reach the mapper with the same bits
-//!   as before there was an origin.
+//!   stay millimetres within 16 km of the origin, and a scene is as precise wherever on the
+//!   link's range it lies, since it starts within half a metre of its origin (rounded to
+//!   1,024 m, a scene half a cell from its origin had f32 steps of 30 um where one at the
+//!   origin had steps of 15 nm). A stream within half a metre of 0 keeps origin 0.
 
 mod placement;
 
@@ -26,9 +27,10 @@ use crate::wire::{
     Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
 };
 
-/// The map origin is the first mapped point rounded to a multiple of this (metres): a power of
-/// two, so the origin is exact in f64 and the same on every target.
-pub const ORIGIN_CELL: f64 = 1024.0;
+/// The map origin is the first mapped point rounded to a multiple of this (metres): whole metres,
+/// so the origin is exact in f64, the same on every target, and a pose's offset from it stays
+/// whole units of the wire ([`Placement`]'s integer path).
+pub const ORIGIN_CELL: f64 = 1.0;
 
 /// Why a frame was not mapped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -75,7 +75,7 @@ const EXACT32: u64 = 1 << 24;
 /// A device has no f64 unit, so a point is placed in f32 (a few FPU instructions where soft
 /// f64 took about 800 a point), with the bits the f64 computation gives:
 /// - No rotation, and an offset (pose translation minus origin) of whole units, which is what
-///   senders give (poses in the points' unit or a coarser one, the origin a whole 1,024 m): the
+///   senders give (poses in the points' unit or a coarser one, the origin whole metres): the
 ///   point plus the offset is an integer `n`, placed at `n 10^e` rounded once to f32. Below 2^24
 ///   units that is one f32 operation and the same bits as `(n as f64 * 10^e) as f32` (tested for
 ///   every such `n` and `e`); beyond, f64.

@@ -76,12 +76,12 @@ fn frames_after_the_end_are_counted_not_mapped() -> TestResult {
     Ok(())
 }
 
-/// Near 0 the origin is 0 and a point reaches the mapper as `(v * 10^e) as f32`, the bits it
-/// had before the receiver kept an origin; far out, the origin is the first point's 1,024 m
-/// cell and the points keep their spacing.
+/// Near 0 (the first point within half a metre) the origin is 0 and a point reaches the mapper
+/// as `(v * 10^e) as f32`, the bits it had before the receiver kept an origin; far out, the
+/// origin is the first point's whole metres and the points keep their spacing.
 #[test]
 fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
-    let near = [[1234, -5678, 91_011], [-511_999, 0, 7]];
+    let near = [[123, -456, 91], [-511_999, 0, 7]];
     let mut wire = [0u8; 512];
     let at = push(&mut wire, 1, 0, true, -3, &near)?;
     let mut r = Receiver::new();
@@ -114,7 +114,7 @@ fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
     };
     let o = placement.origin();
     assert!(o.iter().all(|v| v % ORIGIN_CELL == 0.0));
-    assert_eq!(o, [1_999_872.0, -1_999_872.0, 1_000_448.0]);
+    assert_eq!(o, [2_000_000.0, -2_000_000.0, 1_000_000.0]);
     let a = placement.point(&frame, 0).or_fail("first")?.to_array();
     let b = placement.point(&frame, 1).or_fail("second")?.to_array();
     for j in 0..3 {
@@ -195,13 +195,16 @@ fn a_pose_takes_sensor_points_into_the_world() -> TestResult {
     let (got, n) = mapped(&mut r, wire.get(..at).or_fail("wire")?);
     assert_eq!(n, 3);
     assert_eq!(r.stats().poses, 1);
-    assert_eq!(r.origin(), [0.0; 3]);
+    // The first point, (1, -1, 0.5) m in the world, to whole metres (halves away from 0).
+    let origin = r.origin();
+    assert_eq!(origin, [1.0, -1.0, 1.0]);
     for (p, s) in got.iter().zip(sensor) {
         let [x, y, z] = s.map(|v| v as f64 / 1000.0);
         // A quarter turn about z: (x, y, z) -> (-y, x, z).
         let want = [-y + 1.0, x - 2.0, z + 0.5];
         for j in 0..3 {
-            assert!((p[j] as f64 - want[j]).abs() < 1e-6, "{p:?} vs {want:?}");
+            let world = p[j] as f64 + origin[j];
+            assert!((world - want[j]).abs() < 1e-6, "{p:?} + {origin:?} vs {want:?}");
         }
     }
     Ok(())

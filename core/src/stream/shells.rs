@@ -44,20 +44,62 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// How the map is written: the paper's axis-aligned fits in version 1, shells quantized on
-    /// the finest grid that holds them all.
+    /// the finest grid that holds them all around the file's origin ([`StreamMapper::file_shift`]).
     pub fn layout(&self) -> Layout {
         match self.params.model {
             StreamModel::Paper => Layout::AxisAligned,
             StreamModel::Shells(_) => {
-                Layout::Quantized(Quantization::for_entities(self.entities()))
+                Layout::Quantized(Quantization::for_entities(self.file_entities()))
             }
         }
     }
 
-    /// The entities as a file in `layout` stores them: on its grid when quantized, as they are
-    /// otherwise.
+    /// Where a quantized file's origin lies in the mapper's frame: the centre of the box around
+    /// the entities' centres. The grid's centre step is then the map's own half extent over
+    /// 32,767, wherever the receiver's origin lies; around that origin, a small scene at the
+    /// far side of it got a step of its distance over 32,767 (15 mm at 500 m). Zero for the
+    /// paper's f32 records, which a shift could only round.
+    pub fn file_shift(&self) -> [f32; 3] {
+        if !self.is_shells() {
+            return [0.0; 3];
+        }
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for e in self.entities() {
+            for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(e.entity.center.to_array()) {
+                if v.is_finite() {
+                    *l = l.min(v);
+                    *h = h.max(v);
+                }
+            }
+        }
+        // Halves first: the sum of two large centres cannot overflow.
+        core::array::from_fn(|j| {
+            let (l, h) = (lo[j], hi[j]);
+            if l <= h { l / 2.0 + h / 2.0 } else { 0.0 }
+        })
+    }
+
+    /// The file's origin for a mapper whose points are relative to `origin` (the receiver's).
+    pub fn file_origin(&self, origin: [f64; 3]) -> [f64; 3] {
+        let shift = self.file_shift();
+        core::array::from_fn(|j| origin[j] + f64::from(shift[j]))
+    }
+
+    /// The entities around the file's origin.
+    fn file_entities(&self) -> impl Iterator<Item = MapEntity> + Clone + '_ {
+        let [sx, sy, sz] = self.file_shift();
+        self.entities().map(move |mut e| {
+            let c = e.entity.center;
+            e.entity.center = crate::geometry::Point3::new(c.x - sx, c.y - sy, c.z - sz);
+            e
+        })
+    }
+
+    /// The entities as a file in `layout` stores them, around the file's origin: on its grid
+    /// when quantized, as they are otherwise.
     pub fn stored_entities(&self, layout: Layout) -> impl Iterator<Item = MapEntity> + Clone + '_ {
-        self.entities().map(move |e| match layout {
+        self.file_entities().map(move |e| match layout {
             Layout::Quantized(grid) => grid.quantize(e),
             _ => e,
         })
@@ -68,10 +110,16 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.layout().encoded_len(self.entities().count())
     }
 
-    /// The map's `.mema` bytes (in [`StreamMapper::layout`]) into `out`, returning their length.
+    /// The map's `.mema` bytes (in [`StreamMapper::layout`]) into `out`, returning their length;
+    /// `origin` is the receiver's.
     pub fn encode_into(&self, origin: [f64; 3], out: &mut [u8]) -> Result<usize, EncodeError> {
         let layout = self.layout();
-        encode_as(layout, origin, self.stored_entities(layout), out)
+        encode_as(
+            layout,
+            self.file_origin(origin),
+            self.stored_entities(layout),
+            out,
+        )
     }
 
     /// The map's `.mema` bytes handed to `sink` piece by piece: a device needs no buffer for
@@ -82,6 +130,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         sink: impl FnMut(&[u8]),
     ) -> Result<usize, EncodeError> {
         let layout = self.layout();
-        encode_pieces_as(layout, origin, self.stored_entities(layout), sink)
+        encode_pieces_as(
+            layout,
+            self.file_origin(origin),
+            self.stored_entities(layout),
+            sink,
+        )
     }
 }

@@ -132,12 +132,13 @@ pub fn link_params(
 }
 
 /// The mapper's map as its file stores it: the paper's fits in f32 (version 1), shells on the
-/// quantized grid (the entities already on it, so the map in memory is its file read back),
-/// around `origin`, the receiver's (the mapper's points are relative to it).
+/// quantized grid (the entities already on it, so the map in memory is its file read back)
+/// around the file's origin; `origin` is the receiver's (the mapper's points are relative to
+/// it).
 pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
     let layout = mapper.layout();
     HostMap {
-        origin,
+        origin: mapper.file_origin(origin),
         entities: mapper.stored_entities(layout).collect(),
         quantization: match layout {
             mema_core::map::Layout::Quantized(grid) => Some(grid),

@@ -47,7 +47,7 @@ fn points_below_2_24_units_are_the_nearest_f32_and_the_f64_bits() {
         let p = Placement::new([0.0; 3], e, &Pose::START);
         let scale = crate::wire::unit_scale(e).unwrap_or(f64::NAN);
         let small = -70_000..=70_000;
-        let wide = xorshift(e as u64 + 99)
+        let wide = xorshift((i64::from(e) + 99) as u64)
             .take(20_000)
             .map(|r| (r % (2 * EXACT32 - 1)) as i64 - (EXACT32 as i64 - 1));
         let edges = [
