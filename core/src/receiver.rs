@@ -12,12 +12,15 @@
 //! - **The end.** Frames after the end-of-stream frame are counted and never mapped, so the map
 //!   does not depend on how many of them arrived in the same chunk as the end.
 //! - **The map's frame.** The mapper works in f32, which near 2,000 km resolves only 0.25 m. The
-//!   receiver therefore keeps an f64 origin, taken from the first point mapped (in the world)
-//!   and rounded to [`ORIGIN_CELL`], and hands the mapper points relative to it: millimetres
-//!   stay millimetres within 16 km of the origin, and a scene is as precise wherever on the
-//!   link's range it lies, since it starts within half a metre of its origin (rounded to
-//!   1,024 m, a scene half a cell from its origin had f32 steps of 30 um where one at the
-//!   origin had steps of 15 nm). A stream within half a metre of 0 keeps origin 0.
+//!   receiver therefore keeps an origin, the first point within the world's range exactly (in
+//!   whole nanometres, where every wire unit is whole), and hands the mapper points relative
+//!   to it, worked out in integers: the same bits wherever the world frame puts the scene, so
+//!   the map does not depend on the world frame's origin. (Rounded to 1,024 m, as it was, a
+//!   scene half a cell from its origin had f32 steps of 30 um where one at 0 had 15 nm, and
+//!   mapped 3.6x worse.)
+//! - **Reach.** Points farther than the reach from the origin on any axis ([`DEFAULT_REACH`],
+//!   10 km), and poses beyond it or past the world's range, are counted and never mapped: one
+//!   corrupt frame that passed its CRC, or a wrong unit, costs nothing of the map.
 
 mod placement;
 
@@ -27,10 +30,20 @@ use crate::wire::{
     Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
 };
 
-/// The map origin is the first mapped point rounded to a multiple of this (metres): whole metres,
-/// so the origin is exact in f64, the same on every target, and a pose's offset from it stays
-/// whole units of the wire ([`Placement`]'s integer path).
-pub const ORIGIN_CELL: f64 = 1.0;
+/// How far from the map's origin points may lie by default, on each axis (metres): 10 km, where
+/// f32 still resolves half a millimetre. A robot's map, however far its world frame puts it,
+/// lies within it; a point or pose past it is a glitch (a wrong unit, a corrupt frame that
+/// passed its CRC) and is counted, never mapped.
+pub const DEFAULT_REACH: f32 = 10_000.0;
+
+/// Farthest a world coordinate may be from the world frame's 0 (nanometres): the link's
+/// millimetre range, 2,147 km. The origin is taken, and poses are held, only within it.
+pub const WORLD_LIMIT_NM: i64 = i32::MAX as i64 * 1_000_000;
+
+/// An origin in whole nanometres, in metres: the map file's f64 origin.
+pub fn metres_of_nm(origin: [i64; 3]) -> [f64; 3] {
+    origin.map(|v| v as f64 / 1e9)
+}
 
 /// Why a frame was not mapped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -41,6 +54,8 @@ pub enum Skip {
     AfterEnd,
     /// Its points name a pose the receiver does not hold.
     NoPose { pose: u32 },
+    /// All its points, or its pose, lie out of reach.
+    OutOfReach,
 }
 
 /// What one call to [`Receiver::feed`] produced; every variant but `Consumed` carries the rest
@@ -70,6 +85,10 @@ pub struct ReceiverStats {
     pub poses: u64,
     /// Points frames not mapped because the receiver did not hold their pose.
     pub no_pose: u64,
+    /// Points not mapped because they lay out of reach.
+    pub points_out_of_reach: u64,
+    /// Pose frames refused because their pose lay out of reach.
+    pub poses_out_of_reach: u64,
 }
 
 /// What the receiver needs of a frame the decoder accepted, read before the frame's borrow of
@@ -81,14 +100,16 @@ struct Accepted {
     pose_number: u32,
     pose: Option<WirePose>,
     exponent: i8,
-    first: Option<[i32; 3]>,
 }
 
 /// Decoder, poses, sessions, end of stream and the map's frame, in fixed memory.
 #[derive(Clone, Debug)]
 pub struct Receiver {
     decoder: Decoder,
-    origin: Option<[f64; 3]>,
+    /// The map's origin in the world frame, whole nanometres.
+    origin: Option<[i64; 3]>,
+    /// Metres from the origin, on each axis, past which points and poses are refused.
+    reach: f32,
     pose: Pose,
     /// The decoder's session count when the pose was last reset.
     session: u64,
@@ -111,15 +132,24 @@ impl Receiver {
         Self::resuming(None)
     }
 
+    /// A receiver that refuses points and poses farther than `reach` metres from the map's
+    /// origin on any axis (default [`DEFAULT_REACH`]).
+    #[inline(always)]
+    pub const fn with_reach(mut self, reach: f32) -> Self {
+        self.reach = reach;
+        self
+    }
+
     /// A receiver after a reset of the device: the decoder and the stream start afresh (the
     /// pose too: points wait for the next pose frame), but the map kept in memory that survived
     /// (a snapshot) lies around `origin` ([`Receiver::map_origin`] when the snapshot was taken),
     /// so points keep going there.
     #[inline(always)]
-    pub const fn resuming(origin: Option<[f64; 3]>) -> Self {
+    pub const fn resuming(origin: Option<[i64; 3]>) -> Self {
         Self {
             decoder: Decoder::new(),
             origin,
+            reach: DEFAULT_REACH,
             pose: Pose::START,
             session: 0,
             ended: false,
@@ -128,6 +158,8 @@ impl Receiver {
                 after_end: 0,
                 poses: 0,
                 no_pose: 0,
+                points_out_of_reach: 0,
+                poses_out_of_reach: 0,
             },
         }
     }
@@ -153,7 +185,6 @@ impl Receiver {
                     pose_number: frame.pose_number(),
                     pose: frame.pose(),
                     exponent: frame.unit_exponent(),
-                    first: frame.point(0),
                 },
                 remaining,
             ),
@@ -173,7 +204,15 @@ impl Receiver {
         self.ended = frame.end_of_stream;
         if frame.kind == Some(FrameKind::Pose) {
             if let Some(wire) = frame.pose {
-                self.pose = Pose::of_wire(frame.pose_number, &wire, frame.exponent);
+                let pose = Pose::of_wire(frame.pose_number, &wire, frame.exponent);
+                if !self.holds(&pose) {
+                    self.stats.poses_out_of_reach += 1;
+                    return Received::Skipped {
+                        why: Skip::OutOfReach,
+                        remaining,
+                    };
+                }
+                self.pose = pose;
                 self.stats.poses += 1;
             }
             return Received::Pose {
@@ -191,15 +230,35 @@ impl Receiver {
             };
         }
         let pose = if frame.posed { self.pose } else { Pose::START };
-        if self.origin.is_none()
-            && let Some(first) = frame.first
-        {
-            let world = Placement::new([0.0; 3], frame.exponent, &pose).world(first);
-            // `+ 0.0` turns the -0 that rounding a small negative value gives into 0: the
-            // origin is written in the map file, and 0 is what a map near 0 had before.
-            self.origin = Some(world.map(|v| libm::round(v / ORIGIN_CELL) * ORIGIN_CELL + 0.0));
+        let Some(held) = self.decoder.held_frame() else {
+            return Received::Consumed;
+        };
+        if self.origin.is_none() {
+            // The first point in the world's range, exactly: a map's points then reach the
+            // mapper with the same bits wherever the world frame puts it.
+            self.origin = held.points_from(0).find_map(|raw| {
+                Placement::world_nm(raw, frame.exponent, &pose)
+                    .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM))
+            });
         }
-        self.placement = Placement::new(self.origin(), frame.exponent, &pose);
+        let placed = Placement::new(
+            self.origin.unwrap_or([0; 3]),
+            frame.exponent,
+            &pose,
+            self.reach,
+        );
+        let count = u64::from(held.point_count());
+        let within = placed.map_or(0, |p| p.points(&held).count() as u64);
+        self.stats.points_out_of_reach += count - within;
+        // The end-of-stream frame is handed on whatever its points: it ends the stream.
+        if within == 0 && count > 0 && !frame.end_of_stream {
+            return Received::Skipped {
+                why: Skip::OutOfReach,
+                remaining,
+            };
+        }
+        let placement = placed.unwrap_or(Placement::NONE);
+        self.placement = placement;
         let this: &'r Self = self;
         match this.decoder.held_frame() {
             Some(frame) => Received::Points {
@@ -210,6 +269,21 @@ impl Receiver {
             // The decoder holds the frame it just accepted until the next feed.
             None => Received::Consumed,
         }
+    }
+
+    /// Whether the receiver takes `pose`: within the world's range, and within reach of the
+    /// map's origin once there is one.
+    fn holds(&self, pose: &Pose) -> bool {
+        let Some(t) = pose.translation_nm else {
+            return false;
+        };
+        let reach_nm = f64::from(self.reach) * 1e9;
+        t.iter().all(|v| v.abs() <= WORLD_LIMIT_NM)
+            && self.origin.is_none_or(|o| {
+                t.iter()
+                    .zip(o.iter())
+                    .all(|(a, b)| ((a - b) as f64).abs() <= reach_nm)
+            })
     }
 
     /// Feeds all of `input`, calling `points` with each points frame to map and where its
@@ -245,12 +319,18 @@ impl Receiver {
 
     /// The map's origin in the world frame (metres); 0 until a point has arrived.
     pub fn origin(&self) -> [f64; 3] {
-        self.origin.unwrap_or([0.0; 3])
+        metres_of_nm(self.origin.unwrap_or([0; 3]))
     }
 
-    /// The map's origin once the first point has set it.
-    pub const fn map_origin(&self) -> Option<[f64; 3]> {
+    /// The map's origin (whole nanometres in the world frame) once the first point has set it:
+    /// what a device keeps across a reset ([`Receiver::resuming`]).
+    pub const fn map_origin(&self) -> Option<[i64; 3]> {
         self.origin
+    }
+
+    /// Metres from the origin, on each axis, past which points and poses are refused.
+    pub const fn reach(&self) -> f32 {
+        self.reach
     }
 
     /// The pose that holds now (sensor to world).

@@ -139,7 +139,7 @@ pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
 pub struct Snapshot<const K: usize, const G: usize, const F: usize = 0> {
     mapper: StreamMapper<K, G, F>,
     /// The receiver's map origin: the mapper's points are relative to it.
-    origin: Option<[f64; 3]>,
+    origin: Option<[i64; 3]>,
     frames: u64,
     saved: bool,
 }
@@ -172,9 +172,16 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     // stack temporary as large as the state (48 KiB of stack at boot, measured).
     #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
+        Self::with_reach(params, mema_core::receiver::DEFAULT_REACH)
+    }
+
+    /// [`Firmware::new`] refusing points and poses farther than `reach` metres from the map's
+    /// origin on any axis (the layout's choice).
+    #[inline(always)]
+    pub const fn with_reach(params: StreamParams, reach: f32) -> Self {
         Self {
             rx: Ring::new(),
-            receiver: Receiver::new(),
+            receiver: Receiver::new().with_reach(reach),
             mapper: StreamMapper::new(params),
             cursor: None,
             refit_due: false,
@@ -225,8 +232,15 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         let mut next = start;
         // From `start`, not `points().skip(start)`: skipping an iterator of points converts
         // the points it skips, a third of a frame's conversions again at 32 points a tick.
-        for point in frame.points_from(start).map(|raw| placement.place(raw)) {
+        for raw in frame.points_from(start) {
             next += 1;
+            // Out of reach: counted by the receiver, never mapped.
+            let Some(point) = placement.placed(raw) else {
+                if next - start == TICK_POINTS {
+                    break;
+                }
+                continue;
+            };
             let refit = self.mapper.ingest_observed(point, &mut ());
             let fitted_now = fitted(self.mapper.stats()) != before;
             if refit && fitted_now {
@@ -312,7 +326,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         self.rx.clear();
         self.cursor = None;
         self.refit_due = false;
-        self.receiver = Receiver::resuming(snapshot.origin);
+        self.receiver = Receiver::resuming(snapshot.origin).with_reach(self.receiver.reach());
         self.mapper.clone_from(&snapshot.mapper);
         self.stats.frames = snapshot.frames;
         self.stats.end_of_stream = false;
@@ -333,6 +347,11 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
 
     pub fn receiver_stats(&self) -> &ReceiverStats {
         self.receiver.stats()
+    }
+
+    /// The map's origin (whole nanometres in the world) once a point has set it.
+    pub fn map_origin(&self) -> Option<[i64; 3]> {
+        self.receiver.map_origin()
     }
 
     pub fn stats(&self) -> &FirmwareStats {

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use mema_core::Point3;
 use mema_core::map::EncodeError;
-use mema_core::receiver::Receiver;
+use mema_core::receiver::{Receiver, metres_of_nm};
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::wire::DecoderStats;
 
@@ -55,6 +55,9 @@ pub struct RunReport {
     pub peak_clusters: usize,
     /// Whether the end-of-stream frame arrived (after the last restart).
     pub end_of_stream: bool,
+    /// The map's origin the receiver took (whole nanometres in the world): the first point of
+    /// the first frame it accepted.
+    pub origin: Option<[i64; 3]>,
 }
 
 #[derive(Debug)]
@@ -165,14 +168,16 @@ fn drive<
         peak_pending: board.peak_pending(),
         peak_clusters: board.peak_clusters(),
         end_of_stream: firmware.stats().end_of_stream,
+        origin: firmware.map_origin(),
     })
 }
 
 /// Every points frame of a clean capture, by sequence number, as the mapper receives its points
-/// (through their pose, around the receiver's origin, which the tests' captures keep at 0).
-pub fn frames_of(capture: &[u8]) -> HashMap<u32, Vec<Point3>> {
+/// (through their pose, around `origin`, whole nanometres in the world; `None`: the capture's
+/// first point, as a receiver that gets every frame takes it).
+pub fn frames_of(capture: &[u8], origin: Option<[i64; 3]>) -> HashMap<u32, Vec<Point3>> {
     let mut frames = HashMap::new();
-    Receiver::new().feed_all(capture, |frame, placement| {
+    Receiver::resuming(origin).feed_all(capture, |frame, placement| {
         frames.insert(frame.sequence(), placement.points(&frame).collect());
     });
     frames
@@ -184,6 +189,7 @@ pub fn map_of_frames<const K: usize, const G: usize, const F: usize>(
     params: StreamParams,
     sequences: &[u32],
     frames: &HashMap<u32, Vec<Point3>>,
+    origin: Option<[i64; 3]>,
 ) -> Result<Vec<u8>, u32> {
     let mut mapper: Box<StreamMapper<K, G, F>> = Box::new(StreamMapper::new(params));
     for s in sequences {
@@ -192,7 +198,7 @@ pub fn map_of_frames<const K: usize, const G: usize, const F: usize>(
     mapper.finish();
     let mut out = vec![0u8; mapper.encoded_len()];
     mapper
-        .encode_into([0.0; 3], &mut out)
+        .encode_into(metres_of_nm(origin.unwrap_or([0; 3])), &mut out)
         .map_err(|_| u32::MAX)?;
     Ok(out)
 }

@@ -4,7 +4,6 @@
 //! Debug vs release, `-C target-cpu=native` and the Cortex-M4F image under QEMU are compared by
 //! `firmware-sim/check.sh`, which `scripts/test.sh` runs (it builds those variants).
 
-use std::collections::HashMap;
 use std::process::Command;
 
 use mema::link::frames::{encode_stream, quantise};
@@ -57,7 +56,7 @@ fn shuffled_capture_of(cloud: &str) -> Vec<u8> {
 
 /// Points in `capture`, as the firmware maps them.
 fn unpaced_points(capture: &[u8]) -> u64 {
-    frames_of(capture)
+    frames_of(capture, None)
         .values()
         .map(|points| points.len() as u64)
         .sum()
@@ -260,13 +259,11 @@ fn the_board_refuses_statics_over_its_ram() {
 
 /// Every accepted frame is a frame that was sent, and the map equals that of an uninterrupted
 /// mapper fed exactly the frames the firmware holds at the end.
-fn check_against_clean_frames(
-    report: &RunReport,
-    frames: &HashMap<u32, Vec<Point3>>,
-    (working, frozen): Shape,
-) {
+fn check_against_clean_frames(report: &RunReport, capture: &[u8], (working, frozen): Shape) {
     let params = stream_params(0, working, frozen);
-    let rebuilt = map_of_frames::<K, G, F>(params, &report.accepted, frames)
+    // Around the origin the firmware took: the first point of the first frame it accepted.
+    let frames = frames_of(capture, report.origin);
+    let rebuilt = map_of_frames::<K, G, F>(params, &report.accepted, &frames, report.origin)
         .unwrap_or_else(|seq| panic!("frame {seq} was never sent"));
     assert_eq!(
         report.map, rebuilt,
@@ -284,7 +281,7 @@ fn check_against_clean_frames(
 #[test]
 fn byte_faults_lose_only_corrupted_frames() {
     let capture = capture_of("car6.pcd");
-    let frames = frames_of(&capture);
+    let frames = frames_of(&capture, None);
     for seed in 0..4 {
         let faults = FaultConfig {
             seed,
@@ -317,21 +314,21 @@ fn byte_faults_lose_only_corrupted_frames() {
             frames.len() - r.accepted.len() <= 2 * faults_injected,
             "seed {seed}"
         );
-        check_against_clean_frames(&r, &frames, (150, 0));
+        check_against_clean_frames(&r, &capture, (150, 0));
     }
 }
 
 #[test]
 fn after_a_reset_the_restored_mapper_continues_to_the_uninterrupted_map() {
     let capture = capture_of("car6.pcd");
-    let frames = frames_of(&capture);
     // Both layouts: the frozen entities are part of what a snapshot must carry.
     for shape in [(150, 0), (150, 250)] {
-        resets_restore(&capture, &frames, shape);
+        resets_restore(&capture, shape);
     }
 }
 
-fn resets_restore(capture: &[u8], frames: &HashMap<u32, Vec<Point3>>, shape: Shape) {
+fn resets_restore(capture: &[u8], shape: Shape) {
+    let frames = frames_of(capture, None);
     let mut resets_seen = 0;
     let mut frozen_seen = 0;
     for seed in 0..6 {
@@ -360,7 +357,7 @@ fn resets_restore(capture: &[u8], frames: &HashMap<u32, Vec<Point3>>, shape: Sha
                 "seed {seed}: the snapshot kept earlier frames"
             );
         }
-        check_against_clean_frames(&r, frames, shape);
+        check_against_clean_frames(&r, capture, shape);
     }
     assert!(resets_seen >= 3, "only {resets_seen} resets over 6 seeds");
     assert_eq!(

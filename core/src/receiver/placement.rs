@@ -16,10 +16,13 @@ pub struct Pose {
     pub rotation: Option<[[f32; 3]; 3]>,
     /// `t`, metres.
     pub translation: [f64; 3],
-    /// `t` as the wire sent it, in units of `10^exponent` m: a placement adds it to points in
-    /// integers when their units allow ([`Placement`]).
+    /// `t` as the wire sent it, in units of `10^exponent` m.
     pub wire_translation: [i32; 3],
     pub exponent: i8,
+    /// `t` in whole nanometres, the unit every wire unit is a whole number of: a placement
+    /// subtracts the map's origin from it exactly ([`Placement`]). `None` past the i64 range
+    /// (9,200 km), far beyond the link's.
+    pub translation_nm: Option<[i64; 3]>,
 }
 
 impl Pose {
@@ -30,6 +33,7 @@ impl Pose {
         translation: [0.0; 3],
         wire_translation: [0; 3],
         exponent: 0,
+        translation_nm: Some([0; 3]),
     };
 
     /// A pose frame's pose: number `number`, translation in units of `10^exponent` m.
@@ -47,8 +51,33 @@ impl Pose {
             translation: wire.translation.map(|v| v as f64 * scale),
             wire_translation: wire.translation,
             exponent,
+            translation_nm: nanometres3(wire.translation, exponent),
         }
     }
+}
+
+/// Nanometres in one unit of `10^exponent` m, for the wire's exponents (-9..=3).
+fn nanometres_per_unit(exponent: i8) -> Option<i64> {
+    let k = usize::try_from(i16::from(exponent) + 9).ok()?;
+    let mut per = 1i64;
+    for _ in 0..k.min(13) {
+        per = per.checked_mul(10)?;
+    }
+    (k <= 12).then_some(per)
+}
+
+/// `units` of `10^exponent` m in nanometres, exactly, if within i64.
+pub(super) fn nanometres(units: i32, exponent: i8) -> Option<i64> {
+    i64::from(units).checked_mul(nanometres_per_unit(exponent)?)
+}
+
+fn nanometres3(units: [i32; 3], exponent: i8) -> Option<[i64; 3]> {
+    let [x, y, z] = units;
+    Some([
+        nanometres(x, exponent)?,
+        nanometres(y, exponent)?,
+        nanometres(z, exponent)?,
+    ])
 }
 
 /// `10^n` for `n` in `0..=9`: as f32 each is exact (`5^9 < 2^24`).
@@ -85,7 +114,8 @@ const EXACT32: u64 = 1 << 24;
 ///   f32 ulp from a rounding boundary.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Placement {
-    origin: [f64; 3],
+    /// The map's origin in the world frame, whole nanometres.
+    origin: [i64; 3],
     /// Metres per unit of the frame.
     scale: f64,
     /// `10^|e|` in f32, exact; points are divided by it when `e < 0`.
@@ -98,24 +128,20 @@ pub struct Placement {
     shift: Option<[i32; 3]>,
     /// `offset` as f32 high and low parts.
     offset32: [[f32; 2]; 3],
+    /// Points farther than this from the origin on any axis (metres) are out of reach.
+    reach: f32,
 }
 
-/// The pose's translation minus the origin in whole units of `10^exponent` m, if it is whole
-/// and an i32: the pose in the points' unit or a coarser one, the origin whole metres (a
-/// multiple of ORIGIN_CELL) within 2,147 km, metres no finer than the unit.
-fn whole_offset(origin: [f64; 3], exponent: i8, pose: &Pose) -> Option<[i32; 3]> {
-    let power = |k: i16| usize::try_from(k).ok().and_then(|k| POWERS.get(k).copied());
-    let coarser = power(i16::from(pose.exponent) - i16::from(exponent))?;
-    let per_metre = power(-i16::from(exponent))?;
+/// The pose's translation minus the origin (nanometres) in whole units of `10^exponent` m, if
+/// it is whole and an i32.
+fn whole_offset(offset_nm: [i64; 3], exponent: i8) -> Option<[i32; 3]> {
+    let per_unit = nanometres_per_unit(exponent)?;
     let mut out = [0i32; 3];
-    for ((slot, &t), &o) in out.iter_mut().zip(&pose.wire_translation).zip(&origin) {
-        // `as` saturates and takes NaN to 0: the comparison refuses both.
-        let metres = o as i32;
-        if f64::from(metres) != o {
+    for (slot, &o) in out.iter_mut().zip(&offset_nm) {
+        if o % per_unit != 0 {
             return None;
         }
-        let units = i64::from(t) * i64::from(coarser) - i64::from(metres) * i64::from(per_metre);
-        *slot = i32::try_from(units).ok()?;
+        *slot = i32::try_from(o / per_unit).ok()?;
     }
     Some(out)
 }
@@ -131,9 +157,10 @@ fn add_offset(r: f32, [hi, lo]: [f32; 2]) -> f32 {
 }
 
 impl Placement {
-    /// Where nothing has arrived: the identity at origin 0, in metres.
+    /// Where nothing has arrived, or nothing can go: the identity at origin 0, in metres, with
+    /// every point out of reach.
     pub(super) const NONE: Self = Self {
-        origin: [0.0; 3],
+        origin: [0; 3],
         scale: 1.0,
         power: 1.0,
         divide: false,
@@ -141,18 +168,29 @@ impl Placement {
         offset: [0.0; 3],
         shift: Some([0; 3]),
         offset32: [[0.0; 2]; 3],
+        // Refuses every point: nothing has a place yet.
+        reach: -1.0,
     };
 
-    pub(super) fn new(origin: [f64; 3], exponent: i8, pose: &Pose) -> Self {
-        let [tx, ty, tz] = pose.translation;
-        let [ox, oy, oz] = origin;
-        let offset = [tx - ox, ty - oy, tz - oz];
+    /// Where the points of a frame in units of `10^exponent` m, measured at `pose`, go in a map
+    /// whose origin is `origin` (nanometres): `None` when the pose's offset from the origin is
+    /// past i64 nanometres. The offset is worked out in integers, so it is the same wherever
+    /// the world frame puts the map (the origin and the pose move together), and the points
+    /// reach the mapper with the same bits.
+    pub(super) fn new(origin: [i64; 3], exponent: i8, pose: &Pose, reach: f32) -> Option<Self> {
+        let t = pose.translation_nm?;
+        let offset_nm = [
+            t[0].checked_sub(origin[0])?,
+            t[1].checked_sub(origin[1])?,
+            t[2].checked_sub(origin[2])?,
+        ];
+        let offset = offset_nm.map(|v| v as f64 / 1e9);
         let split = |v: f64| {
             let hi = v as f32;
             [hi, (v - hi as f64) as f32]
         };
         let power = POWERS.get(usize::from(exponent.unsigned_abs()));
-        Self {
+        Some(Self {
             origin,
             scale: crate::wire::unit_scale(exponent).unwrap_or(f64::NAN),
             power: power.map_or(f32::NAN, |&p| p as f32),
@@ -162,15 +200,16 @@ impl Placement {
             shift: pose
                 .rotation
                 .is_none()
-                .then(|| whole_offset(origin, exponent, pose))
+                .then(|| whole_offset(offset_nm, exponent))
                 .flatten(),
             offset32: offset.map(split),
-        }
+            reach,
+        })
     }
 
     /// The map's origin, in the world frame (metres).
-    pub const fn origin(&self) -> [f64; 3] {
-        self.origin
+    pub fn origin(&self) -> [f64; 3] {
+        super::metres_of_nm(self.origin)
     }
 
     /// `v + shift` units in metres, rounded once to f32 below [`EXACT32`] units.
@@ -203,10 +242,21 @@ impl Placement {
     }
 
     /// Point `i` of `frame` in the map's frame (metres from the origin), or `None` past its
-    /// points. `frame` is the frame this placement was made for.
+    /// points or out of reach. `frame` is the frame this placement was made for.
     #[inline]
     pub fn point<T: AsRef<[u8]>>(&self, frame: &Frame<T>, i: usize) -> Option<Point3> {
-        frame.point(i).map(|raw| self.place(raw))
+        frame.point(i).and_then(|raw| self.placed(raw))
+    }
+
+    /// Raw point `raw` in the map's frame, or `None` when it is out of reach (farther from the
+    /// origin than the receiver's reach on some axis, or not finite): the points a receiver
+    /// maps.
+    #[inline]
+    pub fn placed(&self, raw: [i32; 3]) -> Option<Point3> {
+        let p = self.place(raw);
+        let r = self.reach;
+        // `!(a <= r)` refuses NaN as well.
+        (p.x.abs() <= r && p.y.abs() <= r && p.z.abs() <= r).then_some(p)
     }
 
     /// Raw point `[x, y, z]` of the frame this placement was made for, in the map's frame.
@@ -226,20 +276,49 @@ impl Placement {
         Point3::new(add_offset(rx, ox), add_offset(ry, oy), add_offset(rz, oz))
     }
 
-    /// Every point of `frame`, as [`Placement::point`] gives them.
+    /// Every point of `frame` within reach, as [`Placement::point`] gives them.
     pub fn points<'a, T: AsRef<[u8]>>(
         &'a self,
         frame: &'a Frame<T>,
     ) -> impl Iterator<Item = Point3> + 'a {
-        frame.points_from(0).map(|raw| self.place(raw))
+        frame.points_from(0).filter_map(|raw| self.placed(raw))
     }
 
-    /// Raw point `raw` in the world frame (metres, f64): where the map's origin comes from.
-    pub(super) fn world(&self, raw: [i32; 3]) -> [f64; 3] {
-        let [x, y, z] = self.turned(raw);
-        let [ox, oy, oz] = self.offset;
-        let [gx, gy, gz] = self.origin;
-        [x + ox + gx, y + oy + gy, z + oz + gz]
+    /// Raw point `raw` of a frame at `pose` in the world frame, whole nanometres: where the
+    /// map's origin comes from. The turned part is rounded on its own, before the pose's
+    /// translation is added in integers, so the origin moves exactly with the world frame.
+    pub(super) fn world_nm(raw: [i32; 3], exponent: i8, pose: &Pose) -> Option<[i64; 3]> {
+        let t = pose.translation_nm?;
+        let local = match pose.rotation {
+            None => nanometres3(raw, exponent)?,
+            Some(_) => {
+                let placement = Self::new(
+                    [0; 3],
+                    exponent,
+                    &Pose {
+                        translation_nm: Some([0; 3]),
+                        ..*pose
+                    },
+                    0.0,
+                )?;
+                let turned = placement.turned(raw);
+                let mut out = [0i64; 3];
+                for (slot, v) in out.iter_mut().zip(turned) {
+                    let nm = libm::round(v * 1e9);
+                    // Within i64 (9,200 km), or refused.
+                    if !(nm.abs() < 9.0e18) {
+                        return None;
+                    }
+                    *slot = nm as i64;
+                }
+                out
+            }
+        };
+        Some([
+            t[0].checked_add(local[0])?,
+            t[1].checked_add(local[1])?,
+            t[2].checked_add(local[2])?,
+        ])
     }
 }
 

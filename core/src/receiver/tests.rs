@@ -76,12 +76,11 @@ fn frames_after_the_end_are_counted_not_mapped() -> TestResult {
     Ok(())
 }
 
-/// Near 0 (the first point within half a metre) the origin is 0 and a point reaches the mapper
-/// as `(v * 10^e) as f32`, the bits it had before the receiver kept an origin; far out, the
-/// origin is the first point's whole metres and the points keep their spacing.
+/// The origin is the first point: at 0 a point reaches the mapper as `(v * 10^e) as f32`;
+/// far out the points keep their spacing.
 #[test]
 fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
-    let near = [[123, -456, 91], [-511_999, 0, 7]];
+    let near = [[0, 0, 0], [-511_999, 0, 7]];
     let mut wire = [0u8; 512];
     let at = push(&mut wire, 1, 0, true, -3, &near)?;
     let mut r = Receiver::new();
@@ -113,7 +112,7 @@ fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
         return Err("a frame of points");
     };
     let o = placement.origin();
-    assert!(o.iter().all(|v| v % ORIGIN_CELL == 0.0));
+    // The first point, exactly.
     assert_eq!(o, [2_000_000.0, -2_000_000.0, 1_000_000.0]);
     let a = placement.point(&frame, 0).or_fail("first")?.to_array();
     let b = placement.point(&frame, 1).or_fail("second")?.to_array();
@@ -195,16 +194,19 @@ fn a_pose_takes_sensor_points_into_the_world() -> TestResult {
     let (got, n) = mapped(&mut r, wire.get(..at).or_fail("wire")?);
     assert_eq!(n, 3);
     assert_eq!(r.stats().poses, 1);
-    // The first point, (1, -1, 0.5) m in the world, to whole metres (halves away from 0).
+    // The first point, (1, -1, 0.5) m in the world.
     let origin = r.origin();
-    assert_eq!(origin, [1.0, -1.0, 1.0]);
+    assert_eq!(origin, [1.0, -1.0, 0.5]);
     for (p, s) in got.iter().zip(sensor) {
         let [x, y, z] = s.map(|v| v as f64 / 1000.0);
         // A quarter turn about z: (x, y, z) -> (-y, x, z).
         let want = [-y + 1.0, x - 2.0, z + 0.5];
         for j in 0..3 {
             let world = p[j] as f64 + origin[j];
-            assert!((world - want[j]).abs() < 1e-6, "{p:?} + {origin:?} vs {want:?}");
+            assert!(
+                (world - want[j]).abs() < 1e-6,
+                "{p:?} + {origin:?} vs {want:?}"
+            );
         }
     }
     Ok(())
@@ -240,10 +242,12 @@ fn points_without_their_pose_are_counted_not_mapped() -> TestResult {
         ),
         (2, 1, 2)
     );
-    let plain = [1, 2, 3].map(|v: i32| (v as f64 * 1e-3) as f32);
+    // The first point is the origin: the identity's points lie at 0 (bits: +0), the pose's
+    // 5 m along x.
     let bits = |p: [f32; 3]| p.map(f32::to_bits);
-    assert_eq!(bits(got[0]), bits(plain));
-    assert_eq!(bits(got[2]), bits(plain));
-    assert!((got[1][0] - 5.001).abs() < 1e-6 && got[1][1] == plain[1]);
+    assert_eq!(r.origin(), [0.001, 0.002, 0.003]);
+    assert_eq!(bits(got[0]), [0; 3]);
+    assert_eq!(bits(got[2]), [0; 3]);
+    assert_eq!(bits(got[1]), bits([5.0, 0.0, 0.0]));
     Ok(())
 }

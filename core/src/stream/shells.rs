@@ -66,7 +66,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for e in self.entities() {
-            for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(e.entity.center.to_array()) {
+            for ((l, h), v) in lo
+                .iter_mut()
+                .zip(hi.iter_mut())
+                .zip(e.entity.center.to_array())
+            {
                 if v.is_finite() {
                     *l = l.min(v);
                     *h = h.max(v);

@@ -1,4 +1,5 @@
 use super::*;
+use crate::receiver::DEFAULT_REACH;
 
 /// `v` as `m 2^k` with `m` an integer (sign included).
 fn parts(v: f32) -> (i128, i32) {
@@ -44,7 +45,9 @@ fn xorshift(mut s: u64) -> impl Iterator<Item = u64> {
 #[test]
 fn points_below_2_24_units_are_the_nearest_f32_and_the_f64_bits() {
     for e in crate::wire::MIN_UNIT_EXPONENT..=crate::wire::MAX_UNIT_EXPONENT {
-        let p = Placement::new([0.0; 3], e, &Pose::START);
+        let Some(p) = Placement::new([0; 3], e, &Pose::START, DEFAULT_REACH) else {
+            panic!("a placement at 0");
+        };
         let scale = crate::wire::unit_scale(e).unwrap_or(f64::NAN);
         let small = -70_000..=70_000;
         let wide = xorshift((i64::from(e) + 99) as u64)
@@ -78,32 +81,76 @@ fn points_below_2_24_units_are_the_nearest_f32_and_the_f64_bits() {
 
 #[test]
 fn whole_offsets_are_exact_in_units_and_others_are_not_whole() {
-    let pose = |t: [i32; 3], exponent: i8| Pose {
-        wire_translation: t,
-        exponent,
-        translation: t.map(|v| v as f64 * crate::wire::unit_scale(exponent).unwrap_or(0.0)),
-        ..Pose::START
+    let pose = |t: [i32; 3], exponent: i8| {
+        Pose::of_wire(
+            1,
+            &WirePose {
+                translation: t,
+                rotation: [0, 0, 0, crate::wire::QUATERNION_ONE],
+            },
+            exponent,
+        )
     };
-    // Centimetre poses, millimetre points, origin 2,048 m out: whole millimetres.
+    // Centimetre poses, millimetre points, origin 2,048.001 m out: whole millimetres.
     let p = pose([-3700, 12, 5], -2);
+    let origin = [2_048_001_000_000, 0, -1_024_000_000_000];
+    let t = p.translation_nm.unwrap_or([0; 3]);
+    let offset = [0, 1, 2].map(|j| t[j] - origin[j]);
     assert_eq!(
-        whole_offset([2048.0, 0.0, -1024.0], -3, &p),
-        Some([-37_000 - 2_048_000, 120, 50 + 1_024_000])
+        whole_offset(offset, -3),
+        Some([-37_000 - 2_048_001, 120, 50 + 1_024_000])
     );
-    // Poses finer than the points, metres finer than an i32 of units, origins not whole metres
-    // or beyond i32 metres: not whole.
-    assert_eq!(whole_offset([0.0; 3], -2, &pose([10, -20, 0], -3)), None);
-    assert_eq!(whole_offset([1024.0, 0.0, 0.0], -9, &Pose::START), None);
-    assert_eq!(whole_offset([0.5, 0.0, 0.0], -3, &Pose::START), None);
-    assert_eq!(whole_offset([f64::NAN, 0.0, 0.0], -3, &Pose::START), None);
-    assert_eq!(whole_offset([1e18, 0.0, 0.0], -3, &Pose::START), None);
-    // Kilometre points: metres are not whole units.
-    assert_eq!(whole_offset([0.0; 3], 3, &Pose::START), None);
+    // Offsets finer than the points' unit, or past an i32 of units: not whole.
+    assert_eq!(whole_offset([5_000, 0, 0], -3), None);
+    assert_eq!(whole_offset([1 << 62, 0, 0], -9), None);
+    // Kilometre points: an offset of whole kilometres only.
+    assert_eq!(whole_offset([1_000_000_000_000, 0, 0], 3), Some([1, 0, 0]));
+    assert_eq!(whole_offset([1_000_000_000, 0, 0], 3), None);
     // The point placed through a whole offset is the nearest f32 to its units.
-    let placement = Placement::new([2048.0, 0.0, -1024.0], -3, &p);
-    for (x, shift) in [(123_456, -2_085_000), (-1, -2_085_000), (7, 120)] {
+    let Some(placement) = Placement::new(origin, -3, &p, DEFAULT_REACH) else {
+        panic!("a placement");
+    };
+    for (x, shift) in [(123_456, -2_085_001), (-1, -2_085_001), (7, 120)] {
         let n = i64::from(x) + i64::from(shift);
         assert!(is_nearest(placement.metres(x, shift), n, -3));
+    }
+}
+
+/// The same scene anywhere in the world frame reaches the mapper with the same bits: the
+/// origin (its first point) and the pose move together, and their difference is exact.
+#[test]
+fn a_scene_moved_anywhere_places_its_points_with_the_same_bits() {
+    let half = libm::sqrt(0.5);
+    let q = (half * crate::wire::QUATERNION_ONE as f64).round() as i32;
+    let raw = [[1234, -5678, 910], [-3, 7, 100_000], [0, 0, 1]];
+    let placed = |shift_mm: [i32; 3], rotation: [i32; 4]| {
+        let pose = Pose::of_wire(
+            1,
+            &WirePose {
+                translation: [500 + shift_mm[0], -20 + shift_mm[1], 7 + shift_mm[2]],
+                rotation,
+            },
+            -3,
+        );
+        let origin = Placement::world_nm(raw[0], -3, &pose).unwrap_or([0; 3]);
+        let placement = Placement::new(origin, -3, &pose, DEFAULT_REACH);
+        raw.map(|r| {
+            placement
+                .and_then(|p| p.placed(r))
+                .map(|p| p.to_array().map(f32::to_bits))
+        })
+    };
+    for rotation in [[0, 0, 0, crate::wire::QUATERNION_ONE], [0, 0, q, q]] {
+        let home = placed([0; 3], rotation);
+        assert!(home.iter().all(Option::is_some));
+        // 2,000 km, the middle of the old 1,024 m cell, and odd millimetres.
+        for shift in [
+            [2_000_000_000, -1_999_999_999, 1],
+            [512_400, -512_600, 511_999],
+            [1, 2, 3],
+        ] {
+            assert_eq!(placed(shift, rotation), home, "{shift:?}");
+        }
     }
 }
 
