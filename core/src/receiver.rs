@@ -19,7 +19,7 @@
 //!   scene half a cell from its origin had f32 steps of 30 um where one at 0 had 15 nm, and
 //!   mapped 3.6x worse.)
 //! - **Reach.** Points farther than the reach from the origin on any axis ([`DEFAULT_REACH`],
-//!   10 km), and poses beyond it or past the world's range, are counted and never mapped: one
+//!   100 km), and poses beyond it or past the world's range, are counted and never mapped: one
 //!   corrupt frame that passed its CRC, or a wrong unit, costs nothing of the map.
 
 mod placement;
@@ -30,11 +30,11 @@ use crate::wire::{
     Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
 };
 
-/// How far from the map's origin points may lie by default, on each axis (metres): 10 km, where
-/// f32 still resolves half a millimetre. A robot's map, however far its world frame puts it,
-/// lies within it; a point or pose past it is a glitch (a wrong unit, a corrupt frame that
-/// passed its CRC) and is counted, never mapped.
-pub const DEFAULT_REACH: f32 = 10_000.0;
+/// How far from the map's origin points may lie by default, on each axis (metres): 100 km, a
+/// day's drive of a ground robot around its first point, where f32 still resolves 4 mm. A
+/// robot's map, however far its world frame puts it, lies within it; a point or pose past it is
+/// a glitch (a wrong unit, a corrupt frame that passed its CRC) and is counted, never mapped.
+pub const DEFAULT_REACH: f32 = 100_000.0;
 
 /// Farthest a world coordinate may be from the world frame's 0 (nanometres): the link's
 /// millimetre range, 2,147 km. The origin is taken, and poses are held, only within it.
@@ -54,7 +54,7 @@ pub enum Skip {
     AfterEnd,
     /// Its points name a pose the receiver does not hold.
     NoPose { pose: u32 },
-    /// All its points, or its pose, lie out of reach.
+    /// Its pose lies out of reach.
     OutOfReach,
 }
 
@@ -85,7 +85,8 @@ pub struct ReceiverStats {
     pub poses: u64,
     /// Points frames not mapped because the receiver did not hold their pose.
     pub no_pose: u64,
-    /// Points not mapped because they lay out of reach.
+    /// Points not mapped because they lay out of reach (counted by [`Receiver::feed_all`], or
+    /// told by [`Receiver::note_out_of_reach`]).
     pub points_out_of_reach: u64,
     /// Pose frames refused because their pose lay out of reach.
     pub poses_out_of_reach: u64,
@@ -241,24 +242,14 @@ impl Receiver {
                     .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM))
             });
         }
-        let placed = Placement::new(
+        // A pose's offset past i64 nanometres leaves nothing a place: every point is refused.
+        self.placement = Placement::new(
             self.origin.unwrap_or([0; 3]),
             frame.exponent,
             &pose,
             self.reach,
-        );
-        let count = u64::from(held.point_count());
-        let within = placed.map_or(0, |p| p.points(&held).count() as u64);
-        self.stats.points_out_of_reach += count - within;
-        // The end-of-stream frame is handed on whatever its points: it ends the stream.
-        if within == 0 && count > 0 && !frame.end_of_stream {
-            return Received::Skipped {
-                why: Skip::OutOfReach,
-                remaining,
-            };
-        }
-        let placement = placed.unwrap_or(Placement::NONE);
-        self.placement = placement;
+        )
+        .unwrap_or(Placement::NONE);
         let this: &'r Self = self;
         match this.decoder.held_frame() {
             Some(frame) => Received::Points {
@@ -269,6 +260,13 @@ impl Receiver {
             // The decoder holds the frame it just accepted until the next feed.
             None => Received::Consumed,
         }
+    }
+
+    /// Counts points of the held frame its placement refused ([`Placement::placed`]): the
+    /// caller that maps a frame point by point (the firmware's ticks) says how many there were;
+    /// [`Receiver::feed_all`] counts them itself.
+    pub fn note_out_of_reach(&mut self, points: u64) {
+        self.stats.points_out_of_reach += points;
     }
 
     /// Whether the receiver takes `pose`: within the world's range, and within reach of the
@@ -299,7 +297,9 @@ impl Receiver {
                     placement,
                     remaining,
                 } => {
+                    let refused = frame.points_from(0).count() - placement.points(&frame).count();
                     points(frame, placement);
+                    self.note_out_of_reach(refused as u64);
                     remaining
                 }
             };

@@ -232,10 +232,12 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         let mut next = start;
         // From `start`, not `points().skip(start)`: skipping an iterator of points converts
         // the points it skips, a third of a frame's conversions again at 32 points a tick.
+        let mut refused = 0;
         for raw in frame.points_from(start) {
             next += 1;
-            // Out of reach: counted by the receiver, never mapped.
+            // Out of reach: counted, never mapped.
             let Some(point) = placement.placed(raw) else {
+                refused += 1;
                 if next - start == TICK_POINTS {
                     break;
                 }
@@ -253,17 +255,20 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
             }
         }
         self.stats.tick_points_peak = self.stats.tick_points_peak.max(next - start);
-        if next < usize::from(frame.point_count()) {
+        let (count, sequence, end_of_stream) =
+            (frame.point_count(), frame.sequence(), frame.end_of_stream());
+        self.receiver.note_out_of_reach(refused);
+        if next < usize::from(count) {
             self.cursor = Some(next);
             return;
         }
         self.cursor = None;
         self.stats.frames += 1;
-        self.stats.end_of_stream |= frame.end_of_stream();
+        self.stats.end_of_stream |= end_of_stream;
         on_frame(AcceptedFrame {
-            sequence: frame.sequence(),
-            points: frame.point_count(),
-            end_of_stream: frame.end_of_stream(),
+            sequence,
+            points: count,
+            end_of_stream,
         });
     }
 

@@ -207,6 +207,13 @@ impl Link {
         }
     }
 
+    /// The link refusing points and poses farther than `reach` metres from the map's origin on
+    /// any axis ([`mema_core::receiver::DEFAULT_REACH`] by default).
+    pub fn with_reach(mut self, reach: f32) -> Self {
+        self.receiver = self.receiver.with_reach(reach);
+        self
+    }
+
     /// Feeds one chunk; the points of its frames go straight into the mapper, through their
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
@@ -273,41 +280,53 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
         .map(|p| quantise(*p))
         .collect::<Result<_>>()?;
     let mut mapper = new_mapper_with(params);
+    // The receiver's origin is the first point; the others reach the mapper as whole
+    // millimetres from it.
+    let first = wire.first().copied().unwrap_or([0; 3]);
     for q in &wire {
-        mapper.add(dequantise(*q));
+        mapper.add(dequantise([0, 1, 2].map(|j| q[j] - first[j])));
     }
     mapper.finish();
-    // Clouds are centred on their bounding box, so the receiver's origin is 0 (ORIGIN_CELL).
-    Ok(map_of(&mapper, [0.0; 3]))
+    let origin = first.map(|v| i64::from(v) * 1_000_000);
+    Ok(map_of(&mapper, mema_core::receiver::metres_of_nm(origin)))
 }
 
 /// The direct path the tests compare `scanner-sim` into `stream` against: the integers
 /// scanner-sim sends of `cloud` (its unit, its sensor at the cloud's centre in whole metres),
-/// taken to the map's frame here, `v * 10^e + (t - origin)` in f64 with the origin the first
-/// point's 1,024 m cell, and fed to the mapper: no bytes, frames or receiver.
+/// taken to the map's frame here in whole nanometres, `v 10^e + t - origin` with the origin the
+/// first point, and fed to the mapper as the nearest f32 to that many units: no bytes, frames
+/// or receiver.
 pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
     let wire = quantise_scans(&[SensorScan::of_cloud(cloud)?])?;
     let unit = |e: i8| mema_core::wire::unit_scale(e).unwrap_or(f64::NAN);
-    let (s, ps) = (unit(wire.unit_exponent), unit(wire.pose_exponent));
+    let nm = |e: i8| 10i64.pow(u32::try_from(i16::from(e) + 9).unwrap_or(0));
+    let (s, per_unit, per_pose_unit) = (
+        unit(wire.unit_exponent),
+        nm(wire.unit_exponent),
+        nm(wire.pose_exponent),
+    );
     let mut mapper = new_mapper_with(params);
-    let mut origin: Option<[f64; 3]> = None;
+    let mut origin: Option<[i64; 3]> = None;
     for scan in &wire.scans {
         anyhow::ensure!(
             scan.pose.rotation[..3] == [0, 0, 0],
             "a cloud is sent unturned"
         );
-        let t = scan.pose.translation.map(|v| v as f64 * ps);
+        let t = scan.pose.translation.map(|v| i64::from(v) * per_pose_unit);
         for p in &scan.points {
-            let w = p.map(|v| v as f64 * s);
-            let o = *origin.get_or_insert_with(|| {
-                [0, 1, 2].map(|j| ((w[j] + t[j]) / 1024.0).round() * 1024.0 + 0.0)
-            });
-            let local = |j: usize| (w[j] + (t[j] - o[j])) as f32;
-            mapper.add(mema_core::Point3::new(local(0), local(1), local(2)));
+            let w = [0, 1, 2].map(|j| i64::from(p[j]) * per_unit + t[j]);
+            let o = *origin.get_or_insert(w);
+            let local = |j: usize| ((w[j] - o[j]) / per_unit) as f64 * s;
+            mapper.add(mema_core::Point3::new(
+                local(0) as f32,
+                local(1) as f32,
+                local(2) as f32,
+            ));
         }
     }
     mapper.finish();
-    Ok(map_of(&mapper, origin.unwrap_or([0.0; 3])))
+    let origin = mema_core::receiver::metres_of_nm(origin.unwrap_or([0; 3]));
+    Ok(map_of(&mapper, origin))
 }
 
 /// `scans` sent as `mema scanner-sim` sends them and received as `mema stream` receives them,

@@ -38,6 +38,22 @@ fn params(
     link_params(config, capacity, shape.tolerance, shape.model.into())
 }
 
+/// The link `stream` and `replay` map through, with the shape's model and reach.
+fn new_link(
+    config: &mema::mapping::PipelineConfig,
+    capacity: Capacity,
+    shape: &StreamShapeArgs,
+) -> Result<Link> {
+    if !(shape.reach > 0.0 && shape.reach.is_finite()) {
+        return Err(UsageError(format!(
+            "--reach {} must be a positive number of metres",
+            shape.reach
+        ))
+        .into());
+    }
+    Ok(Link::with_params(params(config, capacity, shape)).with_reach(shape.reach))
+}
+
 /// How often `stream` reports progress on stderr.
 const PROGRESS_EVERY: Duration = Duration::from_secs(5);
 
@@ -121,7 +137,13 @@ pub struct StreamSummary {
     pub poses: u64,
     /// Points frames not mapped: the pose they name never arrived.
     pub frames_without_pose: u64,
-    /// The map's origin (metres): the first point's 1,024 m cell.
+    /// Points not mapped: farther than `--reach` from the map's origin, or past the world's
+    /// range.
+    pub points_out_of_reach: u64,
+    /// Pose frames refused: their pose out of reach.
+    pub poses_out_of_reach: u64,
+    /// The receiver's origin (metres in the world): the first point it mapped, exactly. (A
+    /// quantized map file's origin is the centre of its entities, around this.)
     pub origin: [f64; 3],
     pub bytes: u64,
     pub ellipsoids: usize,
@@ -190,6 +212,8 @@ fn summary(
         sessions: s.sessions,
         poses: link.receiver_stats().poses,
         frames_without_pose: link.receiver_stats().no_pose,
+        points_out_of_reach: link.receiver_stats().points_out_of_reach,
+        poses_out_of_reach: link.receiver_stats().poses_out_of_reach,
         origin: link.receiver.origin(),
         bytes: s.bytes,
         ellipsoids,
@@ -229,6 +253,19 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(
             ", {} without their pose (not mapped)",
             s.frames_without_pose
+        ));
+    }
+    if s.points_out_of_reach > 0 {
+        extra.push_str(&format!(
+            ", {} points out of reach (not mapped)",
+            s.points_out_of_reach
+        ));
+    }
+    if s.poses_out_of_reach > 0 {
+        let plural = if s.poses_out_of_reach == 1 { "" } else { "s" };
+        extra.push_str(&format!(
+            ", {} pose{plural} out of reach (refused)",
+            s.poses_out_of_reach
         ));
     }
     eprintln!(
@@ -323,7 +360,7 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
         None => None,
     };
     let stop = interrupted();
-    let mut link = Link::with_params(params(&config, capacity, &args.shape));
+    let mut link = new_link(&config, capacity, &args.shape)?;
     eprintln!("mema: listening on {}", args.port.display());
     let started = Instant::now();
     let mut arrivals = Arrivals::default();
@@ -464,7 +501,7 @@ pub fn replay(args: &ReplayArgs) -> Result<()> {
         mema::io::input::read_bounded(&args.capture, CAPTURE_LIMIT, "capture")?
     };
     let stop = interrupted();
-    let mut link = Link::with_params(params(&config, capacity, &args.shape));
+    let mut link = new_link(&config, capacity, &args.shape)?;
     let started = Instant::now();
     let mut arrivals = Arrivals::default();
     let mut end = None;
