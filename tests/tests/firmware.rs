@@ -24,7 +24,7 @@ const F: usize = 256;
 
 /// Working clusters and frozen entities of a run: `(150, 0)` keeps all in working memory,
 /// `(150, 250)` is the image's K = 400 layout.
-type Shape = (usize, usize);
+pub(crate) type Shape = (usize, usize);
 
 fn capture_of(cloud: &str) -> Vec<u8> {
     encode_stream(&wire_points_of(cloud)).expect("encodes")
@@ -87,7 +87,7 @@ fn play_shaped(capture: &[u8], shape: Shape, config: &RunConfig) -> RunReport {
     play_model(capture, shape, StreamModel::Paper, config)
 }
 
-fn play_model(
+pub(crate) fn play_model(
     capture: &[u8],
     (working, frozen): Shape,
     model: StreamModel,

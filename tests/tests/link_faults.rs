@@ -24,7 +24,12 @@ fn car_wire() -> Vec<[i32; 3]> {
 }
 
 /// One frame on the wire: COBS and the delimiter.
-fn frame(sequence: u32, end_of_stream: bool, unit_exponent: i8, points: &[[i32; 3]]) -> Vec<u8> {
+pub(crate) fn frame(
+    sequence: u32,
+    end_of_stream: bool,
+    unit_exponent: i8,
+    points: &[[i32; 3]],
+) -> Vec<u8> {
     let mut raw = [0u8; MAX_RAW_LEN];
     let len = FrameRepr {
         sequence,
@@ -55,7 +60,7 @@ fn capture(points: &[[i32; 3]], first: u32, end: bool) -> Vec<u8> {
 
 /// `mema replay` of `bytes` at `-k k` with `extra` arguments; returns the exit code, the JSON
 /// summary and the map's bytes.
-fn replay(
+pub(crate) fn replay(
     dir: &Dir,
     name: &str,
     bytes: &[u8],

@@ -81,3 +81,5 @@ mod first_run;
 // What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
 // fits the search box chose.
 mod honest_reports;
+// Issue 23: the world frame, reach, far frames and poses.
+mod world_frame;
