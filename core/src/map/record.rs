@@ -52,7 +52,7 @@ pub struct Quantization {
 
 impl Quantization {
     /// The finest grid that holds every entity: centres up to the farthest one, semi-axes from
-    /// the shortest finite one (at least 10^-6 of the longest) to the longest.
+    /// the shortest finite one (at least 10^-12 of the longest) to the longest.
     pub fn for_entities(entities: impl Iterator<Item = MapEntity>) -> Self {
         let mut far = 0.0f64;
         let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
@@ -73,7 +73,7 @@ impl Quantization {
     }
 
     /// The finest grid for centres within `far` of the origin on every axis and finite
-    /// semi-axes from `shortest` (at least 10^-6 of `longest`) to `longest`: a grid fixed before
+    /// semi-axes from `shortest` (at least 10^-12 of `longest`) to `longest`: a grid fixed before
     /// the entities are known, so that each can be judged as it will be stored.
     pub fn for_extent(far: f64, shortest: f64, longest: f64) -> Self {
         let (lo, hi) = (shortest, longest);
@@ -91,7 +91,10 @@ impl Quantization {
             };
         }
         let hi = hi.clamp(AXIS_MIN_FLOOR as f64, AXIS_MAX_CEILING);
-        let lo = lo.max(hi * 1e-6).max(AXIS_MIN_FLOOR as f64).min(hi);
+        // 10^-12, not the 10^-6 it was: one huge entity (a glitch's 3,712 km ellipsoid) then
+        // started the grid at 3.7 m and every millimetre shell came back metres wide; over 12
+        // decades each semi-axis is still within 1.4% of its length.
+        let lo = lo.max(hi * 1e-12).max(AXIS_MIN_FLOOR as f64).min(hi);
         let mut axis_log_step = (libm::log(hi / lo) / AXIS_CODE_MAX as f64) as f32;
         if axis_log_step > 0.0 {
             axis_log_step = axis_log_step.max(AXIS_LOG_STEP_MIN);
@@ -481,6 +484,25 @@ mod tests {
                 axis_log_step: log_step,
             };
             assert!(!grid.is_valid(), "{grid:?}");
+        }
+    }
+
+    /// One entity a thousand kilometres across does not coarsen a millimetre shell beside it.
+    #[test]
+    fn a_huge_entity_leaves_the_small_ones_their_semi_axes() {
+        let small = MapEntity {
+            entity: Entity::axis_aligned(Point3::new(0.5, 0.0, 0.0), [1e6, 4e4, 1e2]),
+            kind: EntityKind::Ellipsoid,
+        };
+        let huge = MapEntity {
+            entity: Entity::axis_aligned(Point3::new(-0.5, 0.0, 0.0), [1e-12, 1e-12, 1e-12]),
+            kind: EntityKind::Ellipsoid,
+        };
+        let grid = Quantization::for_entities([small, huge].into_iter());
+        let back = grid.quantize(small);
+        for j in 0..3 {
+            let (a, b) = (small.entity.semi_axes_f64()[j], back.entity.semi_axes_f64()[j]);
+            assert!(((a - b) / a).abs() < 0.014, "{a} vs {b}");
         }
     }
 }
