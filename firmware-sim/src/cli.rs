@@ -208,6 +208,7 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         "--accepted",
         "--ram",
         "--model",
+        "--reach",
     ])?;
     let [capture] = args.positional.as_slice() else {
         return Err(usage("run takes exactly one CAPTURE"));
@@ -266,7 +267,13 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         .map_err(|_| failed("SNAPSHOT already has an owner"))?;
     // Power-on: the statics take this run's seed and k (their initialiser had the defaults).
     let params = model_params(seed, working, k - working, model);
-    *firmware = Firmware::new(params);
+    let reach: f32 = args.number(&["--reach"], mema_core::receiver::DEFAULT_REACH)?;
+    if !(reach > 0.0 && reach.is_finite()) {
+        return Err(usage(format!(
+            "--reach {reach}: must be a positive number of metres"
+        )));
+    }
+    *firmware = Firmware::with_reach(params, reach);
     *snapshot = Snapshot::new(params);
 
     let report = run(&board, &mut firmware, &mut snapshot, &bytes, &config)

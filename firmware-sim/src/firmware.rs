@@ -35,6 +35,10 @@ pub const RX_CAPACITY: usize = 2 * MAX_FRAME_LEN;
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
 pub const IMAGE_WORKING: usize = 150;
 pub const IMAGE_FROZEN: usize = 250;
+/// The image's reach (metres from the map's origin on any axis; see
+/// [`mema_core::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
+/// first point can refuse more.
+pub const IMAGE_REACH: f32 = mema_core::receiver::DEFAULT_REACH;
 /// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
 /// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
 /// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters

@@ -30,7 +30,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
-    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, SHELLS, model_params,
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
 };
 use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
@@ -89,7 +89,10 @@ fn boot(
     slot: &'static mut core::mem::MaybeUninit<Firmware<K, G, F>>,
     model: StreamModel,
 ) -> &'static mut Firmware<K, G, F> {
-    slot.write(Firmware::new(model_params(SEED, K, F, model)))
+    slot.write(Firmware::with_reach(
+        model_params(SEED, K, F, model),
+        IMAGE_REACH,
+    ))
 }
 
 /// SysTick times of one kind of tick.
