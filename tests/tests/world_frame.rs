@@ -248,3 +248,232 @@ fn the_bunny_maps_alike_anywhere_in_the_world() {
         );
     }
 }
+
+/// A frame of a capture, as its sender meant it.
+enum Sent {
+    Points {
+        pose: u32,
+        exponent: i8,
+        points: Vec<[i32; 3]>,
+    },
+    Pose {
+        number: u32,
+        exponent: i8,
+        pose: WirePose,
+    },
+}
+
+/// The frames of a clean version 2 capture, in order.
+fn frames_of_capture(capture: &[u8]) -> Vec<Sent> {
+    use mema_core::wire::{Decoded, Decoder, FrameKind};
+    let mut decoder = Decoder::new();
+    let mut out = Vec::new();
+    let mut window = capture;
+    loop {
+        window = match decoder.feed(window) {
+            Decoded::Consumed => return out,
+            Decoded::Rejected { remaining, .. } => panic!("a clean capture: {remaining:?}"),
+            Decoded::Frame { frame, remaining } => {
+                let exponent = frame.unit_exponent();
+                out.push(match (frame.kind(), frame.pose()) {
+                    (Some(FrameKind::Pose), Some(pose)) => Sent::Pose {
+                        number: frame.pose_number(),
+                        exponent,
+                        pose,
+                    },
+                    _ => Sent::Points {
+                        pose: frame.pose_number(),
+                        exponent,
+                        points: frame.points_from(0).collect(),
+                    },
+                });
+                remaining
+            }
+        };
+    }
+}
+
+/// `frames` as a capture, numbered afresh, with every pose moved by `shift` whole metres and,
+/// if `glitches`, what a robot's link meets mixed in: after every pose, the same pose number
+/// 10^12 m away; after every fifth points frame, a frame of points at i32's extremes in
+/// kilometres and one of points 200 km out (each a frame that passed its CRC).
+fn rewritten(frames: &[Sent], shift: [i64; 3], glitches: bool) -> Vec<u8> {
+    let mut out = vec![0u8];
+    let mut sequence = 0u32;
+    let mut push = |out: &mut Vec<u8>, exponent: i8, content: Content| {
+        out.extend(v2(sequence, false, exponent, content));
+        sequence += 1;
+    };
+    for (i, sent) in frames.iter().enumerate() {
+        match sent {
+            Sent::Pose {
+                number,
+                exponent,
+                pose,
+            } => {
+                let per_metre = 10i64.pow(u32::from((-exponent).unsigned_abs()));
+                let translation = [0, 1, 2].map(|j| {
+                    i32::try_from(i64::from(pose.translation[j]) + shift[j] * per_metre)
+                        .expect("the moved pose fits its unit")
+                });
+                let moved = WirePose {
+                    translation,
+                    ..*pose
+                };
+                push(
+                    &mut out,
+                    *exponent,
+                    Content::Pose {
+                        number: *number,
+                        pose: moved,
+                    },
+                );
+                if glitches {
+                    let far = WirePose {
+                        translation: [1_000_000_000, -1_000_000_000, 0],
+                        ..*pose
+                    };
+                    push(
+                        &mut out,
+                        3,
+                        Content::Pose {
+                            number: *number,
+                            pose: far,
+                        },
+                    );
+                }
+            }
+            Sent::Points {
+                pose,
+                exponent,
+                points,
+            } => {
+                push(
+                    &mut out,
+                    *exponent,
+                    Content::Points {
+                        pose: *pose,
+                        points,
+                    },
+                );
+                if glitches && i % 5 == 2 {
+                    push(
+                        &mut out,
+                        3,
+                        Content::Points {
+                            pose: *pose,
+                            points: &far_points(),
+                        },
+                    );
+                    let per_metre = 10i64.pow(u32::from((-exponent).unsigned_abs()));
+                    let out_there = i32::try_from(200_000 * per_metre).unwrap_or(i32::MAX);
+                    let stray = [[out_there, 0, 0], [0, -out_there, 5]];
+                    push(
+                        &mut out,
+                        *exponent,
+                        Content::Points {
+                            pose: *pose,
+                            points: &stray,
+                        },
+                    );
+                }
+            }
+        }
+    }
+    // The end, as its own empty frame.
+    out.extend(v2(
+        sequence,
+        true,
+        -3,
+        Content::Points {
+            pose: 0,
+            points: &[],
+        },
+    ));
+    out
+}
+
+/// A real drive's world: the demo drive and the bunny scans in a far world frame, with
+/// corrupt-but-CRC-valid frames, a far pose and stray points mixed in, mapped by `replay` and
+/// through the firmware's path: each map, moved back, scores a two-way Chamfer against the
+/// clean points within 2% of the clean run's (the refused points never reach the mapper).
+#[test]
+fn a_drive_and_the_bunny_in_a_far_world_with_glitches_map_as_the_clean_run() {
+    let dir = Dir::new("world-drive");
+    MemaCommand::new(&dir)
+        .args(["demo", "--moving", "--out-dir", "drive"])
+        .run()
+        .assert_ok();
+    MemaCommand::new(&dir)
+        .args(["scanner-sim", "--port", "drive.bin"])
+        .run()
+        .assert_ok();
+    MemaCommand::new(&dir)
+        .args(["scanner-sim", "--conf"])
+        .arg(shared("bun.conf"))
+        .args(["--port", "bunny.bin"])
+        .run()
+        .assert_ok();
+    for (name, clean_points, k, shift) in [
+        (
+            "drive",
+            dir.join("drive/scan.ply"),
+            "250",
+            [150_000, -180_000, 512],
+        ),
+        (
+            "bunny",
+            shared("bun_zipper.ply"),
+            "150",
+            [-170_000, 190_000, -513],
+        ),
+    ] {
+        let frames =
+            frames_of_capture(&std::fs::read(dir.join(&format!("{name}.bin"))).expect("capture"));
+        let chamfer = |label: &str, capture: &[u8], back: [i64; 3]| {
+            let (code, json, map) = replay(&dir, label, capture, k, &[]);
+            assert_eq!(code, 0, "{label}: {json}");
+            let firmware = play_model(
+                capture,
+                (k.parse().expect("k"), 0),
+                SHELLS,
+                &RunConfig::default(),
+            );
+            assert_eq!(firmware.map, map, "{label}: firmware vs replay");
+            let back = back.map(|v| (-v).to_string()).join(",");
+            MemaCommand::new(&dir)
+                .arg("transform")
+                .arg(format!("{label}.mema"))
+                .arg(format!("--translate={back}"))
+                .args(["-o", &format!("{label}-back.mema")])
+                .run()
+                .assert_ok();
+            (
+                eval_chamfer(&dir, &clean_points, &format!("{label}-back.mema")),
+                json,
+            )
+        };
+        let (clean, _) = chamfer(
+            &format!("{name}-clean"),
+            &rewritten(&frames, [0; 3], false),
+            [0; 3],
+        );
+        let (far, json) = chamfer(
+            &format!("{name}-far"),
+            &rewritten(&frames, shift, true),
+            shift,
+        );
+        assert!(
+            json["points_out_of_reach"].as_u64() > Some(0),
+            "{name}: {json}"
+        );
+        assert!(
+            json["poses_out_of_reach"].as_u64() > Some(0),
+            "{name}: {json}"
+        );
+        assert!(
+            far <= 1.02 * clean,
+            "{name}: Chamfer {far} m far and glitched against {clean} m clean"
+        );
+    }
+}

@@ -501,7 +501,10 @@ mod tests {
         let grid = Quantization::for_entities([small, huge].into_iter());
         let back = grid.quantize(small);
         for j in 0..3 {
-            let (a, b) = (small.entity.semi_axes_f64()[j], back.entity.semi_axes_f64()[j]);
+            let (a, b) = (
+                small.entity.semi_axes_f64()[j],
+                back.entity.semi_axes_f64()[j],
+            );
             assert!(((a - b) / a).abs() < 0.014, "{a} vs {b}");
         }
     }
