@@ -477,3 +477,55 @@ fn a_drive_and_the_bunny_in_a_far_world_with_glitches_map_as_the_clean_run() {
         );
     }
 }
+
+/// A frame of points 50 km out, within reach (a robot that did drive there, or a glitch the reach
+/// lets by), leaves every other entity where the mapper put it: a quantized file's centre grid
+/// spans the map, so such a map is written in f32 instead of moving every shell by 0.8 m.
+#[test]
+fn one_far_entity_leaves_the_others_their_places() {
+    use mema::link::stream::{Capacity, Link, stream_params};
+    let plane = plane();
+    let far = [
+        [50_000_000, 0, 0],
+        [50_000_100, 30, 0],
+        [50_000_000, 60, 40],
+    ];
+    let mut bytes = vec![0u8];
+    bytes.extend(frame(0, false, -3, &plane[..64]));
+    bytes.extend(frame(1, false, -3, &far));
+    bytes.extend(frame(2, true, -3, &plane[64..]));
+    let params = stream_params(
+        Capacity::all_working(16),
+        0,
+        Default::default(),
+        0.0,
+        SHELLS,
+    );
+    let mut link = Link::with_params(params);
+    link.feed(&bytes);
+    let map = link.finish();
+    let origin = link.receiver.origin();
+    let in_memory: Vec<[f64; 3]> = link
+        .mapper
+        .entities()
+        .map(|e| {
+            let c = e.entity.center.to_f64();
+            [0, 1, 2].map(|j| c[j] + origin[j])
+        })
+        .collect();
+    assert_eq!(in_memory.len(), map.entities.len());
+    assert!(map.quantization.is_none(), "a 50 km map quantized");
+    for (e, want) in map.entities.iter().zip(&in_memory) {
+        let got = map.world_center(&e.entity);
+        for j in 0..3 {
+            assert!((got[j] - want[j]).abs() < 1e-6, "{got:?} vs {want:?}");
+        }
+    }
+    // The plane alone stays quantized, 14 bytes an entity.
+    let mut clean = vec![0u8];
+    clean.extend(frame(0, false, -3, &plane[..64]));
+    clean.extend(frame(2, true, -3, &plane[64..]));
+    let mut alone = Link::with_params(params);
+    alone.feed(&clean);
+    assert!(alone.finish().quantization.is_some());
+}

@@ -22,6 +22,10 @@ pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> 
     shell(mean, covariance, params)
 }
 
+/// A quantized file's centre step that is fine whatever the shells' thickness: below any range
+/// sensor's noise.
+const QUANTIZED_STEP_ALWAYS: f64 = 1e-4;
+
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub(super) fn is_shells(&self) -> bool {
         matches!(self.params.model, StreamModel::Shells(_))
@@ -43,26 +47,54 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
-    /// How the map is written: the paper's axis-aligned fits in version 1, shells quantized on
-    /// the finest grid that holds them all around the file's origin ([`StreamMapper::file_shift`]).
+    /// How the map is written: the paper's axis-aligned fits in version 1; shells quantized
+    /// around the centre of their box, on the finest grid that holds them all, unless that
+    /// grid's centre step would pass a quarter of the shells' typical thickness (the geometric
+    /// mean of their shortest semi-axes) and 0.1 mm: a map kilometres across, or one far
+    /// entity, would then move every shell off its surface, and the shells are written in f32
+    /// instead (version 2, 40 bytes an entity; version 1 if none is turned). So no single
+    /// entity coarsens the others.
     pub fn layout(&self) -> Layout {
         match self.params.model {
             StreamModel::Paper => Layout::AxisAligned,
             StreamModel::Shells(_) => {
-                Layout::Quantized(Quantization::for_entities(self.file_entities()))
+                let shift = self.box_centre();
+                let grid = Quantization::for_entities(self.shifted(shift));
+                let (mut far, mut log_sum, mut n) = (0.0f64, 0.0f64, 0u32);
+                for e in self.shifted(shift) {
+                    for v in e.entity.center.to_f64() {
+                        far = far.max(libm::fabs(v));
+                    }
+                    let shortest = e
+                        .entity
+                        .semi_axes_f64()
+                        .into_iter()
+                        .filter(|r| r.is_finite() && *r > 0.0)
+                        .fold(f64::INFINITY, f64::min);
+                    if shortest.is_finite() {
+                        log_sum += libm::log(shortest);
+                        n += 1;
+                    }
+                }
+                let thickness = if n > 0 {
+                    libm::exp(log_sum / f64::from(n))
+                } else {
+                    f64::INFINITY
+                };
+                if far / 32_767.0 <= (0.25 * thickness).max(QUANTIZED_STEP_ALWAYS) {
+                    Layout::Quantized(grid)
+                } else if self.entities().all(|e| e.entity.rotation.is_identity()) {
+                    // As a host map with these entities is written.
+                    Layout::AxisAligned
+                } else {
+                    Layout::Oriented
+                }
             }
         }
     }
 
-    /// Where a quantized file's origin lies in the mapper's frame: the centre of the box around
-    /// the entities' centres. The grid's centre step is then the map's own half extent over
-    /// 32,767, wherever the receiver's origin lies; around that origin, a small scene at the
-    /// far side of it got a step of its distance over 32,767 (15 mm at 500 m). Zero for the
-    /// paper's f32 records, which a shift could only round.
-    pub fn file_shift(&self) -> [f32; 3] {
-        if !self.is_shells() {
-            return [0.0; 3];
-        }
+    /// The centre of the box around the entities' centres, in the mapper's frame.
+    fn box_centre(&self) -> [f32; 3] {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
         for e in self.entities() {
@@ -84,15 +116,28 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         })
     }
 
-    /// The file's origin for a mapper whose points are relative to `origin` (the receiver's).
-    pub fn file_origin(&self, origin: [f64; 3]) -> [f64; 3] {
-        let shift = self.file_shift();
+    /// Where a file in `layout` puts its origin, in the mapper's frame: a quantized file at the
+    /// centre of its entities' box, so its centre step is the map's own half extent over
+    /// 32,767 wherever the receiver's origin lies (around that origin, a small scene at its far
+    /// side got a step of its distance over 32,767: 15 mm at 500 m); f32 records at the
+    /// receiver's origin, where a shift could only round them.
+    pub fn file_shift(&self, layout: Layout) -> [f32; 3] {
+        match layout {
+            Layout::Quantized(_) => self.box_centre(),
+            _ => [0.0; 3],
+        }
+    }
+
+    /// The origin of a file in `layout` for a mapper whose points are relative to `origin` (the
+    /// receiver's).
+    pub fn file_origin(&self, origin: [f64; 3], layout: Layout) -> [f64; 3] {
+        let shift = self.file_shift(layout);
         core::array::from_fn(|j| origin[j] + f64::from(shift[j]))
     }
 
-    /// The entities around the file's origin.
-    fn file_entities(&self) -> impl Iterator<Item = MapEntity> + Clone + '_ {
-        let [sx, sy, sz] = self.file_shift();
+    /// The entities moved by `-shift`.
+    fn shifted(&self, shift: [f32; 3]) -> impl Iterator<Item = MapEntity> + Clone + '_ {
+        let [sx, sy, sz] = shift;
         self.entities().map(move |mut e| {
             let c = e.entity.center;
             e.entity.center = crate::geometry::Point3::new(c.x - sx, c.y - sy, c.z - sz);
@@ -103,10 +148,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// The entities as a file in `layout` stores them, around the file's origin: on its grid
     /// when quantized, as they are otherwise.
     pub fn stored_entities(&self, layout: Layout) -> impl Iterator<Item = MapEntity> + Clone + '_ {
-        self.file_entities().map(move |e| match layout {
-            Layout::Quantized(grid) => grid.quantize(e),
-            _ => e,
-        })
+        self.shifted(self.file_shift(layout))
+            .map(move |e| match layout {
+                Layout::Quantized(grid) => grid.quantize(e),
+                _ => e,
+            })
     }
 
     /// Bytes of the map's `.mema` file as it stands.
@@ -120,7 +166,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let layout = self.layout();
         encode_as(
             layout,
-            self.file_origin(origin),
+            self.file_origin(origin, layout),
             self.stored_entities(layout),
             out,
         )
@@ -136,7 +182,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let layout = self.layout();
         encode_pieces_as(
             layout,
-            self.file_origin(origin),
+            self.file_origin(origin, layout),
             self.stored_entities(layout),
             sink,
         )

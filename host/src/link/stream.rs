@@ -138,7 +138,7 @@ pub fn link_params(
 pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
     let layout = mapper.layout();
     HostMap {
-        origin: mapper.file_origin(origin),
+        origin: mapper.file_origin(origin, layout),
         entities: mapper.stored_entities(layout).collect(),
         quantization: match layout {
             mema_core::map::Layout::Quantized(grid) => Some(grid),
