@@ -138,10 +138,11 @@ fn whole_offset(offset_nm: [i64; 3], exponent: i8) -> Option<[i32; 3]> {
     let per_unit = nanometres_per_unit(exponent)?;
     let mut out = [0i32; 3];
     for (slot, &o) in out.iter_mut().zip(&offset_nm) {
-        if o % per_unit != 0 {
+        // Checked: the divisor is never 0 or -1, but the image admits no panicking branch.
+        if o.checked_rem(per_unit)? != 0 {
             return None;
         }
-        *slot = i32::try_from(o / per_unit).ok()?;
+        *slot = i32::try_from(o.checked_div(per_unit)?).ok()?;
     }
     Some(out)
 }
