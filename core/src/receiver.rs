@@ -235,12 +235,13 @@ impl Receiver {
             return Received::Consumed;
         };
         if self.origin.is_none() {
-            // The first point in the world's range, exactly: a map's points then reach the
-            // mapper with the same bits wherever the world frame puts it.
-            self.origin = held.points_from(0).find_map(|raw| {
-                Placement::world_nm(raw, frame.exponent, &pose)
-                    .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM))
-            });
+            // The first point, exactly, if it is within the world's range (else the next
+            // frame's): a map's points then reach the mapper with the same bits wherever the
+            // world frame puts it.
+            self.origin = held
+                .point(0)
+                .and_then(|raw| Placement::world_nm(raw, frame.exponent, &pose))
+                .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM));
         }
         // A pose's offset past i64 nanometres leaves nothing a place: every point is refused.
         self.placement = Placement::new(

@@ -147,6 +147,19 @@ fn whole_offset(offset_nm: [i64; 3], exponent: i8) -> Option<[i32; 3]> {
     Some(out)
 }
 
+/// Raw point `[x, y, z]` in units of `scale` metres, rotated by `rotation` (f32 rows, on the
+/// point rounded to f32 in metres), in f64.
+fn turn([x, y, z]: [i32; 3], scale: f64, rotation: Option<[[f32; 3]; 3]>) -> [f64; 3] {
+    let p = [x as f64 * scale, y as f64 * scale, z as f64 * scale];
+    let Some(r) = rotation else {
+        return p;
+    };
+    let [px, py, pz] = p.map(|v| v as f32);
+    let row = |[a, b, c]: [f32; 3]| (a * px + b * py + c * pz) as f64;
+    let [r0, r1, r2] = r;
+    [row(r0), row(r1), row(r2)]
+}
+
 /// `r + hi + lo` rounded to f32 as nearly as once: TwoSum (Knuth) gives the exact error of
 /// `r + hi`, which joins the low part before the last rounding.
 #[inline]
@@ -229,19 +242,6 @@ impl Placement {
         }
     }
 
-    /// Raw point `[x, y, z]` in metres, rotated into the world's axes, in f64.
-    fn turned(&self, [x, y, z]: [i32; 3]) -> [f64; 3] {
-        let s = self.scale;
-        let p = [x as f64 * s, y as f64 * s, z as f64 * s];
-        let Some(r) = self.rotation else {
-            return p;
-        };
-        let [px, py, pz] = p.map(|v| v as f32);
-        let row = |[a, b, c]: [f32; 3]| (a * px + b * py + c * pz) as f64;
-        let [r0, r1, r2] = r;
-        [row(r0), row(r1), row(r2)]
-    }
-
     /// Point `i` of `frame` in the map's frame (metres from the origin), or `None` past its
     /// points or out of reach. `frame` is the frame this placement was made for.
     #[inline]
@@ -292,17 +292,9 @@ impl Placement {
         let t = pose.translation_nm?;
         let local = match pose.rotation {
             None => nanometres3(raw, exponent)?,
-            Some(_) => {
-                let placement = Self::new(
-                    [0; 3],
-                    exponent,
-                    &Pose {
-                        translation_nm: Some([0; 3]),
-                        ..*pose
-                    },
-                    0.0,
-                )?;
-                let turned = placement.turned(raw);
+            Some(rows) => {
+                let scale = crate::wire::unit_scale(exponent)?;
+                let turned = turn(raw, scale, Some(rows));
                 let mut out = [0i64; 3];
                 for (slot, v) in out.iter_mut().zip(turned) {
                     let nm = libm::round(v * 1e9);

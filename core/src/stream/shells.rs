@@ -24,7 +24,7 @@ pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> 
 
 /// A quantized file's centre step that is fine whatever the shells' thickness: below any range
 /// sensor's noise.
-const QUANTIZED_STEP_ALWAYS: f64 = 1e-4;
+const QUANTIZED_STEP_ALWAYS: f32 = 1e-4;
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub(super) fn is_shells(&self) -> bool {
@@ -49,60 +49,72 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// How the map is written: the paper's axis-aligned fits in version 1; shells quantized
     /// around the centre of their box, on the finest grid that holds them all, unless that
-    /// grid's centre step would pass a quarter of the shells' typical thickness (the geometric
-    /// mean of their shortest semi-axes) and 0.1 mm: a map kilometres across, or one far
-    /// entity, would then move every shell off its surface, and the shells are written in f32
-    /// instead (version 2, 40 bytes an entity; version 1 if none is turned). So no single
-    /// entity coarsens the others.
+    /// grid's centre step would pass 0.1 mm and a quarter of the median shell's thickness (its
+    /// shortest semi-axis): a map kilometres across, or one far entity, would then move every
+    /// shell off its surface, and the shells are written in f32 instead (version 2, 40 bytes an
+    /// entity; version 1 if none is turned). So no single entity coarsens the others.
     pub fn layout(&self) -> Layout {
         match self.params.model {
             StreamModel::Paper => Layout::AxisAligned,
             StreamModel::Shells(_) => {
                 let shift = self.box_centre();
-                let grid = Quantization::for_entities(self.shifted(shift));
-                let (mut far, mut log_sum, mut n) = (0.0f64, 0.0f64, 0u32);
+                // One pass: what the grid needs (the farthest centre, the shortest and longest
+                // finite semi-axes, as `Quantization::for_entities` takes them), whether any
+                // shell is turned, and the shells' shortest semi-axes by power of two (their
+                // weights' exponents), to count those thinner than four centre steps without
+                // sorting them.
+                let (mut far, mut turned, mut all) = (0.0f32, false, 0usize);
+                let (mut shortest, mut longest) = (f64::INFINITY, 0.0f64);
+                let mut by_exponent = [0u32; 256];
                 for e in self.shifted(shift) {
-                    for v in e.entity.center.to_f64() {
-                        far = far.max(libm::fabs(v));
+                    for v in e.entity.center.to_array() {
+                        if v.is_finite() {
+                            far = far.max(v.abs());
+                        }
                     }
-                    let shortest = e
-                        .entity
-                        .semi_axes_f64()
-                        .into_iter()
-                        .filter(|r| r.is_finite() && *r > 0.0)
-                        .fold(f64::INFINITY, f64::min);
-                    if shortest.is_finite() {
-                        log_sum += libm::log(shortest);
-                        n += 1;
+                    for r in e.entity.semi_axes_f64() {
+                        if r.is_finite() && r > 0.0 {
+                            shortest = shortest.min(r);
+                            longest = longest.max(r);
+                        }
                     }
+                    turned |= !e.entity.rotation.is_identity();
+                    let [a, b, c] = e.entity.weights;
+                    // The shortest semi-axis has the largest weight, 1/r^2.
+                    let exponent = (a.max(b).max(c).to_bits() >> 23) & 0xff;
+                    if let Some(n) = by_exponent.get_mut(exponent as usize) {
+                        *n += 1;
+                    }
+                    all += 1;
                 }
-                let thickness = if n > 0 {
-                    libm::exp(log_sum / f64::from(n))
-                } else {
-                    f64::INFINITY
-                };
-                if far / 32_767.0 <= (0.25 * thickness).max(QUANTIZED_STEP_ALWAYS) {
+                let grid = Quantization::for_extent(f64::from(far), shortest, longest);
+                // Shells thinner than four steps (within a factor of 2, by whole exponents):
+                // the grid would move them off their surfaces by an eighth of their thickness.
+                let step = far / 32_767.0;
+                let limit = (4.0 * step).max(f32::MIN_POSITIVE);
+                let thin_from = ((1.0 / (limit * limit)).to_bits() >> 23) & 0xff;
+                let thin: u32 = by_exponent.iter().skip(thin_from as usize).sum();
+                if step <= QUANTIZED_STEP_ALWAYS || 2 * thin as usize <= all {
                     Layout::Quantized(grid)
-                } else if self.entities().all(|e| e.entity.rotation.is_identity()) {
+                } else if turned {
+                    Layout::Oriented
+                } else {
                     // As a host map with these entities is written.
                     Layout::AxisAligned
-                } else {
-                    Layout::Oriented
                 }
             }
         }
     }
 
-    /// The centre of the box around the entities' centres, in the mapper's frame.
+    /// The centre of the box around the clusters' centres and the frozen entities': near the
+    /// centre of the entities' box (a shell's centre is its cluster's mean), without making a
+    /// shell. Any shift near the middle serves: the grid is fitted to the shifted entities.
     fn box_centre(&self) -> [f32; 3] {
         let mut lo = [f32::INFINITY; 3];
         let mut hi = [f32::NEG_INFINITY; 3];
-        for e in self.entities() {
-            for ((l, h), v) in lo
-                .iter_mut()
-                .zip(hi.iter_mut())
-                .zip(e.entity.center.to_array())
-            {
+        let frozen = self.frozen.iter().map(|f| f.entity.center);
+        for c in frozen.chain(self.clusters.iter().map(|c| c.center)) {
+            for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(c.to_array()) {
                 if v.is_finite() {
                     *l = l.min(v);
                     *h = h.max(v);
