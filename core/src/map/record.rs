@@ -23,16 +23,16 @@ const QUATERNION_MAX: f64 = ((1 << QUATERNION_BITS) - 1) as f64;
 
 /// The shortest semi-axis a grid may hold: its weight, `1e38`, is finite in f32 (a shorter one's
 /// overflowed, decoded as `f32::MAX`, and re-encoded one code off).
-const AXIS_MIN_FLOOR: f32 = 1e-19;
+pub const AXIS_MIN_FLOOR: f32 = 1e-19;
 
 /// The longest finite semi-axis a grid may hold: its weight, `1e-36`, is a normal f32 (a longer
 /// one's lost its precision or became 0, which reads as an infinite semi-axis).
-const AXIS_MAX_CEILING: f64 = 1e18;
+pub const AXIS_MAX_CEILING: f64 = 1e18;
 
 /// The finest positive step of the semi-axes' logarithm a grid may have: at it, f32's rounding
 /// of a decoded weight moves its re-encoded code by 3e-4 of a step, so every code is its own
 /// again (at 1e-10 it moved hundreds of codes).
-const AXIS_LOG_STEP_MIN: f32 = 1e-4;
+pub const AXIS_LOG_STEP_MIN: f32 = 1e-4;
 
 /// The grid a quantized map lives on, stored in its header.
 ///

@@ -1,9 +1,9 @@
 //! ROS 2 bags without ROS: `sensor_msgs/msg/PointCloud2` messages from an MCAP file, each put
 //! in a chosen frame through the bag's `/tf` and `/tf_static`.
 //!
-//! A bag ([`is_bag`]: an MCAP file, or a rosbag2 directory of them) is read in two passes over
-//! its files with the `mcap` crate's streaming reader, so memory holds one record (or one chunk)
-//! at a time, never the file:
+//! A bag (an MCAP file, or a rosbag2 directory of them: [`crate::io::kind::InputKind::Bag`]) is
+//! read in two passes over its files with the `mcap` crate's streaming reader, so memory holds
+//! one record (or one chunk) at a time, never the file:
 //! 1. the channels of type `sensor_msgs/msg/PointCloud2` and their message counts, and, when a
 //!    frame is asked for, every `tf2_msgs/msg/TFMessage` on `/tf` (dynamic) and `/tf_static`
 //!    (static) into a [`tf::TfTree`];
