@@ -130,27 +130,27 @@ impl Default for Receiver {
 impl Receiver {
     #[inline(always)]
     pub const fn new() -> Self {
-        Self::resuming(None)
+        Self::resuming(None, DEFAULT_REACH)
     }
 
     /// A receiver that refuses points and poses farther than `reach` metres from the map's
-    /// origin on any axis (default [`DEFAULT_REACH`]).
+    /// origin on any axis ([`Receiver::new`]: [`DEFAULT_REACH`]). Built in place, as a device's
+    /// static is: a builder on a made receiver would pass its 1.6 KiB decoder through the stack.
     #[inline(always)]
-    pub const fn with_reach(mut self, reach: f32) -> Self {
-        self.reach = reach;
-        self
+    pub const fn reaching(reach: f32) -> Self {
+        Self::resuming(None, reach)
     }
 
     /// A receiver after a reset of the device: the decoder and the stream start afresh (the
     /// pose too: points wait for the next pose frame), but the map kept in memory that survived
     /// (a snapshot) lies around `origin` ([`Receiver::map_origin`] when the snapshot was taken),
-    /// so points keep going there.
+    /// so points keep going there; `reach` as before.
     #[inline(always)]
-    pub const fn resuming(origin: Option<[i64; 3]>) -> Self {
+    pub const fn resuming(origin: Option<[i64; 3]>, reach: f32) -> Self {
         Self {
             decoder: Decoder::new(),
             origin,
-            reach: DEFAULT_REACH,
+            reach,
             pose: Pose::START,
             session: 0,
             ended: false,

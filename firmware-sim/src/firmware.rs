@@ -185,7 +185,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     pub const fn with_reach(params: StreamParams, reach: f32) -> Self {
         Self {
             rx: Ring::new(),
-            receiver: Receiver::new().with_reach(reach),
+            receiver: Receiver::reaching(reach),
             mapper: StreamMapper::new(params),
             cursor: None,
             refit_due: false,
@@ -335,7 +335,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
         self.rx.clear();
         self.cursor = None;
         self.refit_due = false;
-        self.receiver = Receiver::resuming(snapshot.origin).with_reach(self.receiver.reach());
+        self.receiver = Receiver::resuming(snapshot.origin, self.receiver.reach());
         self.mapper.clone_from(&snapshot.mapper);
         self.stats.frames = snapshot.frames;
         self.stats.end_of_stream = false;

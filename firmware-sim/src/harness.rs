@@ -177,9 +177,12 @@ fn drive<
 /// first point, as a receiver that gets every frame takes it).
 pub fn frames_of(capture: &[u8], origin: Option<[i64; 3]>) -> HashMap<u32, Vec<Point3>> {
     let mut frames = HashMap::new();
-    Receiver::resuming(origin).feed_all(capture, |frame, placement| {
-        frames.insert(frame.sequence(), placement.points(&frame).collect());
-    });
+    Receiver::resuming(origin, mema_core::receiver::DEFAULT_REACH).feed_all(
+        capture,
+        |frame, placement| {
+            frames.insert(frame.sequence(), placement.points(&frame).collect());
+        },
+    );
     frames
 }
 

@@ -210,7 +210,7 @@ impl Link {
     /// The link refusing points and poses farther than `reach` metres from the map's origin on
     /// any axis ([`mema_core::receiver::DEFAULT_REACH`] by default).
     pub fn with_reach(mut self, reach: f32) -> Self {
-        self.receiver = self.receiver.with_reach(reach);
+        self.receiver = Receiver::reaching(reach);
         self
     }
 
