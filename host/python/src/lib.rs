@@ -54,7 +54,9 @@ fn _read_cloud<'py>(
 ) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
     let bag = mema::io::bag::BagOptions { topic, frame };
-    if (bag.topic.is_some() || bag.frame.is_some()) && mema::io::kind::InputKind::of(&path) != mema::io::kind::InputKind::Bag {
+    if (bag.topic.is_some() || bag.frame.is_some())
+        && mema::io::kind::InputKind::of(&path) != mema::io::kind::InputKind::Bag
+    {
         return Err(errors::bad_value(
             "topic, frame",
             "choose a ROS 2 bag's messages, and this file is not a bag (an MCAP file)",
