@@ -71,8 +71,22 @@ where
             .map_err(|e| data_error(ctx, read, e))?;
         let most = usize::try_from(declared - read).unwrap_or(usize::MAX);
         points.grow(ctx, usize::try_from(got).unwrap_or(usize::MAX), most)?;
-        for ((x, y), z) in batch.x().zip(batch.y()).zip(batch.z()) {
-            points.push([x, y, z]);
+        // The withheld flag: bit 7 of the classification byte in formats 0-5, bit 2 of the
+        // classification flags in 6-10 (LAS 1.4, Table 15 and Table 16).
+        let extended = batch.format().is_extended;
+        let record_len = batch.record_len().max(1);
+        let withheld = batch.raw_bytes().chunks_exact(record_len).map(|record| {
+            record
+                .get(15)
+                .is_some_and(|&f| f & if extended { 0b100 } else { 0x80 } != 0)
+        });
+        let classes = batch.classification().zip(withheld);
+        for (((x, y), z), (class, withheld)) in batch.x().zip(batch.y()).zip(batch.z()).zip(classes)
+        {
+            match ctx.classes().keeps(class, withheld) {
+                Ok(()) => points.push([x, y, z]),
+                Err(why) => points.leave_out(why),
+            }
         }
         read += got;
         if got < want {
@@ -470,5 +484,53 @@ mod tests {
         b[107..111].copy_from_slice(&u32::MAX.to_le_bytes());
         let e = read_cloud_bytes("big.las", &b).unwrap_err();
         assert!(matches!(e, ReadError::Truncated { .. }), "{e:?}");
+    }
+
+    /// Noise (7, 18) and withheld points are left out and counted, in a legacy and an extended
+    /// point format written by the `las` crate; `Classes::All` keeps them.
+    #[test]
+    fn noise_and_withheld_points_are_left_out_and_counted() {
+        use crate::io::read::{Classes, read_cloud_in_metres_keeping};
+        let dir = std::env::temp_dir().join(format!("mema-las-classes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (format, version) in [(1u8, (1, 2)), (6, (1, 4))] {
+            let mut builder = las::Builder::from(version);
+            builder.point_format = las::point::Format::new(format).unwrap();
+            let header = builder.into_header().unwrap();
+            let path = dir.join(format!("classes-{format}.las"));
+            let file = std::io::BufWriter::new(std::fs::File::create(&path).unwrap());
+            let mut writer = las::Writer::new(file, header).unwrap();
+            let classes = [2u8, 7, 18, 6, 2];
+            for (i, &class) in classes.iter().enumerate() {
+                let point = las::Point {
+                    x: i as f64,
+                    y: 0.0,
+                    z: if class == 7 || class == 18 { 1e5 } else { 0.0 },
+                    classification: las::point::Classification::new(class).unwrap(),
+                    is_withheld: i == 4,
+                    gps_time: Some(0.0),
+                    ..Default::default()
+                };
+                writer.write_point(point).unwrap();
+            }
+            writer.close().unwrap();
+            let kept = read_cloud_in_metres_keeping(&path, None, Classes::default()).unwrap();
+            assert_eq!(kept.points.len(), 2, "format {format}");
+            let d = kept.dropped_by_class;
+            assert_eq!(
+                (d.noise, d.withheld, d.other_classes),
+                (2, 1, 0),
+                "format {format}"
+            );
+            let all = read_cloud_in_metres_keeping(&path, None, Classes::All).unwrap();
+            assert_eq!((all.points.len(), all.dropped_by_class.total()), (5, 0));
+            let only: Classes = "6".parse().unwrap();
+            let six = read_cloud_in_metres_keeping(&path, None, only).unwrap();
+            assert_eq!(
+                (six.points.len(), six.dropped_by_class.other_classes),
+                (1, 3)
+            );
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

@@ -24,6 +24,7 @@
 //! bounded) and recognised by its content the same way; a KITTI scan, which only its name
 //! tells apart, cannot come that way. A file named `-` is `./-`.
 
+pub mod classes;
 pub mod fuzz_checks;
 mod kitti;
 mod las;
@@ -40,6 +41,7 @@ use std::io::{IsTerminal, Seek};
 use std::path::{Path, PathBuf};
 
 use crate::io::units::{self, FileUnit, LengthUnit, Units};
+pub use classes::{ClassDrops, Classes};
 
 pub(crate) use points::{Endian, Points, Scalar};
 use stream::{Input, Line};
@@ -55,6 +57,8 @@ pub struct Cloud {
     pub slots: usize,
     /// Slots dropped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
+    /// Points of a classified file (LAS/LAZ) left out: noise, withheld, other classes.
+    pub dropped_by_class: ClassDrops,
     /// The encoding the points were read from.
     pub format: Format,
     /// The unit the file says its coordinates are in (LAS GeoKeys or WKT); `None` where it
@@ -202,7 +206,7 @@ pub const UNSIZED_LIMIT: u64 = 1 << 30;
 
 /// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file, in its own coordinates.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
-    read_scaled(path, Scaling::File)
+    read_scaled(path, Scaling::File, Classes::NotNoise)
 }
 
 /// Reads a cloud file in metres: scaled by `given` (`--units`), else by the unit the file
@@ -211,16 +215,26 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
 /// bit for bit as [`read_cloud`] reads it. Geographic coordinates or a unit not known are
 /// [`ReadError::Units`] unless a unit is given.
 pub fn read_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<Cloud, ReadError> {
-    read_scaled(path, Scaling::Metres(given))
+    read_scaled(path, Scaling::Metres(given), Classes::NotNoise)
 }
 
-fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
+/// [`read_cloud_in_metres`] keeping the points of a classified file (LAS/LAZ) that `classes`
+/// names ([`Classes`]; by default every point but noise and withheld ones).
+pub fn read_cloud_in_metres_keeping(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    classes: Classes,
+) -> Result<Cloud, ReadError> {
+    read_scaled(path, Scaling::Metres(given), classes)
+}
+
+fn read_scaled(path: &Path, scaling: Scaling, classes: Classes) -> Result<Cloud, ReadError> {
     if path == Path::new(STDIN) {
         if std::io::stdin().is_terminal() {
             return Err(ReadError::Terminal);
         }
         // Linux's name for descriptor 0: a pipe, a socket or a redirected file alike.
-        return read_unsized(Path::new("/dev/stdin"), STDIN_NAME, scaling);
+        return read_unsized(Path::new("/dev/stdin"), STDIN_NAME, scaling, classes);
     }
     let io = |cause| ReadError::Io {
         path: path.to_owned(),
@@ -231,11 +245,11 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
     let name = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(io)?;
     if !meta.is_file() || meta.len() == 0 {
-        return read_unsized(path, &name, scaling);
+        return read_unsized(path, &name, scaling, classes);
     }
     let mut file = File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
-    let ctx = Ctx(&name, scaling);
+    let ctx = Ctx(&name, scaling, classes);
     let kind = {
         let mut input = Input::new(ctx, &mut file, meta.len());
         match detect(&mut input)? {
@@ -255,14 +269,19 @@ fn read_scaled(path: &Path, scaling: Scaling) -> Result<Cloud, ReadError> {
 
 /// Reads a pipe, a device or a file whose length says nothing, whole (to [`UNSIZED_LIMIT`]),
 /// then its bytes; `name` names it in errors.
-fn read_unsized(path: &Path, name: &str, scaling: Scaling) -> Result<Cloud, ReadError> {
+fn read_unsized(
+    path: &Path,
+    name: &str,
+    scaling: Scaling,
+    classes: Classes,
+) -> Result<Cloud, ReadError> {
     use crate::io::input::{InputError, read_bounded};
     let io = |cause| ReadError::Io {
         path: PathBuf::from(name),
         cause,
     };
     match read_bounded(path, UNSIZED_LIMIT, "point cloud") {
-        Ok(bytes) => read_bytes(Ctx(name, scaling), &bytes),
+        Ok(bytes) => read_bytes(Ctx(name, scaling, classes), &bytes),
         Err(InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
             name: name.to_owned(),
             what: format!(
@@ -362,7 +381,7 @@ fn detect(input: &mut Input) -> Result<Kind, ReadError> {
 /// The file name, carried by every reader to build its errors, and whether the cloud is to be
 /// scaled to metres.
 #[derive(Clone, Copy)]
-pub(crate) struct Ctx<'a>(&'a str, Scaling<'a>);
+pub(crate) struct Ctx<'a>(&'a str, Scaling<'a>, Classes);
 
 /// Whether a reader keeps the file's coordinates or brings them to metres, and by which unit.
 #[derive(Clone, Copy, Debug)]
@@ -375,12 +394,17 @@ pub(crate) enum Scaling<'a> {
 
 impl<'a> Ctx<'a> {
     pub(crate) const fn new(name: &'a str) -> Self {
-        Ctx(name, Scaling::File)
+        Ctx(name, Scaling::File, Classes::NotNoise)
     }
 
     /// A cloud to be read in metres: by `given`, else the file's unit, else none.
     pub(crate) const fn in_metres(name: &'a str, given: Option<&'a LengthUnit>) -> Self {
-        Ctx(name, Scaling::Metres(given))
+        Ctx(name, Scaling::Metres(given), Classes::NotNoise)
+    }
+
+    /// The points of classified files this read keeps.
+    pub(crate) const fn classes(self) -> Classes {
+        self.2
     }
 
     /// The unit to scale by, if the cloud is to be in metres, given what the file says.

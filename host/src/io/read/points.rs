@@ -115,6 +115,7 @@ pub(crate) struct Points {
     hi: [f64; 3],
     slots: usize,
     dropped: usize,
+    by_class: super::ClassDrops,
 }
 
 /// Reserves room for exactly `n` more items: a refusal is an error naming what was wanted, not
@@ -134,6 +135,7 @@ impl Points {
             hi: [f64::NEG_INFINITY; 3],
             slots: 0,
             dropped: 0,
+            by_class: super::ClassDrops::default(),
         }
     }
 
@@ -166,6 +168,12 @@ impl Points {
     }
 
     #[inline]
+    /// A slot whose point its class leaves out: counted as a slot, never a point.
+    pub fn leave_out(&mut self, why: super::classes::LeftOut) {
+        self.slots += 1;
+        self.by_class.note(why);
+    }
+
     pub fn push(&mut self, p: [f64; 3]) {
         self.slots += 1;
         if p.iter().all(|c| c.is_finite()) {
@@ -293,6 +301,7 @@ impl Points {
             points,
             slots: self.slots,
             dropped_non_finite: self.dropped,
+            dropped_by_class: self.by_class,
             format,
             unit,
             units,
