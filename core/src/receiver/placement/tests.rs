@@ -45,9 +45,9 @@ fn xorshift(mut s: u64) -> impl Iterator<Item = u64> {
 #[test]
 fn points_below_2_24_units_are_the_nearest_f32_and_the_f64_bits() {
     for e in crate::wire::MIN_UNIT_EXPONENT..=crate::wire::MAX_UNIT_EXPONENT {
-        let Some(p) = Placement::new([0; 3], e, &Pose::START, DEFAULT_REACH) else {
-            panic!("a placement at 0");
-        };
+        let p = Placement::new([0; 3], e, &Pose::START, DEFAULT_REACH);
+        assert!(p.is_some(), "a placement at 0");
+        let Some(p) = p else { return };
         let scale = crate::wire::unit_scale(e).unwrap_or(f64::NAN);
         let small = -70_000..=70_000;
         let wide = xorshift((i64::from(e) + 99) as u64)
@@ -107,9 +107,9 @@ fn whole_offsets_are_exact_in_units_and_others_are_not_whole() {
     assert_eq!(whole_offset([1_000_000_000_000, 0, 0], 3), Some([1, 0, 0]));
     assert_eq!(whole_offset([1_000_000_000, 0, 0], 3), None);
     // The point placed through a whole offset is the nearest f32 to its units.
-    let Some(placement) = Placement::new(origin, -3, &p, DEFAULT_REACH) else {
-        panic!("a placement");
-    };
+    let placement = Placement::new(origin, -3, &p, DEFAULT_REACH);
+    assert!(placement.is_some(), "a placement");
+    let Some(placement) = placement else { return };
     for (x, shift) in [(123_456, -2_085_001), (-1, -2_085_001), (7, 120)] {
         let n = i64::from(x) + i64::from(shift);
         assert!(is_nearest(placement.metres(x, shift), n, -3));
