@@ -7,7 +7,7 @@ use std::path::Path;
 use super::bag::{BagOptions, read_bag};
 use super::conf::{RegisteredScan, read_registration};
 use super::kind::InputKind;
-use super::read::{Cloud, read_cloud, read_cloud_in_metres};
+use super::read::{ClassDrops, Classes, Cloud, read_cloud, read_cloud_in_metres_keeping};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
 /// A cloud in its local frame, ready for the core.
@@ -22,6 +22,8 @@ pub struct LocalCloud {
     pub points: Vec<Point3>,
     /// Points the reader skipped because a coordinate was NaN or infinite.
     pub dropped_non_finite: usize,
+    /// Points of a classified file (LAS/LAZ) the read left out: noise, withheld, other classes.
+    pub dropped_by_class: ClassDrops,
     /// The unit the file says `origin` and `points` are in (`None`: it says nothing); see
     /// [`LocalCloud::to_metres`].
     pub unit: Option<FileUnit>,
@@ -153,6 +155,7 @@ impl LocalCloud {
             origin,
             points,
             dropped_non_finite,
+            dropped_by_class: ClassDrops::default(),
             unit: None,
         }
     }
@@ -222,6 +225,7 @@ fn local(cloud: Cloud) -> LocalCloud {
         origin: cloud.origin,
         points: cloud.points.into_iter().map(Point3::from).collect(),
         dropped_non_finite: cloud.dropped_non_finite,
+        dropped_by_class: cloud.dropped_by_class,
         unit: cloud.unit,
     }
 }
@@ -252,11 +256,25 @@ pub fn load_input_in_metres(
     given: Option<&LengthUnit>,
     bag: &BagOptions,
 ) -> Result<(LocalCloud, Units)> {
+    load_input_keeping(path, given, bag, Classes::default())
+}
+
+/// [`load_input_in_metres`] keeping the points of a classified cloud file (LAS/LAZ) that
+/// `classes` names (by default every point but noise and withheld ones; other inputs carry no
+/// classes).
+pub fn load_input_keeping(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    bag: &BagOptions,
+    classes: Classes,
+) -> Result<(LocalCloud, Units)> {
     match InputKind::of(path) {
         // Several registered scans (a `.conf`): all of them, in their common frame.
         InputKind::Registration => load_registered_in_metres(path, given),
         InputKind::Bag => load_bag_in_metres(path, bag, given),
-        InputKind::StandardInput | InputKind::Cloud => load_cloud_file_in_metres(path, given),
+        InputKind::StandardInput | InputKind::Cloud => {
+            load_cloud_file_keeping(path, given, classes)
+        }
     }
 }
 
@@ -266,7 +284,16 @@ pub fn load_cloud_file_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
-    let mut cloud = read_cloud_in_metres(path, given)?;
+    load_cloud_file_keeping(path, given, Classes::default())
+}
+
+/// [`load_cloud_file_in_metres`] keeping the classes `classes` names.
+pub fn load_cloud_file_keeping(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    classes: Classes,
+) -> Result<(LocalCloud, Units)> {
+    let mut cloud = read_cloud_in_metres_keeping(path, given, classes)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
     let mut cloud = local(cloud);
     cloud.unit = Some(FileUnit::Length {

@@ -12,6 +12,16 @@ pub struct UnitsArg {
     /// metres on reading, so maps and every length on the command line are in metres.
     #[arg(long, value_name = "UNIT", value_parser = parse_unit)]
     pub units: Option<LengthUnit>,
+    /// Which points of a classified cloud (LAS/LAZ) to keep: `not-noise` (every point but
+    /// ASPRS classes 7 and 18, low and high noise, and withheld points, as PDAL users expect),
+    /// `all`, or classes separated by commas (`2,6`: ground and buildings; withheld points
+    /// left out). Other formats carry no classes and keep every point.
+    #[arg(long, value_name = "CLASSES", default_value = "not-noise", value_parser = parse_classes)]
+    pub classes: mema::io::read::Classes,
+}
+
+fn parse_classes(s: &str) -> Result<mema::io::read::Classes, String> {
+    s.parse()
 }
 
 fn parse_unit(s: &str) -> Result<LengthUnit, String> {

@@ -12,7 +12,7 @@ pub mod toolbox;
 
 use anyhow::Result;
 use mema::io::Units;
-use mema::io::cloud::{LocalCloud, load_input_in_metres};
+use mema::io::cloud::{LocalCloud, load_input_keeping};
 use mema::io::kind::InputKind;
 use mema::progress::stage;
 use std::path::Path;
@@ -45,8 +45,18 @@ pub fn check_bag_args(path: &Path, bag: &BagArg) -> Result<()> {
 pub fn read_input(path: &Path, units: &UnitsArg, bag: &BagArg) -> Result<(LocalCloud, Units)> {
     check_bag_args(path, bag)?;
     let (cloud, units) = stage("reading", || {
-        load_input_in_metres(path, units.units.as_ref(), &bag.options())
+        load_input_keeping(path, units.units.as_ref(), &bag.options(), units.classes)
     })?;
+    let left = cloud.dropped_by_class;
+    if left.total() > 0 {
+        eprintln!(
+            "mema: {}: left out {} noise points (ASPRS classes 7, 18), {} withheld, {} of other classes (--classes all keeps them)",
+            mema::io::read::input_name(path),
+            left.noise,
+            left.withheld,
+            left.other_classes
+        );
+    }
     if let Some(file) = &units.overrides {
         eprintln!(
             "mema: {}: --units {} overrides the file's {file}",
