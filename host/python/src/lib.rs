@@ -42,17 +42,25 @@ pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
 /// cloud in metres as `mema map` reads it, `units` as `--units`, `topic` and `frame` as a
 /// ROS 2 bag's `--topic` and `--frame`. Gives the world coordinates
 /// `(N, 3)` float64, the reader's f32 offsets `(N, 3)` and f64 origin `(3,)`, the unit as
-/// `mema eval --json` gives it (JSON text), and the points dropped for a non-finite coordinate.
+/// `mema eval --json` gives it (JSON text), the points dropped for a non-finite coordinate,
+/// and the points `classes` (as `--classes`) left out: noise, withheld, other classes.
 #[pyfunction]
-#[pyo3(signature = (path, units = None, topic = None, frame = None))]
+#[pyo3(signature = (path, units = None, topic = None, frame = None, classes = None))]
 fn _read_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
     units: Option<&str>,
     topic: Option<String>,
     frame: Option<String>,
+    classes: Option<&str>,
 ) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
+    let classes: mema::io::read::Classes = match classes {
+        Some(c) => c
+            .parse()
+            .map_err(|e: String| errors::bad_value("classes", &e))?,
+        None => Default::default(),
+    };
     let bag = mema::io::bag::BagOptions { topic, frame };
     if (bag.topic.is_some() || bag.frame.is_some())
         && mema::io::kind::InputKind::of(&path) != mema::io::kind::InputKind::Bag
@@ -63,7 +71,7 @@ fn _read_cloud<'py>(
         ));
     }
     let (cloud, unit) = py
-        .detach(|| mema::io::cloud::load_input_in_metres(&path, given.as_ref(), &bag))
+        .detach(|| mema::io::cloud::load_input_keeping(&path, given.as_ref(), &bag, classes))
         .into_py()?;
     let world = py.detach(|| cloud::world_points(&cloud));
     let local: Vec<f32> = cloud.points.iter().flat_map(|p| p.to_array()).collect();
@@ -76,6 +84,10 @@ fn _read_cloud<'py>(
         arrays::array1(py, cloud.origin.to_vec()),
         unit,
         cloud.dropped_non_finite,
+        {
+            let left = cloud.dropped_by_class;
+            (left.noise, left.withheld, left.other_classes)
+        },
     ))
 }
 
@@ -86,6 +98,7 @@ type ReadCloud<'py> = (
     Bound<'py, PyAny>,
     String,
     usize,
+    (usize, usize, usize),
 );
 
 /// Maps an `(N, 3)` array of points in metres (float32 or float64; rows with a NaN or infinite

@@ -15,18 +15,22 @@ class Cloud(np.ndarray):
     give it back (``origin + local`` rounds in float64): ``origin`` ``(3,)``, the local frame's
     origin; ``local`` ``(N, 3)`` float32, each point's offset from it; ``unit``, the unit the
     file was read in (as ``mema eval --json`` gives it); ``dropped_non_finite``, the points
-    skipped for a NaN or infinite coordinate. ``mema.map`` and ``Map.eval`` use that frame as
+    skipped for a NaN or infinite coordinate; ``left_out``, the points of a classified file
+    (LAS/LAZ) its ``classes`` left out, as ``{"noise", "withheld", "other_classes"}``. ``mema.map`` and ``Map.eval`` use that frame as
     long as the array still holds exactly ``origin + local`` (so the map is ``mema map``'s,
     byte for byte), and otherwise (a slice, an edited or computed array) centre the values as
     for any array. ``np.asarray(cloud)`` is the plain array.
     """
 
-    def __new__(cls, points, origin=None, local=None, unit=None, dropped_non_finite=0):
+    def __new__(
+        cls, points, origin=None, local=None, unit=None, dropped_non_finite=0, left_out=None
+    ):
         cloud = np.asarray(points, dtype=np.float64).view(cls)
         cloud.origin = origin
         cloud.local = local
         cloud.unit = unit
         cloud.dropped_non_finite = dropped_non_finite
+        cloud.left_out = left_out
         return cloud
 
     def __array_finalize__(self, obj):
@@ -35,27 +39,32 @@ class Cloud(np.ndarray):
         self.local = getattr(obj, "local", None)
         self.unit = getattr(obj, "unit", None)
         self.dropped_non_finite = getattr(obj, "dropped_non_finite", 0)
+        self.left_out = getattr(obj, "left_out", None)
 
     def __reduce__(self):
-        return (
-            _rebuild,
-            (np.asarray(self), self.origin, self.local, self.unit, self.dropped_non_finite),
-        )
+        state = (self.origin, self.local, self.unit, self.dropped_non_finite, self.left_out)
+        return (_rebuild, (np.asarray(self), *state))
 
 
-def _rebuild(points, origin, local, unit, dropped_non_finite):
-    return Cloud(points, origin, local, unit, dropped_non_finite)
+def _rebuild(points, origin, local, unit, dropped_non_finite, left_out=None):
+    return Cloud(points, origin, local, unit, dropped_non_finite, left_out)
 
 
-def read_cloud(path, units=None, topic=None, frame=None):
+def read_cloud(path, units=None, topic=None, frame=None, classes=None):
     """Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI ``.bin``: whatever ``mema
     map`` reads) as a ``Cloud``: an ``(N, 3)`` float64 array of its finite points in world
     coordinates, in metres. ``units`` (``m``, ``mm``, ``cm``, ``km``, ``in``, ``ft``,
     ``us-ft``) scales them as ``--units`` does; without it the unit the file says (a LAS
     file's CRS) is used, else metres, as the command line reads it. A ROS 2 bag's PointCloud2
     messages are read from ``topic`` (the bag's only one by default), each put in ``frame``
-    through the bag's transforms when it is given, as ``--topic`` and ``--frame`` read them."""
+    through the bag's transforms when it is given, as ``--topic`` and ``--frame`` read them.
+    ``classes`` chooses a LAS/LAZ file's points as ``--classes`` does: ``"not-noise"`` (the
+    default: every point but ASPRS classes 7 and 18 and withheld points), ``"all"``, or
+    classes like ``"2,6"``; ``Cloud.left_out`` counts the points it left out."""
     import json
 
-    world, local, origin, unit, dropped = _mema._read_cloud(path, units, topic, frame)
-    return Cloud(world, origin, local, json.loads(unit), dropped)
+    world, local, origin, unit, dropped, left = _mema._read_cloud(
+        path, units, topic, frame, classes
+    )
+    left_out = dict(zip(("noise", "withheld", "other_classes"), left))
+    return Cloud(world, origin, local, json.loads(unit), dropped, left_out)

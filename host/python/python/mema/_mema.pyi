@@ -57,7 +57,15 @@ def _read_cloud(
     units: Optional[str] = None,
     topic: Optional[str] = None,
     frame: Optional[str] = None,
-) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.float32], npt.NDArray[np.float64], str, int]: ...
+    classes: Optional[str] = None,
+) -> Tuple[
+    npt.NDArray[np.float64],
+    npt.NDArray[np.float32],
+    npt.NDArray[np.float64],
+    str,
+    int,
+    Tuple[int, int, int],
+]: ...
 def map(
     points: _Points,
     k: Optional[int] = None,

@@ -57,13 +57,13 @@ def _bands(xy, cells, tile, seam):
     return band
 
 
-def _points(path, units):
-    return np.asarray(mema.read_cloud(path, units))
+def _points(path, units, classes=None):
+    return np.asarray(mema.read_cloud(path, units, classes=classes))
 
 
-def scan(path, tile, seam, units=None):
+def scan(path, tile, seam, units=None, classes=None):
     """Counts a file's points per (tile i, tile j, band): a dict of int counts."""
-    points = _points(path, units)
+    points = _points(path, units, classes)
     xy = points[:, :2]
     cells = _cells(xy, tile)
     bands = _bands(xy, cells, tile, seam)
@@ -128,12 +128,12 @@ def _map_bytes(points, k, options):
     return mema.map(points, k=k, **options).to_bytes()
 
 
-def map_tile(cell, paths, tile, seam, open_bands, k, options, units=None):
+def map_tile(cell, paths, tile, seam, open_bands, k, options, units=None, classes=None):
     """Reads the tile's points from `paths`, maps its interior into `k` entities, and gives
     (map bytes or None, {seam key: that side's points})."""
     parts = []
     for path in paths:
-        points = _points(path, units)
+        points = _points(path, units, classes)
         inside = np.all(_cells(points[:, :2], tile) == np.asarray(cell), axis=1)
         parts.append(points[inside])
         del points  # one file at a time, besides the tile
@@ -173,6 +173,7 @@ def map_tiles(
     seed=0,
     paper=False,
     units=None,
+    classes=None,
     **options,
 ):
     """Maps LAS/LAZ files (or any cloud `mema.read_cloud` reads) tile by tile on Dask into one
@@ -180,7 +181,9 @@ def map_tiles(
     archive, seams `seam` metres wide (default a tenth of a tile) mapped across tile edges.
     Runs on `client` (a `distributed.Client`), else on the cluster at `scheduler`, else on a
     new local cluster of `workers` processes (default 2), one thread each. `options` are
-    `mema.map`'s keywords. `progress=True` shows Dask's progress bar."""
+    `mema.map`'s keywords. `units` and `classes` read each file as `mema.read_cloud` does
+    (`classes`: which LAS/LAZ points to keep, as `--classes`; by default all but noise and
+    withheld points). `progress=True` shows Dask's progress bar."""
     from distributed import Client, LocalCluster
     from distributed import progress as show_progress
 
@@ -214,7 +217,8 @@ def map_tiles(
             )
             client = own = Client(cluster)
     try:
-        return _run(client, paths, tile, seam, total, options, units, progress, show_progress)
+        reading = (units, classes)
+        return _run(client, paths, tile, seam, total, options, reading, progress, show_progress)
     finally:
         if own is not None:
             cluster = own.cluster
@@ -223,13 +227,15 @@ def map_tiles(
                 cluster.close()
 
 
-def _run(client, paths, tile, seam, total, options, units, progress, show_progress):
+def _run(client, paths, tile, seam, total, options, reading, progress, show_progress):
+    units, classes = reading
+
     def wait(futures):
         if progress:
             show_progress(futures)
         return client.gather(futures)
 
-    scans = wait([client.submit(scan, p, tile, seam, units, pure=True) for p in paths])
+    scans = wait([client.submit(scan, p, tile, seam, units, classes, pure=True) for p in paths])
     counts = {}
     for file_counts in scans:
         for key, n in file_counts.items():
@@ -242,7 +248,7 @@ def _run(client, paths, tile, seam, total, options, units, progress, show_progre
         files = [p for p, c in zip(paths, scans) if any(key[:2] == cell for key in c)]
         tiles[cell] = client.submit(
             map_tile, cell, files, tile, seam, open_bands[cell], ks[("tile",) + cell],
-            options, units, pure=True,
+            options, units, classes, pure=True,
         )
     seam_maps = [
         client.submit(
@@ -273,6 +279,7 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--paper", action="store_true", help="the paper's model, as mema map")
     parser.add_argument("--units", help="as mema map --units (default: what each file says)")
+    parser.add_argument("--classes", help="as mema map --classes (default: not-noise)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, metavar="N", help="local worker processes (2)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler")
@@ -281,7 +288,7 @@ def main(argv=None):
         merged = map_tiles(
             args.inputs, args.tile, bytes=args.bytes, k=args.k, seam=args.seam,
             workers=args.workers, scheduler=args.scheduler, progress=True, seed=args.seed,
-            paper=args.paper, units=args.units,
+            paper=args.paper, units=args.units, classes=args.classes,
         )
         merged.save(args.output)
     except (OSError, ValueError) as e:
