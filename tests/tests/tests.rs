@@ -83,3 +83,5 @@ mod first_run;
 mod honest_reports;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
+// Issue 23: LAS/LAZ classes, noise and withheld points.
+mod las_classes;
