@@ -41,6 +41,8 @@ pub struct MapReport {
     /// shells, which are not searched).
     pub axes_on_bound: Option<AxesOnBound>,
     pub dropped_non_finite: usize,
+    /// Points of a classified file (LAS/LAZ) left out by `--classes`.
+    pub dropped_by_class: crate::io::read::ClassDrops,
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
@@ -233,6 +235,7 @@ fn paper_map(
         entity,
         axes_on_bound: Some(on_bound),
         dropped_non_finite: cloud.dropped_non_finite,
+        dropped_by_class: cloud.dropped_by_class,
         output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),
@@ -310,6 +313,7 @@ fn shells_map(
         entity: EntityChoice::Ellipsoid,
         axes_on_bound: None,
         dropped_non_finite: cloud.dropped_non_finite,
+        dropped_by_class: cloud.dropped_by_class,
         output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),

@@ -58,6 +58,21 @@ fn noise_and_withheld_points_stay_out_unless_asked_for() {
         .assert_ok();
     let left = format!("left out {noise} noise points (ASPRS classes 7, 18), {withheld} withheld");
     assert!(mapped.stderr().contains(&left), "{}", mapped.stderr());
+    let json = MemaCommand::new(&dir)
+        .args([
+            "map",
+            "noisy.laz",
+            "--bytes",
+            "9600",
+            "--json",
+            "-o",
+            "again.mema",
+        ])
+        .run()
+        .assert_ok()
+        .json();
+    assert_eq!(json["dropped_by_class"]["noise"], noise, "{json}");
+    assert_eq!(json["dropped_by_class"]["withheld"], withheld, "{json}");
     // The file is in US feet; no entity of the default map reaches the noise 5,000 ft up.
     let top_ft = top_of(&dir, "clean.mema") / 0.3048;
     assert!(
