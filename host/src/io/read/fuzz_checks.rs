@@ -18,7 +18,8 @@ pub enum Violation {
     NonFinite { index: Option<usize> },
     /// A cloud came back with no points (that is an error: `NoFinitePoints`).
     EmptyCloud,
-    /// The counts disagree: more points than slots, or dropped slots that do not add up.
+    /// The counts disagree: kept points plus dropped ones (not finite or left out by class)
+    /// are not the slots read.
     Counts {
         points: usize,
         slots: usize,
@@ -71,7 +72,9 @@ pub fn check_cloud(cloud: &Cloud) -> Result<(), Violation> {
     if cloud.points.is_empty() {
         return Err(Violation::EmptyCloud);
     }
-    let (points, slots, dropped) = (cloud.points.len(), cloud.slots, cloud.dropped_non_finite);
+    // Slots hold every record read: kept, not finite, or left out by its ASPRS class.
+    let (points, slots) = (cloud.points.len(), cloud.slots);
+    let dropped = cloud.dropped_non_finite + cloud.dropped_by_class.total();
     if points + dropped != slots {
         return Err(Violation::Counts {
             points,
