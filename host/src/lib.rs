@@ -7,8 +7,9 @@
 //!
 //! The modules form layers, each using only those listed before it:
 //!
-//! - [`error`], [`progress`], [`heap`]: the library's [`ConfigError`], progress lines on
-//!   stderr, and the counting allocator `mema bench` reads;
+//! - [`error`], [`progress`], [`heap`], [`kdtree`]: the library's [`ConfigError`], progress
+//!   lines on stderr, the counting allocator `mema bench` reads, and the kd-tree of nearest
+//!   points that reading (outliers), scoring and the scanner share;
 //! - [`io`]: cloud readers ([`io::load_cloud`]), map files ([`io::HostMap`]), output checks,
 //!   the built-in demo scene;
 //! - [`mapping`]: the batch pipeline (k-means, fits, eq. 13), the shell model, surface
@@ -60,6 +61,7 @@ pub mod bench;
 pub mod error;
 pub mod heap;
 pub mod io;
+pub mod kdtree;
 pub mod link;
 pub mod mapping;
 pub mod progress;

@@ -6,8 +6,8 @@
 
 use crate::stream::{PtyPair, finish, spawn_mema};
 use crate::util::{Dir, MemaCommand, eval_chamfer, shared};
-use mema::analysis::fidelity::kdtree::KdTree;
 use mema::io::load_cloud;
+use mema::kdtree::KdTree;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use std::time::Duration;
 

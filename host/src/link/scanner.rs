@@ -19,7 +19,6 @@ use anyhow::{Result, bail};
 use std::path::Path;
 
 use super::frames::{POINTS_PER_FRAME, PosedScan, encode_posed_stream, wire_pose};
-use crate::analysis::fidelity::kdtree::KdTree;
 use crate::analysis::fidelity::{median, nearest_spacings};
 use crate::io::bag::{BagOptions, read_bag};
 use crate::io::cloud::{
@@ -28,6 +27,7 @@ use crate::io::cloud::{
 use crate::io::drive::DriveScan;
 use crate::io::kind::InputKind;
 use crate::io::units::LengthUnit;
+use crate::kdtree::KdTree;
 use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
 
 /// One scan as a sensor measured it: its pose, sensor to world (`x_world = R(q) x + t`), and its

@@ -13,7 +13,6 @@
 //! the sample count only: samples are drawn per entity from that entity's own generator and all
 //! sums run in a fixed order, so the thread count never changes a bit.
 
-pub mod kdtree;
 pub mod surface;
 
 use anyhow::{Result, bail};
@@ -24,7 +23,7 @@ use rand_pcg::Pcg32;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use kdtree::KdTree;
+use crate::kdtree::KdTree;
 use surface::Patch;
 
 /// Samples every entity's surface gets at least, however small its share of the area.

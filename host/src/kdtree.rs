@@ -1,5 +1,6 @@
-//! A static kd-tree over the cloud, for the completeness half of the score (nearest cloud point
-//! of each surface sample) and for tau (each point's nearest other point).
+//! A static kd-tree over a cloud, for the completeness half of the score (nearest cloud point
+//! of each surface sample), for tau (each point's nearest other point), and for the outlier
+//! statistic a read computes (each point's k nearest).
 //!
 //! Median splits along the widest extent, so the tree is balanced and its shape is a pure
 //! function of the points: queries give the same answers whatever the thread count.
@@ -14,14 +15,19 @@ struct Split {
     value: f64,
 }
 
-/// A kd-tree over f64 points, for nearest-point distances (the score's completeness and
-/// point spacing).
+/// A point of the tree and the caller's index of it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Entry {
+    pub point: [f64; 3],
+    pub index: u32,
+}
+
+/// A kd-tree over f64 points, for nearest-point distances (the score's completeness, point
+/// spacing, and the outlier statistic of reading).
 #[derive(Clone, Debug)]
 pub struct KdTree {
     /// The points, permuted so that every subtree owns a contiguous range.
-    points: Vec<[f64; 3]>,
-    /// `index[i]` is the caller's index of `points[i]`.
-    index: Vec<u32>,
+    entries: Vec<Entry>,
     /// Splits in heap order (root 1, children 2n and 2n + 1); a node owns the range
     /// `lo..hi` and its children `lo..mid` and `mid..hi` with `mid = (lo + hi) / 2`, so ranges
     /// need no storage.
@@ -38,36 +44,46 @@ pub struct NearestPoint {
 impl KdTree {
     /// Builds the tree; the caller's indices must fit in u32 (a cloud of at most 4 billion points).
     pub fn build(points: &[[f64; 3]]) -> Self {
-        let mut tree = Self {
-            points: points.to_vec(),
-            index: (0..points.len() as u32).collect(),
-            splits: Vec::new(),
-        };
-        let n = points.len();
+        Self::from_entries(
+            points
+                .iter()
+                .zip(0u32..)
+                .map(|(&point, index)| Entry { point, index })
+                .collect(),
+        )
+    }
+
+    /// Builds the tree in the caller's allocation (which a reader reserves fallibly): the
+    /// entries are permuted in place, and only the splits, about 8 bytes a point, are new.
+    pub fn from_entries(entries: Vec<Entry>) -> Self {
+        let n = entries.len();
         // Heap slots for a tree whose leaves hold at most LEAF points.
         let mut slots = 2usize;
         while n.div_ceil(slots / 2) > LEAF {
             slots *= 2;
         }
-        tree.splits = vec![
-            Split {
-                axis: 0,
-                value: 0.0
-            };
-            slots
-        ];
+        let mut tree = Self {
+            entries,
+            splits: vec![
+                Split {
+                    axis: 0,
+                    value: 0.0
+                };
+                slots
+            ],
+        };
         tree.split(1, 0, n);
         tree
     }
 
     /// Points in the tree.
     pub fn len(&self) -> usize {
-        self.points.len()
+        self.entries.len()
     }
 
     /// Whether the tree holds no point.
     pub fn is_empty(&self) -> bool {
-        self.points.is_empty()
+        self.entries.is_empty()
     }
 
     fn split(&mut self, node: usize, lo: usize, hi: usize) {
@@ -75,10 +91,10 @@ impl KdTree {
             return;
         }
         let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for p in &self.points[lo..hi] {
+        for e in &self.entries[lo..hi] {
             for j in 0..3 {
-                min[j] = min[j].min(p[j]);
-                max[j] = max[j].max(p[j]);
+                min[j] = min[j].min(e.point[j]);
+                max[j] = max[j].max(e.point[j]);
             }
         }
         let axis = (0..3).fold(0, |a, j| {
@@ -89,25 +105,15 @@ impl KdTree {
             }
         });
         let mid = (lo + hi) / 2;
-        // Permute points and indices together through one order of the range.
-        let mut order: Vec<usize> = (lo..hi).collect();
-        let points = &self.points;
-        order.select_nth_unstable_by(mid - lo, |&a, &b| {
-            points[a][axis]
-                .total_cmp(&points[b][axis])
-                .then(self.index[a].cmp(&self.index[b]))
+        // The index breaks ties, so the order, and the tree, is a function of the points.
+        self.entries[lo..hi].select_nth_unstable_by(mid - lo, |a, b| {
+            a.point[axis]
+                .total_cmp(&b.point[axis])
+                .then(a.index.cmp(&b.index))
         });
-        let moved: Vec<([f64; 3], u32)> = order
-            .iter()
-            .map(|&i| (self.points[i], self.index[i]))
-            .collect();
-        for (k, (p, i)) in moved.into_iter().enumerate() {
-            self.points[lo + k] = p;
-            self.index[lo + k] = i;
-        }
         self.splits[node] = Split {
             axis: axis as u8,
-            value: self.points[mid][axis],
+            value: self.entries[mid].point[axis],
         };
         self.split(2 * node, lo, mid);
         self.split(2 * node + 1, mid, hi);
@@ -117,11 +123,71 @@ impl KdTree {
     /// asking for its nearest other point). Ties go to the lower caller index.
     pub fn nearest(&self, p: [f64; 3], skip: Option<usize>) -> Option<NearestPoint> {
         let mut best = (f64::INFINITY, usize::MAX);
-        self.search(1, 0, self.points.len(), p, skip, &mut best);
+        self.search(1, 0, self.entries.len(), p, skip, &mut best);
         (best.1 != usize::MAX).then(|| NearestPoint {
             index: best.1,
             distance: best.0.sqrt(),
         })
+    }
+
+    /// The `k` nearest points to `p` other than the caller's index `skip`, nearest first, as
+    /// (squared distance, caller's index) in `out` (cleared first); ties go to the lower index,
+    /// so the answer is a function of the points alone.
+    pub fn k_nearest(&self, p: [f64; 3], skip: Option<usize>, k: usize, out: &mut Vec<(f64, u32)>) {
+        out.clear();
+        if k > 0 {
+            self.search_k(1, 0, self.entries.len(), p, skip, k, out);
+        }
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn search_k(
+        &self,
+        node: usize,
+        lo: usize,
+        hi: usize,
+        p: [f64; 3],
+        skip: Option<usize>,
+        k: usize,
+        out: &mut Vec<(f64, u32)>,
+    ) {
+        if hi - lo <= LEAF || node >= self.splits.len() {
+            for &Entry { point: q, index: i } in &self.entries[lo..hi] {
+                if Some(i as usize) == skip {
+                    continue;
+                }
+                let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+                let entry = (d2, i);
+                let before = |e: &(f64, u32)| e.0 < d2 || (e.0 == d2 && e.1 < i);
+                if out.len() == k && out.last().is_none_or(|last| before(last)) {
+                    continue;
+                }
+                // k is small (tens): an insertion into the sorted list beats a heap.
+                let at = out.partition_point(before);
+                if out.len() == k {
+                    out.pop();
+                }
+                out.insert(at, entry);
+            }
+            return;
+        }
+        let split = self.splits[node];
+        let mid = (lo + hi) / 2;
+        let gap = p[split.axis as usize] - split.value;
+        let (near, far) = if gap < 0.0 {
+            ((2 * node, lo, mid), (2 * node + 1, mid, hi))
+        } else {
+            ((2 * node + 1, mid, hi), (2 * node, lo, mid))
+        };
+        self.search_k(near.0, near.1, near.2, p, skip, k, out);
+        let worst = if out.len() == k {
+            out.last().map_or(f64::INFINITY, |e| e.0)
+        } else {
+            f64::INFINITY
+        };
+        if gap * gap <= worst {
+            self.search_k(far.0, far.1, far.2, p, skip, k, out);
+        }
     }
 
     fn search(
@@ -134,8 +200,8 @@ impl KdTree {
         best: &mut (f64, usize),
     ) {
         if hi - lo <= LEAF || node >= self.splits.len() {
-            for (q, &i) in self.points[lo..hi].iter().zip(&self.index[lo..hi]) {
-                let i = i as usize;
+            for &Entry { point: q, index } in &self.entries[lo..hi] {
+                let i = index as usize;
                 if Some(i) == skip {
                     continue;
                 }
@@ -210,6 +276,44 @@ mod tests {
             let want = brute(&points, q, None).expect("non-empty");
             assert_eq!(got, want);
         }
+    }
+
+    #[test]
+    fn k_nearest_agrees_with_a_sorted_brute_force() {
+        let mut s = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut points = Vec::new();
+        for i in 0..400 {
+            points.push([(i % 5) as f64, (i % 9) as f64 * 0.5, 0.0]);
+            points.push([next() * 4.0, next() * 4.0, next()]);
+        }
+        let tree = KdTree::build(&points);
+        let mut got = Vec::new();
+        for (j, q) in points.iter().enumerate().step_by(5) {
+            for k in [1, 7, 20] {
+                tree.k_nearest(*q, Some(j), k, &mut got);
+                let mut want: Vec<(f64, u32)> = points
+                    .iter()
+                    .enumerate()
+                    .filter(|&(i, _)| i != j)
+                    .map(|(i, r)| {
+                        let d2 =
+                            (r[0] - q[0]).powi(2) + (r[1] - q[1]).powi(2) + (r[2] - q[2]).powi(2);
+                        (d2, i as u32)
+                    })
+                    .collect();
+                want.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                want.truncate(k);
+                assert_eq!(got, want, "point {j}, k {k}");
+            }
+        }
+        tree.k_nearest([0.0; 3], None, 5000, &mut got);
+        assert_eq!(got.len(), points.len());
     }
 
     #[test]
