@@ -146,10 +146,15 @@ def help_defaults(cli):
 def test_every_map_option_is_a_keyword_with_the_clis_default(cli):
     # Files and printing are the package's own: the points, Map.save, Map.labels, Map.report,
     # and read_cloud(units=).
-    # How the input is read (`read_cloud`'s keywords) and what the command line writes.
-    not_keywords = {"output", "labels", "units", "topic", "frame", "json", "help", "version"}
+    # How the input is read is `read_cloud`'s keywords; the rest is what the command line writes.
+    reading = {"units", "topic", "frame", "classes"}
+    not_keywords = {"output", "labels", "json", "help", "version"}
     signature = inspect.signature(mema.map)
+    read_signature = inspect.signature(mema.read_cloud)
     for option, default in help_defaults(cli).items():
+        if option in reading:
+            assert option in read_signature.parameters, f"--{option} is no read_cloud keyword"
+            continue
         if option in not_keywords:
             continue
         assert option in signature.parameters, f"--{option} has no keyword"
