@@ -43,6 +43,8 @@ pub struct MapReport {
     pub dropped_non_finite: usize,
     /// Points of a classified file (LAS/LAZ) left out by `--classes`.
     pub dropped_by_class: crate::io::read::ClassDrops,
+    /// Isolated points `--outliers` dropped, and the worst of them.
+    pub outliers: crate::io::read::OutlierDrops,
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
@@ -236,6 +238,7 @@ fn paper_map(
         axes_on_bound: Some(on_bound),
         dropped_non_finite: cloud.dropped_non_finite,
         dropped_by_class: cloud.dropped_by_class,
+        outliers: cloud.outliers,
         output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),
@@ -314,6 +317,7 @@ fn shells_map(
         axes_on_bound: None,
         dropped_non_finite: cloud.dropped_non_finite,
         dropped_by_class: cloud.dropped_by_class,
+        outliers: cloud.outliers,
         output: String::new(),
         filter: FilterCounts {
             read: cloud.points.len(),

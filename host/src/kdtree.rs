@@ -76,6 +76,12 @@ impl KdTree {
         tree
     }
 
+    /// The entries in the tree's order (each subtree a contiguous range): visiting them in it
+    /// keeps neighbouring queries on neighbouring memory.
+    pub fn entries(&self) -> &[Entry] {
+        &self.entries
+    }
+
     /// Points in the tree.
     pub fn len(&self) -> usize {
         self.entries.len()
@@ -159,7 +165,7 @@ impl KdTree {
                 let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
                 let entry = (d2, i);
                 let before = |e: &(f64, u32)| e.0 < d2 || (e.0 == d2 && e.1 < i);
-                if out.len() == k && out.last().is_none_or(|last| before(last)) {
+                if out.len() == k && out.last().is_none_or(&before) {
                     continue;
                 }
                 // k is small (tens): an insertion into the sorted list beats a heap.

@@ -43,9 +43,10 @@ pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
 /// ROS 2 bag's `--topic` and `--frame`. Gives the world coordinates
 /// `(N, 3)` float64, the reader's f32 offsets `(N, 3)` and f64 origin `(3,)`, the unit as
 /// `mema eval --json` gives it (JSON text), the points dropped for a non-finite coordinate,
-/// and the points `classes` (as `--classes`) left out: noise, withheld, other classes.
+/// and the points the read left out: by `classes` (as `--classes`) noise, withheld, other
+/// classes, and by `outliers` (as `mema map --outliers`, whose default it shares) isolated ones.
 #[pyfunction]
-#[pyo3(signature = (path, units = None, topic = None, frame = None, classes = None))]
+#[pyo3(signature = (path, units = None, topic = None, frame = None, classes = None, outliers = None))]
 fn _read_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -53,6 +54,7 @@ fn _read_cloud<'py>(
     topic: Option<String>,
     frame: Option<String>,
     classes: Option<&str>,
+    outliers: Option<&str>,
 ) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
     let classes: mema::io::read::Classes = match classes {
@@ -61,6 +63,13 @@ fn _read_cloud<'py>(
             .map_err(|e: String| errors::bad_value("classes", &e))?,
         None => Default::default(),
     };
+    let outliers = match outliers {
+        Some(o) => o
+            .parse()
+            .map_err(|e: String| errors::bad_value("outliers", &e))?,
+        None => mema::io::read::Outliers::DEFAULT,
+    };
+    let screening = mema::io::read::Screening { classes, outliers };
     let bag = mema::io::bag::BagOptions { topic, frame };
     if (bag.topic.is_some() || bag.frame.is_some())
         && mema::io::kind::InputKind::of(&path) != mema::io::kind::InputKind::Bag
@@ -71,7 +80,7 @@ fn _read_cloud<'py>(
         ));
     }
     let (cloud, unit) = py
-        .detach(|| mema::io::cloud::load_input_keeping(&path, given.as_ref(), &bag, classes))
+        .detach(|| mema::io::cloud::load_input_keeping(&path, given.as_ref(), &bag, screening))
         .into_py()?;
     let world = py.detach(|| cloud::world_points(&cloud));
     let local: Vec<f32> = cloud.points.iter().flat_map(|p| p.to_array()).collect();
@@ -86,7 +95,12 @@ fn _read_cloud<'py>(
         cloud.dropped_non_finite,
         {
             let left = cloud.dropped_by_class;
-            (left.noise, left.withheld, left.other_classes)
+            (
+                left.noise,
+                left.withheld,
+                left.other_classes,
+                cloud.outliers.dropped,
+            )
         },
     ))
 }
@@ -98,7 +112,7 @@ type ReadCloud<'py> = (
     Bound<'py, PyAny>,
     String,
     usize,
-    (usize, usize, usize),
+    (usize, usize, usize, usize),
 );
 
 /// Maps an `(N, 3)` array of points in metres (float32 or float64; rows with a NaN or infinite

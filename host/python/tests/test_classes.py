@@ -28,7 +28,7 @@ def test_read_cloud_leaves_out_noise_and_withheld_points(noisy):
     path, counts = noisy
     kept = mema.read_cloud(path)
     assert kept.left_out == {
-        "noise": counts["noise"], "withheld": counts["withheld"], "other_classes": 0,
+        "noise": counts["noise"], "withheld": counts["withheld"], "other_classes": 0, "outliers": 0,
     }
     assert len(kept) == counts["points"] - counts["noise"] - counts["withheld"]
     # US feet in the file, metres here: the clean points' top, not the noise 5,000 ft up.
@@ -36,7 +36,7 @@ def test_read_cloud_leaves_out_noise_and_withheld_points(noisy):
     assert np.max(np.asarray(kept)[:, 2]) == pytest.approx(counts["zmax"] * 0.3048, abs=1e-4)
     everything = mema.read_cloud(path, classes="all")
     assert len(everything) == counts["points"]
-    assert everything.left_out == {"noise": 0, "withheld": 0, "other_classes": 0}
+    assert everything.left_out == {"noise": 0, "withheld": 0, "other_classes": 0, "outliers": 0}
     with pytest.raises(ValueError, match="classes"):
         mema.read_cloud(path, classes="noise")
 

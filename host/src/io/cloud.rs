@@ -7,7 +7,9 @@ use std::path::Path;
 use super::bag::{BagOptions, read_bag};
 use super::conf::{RegisteredScan, read_registration};
 use super::kind::InputKind;
-use super::read::{ClassDrops, Classes, Cloud, read_cloud, read_cloud_in_metres_keeping};
+use super::read::{
+    ClassDrops, Cloud, OutlierDrops, Screening, read_cloud, read_cloud_in_metres_keeping,
+};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
 /// A cloud in its local frame, ready for the core.
@@ -24,6 +26,8 @@ pub struct LocalCloud {
     pub dropped_non_finite: usize,
     /// Points of a classified file (LAS/LAZ) the read left out: noise, withheld, other classes.
     pub dropped_by_class: ClassDrops,
+    /// Isolated points the read left out ([`crate::io::read::Outliers`]).
+    pub outliers: OutlierDrops,
     /// The unit the file says `origin` and `points` are in (`None`: it says nothing); see
     /// [`LocalCloud::to_metres`].
     pub unit: Option<FileUnit>,
@@ -156,6 +160,7 @@ impl LocalCloud {
             points,
             dropped_non_finite,
             dropped_by_class: ClassDrops::default(),
+            outliers: OutlierDrops::default(),
             unit: None,
         }
     }
@@ -226,6 +231,7 @@ fn local(cloud: Cloud) -> LocalCloud {
         points: cloud.points.into_iter().map(Point3::from).collect(),
         dropped_non_finite: cloud.dropped_non_finite,
         dropped_by_class: cloud.dropped_by_class,
+        outliers: cloud.outliers,
         unit: cloud.unit,
     }
 }
@@ -256,24 +262,24 @@ pub fn load_input_in_metres(
     given: Option<&LengthUnit>,
     bag: &BagOptions,
 ) -> Result<(LocalCloud, Units)> {
-    load_input_keeping(path, given, bag, Classes::default())
+    load_input_keeping(path, given, bag, Screening::default())
 }
 
-/// [`load_input_in_metres`] keeping the points of a classified cloud file (LAS/LAZ) that
-/// `classes` names (by default every point but noise and withheld ones; other inputs carry no
-/// classes).
+/// [`load_input_in_metres`] leaving out of a cloud file what `screening` says: points of a
+/// classified file (LAS/LAZ) by class, isolated points ([`Screening`]; registrations and bags
+/// are read as they are).
 pub fn load_input_keeping(
     path: &Path,
     given: Option<&LengthUnit>,
     bag: &BagOptions,
-    classes: Classes,
+    screening: Screening,
 ) -> Result<(LocalCloud, Units)> {
     match InputKind::of(path) {
         // Several registered scans (a `.conf`): all of them, in their common frame.
         InputKind::Registration => load_registered_in_metres(path, given),
         InputKind::Bag => load_bag_in_metres(path, bag, given),
         InputKind::StandardInput | InputKind::Cloud => {
-            load_cloud_file_keeping(path, given, classes)
+            load_cloud_file_keeping(path, given, screening)
         }
     }
 }
@@ -284,16 +290,16 @@ pub fn load_cloud_file_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
-    load_cloud_file_keeping(path, given, Classes::default())
+    load_cloud_file_keeping(path, given, Screening::default())
 }
 
-/// [`load_cloud_file_in_metres`] keeping the classes `classes` names.
+/// [`load_cloud_file_in_metres`] leaving out what `screening` says.
 pub fn load_cloud_file_keeping(
     path: &Path,
     given: Option<&LengthUnit>,
-    classes: Classes,
+    screening: Screening,
 ) -> Result<(LocalCloud, Units)> {
-    let mut cloud = read_cloud_in_metres_keeping(path, given, classes)?;
+    let mut cloud = read_cloud_in_metres_keeping(path, given, screening)?;
     let units = cloud.units.take().unwrap_or_else(Units::assumed);
     let mut cloud = local(cloud);
     cloud.unit = Some(FileUnit::Length {

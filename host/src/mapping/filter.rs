@@ -145,6 +145,7 @@ pub fn apply(
     let mut out = LocalCloud::from_world(&points);
     out.dropped_non_finite = cloud.dropped_non_finite;
     out.dropped_by_class = cloud.dropped_by_class;
+    out.outliers = cloud.outliers;
     out.unit = cloud.unit;
     Ok((out, counts))
 }

@@ -16,7 +16,8 @@ class Cloud(np.ndarray):
     origin; ``local`` ``(N, 3)`` float32, each point's offset from it; ``unit``, the unit the
     file was read in (as ``mema eval --json`` gives it); ``dropped_non_finite``, the points
     skipped for a NaN or infinite coordinate; ``left_out``, the points of a classified file
-    (LAS/LAZ) its ``classes`` left out, as ``{"noise", "withheld", "other_classes"}``. ``mema.map`` and ``Map.eval`` use that frame as
+    (LAS/LAZ) its ``classes`` left out and the isolated points its ``outliers`` dropped, as
+    ``{"noise", "withheld", "other_classes", "outliers"}``. ``mema.map`` and ``Map.eval`` use that frame as
     long as the array still holds exactly ``origin + local`` (so the map is ``mema map``'s,
     byte for byte), and otherwise (a slice, an edited or computed array) centre the values as
     for any array. ``np.asarray(cloud)`` is the plain array.
@@ -50,7 +51,7 @@ def _rebuild(points, origin, local, unit, dropped_non_finite, left_out=None):
     return Cloud(points, origin, local, unit, dropped_non_finite, left_out)
 
 
-def read_cloud(path, units=None, topic=None, frame=None, classes=None):
+def read_cloud(path, units=None, topic=None, frame=None, classes=None, outliers=None):
     """Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI ``.bin``: whatever ``mema
     map`` reads) as a ``Cloud``: an ``(N, 3)`` float64 array of its finite points in world
     coordinates, in metres. ``units`` (``m``, ``mm``, ``cm``, ``km``, ``in``, ``ft``,
@@ -60,11 +61,15 @@ def read_cloud(path, units=None, topic=None, frame=None, classes=None):
     through the bag's transforms when it is given, as ``--topic`` and ``--frame`` read them.
     ``classes`` chooses a LAS/LAZ file's points as ``--classes`` does: ``"not-noise"`` (the
     default: every point but ASPRS classes 7 and 18 and withheld points), ``"all"``, or
-    classes like ``"2,6"``; ``Cloud.left_out`` counts the points it left out."""
+    classes like ``"2,6"``. ``outliers`` drops isolated points of a cloud file as ``mema map
+    --outliers`` does, with its default (``"20,30"``: a point whose mean distance to its 20
+    nearest neighbours is over 30 times that distance's median); ``"off"`` keeps them, and
+    either refuses a cloud too wide for float32 at its point spacing. ``Cloud.left_out``
+    counts the points the read left out."""
     import json
 
     world, local, origin, unit, dropped, left = _mema._read_cloud(
-        path, units, topic, frame, classes
+        path, units, topic, frame, classes, outliers
     )
-    left_out = dict(zip(("noise", "withheld", "other_classes"), left))
+    left_out = dict(zip(("noise", "withheld", "other_classes", "outliers"), left))
     return Cloud(world, origin, local, json.loads(unit), dropped, left_out)

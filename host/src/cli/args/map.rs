@@ -121,6 +121,13 @@ pub struct MapArgs {
     /// (metres).
     #[arg(long, value_name = "SIZE")]
     pub voxel: Option<f64>,
+    /// Isolated points to drop from a cloud file before mapping: `K,RATIO` drops each point
+    /// whose mean distance to its K nearest neighbours (PCL's and Open3D's statistic) is over
+    /// RATIO times that distance's median over the cloud; `off` keeps them. Either way a
+    /// cloud too wide for f32 at its point spacing is refused. Registrations and bags are read
+    /// as they are.
+    #[arg(long, value_name = "K,RATIO|off", default_value = "20,30", value_parser = parse_outliers)]
+    pub outliers: mema::io::read::Outliers,
     /// Map with the streaming mapper instead, exactly as `mema stream` maps what
     /// `mema scanner-sim` sends of the same file (the same bytes, so the same map): each scan
     /// of a .conf in its sensor frame after its pose, in the unit scanner-sim picks.
@@ -207,4 +214,8 @@ pub struct AblationArgs {
     /// Print one JSON object instead of the table.
     #[arg(long)]
     pub json: bool,
+}
+
+fn parse_outliers(s: &str) -> Result<mema::io::read::Outliers, String> {
+    s.parse()
 }

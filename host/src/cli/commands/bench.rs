@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use mema::bench::{ablation, stream};
-use mema::io::read::input_name;
+use mema::io::read::{Outliers, input_name};
 
 use super::serial::capacity;
 use super::{read_in_metres, read_input};
@@ -21,7 +21,7 @@ pub fn ablation(args: &AblationArgs) -> Result<()> {
 pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
     let capacity = capacity(args.k, &args.shape)?;
-    let (cloud, _) = read_input(&args.input, &args.units, &args.bag)?;
+    let (cloud, _) = read_input(&args.input, &args.units, &args.bag, Outliers::Unchecked)?;
     let r = stream::run(
         &cloud,
         &config,

@@ -9,7 +9,7 @@ use mema::analysis::fidelity::{self, FidelityScore};
 use mema::analysis::stats::{self, MemoryRow};
 use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::HostMap;
-use mema::io::read::input_name;
+use mema::io::read::{Outliers, input_name};
 use mema::progress::stage;
 
 use super::read_input;
@@ -24,7 +24,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         ))
         .into());
     }
-    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag, Outliers::Unchecked)?;
     let map = HostMap::read(&args.map)?;
     if map.entities.is_empty() {
         anyhow::bail!("{}: the map has no entities", args.map.display());

@@ -61,7 +61,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag, args.outliers)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
@@ -199,7 +199,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if let Some(labels) = &args.labels {
         check_output_file(labels, "labels")?;
     }
-    let (cloud, units) = read_input(&args.input, &args.units, &args.bag)?;
+    let (cloud, units) = read_input(&args.input, &args.units, &args.bag, args.outliers)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     let built = map_to_tolerance(&cloud, &options, &config, model, shell)
@@ -216,7 +216,10 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
         return Ok(());
     }
     println!("unit: {units}, scaled to metres");
-    println!("{}", points_line(&counts, cloud.dropped_non_finite));
+    println!(
+        "{}",
+        points_line(&counts, cloud.dropped_non_finite, cloud.outliers.dropped)
+    );
     println!(
         "tolerance {tolerance} m: k = {} ({} splits, {} merges{})",
         report.k,
@@ -259,7 +262,10 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
         return Ok(());
     }
     println!("unit: {units}, scaled to metres; map in metres");
-    println!("{}", points_line(&r.filter, r.dropped_non_finite));
+    println!(
+        "{}",
+        points_line(&r.filter, r.dropped_non_finite, r.outliers.dropped)
+    );
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
@@ -302,10 +308,10 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
 }
 
 /// The points the map was made of: read, dropped for a NaN or infinite coordinate (a scanner's
-/// empty returns), and what `--crop` and `--voxel` left.
-fn points_line(counts: &FilterCounts, dropped: usize) -> String {
+/// empty returns) or as isolated, and what `--crop` and `--voxel` left.
+fn points_line(counts: &FilterCounts, dropped: usize, isolated: usize) -> String {
     let mut line = format!(
-        "points: {} read, {dropped} more dropped for a NaN or infinite coordinate",
+        "points: {} read, {dropped} more dropped for a NaN or infinite coordinate, {isolated} as isolated (--outliers)",
         counts.read
     );
     if let Some(n) = counts.cropped {

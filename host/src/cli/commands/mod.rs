@@ -14,6 +14,7 @@ use anyhow::Result;
 use mema::io::Units;
 use mema::io::cloud::{LocalCloud, load_input_keeping};
 use mema::io::kind::InputKind;
+use mema::io::read::{Outliers, Screening};
 use mema::progress::stage;
 use std::path::Path;
 
@@ -24,7 +25,7 @@ use crate::cli::errors::UsageError;
 /// unit its file gives (see `mema::io::units`). Says on stderr when `--units` overrides a
 /// different unit the file gives.
 pub fn read_in_metres(path: &Path, units: &UnitsArg) -> Result<(LocalCloud, Units)> {
-    read_input(path, units, &BagArg::default())
+    read_input(path, units, &BagArg::default(), Outliers::Unchecked)
 }
 
 /// `--topic` and `--frame` name a ROS 2 bag's messages: given for any other input, they are a
@@ -41,12 +42,33 @@ pub fn check_bag_args(path: &Path, bag: &BagArg) -> Result<()> {
 }
 
 /// [`read_in_metres`] of any input, a ROS 2 bag's PointCloud2 messages with `bag`'s topic and
-/// frame included.
-pub fn read_input(path: &Path, units: &UnitsArg, bag: &BagArg) -> Result<(LocalCloud, Units)> {
+/// frame included, and a cloud file's isolated points treated as `outliers` says (`mema
+/// map --outliers`; the commands that score or draw a cloud take it as it is).
+pub fn read_input(
+    path: &Path,
+    units: &UnitsArg,
+    bag: &BagArg,
+    outliers: Outliers,
+) -> Result<(LocalCloud, Units)> {
     check_bag_args(path, bag)?;
+    let screening = Screening {
+        classes: units.classes,
+        outliers,
+    };
     let (cloud, units) = stage("reading", || {
-        load_input_keeping(path, units.units.as_ref(), &bag.options(), units.classes)
+        load_input_keeping(path, units.units.as_ref(), &bag.options(), screening)
     })?;
+    if let (Some(worst), Outliers::Dropped { neighbours, ratio }) = (cloud.outliers.worst, outliers)
+    {
+        let [x, y, z] = worst.at;
+        eprintln!(
+            "mema: {}: dropped {} isolated points (mean distance to their {neighbours} nearest over {ratio} x the median, {:.3e} m); the worst, at ({x:.3}, {y:.3}, {z:.3}) m, is {:.3e} m from its neighbours (--outliers off keeps them)",
+            mema::io::read::input_name(path),
+            cloud.outliers.dropped,
+            cloud.outliers.cut,
+            worst.distance,
+        );
+    }
     let left = cloud.dropped_by_class;
     if left.total() > 0 {
         eprintln!(

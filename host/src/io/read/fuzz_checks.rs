@@ -18,8 +18,8 @@ pub enum Violation {
     NonFinite { index: Option<usize> },
     /// A cloud came back with no points (that is an error: `NoFinitePoints`).
     EmptyCloud,
-    /// The counts disagree: kept points plus dropped ones (not finite or left out by class)
-    /// are not the slots read.
+    /// The counts disagree: kept points plus dropped ones (not finite, left out by class,
+    /// isolated) are not the slots read.
     Counts {
         points: usize,
         slots: usize,
@@ -72,9 +72,10 @@ pub fn check_cloud(cloud: &Cloud) -> Result<(), Violation> {
     if cloud.points.is_empty() {
         return Err(Violation::EmptyCloud);
     }
-    // Slots hold every record read: kept, not finite, or left out by its ASPRS class.
+    // Slots hold every record read: kept, not finite, left out by its ASPRS class or isolated.
     let (points, slots) = (cloud.points.len(), cloud.slots);
-    let dropped = cloud.dropped_non_finite + cloud.dropped_by_class.total();
+    let dropped =
+        cloud.dropped_non_finite + cloud.dropped_by_class.total() + cloud.outliers.dropped;
     if points + dropped != slots {
         return Err(Violation::Counts {
             points,

@@ -490,7 +490,11 @@ mod tests {
     /// point format written by the `las` crate; `Classes::All` keeps them.
     #[test]
     fn noise_and_withheld_points_are_left_out_and_counted() {
-        use crate::io::read::{Classes, read_cloud_in_metres_keeping};
+        use crate::io::read::{Classes, Screening, read_cloud_in_metres_keeping};
+        let keeping = |classes| Screening {
+            classes,
+            ..Screening::DEFAULT
+        };
         let dir = std::env::temp_dir().join(format!("mema-las-classes-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         for (format, version) in [(1u8, (1, 2)), (6, (1, 4))] {
@@ -514,7 +518,8 @@ mod tests {
                 writer.write_point(point).unwrap();
             }
             writer.close().unwrap();
-            let kept = read_cloud_in_metres_keeping(&path, None, Classes::default()).unwrap();
+            let kept =
+                read_cloud_in_metres_keeping(&path, None, keeping(Classes::default())).unwrap();
             assert_eq!(kept.points.len(), 2, "format {format}");
             let d = kept.dropped_by_class;
             assert_eq!(
@@ -522,10 +527,10 @@ mod tests {
                 (2, 1, 0),
                 "format {format}"
             );
-            let all = read_cloud_in_metres_keeping(&path, None, Classes::All).unwrap();
+            let all = read_cloud_in_metres_keeping(&path, None, keeping(Classes::All)).unwrap();
             assert_eq!((all.points.len(), all.dropped_by_class.total()), (5, 0));
             let only: Classes = "6".parse().unwrap();
-            let six = read_cloud_in_metres_keeping(&path, None, only).unwrap();
+            let six = read_cloud_in_metres_keeping(&path, None, keeping(only)).unwrap();
             assert_eq!(
                 (six.points.len(), six.dropped_by_class.other_classes),
                 (1, 3)

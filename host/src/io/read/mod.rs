@@ -29,6 +29,7 @@ pub mod fuzz_checks;
 mod kitti;
 mod las;
 mod lzf;
+pub mod outliers;
 mod pcd;
 mod ply;
 mod points;
@@ -42,6 +43,7 @@ use std::path::{Path, PathBuf};
 
 use crate::io::units::{self, FileUnit, LengthUnit, Units};
 pub use classes::{ClassDrops, Classes};
+pub use outliers::{OutlierDrops, Outliers};
 
 pub(crate) use points::{Endian, Points, Scalar};
 use stream::{Input, Line};
@@ -59,6 +61,8 @@ pub struct Cloud {
     pub dropped_non_finite: usize,
     /// Points of a classified file (LAS/LAZ) left out: noise, withheld, other classes.
     pub dropped_by_class: ClassDrops,
+    /// Isolated points left out ([`Outliers`]).
+    pub outliers: OutlierDrops,
     /// The encoding the points were read from.
     pub format: Format,
     /// The unit the file says its coordinates are in (LAS GeoKeys or WKT); `None` where it
@@ -167,6 +171,13 @@ pub enum ReadError {
     /// The coordinates cannot be taken to metres: geographic, or in a unit not known.
     #[error(transparent)]
     Units(units::UnitError),
+    /// The cloud's span is too wide for f32 at its point spacing (a far outlier kept, or a
+    /// cloud that needs cropping).
+    #[error("{name}: {loss}")]
+    Precision {
+        name: String,
+        loss: outliers::PrecisionLoss,
+    },
     /// `-` was given while standard input is a terminal: a cloud is piped in, not typed.
     #[error(
         "{}: a terminal, not a cloud; pipe one in (e.g. `mema map - -k 150 -o scan.mema < scan.ply`)",
@@ -206,7 +217,7 @@ pub const UNSIZED_LIMIT: u64 = 1 << 30;
 
 /// Reads a PLY, PCD, LAS/LAZ, XYZ/CSV or KITTI `.bin` file, in its own coordinates.
 pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
-    read_scaled(path, Scaling::File, Classes::NotNoise)
+    read_scaled(path, Scaling::File, Screening::default())
 }
 
 /// Reads a cloud file in metres: scaled by `given` (`--units`), else by the unit the file
@@ -215,26 +226,56 @@ pub fn read_cloud(path: &Path) -> Result<Cloud, ReadError> {
 /// bit for bit as [`read_cloud`] reads it. Geographic coordinates or a unit not known are
 /// [`ReadError::Units`] unless a unit is given.
 pub fn read_cloud_in_metres(path: &Path, given: Option<&LengthUnit>) -> Result<Cloud, ReadError> {
-    read_scaled(path, Scaling::Metres(given), Classes::NotNoise)
+    read_scaled(path, Scaling::Metres(given), Screening::default())
 }
 
-/// [`read_cloud_in_metres`] keeping the points of a classified file (LAS/LAZ) that `classes`
-/// names ([`Classes`]; by default every point but noise and withheld ones).
+/// What a read leaves out of a file: points by their class, isolated points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Screening {
+    /// The points of a classified file (LAS/LAZ) kept.
+    pub classes: Classes,
+    /// What is done about isolated points.
+    pub outliers: Outliers,
+}
+
+impl Default for Screening {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+impl Screening {
+    /// The library's plain reads: noise classes left out, every other point as the file holds it.
+    pub const DEFAULT: Self = Self {
+        classes: Classes::NotNoise,
+        outliers: Outliers::Unchecked,
+    };
+
+    /// The command line's and the Python package's reads: noise classes and isolated points
+    /// left out, and a cloud too wide for f32 at its spacing refused.
+    pub const MAPPING: Self = Self {
+        classes: Classes::NotNoise,
+        outliers: Outliers::DEFAULT,
+    };
+}
+
+/// [`read_cloud_in_metres`] leaving out what `screening` says: points of a classified file
+/// (LAS/LAZ) by class, and isolated points ([`Screening`]).
 pub fn read_cloud_in_metres_keeping(
     path: &Path,
     given: Option<&LengthUnit>,
-    classes: Classes,
+    screening: Screening,
 ) -> Result<Cloud, ReadError> {
-    read_scaled(path, Scaling::Metres(given), classes)
+    read_scaled(path, Scaling::Metres(given), screening)
 }
 
-fn read_scaled(path: &Path, scaling: Scaling, classes: Classes) -> Result<Cloud, ReadError> {
+fn read_scaled(path: &Path, scaling: Scaling, screening: Screening) -> Result<Cloud, ReadError> {
     if path == Path::new(STDIN) {
         if std::io::stdin().is_terminal() {
             return Err(ReadError::Terminal);
         }
         // Linux's name for descriptor 0: a pipe, a socket or a redirected file alike.
-        return read_unsized(Path::new("/dev/stdin"), STDIN_NAME, scaling, classes);
+        return read_unsized(Path::new("/dev/stdin"), STDIN_NAME, scaling, screening);
     }
     let io = |cause| ReadError::Io {
         path: path.to_owned(),
@@ -245,11 +286,11 @@ fn read_scaled(path: &Path, scaling: Scaling, classes: Classes) -> Result<Cloud,
     let name = path.display().to_string();
     let meta = std::fs::metadata(path).map_err(io)?;
     if !meta.is_file() || meta.len() == 0 {
-        return read_unsized(path, &name, scaling, classes);
+        return read_unsized(path, &name, scaling, screening);
     }
     let mut file = File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
-    let ctx = Ctx(&name, scaling, classes);
+    let ctx = Ctx(&name, scaling, screening);
     let kind = {
         let mut input = Input::new(ctx, &mut file, meta.len());
         match detect(&mut input)? {
@@ -273,7 +314,7 @@ fn read_unsized(
     path: &Path,
     name: &str,
     scaling: Scaling,
-    classes: Classes,
+    screening: Screening,
 ) -> Result<Cloud, ReadError> {
     use crate::io::input::{InputError, read_bounded};
     let io = |cause| ReadError::Io {
@@ -281,7 +322,7 @@ fn read_unsized(
         cause,
     };
     match read_bounded(path, UNSIZED_LIMIT, "point cloud") {
-        Ok(bytes) => read_bytes(Ctx(name, scaling, classes), &bytes),
+        Ok(bytes) => read_bytes(Ctx(name, scaling, screening), &bytes),
         Err(InputError::TooLarge { limit, .. }) => Err(ReadError::TooLarge {
             name: name.to_owned(),
             what: format!(
@@ -381,7 +422,7 @@ fn detect(input: &mut Input) -> Result<Kind, ReadError> {
 /// The file name, carried by every reader to build its errors, and whether the cloud is to be
 /// scaled to metres.
 #[derive(Clone, Copy)]
-pub(crate) struct Ctx<'a>(&'a str, Scaling<'a>, Classes);
+pub(crate) struct Ctx<'a>(&'a str, Scaling<'a>, Screening);
 
 /// Whether a reader keeps the file's coordinates or brings them to metres, and by which unit.
 #[derive(Clone, Copy, Debug)]
@@ -394,16 +435,21 @@ pub(crate) enum Scaling<'a> {
 
 impl<'a> Ctx<'a> {
     pub(crate) const fn new(name: &'a str) -> Self {
-        Ctx(name, Scaling::File, Classes::NotNoise)
+        Ctx(name, Scaling::File, Screening::DEFAULT)
     }
 
     /// A cloud to be read in metres: by `given`, else the file's unit, else none.
     pub(crate) const fn in_metres(name: &'a str, given: Option<&'a LengthUnit>) -> Self {
-        Ctx(name, Scaling::Metres(given), Classes::NotNoise)
+        Ctx(name, Scaling::Metres(given), Screening::DEFAULT)
     }
 
     /// The points of classified files this read keeps.
     pub(crate) const fn classes(self) -> Classes {
+        self.2.classes
+    }
+
+    /// What this read leaves out.
+    pub(crate) const fn screening(self) -> Screening {
         self.2
     }
 

@@ -1,8 +1,10 @@
 //! What the readers share below the formats: binary number types, and the collector that
 //! turns a reader's coordinates into a centred f32 cloud.
 
+use super::outliers::{self, OutlierDrops, Outliers};
 use super::{Cloud, Ctx, Format, ReadError};
 use crate::io::units::FileUnit;
+use crate::kdtree::Entry;
 
 /// A binary number type, as PLY and PCD declare them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -250,6 +252,56 @@ impl Points {
         kept
     }
 
+    /// Drops the points `ctx`'s outlier rule finds isolated (at `scaled` coordinates, those
+    /// they will be mapped at) and refuses a cloud f32 cannot hold at its spacing; the bounds
+    /// then are the kept points'. Nothing is done for [`Outliers::Unchecked`].
+    fn screen(
+        &mut self,
+        ctx: Ctx,
+        scaled: &dyn Fn([f64; 3]) -> [f64; 3],
+    ) -> Result<OutlierDrops, ReadError> {
+        let rule = ctx.screening().outliers;
+        if rule == Outliers::Unchecked {
+            return Ok(OutlierDrops::default());
+        }
+        let n = self.narrow.len() + self.wide.len();
+        let mut entries = Vec::new();
+        reserve(ctx, &mut entries, n, "points to screen for outliers")?;
+        let wide = self.wide.iter().map(|w| w.get());
+        let narrow = self.narrow.iter().map(|p| p.map(f64::from));
+        for (p, index) in narrow.chain(wide).zip(0u32..) {
+            entries.push(Entry {
+                point: scaled(p),
+                index,
+            });
+        }
+        let verdict = outliers::screen(entries, rule).map_err(|loss| ReadError::Precision {
+            name: ctx.name(),
+            loss,
+        })?;
+        if verdict.drops.dropped > 0 {
+            // The indices run over `narrow` then `wide`, as the entries did (one of them is empty).
+            let mut index = 0;
+            self.narrow.retain(|_| {
+                index += 1;
+                verdict.keeps(index - 1)
+            });
+            self.wide.retain(|_| {
+                index += 1;
+                verdict.keeps(index - 1)
+            });
+            (self.lo, self.hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+            let wide = self.wide.iter().map(|w| w.get());
+            for p in self.narrow.iter().map(|p| p.map(f64::from)).chain(wide) {
+                for ((lo, hi), c) in self.lo.iter_mut().zip(&mut self.hi).zip(p) {
+                    *lo = lo.min(c);
+                    *hi = hi.max(c);
+                }
+            }
+        }
+        Ok(verdict.drops)
+    }
+
     pub fn finish(self, ctx: Ctx, format: Format) -> Result<Cloud, ReadError> {
         self.finish_in(ctx, format, None)
     }
@@ -257,7 +309,7 @@ impl Points {
     /// [`Self::finish`] for a file that says its unit (`None`: it says nothing); the points are
     /// scaled to metres here if `ctx` asks for metres.
     pub fn finish_in(
-        self,
+        mut self,
         ctx: Ctx,
         format: Format,
         unit: Option<FileUnit>,
@@ -270,6 +322,7 @@ impl Points {
         // A scale of 1 is skipped, not multiplied by, so metres read bit for bit as before.
         let scale = units.as_ref().map(|u| u.unit.metres).filter(|&s| s != 1.0);
         let scaled = |c: f64| scale.map_or(c, |s| c * s);
+        let outliers = self.screen(ctx, &|p: [f64; 3]| p.map(scaled))?;
         // Positive scales keep the order, so the scaled bounds are the bounds scaled.
         let (lo, hi) = (self.lo.map(scaled), self.hi.map(scaled));
         // Halving before adding keeps the centre and the half-extent finite even for
@@ -302,6 +355,7 @@ impl Points {
             slots: self.slots,
             dropped_non_finite: self.dropped,
             dropped_by_class: self.by_class,
+            outliers,
             format,
             unit,
             units,
