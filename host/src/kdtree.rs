@@ -15,19 +15,20 @@ struct Split {
     value: f64,
 }
 
-/// A point of the tree and the caller's index of it.
+/// A point of the tree and the caller's index of it. Coordinates are f64, or f32 for a cloud
+/// whose coordinates are all exact f32 values (half the memory; distances are still f64).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Entry {
-    pub point: [f64; 3],
+pub struct Entry<C = f64> {
+    pub point: [C; 3],
     pub index: u32,
 }
 
 /// A kd-tree over f64 points, for nearest-point distances (the score's completeness, point
 /// spacing, and the outlier statistic of reading).
 #[derive(Clone, Debug)]
-pub struct KdTree {
+pub struct KdTree<C = f64> {
     /// The points, permuted so that every subtree owns a contiguous range.
-    entries: Vec<Entry>,
+    entries: Vec<Entry<C>>,
     /// Splits in heap order (root 1, children 2n and 2n + 1); a node owns the range
     /// `lo..hi` and its children `lo..mid` and `mid..hi` with `mid = (lo + hi) / 2`, so ranges
     /// need no storage.
@@ -41,7 +42,12 @@ pub struct NearestPoint {
     pub distance: f64,
 }
 
-impl KdTree {
+/// A coordinate type of the tree: f64, or f32 converted exactly.
+pub trait Coordinate: Copy + Into<f64> + Send + Sync {}
+impl Coordinate for f64 {}
+impl Coordinate for f32 {}
+
+impl KdTree<f64> {
     /// Builds the tree; the caller's indices must fit in u32 (a cloud of at most 4 billion points).
     pub fn build(points: &[[f64; 3]]) -> Self {
         Self::from_entries(
@@ -52,10 +58,12 @@ impl KdTree {
                 .collect(),
         )
     }
+}
 
+impl<C: Coordinate> KdTree<C> {
     /// Builds the tree in the caller's allocation (which a reader reserves fallibly): the
     /// entries are permuted in place, and only the splits, about 8 bytes a point, are new.
-    pub fn from_entries(entries: Vec<Entry>) -> Self {
+    pub fn from_entries(entries: Vec<Entry<C>>) -> Self {
         let n = entries.len();
         // Heap slots for a tree whose leaves hold at most LEAF points.
         let mut slots = 2usize;
@@ -78,7 +86,7 @@ impl KdTree {
 
     /// The entries in the tree's order (each subtree a contiguous range): visiting them in it
     /// keeps neighbouring queries on neighbouring memory.
-    pub fn entries(&self) -> &[Entry] {
+    pub fn entries(&self) -> &[Entry<C>] {
         &self.entries
     }
 
@@ -99,8 +107,9 @@ impl KdTree {
         let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for e in &self.entries[lo..hi] {
             for j in 0..3 {
-                min[j] = min[j].min(e.point[j]);
-                max[j] = max[j].max(e.point[j]);
+                let c: f64 = e.point[j].into();
+                min[j] = min[j].min(c);
+                max[j] = max[j].max(c);
             }
         }
         let axis = (0..3).fold(0, |a, j| {
@@ -113,13 +122,12 @@ impl KdTree {
         let mid = (lo + hi) / 2;
         // The index breaks ties, so the order, and the tree, is a function of the points.
         self.entries[lo..hi].select_nth_unstable_by(mid - lo, |a, b| {
-            a.point[axis]
-                .total_cmp(&b.point[axis])
-                .then(a.index.cmp(&b.index))
+            let (a_c, b_c): (f64, f64) = (a.point[axis].into(), b.point[axis].into());
+            a_c.total_cmp(&b_c).then(a.index.cmp(&b.index))
         });
         self.splits[node] = Split {
             axis: axis as u8,
-            value: self.entries[mid].point[axis],
+            value: self.entries[mid].point[axis].into(),
         };
         self.split(2 * node, lo, mid);
         self.split(2 * node + 1, mid, hi);
@@ -162,7 +170,7 @@ impl KdTree {
                 if Some(i as usize) == skip {
                     continue;
                 }
-                let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+                let d2 = squared_distance(q, p);
                 let entry = (d2, i);
                 let before = |e: &(f64, u32)| e.0 < d2 || (e.0 == d2 && e.1 < i);
                 if out.len() == k && out.last().is_none_or(&before) {
@@ -211,7 +219,7 @@ impl KdTree {
                 if Some(i) == skip {
                     continue;
                 }
-                let d2 = (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2) + (q[2] - p[2]).powi(2);
+                let d2 = squared_distance(q, p);
                 if d2 < best.0 || (d2 == best.0 && i < best.1) {
                     *best = (d2, i);
                 }
@@ -232,6 +240,13 @@ impl KdTree {
             self.search(far.0, far.1, far.2, p, skip, best);
         }
     }
+}
+
+/// `|q - p|^2` in f64 (exact for f32 coordinates' conversion).
+#[inline]
+fn squared_distance<C: Coordinate>(q: [C; 3], p: [f64; 3]) -> f64 {
+    let d = |j: usize| q[j].into() - p[j];
+    d(0) * d(0) + d(1) * d(1) + d(2) * d(2)
 }
 
 #[cfg(test)]

@@ -4,14 +4,19 @@
 //! map's nearest surface) is then at or under T too.
 
 use crate::util::{Dir, MemaCommand, shared};
-use mema::io::load_cloud;
+use mema::io::cloud::load_cloud_file_keeping;
 use mema::io::mapfile::HostMap;
 use mema_core::closest_point::distance_to_surface;
 
 /// Eq. 13 per cluster from the map, the written labels and the cloud, by direct per-point sums:
 /// none of the hierarchy's own bookkeeping is reused.
 fn errors_from_labels(cloud: &str, map: &HostMap, labels: &str) -> Vec<f64> {
-    let points = load_cloud(&shared(cloud)).expect("cloud").points;
+    // The points map maps: the cloud less the isolated points its reader drops.
+    let screening = mema::io::read::Screening::MAPPING;
+    let points = load_cloud_file_keeping(&shared(cloud), None, screening)
+        .expect("cloud")
+        .0
+        .points;
     let labels: Vec<usize> = labels.lines().map(|l| l.parse().expect("label")).collect();
     assert_eq!(labels.len(), points.len());
     let mut sums = vec![(0.0f64, 0usize); map.entities.len()];

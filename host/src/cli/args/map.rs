@@ -95,7 +95,8 @@ pub struct MapArgs {
     /// assigns points), splitting clusters that fail; costs entities.
     #[arg(long, default_value_t = 0)]
     pub voronoi_rounds: usize,
-    /// Also write each point's cluster index, one per line, in the cloud's order of finite points.
+    /// Also write each point's cluster index, one per line, in the cloud's order of finite points
+    /// (less the isolated points --outliers drops).
     #[arg(long)]
     pub labels: Option<PathBuf>,
     /// Output map: .mema (binary), .csv or .json.

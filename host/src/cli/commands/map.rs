@@ -311,9 +311,12 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
 /// empty returns) or as isolated, and what `--crop` and `--voxel` left.
 fn points_line(counts: &FilterCounts, dropped: usize, isolated: usize) -> String {
     let mut line = format!(
-        "points: {} read, {dropped} more dropped for a NaN or infinite coordinate, {isolated} as isolated (--outliers)",
+        "points: {} read, {dropped} more dropped for a NaN or infinite coordinate",
         counts.read
     );
+    if isolated > 0 {
+        line.push_str(&format!(", {isolated} as isolated (--outliers)"));
+    }
     if let Some(n) = counts.cropped {
         line.push_str(&format!(", {n} inside --crop"));
     }

@@ -16,7 +16,7 @@ use std::str::FromStr;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::kdtree::{Entry, KdTree};
+use crate::kdtree::{Coordinate, Entry, KdTree};
 
 /// Neighbours of the statistic unless `--outliers` says otherwise (Open3D's example's count).
 pub const DEFAULT_NEIGHBOURS: usize = 20;
@@ -146,10 +146,18 @@ pub(crate) struct Screened {
     pub drops: OutlierDrops,
 }
 
-/// Screens `entries` (the points with their indices, in the unit they will be mapped in) by
-/// `rule`, then checks the kept ones' span against their spacing. `rule` must not be
+/// Screens `entries` (the points with their indices, in the file's unit; `scale` takes them
+/// to the unit they will be mapped in, by which every length reported is given) by `rule`,
+/// then checks the kept ones' span against their spacing. `rule` must not be
 /// [`Outliers::Unchecked`]; a cloud of fewer than two points has no statistic and passes.
-pub(crate) fn screen(entries: Vec<Entry>, rule: Outliers) -> Result<Screened, PrecisionLoss> {
+///
+/// The tree is the largest part of a read's memory here: f32 coordinates (an exact copy of
+/// a binary float cloud's) keep it at 16 bytes a point, and the statistic is held as f32.
+pub(crate) fn screen<C: Coordinate>(
+    entries: Vec<Entry<C>>,
+    scale: f64,
+    rule: Outliers,
+) -> Result<Screened, PrecisionLoss> {
     let n = entries.len();
     let mut dropped = vec![0u64; n.div_ceil(64)];
     let neighbours = match rule {
@@ -163,27 +171,28 @@ pub(crate) fn screen(entries: Vec<Entry>, rule: Outliers) -> Result<Screened, Pr
     }
     let tree = KdTree::from_entries(entries);
     let spread = tree.entries();
+    let at = |e: &Entry<C>| e.point.map(|c| c.into() * scale);
     // Each point's statistic, in the tree's order; every answer is a function of the points,
     // so the threads change nothing.
-    let mean_distances: Vec<f64> = spread
+    let mean_distances: Vec<f32> = spread
         .par_iter()
         .map_init(Vec::new, |found, e| {
-            tree.k_nearest(e.point, Some(e.index as usize), neighbours, found);
-            found.iter().map(|&(d2, _)| d2.sqrt()).sum::<f64>() / found.len() as f64
+            let p = e.point.map(Into::into);
+            tree.k_nearest(p, Some(e.index as usize), neighbours, found);
+            let sum: f64 = found.iter().map(|&(d2, _)| d2.sqrt()).sum();
+            (sum / found.len() as f64 * scale) as f32
         })
         .collect();
-    let median_of = |kept: &mut dyn Iterator<Item = f64>| {
-        let mut sorted: Vec<f64> = kept.collect();
+    let median_of = |kept: &mut dyn Iterator<Item = f32>| {
+        let mut sorted: Vec<f32> = kept.collect();
         let middle = sorted.len() / 2;
-        sorted
-            .select_nth_unstable_by(middle, f64::total_cmp)
-            .1
-            .to_owned()
+        f64::from(*sorted.select_nth_unstable_by(middle, f32::total_cmp).1)
     };
     let mut drops = OutlierDrops::default();
     if let Outliers::Dropped { ratio, .. } = rule {
         drops.cut = ratio * median_of(&mut mean_distances.iter().copied());
         for (e, &d) in spread.iter().zip(&mean_distances) {
+            let d = f64::from(d);
             if d > drops.cut {
                 drops.dropped += 1;
                 if let Some(word) = dropped.get_mut(e.index as usize / 64) {
@@ -191,14 +200,14 @@ pub(crate) fn screen(entries: Vec<Entry>, rule: Outliers) -> Result<Screened, Pr
                 }
                 if drops.worst.is_none_or(|w| d > w.distance) {
                     drops.worst = Some(WorstOutlier {
-                        at: e.point,
+                        at: at(e),
                         distance: d,
                     });
                 }
             }
         }
     }
-    let kept = |&(e, _): &(&Entry, &f64)| is_kept(&dropped, e.index);
+    let kept = |&(e, _): &(&Entry<C>, &f32)| is_kept(&dropped, e.index);
     let pairs = || spread.iter().zip(&mean_distances).filter(kept);
     let spacing = median_of(&mut pairs().map(|(_, &d)| d));
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
@@ -207,14 +216,15 @@ pub(crate) fn screen(entries: Vec<Entry>, rule: Outliers) -> Result<Screened, Pr
         distance: f64::NEG_INFINITY,
     };
     for (e, &d) in pairs() {
+        let p = at(e);
         for j in 0..3 {
-            lo[j] = lo[j].min(e.point[j]);
-            hi[j] = hi[j].max(e.point[j]);
+            lo[j] = lo[j].min(p[j]);
+            hi[j] = hi[j].max(p[j]);
         }
-        if d > loneliest.distance {
+        if f64::from(d) > loneliest.distance {
             loneliest = WorstOutlier {
-                at: e.point,
-                distance: d,
+                at: p,
+                distance: f64::from(d),
             };
         }
     }
@@ -267,7 +277,7 @@ mod tests {
     /// The statistic by its definition: every distance, sorted, the first `k` averaged; the
     /// cut at `ratio` times the median.
     fn brute_force_drops(points: &[[f64; 3]], k: usize, ratio: f64) -> Vec<usize> {
-        let mean: Vec<f64> = points
+        let mean: Vec<f32> = points
             .iter()
             .enumerate()
             .map(|(i, p)| {
@@ -278,13 +288,16 @@ mod tests {
                     .map(|(j, q)| ((0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>(), j))
                     .collect();
                 d.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-                d.iter().take(k).map(|e| e.0.sqrt()).sum::<f64>() / k as f64
+                // Held as f32, as the filter holds it.
+                (d.iter().take(k).map(|e| e.0.sqrt()).sum::<f64>() / k as f64) as f32
             })
             .collect();
         let mut sorted = mean.clone();
-        sorted.sort_by(f64::total_cmp);
-        let cut = ratio * sorted[sorted.len() / 2];
-        (0..points.len()).filter(|&i| mean[i] > cut).collect()
+        sorted.sort_by(f32::total_cmp);
+        let cut = ratio * f64::from(sorted[sorted.len() / 2]);
+        (0..points.len())
+            .filter(|&i| f64::from(mean[i]) > cut)
+            .collect()
     }
 
     #[test]
@@ -307,7 +320,7 @@ mod tests {
                 neighbours: k,
                 ratio,
             };
-            let screened = screen(entries(&points), rule).expect("a narrow cloud");
+            let screened = screen(entries(&points), 1.0, rule).expect("a narrow cloud");
             let dropped: Vec<usize> = (0..points.len()).filter(|&i| !screened.keeps(i)).collect();
             assert_eq!(
                 dropped,
@@ -359,15 +372,15 @@ mod tests {
             p
         };
         // f32 rounds by far / 2 * 2^-24: 1.5e-5 m at 500 m, an eighth of 1.2 mm spacing is 1.5e-4.
-        assert!(screen(entries(&grid(500.0)), Outliers::Kept).is_ok());
-        let loss = screen(entries(&grid(1e5)), Outliers::Kept)
+        assert!(screen(entries(&grid(500.0)), 1.0, Outliers::Kept).is_ok());
+        let loss = screen(entries(&grid(1e5)), 1.0, Outliers::Kept)
             .err()
             .expect("refused");
         assert_eq!(loss.loneliest.at, [1e5, 0.0, 0.0]);
         assert!((loss.half_span - 5e4).abs() < 1.0, "{loss:?}");
         assert!(loss.to_string().contains("f32"), "{loss}");
         // Dropped first, the stray leaves a cloud f32 holds.
-        let screened = screen(entries(&grid(1e9)), Outliers::DEFAULT).expect("kept narrow");
+        let screened = screen(entries(&grid(1e9)), 1.0, Outliers::DEFAULT).expect("kept narrow");
         assert_eq!(screened.drops.dropped, 1);
         assert!(!screened.keeps(400));
         assert_eq!(screened.drops.worst.map(|w| w.at), Some([1e9, 0.0, 0.0]));

@@ -252,30 +252,46 @@ impl Points {
         kept
     }
 
-    /// Drops the points `ctx`'s outlier rule finds isolated (at `scaled` coordinates, those
-    /// they will be mapped at) and refuses a cloud f32 cannot hold at its spacing; the bounds
+    /// Drops the points `ctx`'s outlier rule finds isolated (lengths times `scale`, in the
+    /// unit they will be mapped in) and refuses a cloud f32 cannot hold at its spacing; the bounds
     /// then are the kept points'. Nothing is done for [`Outliers::Unchecked`].
-    fn screen(
-        &mut self,
-        ctx: Ctx,
-        scaled: &dyn Fn([f64; 3]) -> [f64; 3],
-    ) -> Result<OutlierDrops, ReadError> {
+    fn screen(&mut self, ctx: Ctx, scale: f64) -> Result<OutlierDrops, ReadError> {
         let rule = ctx.screening().outliers;
         if rule == Outliers::Unchecked {
             return Ok(OutlierDrops::default());
         }
-        let n = self.narrow.len() + self.wide.len();
-        let mut entries = Vec::new();
-        reserve(ctx, &mut entries, n, "points to screen for outliers")?;
-        let wide = self.wide.iter().map(|w| w.get());
-        let narrow = self.narrow.iter().map(|p| p.map(f64::from));
-        for (p, index) in narrow.chain(wide).zip(0u32..) {
-            entries.push(Entry {
-                point: scaled(p),
+        // One of the two holds the points (`push` moves them to `wide` at the first that needs
+        // it); a tree of f32 entries for exact-f32 clouds is half the size.
+        let verdict = if self.wide.is_empty() {
+            let mut entries = Vec::new();
+            reserve(
+                ctx,
+                &mut entries,
+                self.narrow.len(),
+                "points to screen for outliers",
+            )?;
+            entries.extend(
+                self.narrow
+                    .iter()
+                    .zip(0u32..)
+                    .map(|(&point, index)| Entry { point, index }),
+            );
+            outliers::screen(entries, scale, rule)
+        } else {
+            let mut entries = Vec::new();
+            reserve(
+                ctx,
+                &mut entries,
+                self.wide.len(),
+                "points to screen for outliers",
+            )?;
+            entries.extend(self.wide.iter().zip(0u32..).map(|(w, index)| Entry {
+                point: w.get(),
                 index,
-            });
+            }));
+            outliers::screen(entries, scale, rule)
         }
-        let verdict = outliers::screen(entries, rule).map_err(|loss| ReadError::Precision {
+        .map_err(|loss| ReadError::Precision {
             name: ctx.name(),
             loss,
         })?;
@@ -322,7 +338,7 @@ impl Points {
         // A scale of 1 is skipped, not multiplied by, so metres read bit for bit as before.
         let scale = units.as_ref().map(|u| u.unit.metres).filter(|&s| s != 1.0);
         let scaled = |c: f64| scale.map_or(c, |s| c * s);
-        let outliers = self.screen(ctx, &|p: [f64; 3]| p.map(scaled))?;
+        let outliers = self.screen(ctx, scale.unwrap_or(1.0))?;
         // Positive scales keep the order, so the scaled bounds are the bounds scaled.
         let (lo, hi) = (self.lo.map(scaled), self.hi.map(scaled));
         // Halving before adding keeps the centre and the half-extent finite even for
