@@ -3,7 +3,7 @@
 //! - **accuracy**, cloud to map: each point's distance to the nearest entity surface of the
 //!   whole map, exact (the query index over every entity, not the nearest centre's entity);
 //! - **completeness**, map to cloud: points spread uniformly by area over every entity's surface
-//!   ([`surface`]), each one's distance to the nearest cloud point ([`kdtree`]), weighted by area;
+//!   ([`surface`]), each one's distance to the nearest cloud point ([`crate::kdtree`]), weighted by area;
 //! - **tau** = 2 x the cloud's median nearest-other-point spacing, and at tau the **phantom**
 //!   area fraction (surface farther than tau from any point), **precision** (surface within
 //!   tau), **recall** (points within tau of the surface) and their **F-score**, as SOGMM reports
