@@ -94,6 +94,7 @@ impl Input {
                 points: frame.local.iter().copied().map(Point3::from).collect(),
                 dropped_non_finite: frame.dropped_non_finite,
                 dropped_by_class: Default::default(),
+                outliers: Default::default(),
                 unit: None,
             };
             return Ok((cloud, Some(frame.unit.clone())));
