@@ -251,19 +251,47 @@ fn a_voxel_too_small_for_the_cloud_is_refused_not_collapsed() {
 #[test]
 fn a_cloud_too_wide_for_f32_distances() {
     let dir = Dir::new("too-wide");
-    let path = dir.write(
-        "wide.xyz",
-        b"-3.4e38 0 0\n3.4e38 0 0\n0 1 0\n0 0 1\n1 1 1\n2 0 1\n",
-    );
+    // Every point 3.4e38 m from the next: none is isolated, and no f32 distance holds them.
+    let mut corners = String::new();
+    for i in 0..8 {
+        let c = |bit: i32| {
+            if i >> bit & 1 == 1 {
+                "3.4e38"
+            } else {
+                "-3.4e38"
+            }
+        };
+        corners.push_str(&format!("{} {} {}\n", c(0), c(1), c(2)));
+    }
+    let path = dir.write("wide.xyz", corners.as_bytes());
     for k in ["1", "2"] {
         for model in ["shells", "paper"] {
-            map(&dir, &path, k)
-                .args(["--model", model])
-                .run()
-                .assert_error(1, "squared distances would overflow");
+            for outliers in ["20,30", "off"] {
+                map(&dir, &path, k)
+                    .args(["--model", model, "--outliers", outliers])
+                    .run()
+                    .assert_error(1, "squared distances would overflow");
+            }
         }
     }
     assert_nothing_written(&dir, &["wide.xyz"]);
+    // Two points 3.4e38 m out beside four within 2 m: isolated, they are dropped; kept, they
+    // are every point's neighbours in a cloud this small, and k-means refuses the distances.
+    let path = dir.write(
+        "strays.xyz",
+        b"-3.4e38 0 0\n3.4e38 0 0\n0 1 0\n0 0 1\n1 1 1\n2 0 1\n",
+    );
+    map(&dir, &path, "1")
+        .args(["--outliers", "off"])
+        .run()
+        .assert_error(1, "squared distances would overflow");
+    assert_nothing_written(&dir, &["wide.xyz", "strays.xyz"]);
+    let ran = map(&dir, &path, "1").run().assert_ok();
+    assert!(
+        ran.stderr().contains("dropped 2 isolated points"),
+        "{}",
+        ran.stderr()
+    );
 }
 
 /// Inputs that never end: a capture linked to /dev/zero is read only up to a stated limit, and a
