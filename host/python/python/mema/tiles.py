@@ -57,13 +57,13 @@ def _bands(xy, cells, tile, seam):
     return band
 
 
-def _points(path, units, classes=None):
-    return np.asarray(mema.read_cloud(path, units, classes=classes))
+def _points(path, units, classes=None, outliers=None):
+    return np.asarray(mema.read_cloud(path, units, classes=classes, outliers=outliers))
 
 
-def scan(path, tile, seam, units=None, classes=None):
+def scan(path, tile, seam, units=None, classes=None, outliers=None):
     """Counts a file's points per (tile i, tile j, band): a dict of int counts."""
-    points = _points(path, units, classes)
+    points = _points(path, units, classes, outliers)
     xy = points[:, :2]
     cells = _cells(xy, tile)
     bands = _bands(xy, cells, tile, seam)
@@ -128,12 +128,14 @@ def _map_bytes(points, k, options):
     return mema.map(points, k=k, **options).to_bytes()
 
 
-def map_tile(cell, paths, tile, seam, open_bands, k, options, units=None, classes=None):
+def map_tile(
+    cell, paths, tile, seam, open_bands, k, options, units=None, classes=None, outliers=None
+):
     """Reads the tile's points from `paths`, maps its interior into `k` entities, and gives
     (map bytes or None, {seam key: that side's points})."""
     parts = []
     for path in paths:
-        points = _points(path, units, classes)
+        points = _points(path, units, classes, outliers)
         inside = np.all(_cells(points[:, :2], tile) == np.asarray(cell), axis=1)
         parts.append(points[inside])
         del points  # one file at a time, besides the tile
@@ -174,6 +176,7 @@ def map_tiles(
     paper=False,
     units=None,
     classes=None,
+    outliers=None,
     **options,
 ):
     """Maps LAS/LAZ files (or any cloud `mema.read_cloud` reads) tile by tile on Dask into one
@@ -181,9 +184,10 @@ def map_tiles(
     archive, seams `seam` metres wide (default a tenth of a tile) mapped across tile edges.
     Runs on `client` (a `distributed.Client`), else on the cluster at `scheduler`, else on a
     new local cluster of `workers` processes (default 2), one thread each. `options` are
-    `mema.map`'s keywords. `units` and `classes` read each file as `mema.read_cloud` does
-    (`classes`: which LAS/LAZ points to keep, as `--classes`; by default all but noise and
-    withheld points). `progress=True` shows Dask's progress bar."""
+    `mema.map`'s keywords. `units`, `classes` and `outliers` read each file as
+    `mema.read_cloud` does (`classes`: which LAS/LAZ points to keep, as `--classes`; by default
+    all but noise and withheld points; `outliers`: as `mema map --outliers`, by default isolated
+    points dropped). `progress=True` shows Dask's progress bar."""
     from distributed import Client, LocalCluster
     from distributed import progress as show_progress
 
@@ -217,7 +221,7 @@ def map_tiles(
             )
             client = own = Client(cluster)
     try:
-        reading = (units, classes)
+        reading = (units, classes, outliers)
         return _run(client, paths, tile, seam, total, options, reading, progress, show_progress)
     finally:
         if own is not None:
@@ -228,14 +232,14 @@ def map_tiles(
 
 
 def _run(client, paths, tile, seam, total, options, reading, progress, show_progress):
-    units, classes = reading
+    units, classes, outliers = reading
 
     def wait(futures):
         if progress:
             show_progress(futures)
         return client.gather(futures)
 
-    scans = wait([client.submit(scan, p, tile, seam, units, classes, pure=True) for p in paths])
+    scans = wait([client.submit(scan, p, tile, seam, units, classes, outliers, pure=True) for p in paths])
     counts = {}
     for file_counts in scans:
         for key, n in file_counts.items():
@@ -248,7 +252,7 @@ def _run(client, paths, tile, seam, total, options, reading, progress, show_prog
         files = [p for p, c in zip(paths, scans) if any(key[:2] == cell for key in c)]
         tiles[cell] = client.submit(
             map_tile, cell, files, tile, seam, open_bands[cell], ks[("tile",) + cell],
-            options, units, classes, pure=True,
+            options, units, classes, outliers, pure=True,
         )
     seam_maps = [
         client.submit(
@@ -280,6 +284,7 @@ def main(argv=None):
     parser.add_argument("--paper", action="store_true", help="the paper's model, as mema map")
     parser.add_argument("--units", help="as mema map --units (default: what each file says)")
     parser.add_argument("--classes", help="as mema map --classes (default: not-noise)")
+    parser.add_argument("--outliers", help="as mema map --outliers (default: 20,30)")
     where = parser.add_mutually_exclusive_group()
     where.add_argument("--workers", type=int, metavar="N", help="local worker processes (2)")
     where.add_argument("--scheduler", metavar="ADDRESS", help="a running Dask scheduler")
@@ -288,7 +293,7 @@ def main(argv=None):
         merged = map_tiles(
             args.inputs, args.tile, bytes=args.bytes, k=args.k, seam=args.seam,
             workers=args.workers, scheduler=args.scheduler, progress=True, seed=args.seed,
-            paper=args.paper, units=args.units, classes=args.classes,
+            paper=args.paper, units=args.units, classes=args.classes, outliers=args.outliers,
         )
         merged.save(args.output)
     except (OSError, ValueError) as e:

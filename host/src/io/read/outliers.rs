@@ -97,8 +97,9 @@ pub struct WorstOutlier {
 pub struct OutlierDrops {
     /// Points dropped.
     pub dropped: usize,
-    /// The distance past which a point was dropped (the ratio times the median), in the
-    /// cloud's unit; 0 where nothing was screened.
+    /// The distance past which points were dropped (the ratio times the median), in the
+    /// cloud's unit; 0 where none was (a map's report then matches the Python package's, whose
+    /// arrays carry no read's statistic).
     pub cut: f64,
     /// The dropped point farthest from its neighbours.
     pub worst: Option<WorstOutlier>,
@@ -190,10 +191,11 @@ pub(crate) fn screen<C: Coordinate>(
     };
     let mut drops = OutlierDrops::default();
     if let Outliers::Dropped { ratio, .. } = rule {
-        drops.cut = ratio * median_of(&mut mean_distances.iter().copied());
+        let cut = ratio * median_of(&mut mean_distances.iter().copied());
         for (e, &d) in spread.iter().zip(&mean_distances) {
             let d = f64::from(d);
-            if d > drops.cut {
+            if d > cut {
+                drops.cut = cut;
                 drops.dropped += 1;
                 if let Some(word) = dropped.get_mut(e.index as usize / 64) {
                     *word |= 1 << (e.index % 64);
