@@ -4,8 +4,9 @@
 //! The receive interrupt calls [`Firmware::on_receive`], which only copies bytes into the ring;
 //! the main loop calls [`Firmware::tick`], which decodes what the ring holds and maps the points
 //! of every accepted frame. Mapping never depends on how bytes were split between interrupts, so
-//! the map is a function of the accepted frames alone. On real hardware the ring would be split
-//! into an interrupt-side producer and a main-loop consumer (heapless' `spsc`); the simulator
+//! the map is a function of the accepted frames alone. The ring is single-producer,
+//! single-consumer ([`Ring`]): on a board it is a `static` the USART interrupt pushes into
+//! while the main loop ticks ([`Firmware::with_ring`] holds a reference to it); the simulator
 //! calls both from one thread, between ticks, which is the same ordering.
 //!
 //! **Snapshots.** [`Firmware::save`] copies the mapper (its whole state: clusters, centre grid,
@@ -15,6 +16,8 @@
 //! receiver, which resynchronises at the next delimiter. Frames accepted after the snapshot and before the reset are lost with
 //! the RAM; the final map equals that of an uninterrupted run over the frames the restored mapper
 //! holds plus those accepted after the restart.
+
+use core::borrow::Borrow;
 
 use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
@@ -125,10 +128,12 @@ pub struct AcceptedFrame {
     pub end_of_stream: bool,
 }
 
-/// The application state. `K` working clusters, `G` centre-hash buckets, `F` frozen entities.
+/// The application state. `K` working clusters, `G` centre-hash buckets, `F` frozen entities;
+/// `R` holds the receive ring or refers to it.
 #[derive(Debug)]
-pub struct Firmware<const K: usize, const G: usize, const F: usize = 0> {
-    rx: Ring<RX_CAPACITY>,
+pub struct Firmware<const K: usize, const G: usize, const F: usize = 0, R = Ring<RX_CAPACITY>> {
+    /// The ring, held (the simulator's) or referred to (a board's `static`).
+    rx: R,
     receiver: Receiver,
     mapper: StreamMapper<K, G, F>,
     /// The next point to map of the decoder's held frame, while a frame is part mapped.
@@ -183,8 +188,17 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// origin on any axis (the layout's choice).
     #[inline(always)]
     pub const fn with_reach(params: StreamParams, reach: f32) -> Self {
+        Firmware::with_ring(params, reach, Ring::new())
+    }
+}
+
+impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
+    /// [`Firmware::with_reach`] on the ring `rx` holds: a board passes `&'static` its ring, which
+    /// its receive interrupt pushes into.
+    #[inline(always)]
+    pub const fn with_ring(params: StreamParams, reach: f32, rx: R) -> Self {
         Self {
-            rx: Ring::new(),
+            rx,
             receiver: Receiver::reaching(reach),
             mapper: StreamMapper::new(params),
             cursor: None,
@@ -200,11 +214,15 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
             },
         }
     }
+}
 
+impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>
+    Firmware<K, G, F, R>
+{
     /// The receive interrupt: copies bytes into the ring; bytes past its capacity are dropped and
     /// counted, as a UART overrun drops them. Returns the bytes kept.
     pub fn on_receive(&mut self, bytes: &[u8]) -> usize {
-        let kept = self.rx.push(bytes);
+        let kept = self.rx.borrow().push(bytes);
         self.stats.ring_overruns += (bytes.len() - kept) as u64;
         kept
     }
@@ -217,7 +235,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// the points go into the mapper in the same order, with the same refits between them.
     pub fn tick(&mut self, mut on_frame: impl FnMut(AcceptedFrame)) {
         self.stats.ticks += 1;
-        self.stats.ring_peak = self.stats.ring_peak.max(self.rx.len());
+        self.stats.ring_peak = self.stats.ring_peak.max(self.rx.borrow().len());
         if core::mem::take(&mut self.refit_due) {
             self.mapper.refit_stalest();
             return;
@@ -278,29 +296,37 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
 
     /// Feeds the ring to the decoder until it accepts a frame (true) or the ring is empty.
     fn decode_next(&mut self) -> bool {
+        let receiver = &mut self.receiver;
         loop {
-            let front = self.rx.front();
-            if front.is_empty() {
-                return false;
-            }
-            let (taken, accepted) = match self.receiver.feed(front) {
-                Received::Consumed => (front.len(), false),
-                Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
-                    (front.len() - remaining.len(), false)
+            let (mut empty, mut accepted) = (false, false);
+            self.rx.borrow().consume_front(|front| {
+                empty = front.is_empty();
+                if empty {
+                    return 0;
                 }
-                Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
-            };
-            self.rx.consume(taken);
+                let (taken, points) = match receiver.feed(front) {
+                    Received::Consumed => (front.len(), false),
+                    Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
+                        (front.len() - remaining.len(), false)
+                    }
+                    Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
+                };
+                accepted = points;
+                taken
+            });
             if accepted {
                 self.cursor = Some(0);
                 return true;
+            }
+            if empty {
+                return false;
             }
         }
     }
 
     /// Whether work is waiting: bytes in the ring, a part-mapped frame or a deferred refit.
     pub fn busy(&self) -> bool {
-        self.refit_due || self.cursor.is_some() || !self.rx.is_empty()
+        self.refit_due || self.cursor.is_some() || !self.rx.borrow().is_empty()
     }
 
     /// Ends the stream: every cluster refitted from its final moments.
@@ -332,7 +358,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     /// After a reset: RAM is gone, so the ring and the decoder start empty and the mapper comes
     /// back from `snapshot` (or starts empty if none was saved).
     pub fn restart_from(&mut self, snapshot: &Snapshot<K, G, F>) {
-        self.rx.clear();
+        self.rx.borrow().clear();
         self.cursor = None;
         self.refit_due = false;
         self.receiver = Receiver::resuming(snapshot.origin, self.receiver.reach());
@@ -369,7 +395,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
 
     /// Bytes waiting in the ring.
     pub fn pending(&self) -> usize {
-        self.rx.len()
+        self.rx.borrow().len()
     }
 }
 

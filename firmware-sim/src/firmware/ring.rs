@@ -5,66 +5,104 @@
 //! interrupt, where a chunk copies in at most two pieces here; and it hands out its front
 //! slice but drops consumed bytes through `retain_back`.
 
-/// A byte ring of `N` bytes, usable in a `static`.
-#[derive(Debug)]
+use core::cell::UnsafeCell;
+use core::sync::atomic::{AtomicUsize, Ordering};
+
+/// A byte ring of `N` bytes, usable in a `static`, with one producer and one consumer that may
+/// run in different contexts: a receive interrupt pushes ([`Ring::push`]) while the main loop
+/// reads ([`Ring::front`]) and consumes ([`Ring::consume`]). Each side owns one counter: the
+/// producer `tail`, the consumer `head`, both counting bytes since the start (wrapping), so
+/// the bytes held are `tail - head` and neither side ever writes what the other reads. A
+/// single-core Cortex-M needs no more than these loads and stores (and their ordering).
+///
+/// The contract, as `heapless::spsc` has it but without splitting the ring: `push` is called
+/// from one context only, and `front`, `consume` and `clear` from one other context only
+/// (or all of them from one context, as the simulator does).
 pub struct Ring<const N: usize> {
-    buf: [u8; N],
-    /// Index of the oldest byte.
-    head: usize,
-    len: usize,
+    buf: UnsafeCell<[u8; N]>,
+    /// Bytes consumed since the start (wrapping); written by the consumer only.
+    head: AtomicUsize,
+    /// Bytes pushed since the start (wrapping); written by the producer only.
+    tail: AtomicUsize,
+}
+
+// SAFETY: the producer writes only bytes outside `head..tail` (free space) and publishes them
+// with a release store of `tail`; the consumer reads only bytes inside `head..tail`, seen after
+// an acquire load of `tail`, and frees them with a release store of `head`, which the producer
+// loads with acquire before reusing them. The two never touch the same byte at the same time.
+unsafe impl<const N: usize> Sync for Ring<N> {}
+
+impl<const N: usize> core::fmt::Debug for Ring<N> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Ring")
+            .field("capacity", &N)
+            .field("len", &self.len())
+            .finish()
+    }
 }
 
 impl<const N: usize> Ring<N> {
     #[inline(always)]
     pub const fn new() -> Self {
         Self {
-            buf: [0; N],
-            head: 0,
-            len: 0,
+            buf: UnsafeCell::new([0; N]),
+            head: AtomicUsize::new(0),
+            tail: AtomicUsize::new(0),
         }
     }
 
-    pub const fn len(&self) -> usize {
-        self.len
+    /// Bytes held.
+    pub fn len(&self) -> usize {
+        let head = self.head.load(Ordering::Acquire);
+        self.tail.load(Ordering::Acquire).wrapping_sub(head).min(N)
     }
 
-    pub const fn is_empty(&self) -> bool {
-        self.len == 0
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
     }
 
-    pub fn clear(&mut self) {
-        (self.head, self.len) = (0, 0);
+    /// Drops every byte held (the consumer's side: a reset).
+    pub fn clear(&self) {
+        self.head
+            .store(self.tail.load(Ordering::Acquire), Ordering::Release);
     }
 
-    /// Appends as much of `bytes` as fits; returns how much did.
-    pub fn push(&mut self, bytes: &[u8]) -> usize {
-        let kept = bytes.len().min(N - self.len);
+    /// Appends as much of `bytes` as fits; returns how much did (the producer's side).
+    pub fn push(&self, bytes: &[u8]) -> usize {
+        let tail = self.tail.load(Ordering::Relaxed);
+        let held = tail.wrapping_sub(self.head.load(Ordering::Acquire)).min(N);
+        let kept = bytes.len().min(N - held);
         // Where the free space starts, and its part before the end of the buffer.
-        let tail = (self.head + self.len) % N;
-        let first = kept.min(N - tail);
-        let (before, after) = bytes.split_at(first.min(bytes.len()));
-        if let Some(dst) = self.buf.get_mut(tail..tail + first) {
-            dst.copy_from_slice(before);
+        let at = tail % N;
+        let first = kept.min(N - at);
+        let base = self.buf.get().cast::<u8>();
+        // SAFETY: `at..at + first` and `0..kept - first` lie in the buffer (`at < N`,
+        // `first <= N - at`, `kept - first <= N - held - first`) and in its free space, which
+        // only this side writes and the consumer does not read until `tail` says so below.
+        unsafe {
+            core::ptr::copy_nonoverlapping(bytes.as_ptr(), base.add(at), first);
+            core::ptr::copy_nonoverlapping(bytes.as_ptr().add(first), base, kept - first);
         }
-        let rest = after.get(..kept - first).unwrap_or(&[]);
-        if let Some(dst) = self.buf.get_mut(..rest.len()) {
-            dst.copy_from_slice(rest);
-        }
-        self.len += kept;
+        self.tail.store(tail.wrapping_add(kept), Ordering::Release);
         kept
     }
 
-    /// The oldest bytes held contiguously (all of them unless they wrap).
-    pub fn front(&self) -> &[u8] {
-        let end = (self.head + self.len).min(N);
-        self.buf.get(self.head..end).unwrap_or(&[])
-    }
-
-    /// Drops the `n` oldest bytes (at most all).
-    pub fn consume(&mut self, n: usize) {
-        let n = n.min(self.len);
-        self.head = (self.head + n) % N;
-        self.len -= n;
+    /// Hands the oldest bytes held contiguously (all of them unless they wrap; empty when none
+    /// are) to `read`, then drops as many of them as it returns: the consumer's side. The
+    /// bytes are lent for the call only, so none is read after it gives them back to the
+    /// producer.
+    pub fn consume_front(&self, read: impl FnOnce(&[u8]) -> usize) -> usize {
+        let head = self.head.load(Ordering::Relaxed);
+        let held = self.tail.load(Ordering::Acquire).wrapping_sub(head).min(N);
+        let at = head % N;
+        let run = held.min(N - at);
+        // SAFETY: `at..at + run` lies in the buffer and in the bytes held, which the producer
+        // does not write until `head` below gives them back, after `read` has returned and
+        // its borrow of them has ended.
+        let front = unsafe { core::slice::from_raw_parts(self.buf.get().cast::<u8>().add(at), run) };
+        let taken = read(front).min(run);
+        self.head.store(head.wrapping_add(taken), Ordering::Release);
+        taken
     }
 }
 
@@ -82,7 +120,7 @@ mod tests {
     /// byte `k` of the stream is `k as u8`, so what the ring holds is known from the counts.
     #[test]
     fn holds_the_stream_between_what_went_in_and_out() {
-        let mut ring = Ring::<7>::new();
+        let ring = Ring::<7>::new();
         let (mut pushed, mut consumed) = (0usize, 0usize);
         let mut s = 5u32;
         for _ in 0..10_000 {
@@ -99,13 +137,13 @@ mod tests {
                 assert_eq!(kept, n.min(7 - (pushed - consumed)));
                 pushed += kept;
             } else {
-                let front = ring.front();
-                assert!(!front.is_empty() || pushed == consumed);
-                for (k, &b) in front.iter().enumerate() {
-                    assert_eq!(b, (consumed + k) as u8);
-                }
-                let n = (s as usize / 2) % (front.len() + 1);
-                ring.consume(n);
+                let n = ring.consume_front(|front| {
+                    assert!(!front.is_empty() || pushed == consumed);
+                    for (k, &b) in front.iter().enumerate() {
+                        assert_eq!(b, (consumed + k) as u8);
+                    }
+                    (s as usize / 2) % (front.len() + 1)
+                });
                 consumed += n;
             }
             assert_eq!(ring.len(), pushed - consumed);
