@@ -1,0 +1,126 @@
+//! The firmware on an STM32F405: `mema_firmware_sim::firmware::Firmware` fed by USART1's receive
+//! interrupt, the map sent back on USART1's transmitter.
+//!
+//! The interrupt takes each byte from the data register and pushes it into the ring the
+//! firmware ticks from (`RX`, single-producer single-consumer); the main loop ticks while there
+//! is work and sleeps (`wfi`) while there is none. When the sender's end-of-stream frame has
+//! been mapped, the map is finished with the host's seed and its `.mema` bytes go out on the
+//! transmitter. No semihosting: this image talks only through the USART.
+//!
+//! Clocks: the PLL is set for 168 MHz from the 16 MHz internal oscillator, waiting a bounded
+//! time for it to lock; where it does not (QEMU's `netduinoplus2` models no RCC and reads it as
+//! 0), the part runs on the internal oscillator, and the baud rate divisor follows the clock it
+//! actually has.
+#![no_std]
+#![no_main]
+
+mod clocks;
+mod usart;
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use cortex_m_rt::entry;
+use mema_core::stream::StreamModel;
+use mema_firmware_sim::firmware::{
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
+    model_params,
+};
+use panic_never as _;
+use static_cell::StaticCell;
+use stm32f4::stm32f405::{self as pac, interrupt};
+
+/// The layout of today's image (K = 400 as 150 working clusters and 250 frozen entities), so
+/// the board's map is `mema replay -k 400 --working 150`'s.
+const K: usize = IMAGE_WORKING;
+const G: usize = IMAGE_BUCKETS;
+const F: usize = IMAGE_FROZEN;
+const SEED: u64 = 0;
+/// The link's rate: 921,600 baud, 92 KB/s, as a companion computer's UART runs.
+const BAUD: u32 = 921_600;
+
+/// The receive ring: the interrupt pushes, the main loop's ticks consume.
+static RX: Ring<RX_CAPACITY> = Ring::new();
+/// Bytes the ring had no room for, and bytes the USART lost before the interrupt read them.
+static RING_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+
+type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>>;
+static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
+
+/// Builds the state in its static (out of line, so it is built in place, not on the stack).
+#[inline(never)]
+fn boot(
+    slot: &'static mut core::mem::MaybeUninit<BoardFirmware>,
+    model: StreamModel,
+) -> &'static mut BoardFirmware {
+    slot.write(Firmware::with_ring(
+        model_params(SEED, K, F, model),
+        IMAGE_REACH,
+        &RX,
+    ))
+}
+
+#[interrupt]
+fn USART1() {
+    match usart::receive() {
+        usart::Received::Byte(byte) => {
+            if RX.push(&[byte]) == 0 {
+                RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        usart::Received::Overrun(byte) => {
+            LINE_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+            if RX.push(&[byte]) == 0 {
+                RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        usart::Received::Nothing => {}
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
+        // Taken twice: nothing to run on.
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
+    usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
+    let model = SHELLS;
+    let Some(slot) = FIRMWARE.try_uninit() else {
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    let firmware = boot(slot, model);
+    // SAFETY: the interrupt's handler only pushes into `RX`, which is built for a producer in
+    // an interrupt; nothing else it touches is shared.
+    unsafe {
+        cp.NVIC.set_priority(pac::Interrupt::USART1, 0);
+        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+    }
+    loop {
+        while firmware.busy() {
+            firmware.tick(|_| {});
+        }
+        if firmware.stats().end_of_stream {
+            break;
+        }
+        // Sleep until a byte comes, without missing one that came since `busy` was asked:
+        // with interrupts masked, a pending one still wakes `wfi`, and runs once unmasked.
+        cortex_m::interrupt::free(|_| {
+            if !firmware.busy() {
+                cortex_m::asm::wfi();
+            }
+        });
+    }
+    firmware.finish();
+    // The map goes out as it is encoded: the device holds no copy of the file.
+    let _ = firmware.send_map(usart::send);
+    usart::flush();
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
