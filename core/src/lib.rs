@@ -20,6 +20,7 @@ pub mod closest_point;
 pub mod crc32;
 pub mod de;
 pub mod de32;
+pub mod downlink;
 pub mod fit;
 pub mod fit32;
 pub mod fitness;

@@ -1,0 +1,158 @@
+use super::*;
+use crate::fit::FitParams;
+use crate::map::encode_as;
+use crate::shell::ShellParams;
+use crate::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
+use crate::test_support::{OrFail, TestResult};
+
+/// Tilted shells swept along x, so the mapper freezes the ones it leaves behind and its
+/// shells turn.
+fn swept() -> [Point3; 2000] {
+    let mut pts = [Point3::default(); 2000];
+    for (i, p) in pts.iter_mut().enumerate() {
+        let shell = (i / 250) as f32;
+        let (t, u) = (i as f32 * 0.618, i as f32 * 0.377);
+        let (x, y) = (
+            10.0 * shell + 0.5 * libm::cosf(t) * libm::sinf(u),
+            0.3 * libm::sinf(t) * libm::sinf(u),
+        );
+        *p = Point3::new(x + 0.4 * y, y - 0.04 * x, 0.2 * libm::cosf(u));
+    }
+    pts
+}
+
+fn params(model: StreamModel) -> StreamParams {
+    StreamParams {
+        fit: FitParams::default(),
+        seed: 0,
+        max_clusters: 6,
+        max_frozen: 12,
+        refit_interval: 64,
+        tolerance: 0.0,
+        model,
+        pacing: Pacing::NONE,
+    }
+}
+
+/// The device's map, sent as frames and rebuilt by a host from them alone, is its `.mema`
+/// file byte for byte, in both models; the end frame's length and CRC say so.
+#[test]
+fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
+    let origin = [512_000.25, -3.5, 1_024.0];
+    for model in [
+        StreamModel::Paper,
+        StreamModel::Shells(ShellParams::DEFAULT),
+    ] {
+        let mut m = StreamMapper::<6, 64, 12>::new(params(model));
+        m.add_all(&swept());
+        m.finish();
+        let mut file = [0u8; 2048];
+        let len = m.encode_into(origin, &mut file).or_fail("the map fits")?;
+        let file = file.get(..len).or_fail("its length")?;
+        let layout = m.layout();
+        // The device's side: every entity, then the end.
+        let mut wire = [0u8; 8192];
+        let mut at = 0;
+        let mut sequence = 0u32;
+        let mut send = |frame: DownFrame, wire: &mut [u8], at: &mut usize| -> TestResult {
+            let out = wire.get_mut(*at..).or_fail("room on the wire")?;
+            *at += encode(sequence, &frame, out).or_fail("encodes")?;
+            sequence += 1;
+            Ok(())
+        };
+        let mut count = 0u32;
+        for (index, entity) in m.entities().enumerate() {
+            let index = u32::try_from(index).or_fail("index")?;
+            send(DownFrame::Entity { index, entity }, &mut wire, &mut at)?;
+            count += 1;
+        }
+        let end = MapEnd {
+            entities: count,
+            layout,
+            shift: m.file_shift(layout),
+            origin,
+            map_len: u32::try_from(len).or_fail("length")?,
+            map_crc: crc32(file),
+        };
+        send(DownFrame::End(end), &mut wire, &mut at)?;
+        // The host's side: blocks between delimiters, decoded, in sequence.
+        let mut entities: heapless::Vec<MapEntity, 32> = heapless::Vec::new();
+        let mut got_end = None;
+        let mut expected = 0u32;
+        for block in wire.get_mut(..at).or_fail("sent")?.split_mut(|&b| b == 0) {
+            if block.is_empty() {
+                continue;
+            }
+            let (seq, frame) = decode(block).or_fail("a sent frame decodes")?;
+            assert_eq!(seq, expected);
+            expected += 1;
+            match frame {
+                DownFrame::Entity { index, entity } => {
+                    assert_eq!(index as usize, entities.len());
+                    entities.push(entity).or_fail("room")?;
+                }
+                DownFrame::End(end) => got_end = Some(end),
+            }
+        }
+        let end = got_end.or_fail("an end frame")?;
+        assert_eq!(end.entities as usize, entities.len());
+        let file_origin: [f64; 3] =
+            core::array::from_fn(|j| end.origin[j] + f64::from(end.shift[j]));
+        let stored = entities
+            .iter()
+            .map(|e| stored_entity(*e, end.shift, end.layout));
+        let mut rebuilt = [0u8; 2048];
+        let n = encode_as(end.layout, file_origin, stored, &mut rebuilt).or_fail("rebuilds")?;
+        let rebuilt = rebuilt.get(..n).or_fail("rebuilt")?;
+        assert_eq!(rebuilt, file);
+        assert_eq!((n as u32, crc32(rebuilt)), (end.map_len, end.map_crc));
+        assert!(
+            !m.frozen().is_empty(),
+            "the sweep froze nothing: the test needs frozen entities"
+        );
+    }
+    Ok(())
+}
+
+/// Every flipped byte and every cut of a frame is refused, never a wrong frame or a panic.
+#[test]
+fn corrupt_and_cut_frames_are_refused() -> TestResult {
+    let entity = MapEntity {
+        entity: Entity {
+            center: Point3::new(1.5, -2.0, 0.25),
+            weights: [4.0, 0.0, 100.0],
+            rotation: Rotation::from_quaternion([0.1, -0.3, 0.2, 0.9]).unwrap_or_default(),
+        },
+        kind: EntityKind::Pseudocylinder,
+    };
+    let frame = DownFrame::Entity { index: 7, entity };
+    let mut sent = [0u8; MAX_DOWN_FRAME_LEN];
+    let n = encode(41, &frame, &mut sent).or_fail("encodes")?;
+    let mut block = sent;
+    let block_len = n - 1;
+    let (sequence, back) =
+        decode(block.get_mut(..block_len).or_fail("block")?).or_fail("decodes")?;
+    assert_eq!((sequence, back), (41, frame));
+    for i in 0..block_len {
+        for flip in [0x01u8, 0x80, 0xff] {
+            let mut block = sent;
+            let b = block.get_mut(i).or_fail("byte")?;
+            *b ^= flip;
+            if *b == 0 {
+                continue;
+            }
+            assert!(
+                decode(block.get_mut(..block_len).or_fail("block")?).is_err(),
+                "byte {i}"
+            );
+        }
+    }
+    for cut in 0..block_len {
+        let mut block = sent;
+        assert!(
+            decode(block.get_mut(..cut).or_fail("cut")?).is_err(),
+            "cut at {cut}"
+        );
+    }
+    Ok(())
+}
