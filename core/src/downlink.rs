@@ -8,7 +8,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 1 | version `0x81` |
-//! | 1 | 1 | kind: `0` entity, `1` end of map |
+//! | 1 | 1 | kind: `0` entity, `1` end of map, `2` progress |
 //! | 2 | 4 | sequence: 0 for the first frame after boot, +1 per frame |
 //! | 6 | n | the kind's payload |
 //! | 6 + n | 4 | CRC-32 of every byte before it |
@@ -20,7 +20,10 @@
 //! (0 axis-aligned, 1 oriented, 2 quantized, with the grid's three f32), the shift from the
 //! receiver's origin to the file's (f32), the receiver's origin (f64, metres), and the file's
 //! length and CRC-32, so a host that rebuilds the file with [`stored_entity`] and
-//! `map::encode_as` knows it holds the device's map to the bit.
+//! `map::encode_as` knows it holds the device's map to the bit. A **progress** frame says how
+//! many bytes the device has taken from its receive ring (u32, wrapping) and how many points
+//! frames it has mapped: a sender that keeps what it has sent and the device has not taken
+//! under the ring's size never overruns it, however slowly the device maps.
 
 use crate::crc32::crc32;
 use crate::geometry::{Entity, EntityKind, Point3};
@@ -28,6 +31,11 @@ use crate::map::record::Quantization;
 use crate::map::{Layout, MapEntity};
 use crate::rotation::Rotation;
 use crate::wire::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
+
+/// The receive ring of a mema device: two of the largest points frames, so one frame can be
+/// decoded while the next lands. A sender keeps at most this many bytes beyond the device's
+/// last progress frame in flight.
+pub const RING_BYTES: usize = 2 * crate::wire::MAX_FRAME_LEN;
 
 /// The version byte of a device-to-host frame.
 pub const DOWNLINK_VERSION: u8 = 0x81;
@@ -37,6 +45,8 @@ const CRC_LEN: usize = 4;
 pub const ENTITY_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 16;
 /// An end frame's payload: count, layout and grid, shift, origin, file length and CRC.
 pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4;
+/// A progress frame's payload: bytes taken, frames mapped.
+pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4;
 /// The longest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + END_PAYLOAD_LEN + CRC_LEN;
 /// The longest frame on the wire, its delimiter included.
@@ -44,6 +54,7 @@ pub const MAX_DOWN_FRAME_LEN: usize = cobs_max_encoded_len(MAX_RAW_LEN) + 1;
 
 const KIND_ENTITY: u8 = 0;
 const KIND_END: u8 = 1;
+const KIND_PROGRESS: u8 = 2;
 
 /// How the map's file is written from its entities.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,8 +74,16 @@ pub struct MapEnd {
 /// What a device-to-host frame carries.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum DownFrame {
-    Entity { index: u32, entity: MapEntity },
+    Entity {
+        index: u32,
+        entity: MapEntity,
+    },
     End(MapEnd),
+    /// Bytes taken from the receive ring since boot (wrapping) and points frames mapped.
+    Progress {
+        taken: u32,
+        frames: u32,
+    },
 }
 
 /// Why a frame was not decoded.
@@ -141,6 +160,12 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
             w.put(&end.map_len.to_le_bytes());
             w.put(&end.map_crc.to_le_bytes());
         }
+        DownFrame::Progress { taken, frames } => {
+            w.put(&[KIND_PROGRESS]);
+            w.put(&sequence.to_le_bytes());
+            w.put(&taken.to_le_bytes());
+            w.put(&frames.to_le_bytes());
+        }
     }
     let len = w.at;
     let crc = crc32(raw.get(..len).unwrap_or(&[]));
@@ -183,12 +208,18 @@ pub fn decode(block: &mut [u8]) -> Result<(u32, DownFrame), DownlinkError> {
     let expected = match kind {
         KIND_ENTITY => ENTITY_PAYLOAD_LEN,
         KIND_END => END_PAYLOAD_LEN,
+        KIND_PROGRESS => PROGRESS_PAYLOAD_LEN,
         other => return Err(DownlinkError::Code(other)),
     };
     if body.len() != HEADER_LEN + expected {
         return Err(DownlinkError::Length { got: len });
     }
-    let frame = if kind == KIND_ENTITY {
+    let frame = if kind == KIND_PROGRESS {
+        DownFrame::Progress {
+            taken: r.u32()?,
+            frames: r.u32()?,
+        }
+    } else if kind == KIND_ENTITY {
         let index = r.u32()?;
         let kind = EntityKind::from_u8(r.u8()?).ok_or(DownlinkError::Value)?;
         let center = Point3::new(r.f32()?, r.f32()?, r.f32()?);

@@ -61,6 +61,12 @@ impl<const N: usize> Ring<N> {
         self.len() == 0
     }
 
+    /// Bytes taken out since the start (wrapping): the consumer's count, which a device
+    /// reports so a sender never has more in flight than the ring holds.
+    pub fn taken(&self) -> usize {
+        self.head.load(Ordering::Acquire)
+    }
+
     /// Drops every byte held (the consumer's side: a reset).
     pub fn clear(&self) {
         self.head
@@ -99,7 +105,8 @@ impl<const N: usize> Ring<N> {
         // SAFETY: `at..at + run` lies in the buffer and in the bytes held, which the producer
         // does not write until `head` below gives them back, after `read` has returned and
         // its borrow of them has ended.
-        let front = unsafe { core::slice::from_raw_parts(self.buf.get().cast::<u8>().add(at), run) };
+        let front =
+            unsafe { core::slice::from_raw_parts(self.buf.get().cast::<u8>().add(at), run) };
         let taken = read(front).min(run);
         self.head.store(head.wrapping_add(taken), Ordering::Release);
         taken

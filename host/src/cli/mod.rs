@@ -10,7 +10,7 @@ pub use args::{Cli, Command};
 
 /// Runs the subcommand `cli` holds.
 pub fn run(cli: &Cli) -> anyhow::Result<()> {
-    use commands::{bench, demo, demo_moving, eval, info, map, query, serial, toolbox};
+    use commands::{bench, demo, demo_moving, device, eval, info, map, query, serial, toolbox};
     match &cli.command {
         Command::Map(a) => map::map(a),
         Command::Eval(a) => eval::eval(a),
@@ -22,6 +22,7 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         Command::Stream(a) => serial::stream(a),
         Command::Record(a) => serial::record(a),
         Command::Replay(a) => serial::replay(a),
+        Command::Device(a) => device::device(a),
         Command::ScannerSim(a) => serial::scanner_sim(a),
         Command::Query(a) => query::query(a),
         Command::Transform(a) => query::transform(a),

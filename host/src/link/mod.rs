@@ -5,6 +5,7 @@
 //! The loops that run a link until its end (`mema stream`, `record`, `replay`, `scanner-sim`)
 //! are the command line's: they own Ctrl-C, progress lines and exit statuses.
 pub mod capture;
+pub mod device;
 pub mod frames;
 pub mod port;
 pub mod scanner;

@@ -43,6 +43,15 @@ pub fn open_for_writing(path: &Path, baud: u32) -> Result<Box<dyn Write + Send>>
     }
 }
 
+/// Both directions of a port (a device that answers: `mema device`), read with a timeout.
+pub fn open_duplex(path: &Path, baud: u32) -> Result<Box<dyn serialport::SerialPort>> {
+    if is_terminal_device(path) {
+        open_serial(path, baud)
+    } else {
+        anyhow::bail!("{}: not a serial port or terminal device", path.display())
+    }
+}
+
 /// What one read produced.
 pub enum ReadOutcome {
     Bytes(usize),

@@ -51,9 +51,7 @@ pub fn setup(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
         rcc.cfgr().write(|w| unsafe { w.bits(0) });
         return hsi;
     }
-    Clocks {
-        pclk2: 84_000_000,
-    }
+    Clocks { pclk2: 84_000_000 }
 }
 
 /// Whether `ready` came true within [`READY_POLLS`] polls.

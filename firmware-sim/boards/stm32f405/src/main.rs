@@ -3,9 +3,12 @@
 //!
 //! The interrupt takes each byte from the data register and pushes it into the ring the
 //! firmware ticks from (`RX`, single-producer single-consumer); the main loop ticks while there
-//! is work and sleeps (`wfi`) while there is none. When the sender's end-of-stream frame has
-//! been mapped, the map is finished with the host's seed and its `.mema` bytes go out on the
-//! transmitter. No semihosting: this image talks only through the USART.
+//! is work, sends what the downlink has due (entities as they freeze, progress as the ring
+//! empties: PROTOCOL.md, "Device to host"), and sleeps (`wfi`) while there is nothing to do.
+//! When the sender's end-of-stream frame has been mapped, the map is finished with the host's
+//! seed and its remaining entities and end frame go out. No semihosting: this image talks only
+//! through the USART. The entity model is shells, the host's default, or the paper's with the
+//! `paper` feature.
 //!
 //! Clocks: the PLL is set for 168 MHz from the 16 MHz internal oscillator, waiting a bounded
 //! time for it to lock; where it does not (QEMU's `netduinoplus2` models no RCC and reads it as
@@ -88,7 +91,11 @@ fn main() -> ! {
     };
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
-    let model = SHELLS;
+    let model = if cfg!(feature = "paper") {
+        StreamModel::Paper
+    } else {
+        SHELLS
+    };
     let Some(slot) = FIRMWARE.try_uninit() else {
         loop {
             cortex_m::asm::wfi();
@@ -105,6 +112,7 @@ fn main() -> ! {
         while firmware.busy() {
             firmware.tick(|_| {});
         }
+        firmware.send_downlink(usart::send);
         if firmware.stats().end_of_stream {
             break;
         }
@@ -117,8 +125,8 @@ fn main() -> ! {
         });
     }
     firmware.finish();
-    // The map goes out as it is encoded: the device holds no copy of the file.
-    let _ = firmware.send_map(usart::send);
+    // The rest of the map goes out entity by entity: the device holds no copy of the file.
+    let _ = firmware.send_end(usart::send);
     usart::flush();
     loop {
         cortex_m::asm::wfi();

@@ -21,16 +21,18 @@ pub fn setup(rcc: &pac::RCC, gpioa: &pac::GPIOA, usart: pac::USART1, pclk2: u32,
     rcc.ahb1enr().modify(|_, w| w.gpioaen().set_bit());
     rcc.apb2enr().modify(|_, w| w.usart1en().set_bit());
     // SAFETY: MODER9/10 = 0b10 (alternate function), AFRH9/10 = 7 (USART1): RM0090 8.4.
-    gpioa.moder().modify(|r, w| unsafe {
-        w.bits((r.bits() & !(0b1111 << 18)) | (0b1010 << 18))
-    });
-    gpioa.afrh().modify(|r, w| unsafe {
-        w.bits((r.bits() & !(0xff << 4)) | (0x77 << 4))
-    });
+    gpioa
+        .moder()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !(0b1111 << 18)) | (0b1010 << 18)) });
+    gpioa
+        .afrh()
+        .modify(|r, w| unsafe { w.bits((r.bits() & !(0xff << 4)) | (0x77 << 4)) });
     // Oversampling by 16: BRR is the bus clock over the baud rate, rounded.
     // SAFETY: BRR takes any 16-bit divisor; 84 MHz / 921,600 is 91, 16 MHz / 921,600 is 17.
     let divisor = (pclk2 + baud / 2) / baud;
-    usart.brr().write(|w| unsafe { w.bits((divisor & 0xffff) as u16) });
+    usart
+        .brr()
+        .write(|w| unsafe { w.bits((divisor & 0xffff) as u16) });
     usart.cr1().write(|w| {
         w.ue()
             .set_bit()

@@ -155,3 +155,25 @@ pub struct StreamBenchArgs {
     #[arg(long)]
     pub json: bool,
 }
+
+#[derive(Args, Debug)]
+pub struct DeviceArgs {
+    /// The device's serial port or pty (a board, or the board image under QEMU).
+    #[arg(long)]
+    pub port: PathBuf,
+    /// Line speed in bits per second (a pty ignores it).
+    #[arg(long, default_value_t = 921_600)]
+    pub baud: u32,
+    /// What to send: a capture (`mema record`, `scanner-sim` to a file; it starts with the
+    /// protocol's 0x00), or a cloud, a ROS 2 bag (--topic, --frame) or a registration file
+    /// (.conf), encoded as `mema scanner-sim` encodes them.
+    pub input: PathBuf,
+    /// The map the device sends back, written atomically once it is whole and checked.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    #[command(flatten)]
+    pub bag: BagArg,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}

@@ -11,7 +11,8 @@ pub mod units;
 pub use bag::BagArg;
 pub use fit::FitArgs;
 pub use link::{
-    RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamBenchArgs, StreamShapeArgs,
+    DeviceArgs, RecordArgs, ReplayArgs, ScannerSimArgs, StreamArgs, StreamBenchArgs,
+    StreamShapeArgs,
 };
 pub use map::{AblationArgs, DemoArgs, EntityArg, EvalArgs, InfoArgs, MapArgs, ModelArg};
 pub use tools::{
@@ -93,6 +94,9 @@ pub enum Command {
     Replay(ReplayArgs),
     /// Play a cloud (or the built-in scene) as a rangefinder would, to a port or a capture file.
     ScannerSim(ScannerSimArgs),
+    /// Send points to a mapping device (a board running mema's firmware) and write the map it
+    /// sends back, entity by entity, once it is whole and its CRC-32 agrees.
+    Device(DeviceArgs),
     /// Ask a map: signed distance and occupancy at a point, first hit along a ray.
     Query(QueryArgs),
     /// Move a map rigidly (translation exact; rotations see README).

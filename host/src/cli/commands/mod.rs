@@ -3,6 +3,7 @@ pub mod bench;
 pub mod demo;
 mod demo_files;
 pub mod demo_moving;
+pub mod device;
 pub mod eval;
 pub mod info;
 pub mod map;

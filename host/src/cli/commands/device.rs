@@ -1,0 +1,86 @@
+//! `mema device`: points out to a mapping device, its map back (`mema::link::device`).
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use mema::io::atomic::write_file_atomically;
+use mema::io::kind::InputKind;
+use mema::io::output::check_map_output;
+use mema::link::device::{DownlinkCounts, send_and_receive};
+use mema::link::port::open_duplex;
+use mema::link::scanner::{scans_of_input, send_scans};
+use mema_core::downlink::RING_BYTES;
+
+use crate::cli::args::DeviceArgs;
+
+/// The most bytes a capture may have.
+const CAPTURE_LIMIT: u64 = 1 << 30;
+
+#[derive(Serialize)]
+struct DeviceSummary {
+    output: String,
+    /// Bytes sent to the device.
+    sent: usize,
+    map_bytes: usize,
+    #[serde(flatten)]
+    downlink: DownlinkCounts,
+}
+
+pub fn device(args: &DeviceArgs) -> Result<()> {
+    check_map_output(&args.output)?;
+    super::check_bag_args(&args.input, &args.bag)?;
+    let name = args.input.display().to_string();
+    let stream = match InputKind::of(&args.input) {
+        InputKind::Bag | InputKind::Registration => encode(args)?,
+        _ => {
+            let bytes = mema::io::input::read_bounded(&args.input, CAPTURE_LIMIT, "input")?;
+            // A capture starts with the protocol's delimiter; anything else is a cloud.
+            if bytes.first() == Some(&0) {
+                bytes
+            } else {
+                encode(args)?
+            }
+        }
+    };
+    let mut port = open_duplex(&args.port, args.baud)?;
+    let quiet = args.json;
+    let total = stream.len();
+    // The device's ring holds RING_BYTES: never more than that is in flight.
+    let (map, counts) = send_and_receive(&mut port, &stream, RING_BYTES, |sent, taken| {
+        if !quiet {
+            eprint!("\rmema device: {sent} of {total} bytes sent, {taken} taken");
+        }
+    })
+    .with_context(|| format!("{}: {name}", args.port.display()))?;
+    if !quiet {
+        eprintln!();
+    }
+    write_file_atomically(&args.output, &map, "map")?;
+    let summary = DeviceSummary {
+        output: args.output.display().to_string(),
+        sent: total,
+        map_bytes: map.len(),
+        downlink: counts,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string(&summary)?);
+    } else {
+        println!(
+            "{}: {} entities, {} bytes from the device ({} frames, {} refused, {} lost)",
+            summary.output,
+            summary.downlink.entities,
+            summary.map_bytes,
+            summary.downlink.frames,
+            summary.downlink.refused,
+            summary.downlink.lost
+        );
+    }
+    Ok(())
+}
+
+/// A cloud, bag or registration file encoded as `mema scanner-sim` sends it.
+fn encode(args: &DeviceArgs) -> Result<Vec<u8>> {
+    let scans = scans_of_input(&args.input, None, &args.bag.options())
+        .with_context(|| args.input.display().to_string())?;
+    Ok(send_scans(&scans)?.bytes)
+}

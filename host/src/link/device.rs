@@ -1,0 +1,225 @@
+//! The host's side of a mapping device's link (`mema device`): the points go out within the
+//! device's receive ring, the map comes back as frames ([`mema_core::downlink`]), and the map
+//! file is rebuilt from them and checked against the length and CRC-32 the device sends.
+//!
+//! [`MapFrames`] takes the device's bytes in any pieces; [`send_and_receive`] runs a whole
+//! session over a port.
+
+use std::io::{Read, Write};
+use std::time::{Duration, Instant};
+
+use mema_core::crc32::crc32;
+use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, stored_entity};
+use mema_core::map::{MapEntity, encode_as};
+use serde::Serialize;
+
+use super::port::{ReadOutcome, read_some};
+
+/// Why a session gave no map.
+#[derive(Debug, thiserror::Error)]
+pub enum DeviceError {
+    #[error("the device sent its end but entities {missing:?} never arrived intact")]
+    Missing { missing: Vec<u32> },
+    #[error(
+        "the map rebuilt from the device's frames is not its map ({got_len} bytes, CRC-32 {got_crc:08x}; the device says {len} bytes, {crc:08x})"
+    )]
+    Mismatch {
+        got_len: usize,
+        got_crc: u32,
+        len: u32,
+        crc: u32,
+    },
+    #[error("the device's map cannot be written: {0:?}")]
+    Encode(mema_core::map::EncodeError),
+    #[error("the device said nothing for {seconds} s ({sent} of {total} bytes sent)")]
+    Silent {
+        seconds: u64,
+        sent: usize,
+        total: usize,
+    },
+    #[error("the port is gone: {0}")]
+    Gone(String),
+    #[error("the port: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// What the device's frames said, and what went wrong on the way.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct DownlinkCounts {
+    /// Frames decoded intact.
+    pub frames: u64,
+    /// Blocks refused (a CRC, COBS or length failure): line noise.
+    pub refused: u64,
+    /// Frames the sequence numbers say never arrived.
+    pub lost: u64,
+    /// Entities received (each once).
+    pub entities: usize,
+    /// The device's last progress: points frames it mapped.
+    pub device_frames: u32,
+}
+
+/// The device's frames as they arrive: entities by index, the progress, the end.
+#[derive(Debug, Default)]
+pub struct MapFrames {
+    block: Vec<u8>,
+    /// Past a block too long for any frame: skipped to the next delimiter.
+    overlong: bool,
+    entities: Vec<Option<MapEntity>>,
+    next_sequence: Option<u32>,
+    /// Bytes the device has taken from its ring (accumulated from its wrapping count).
+    taken: u64,
+    last_taken: u32,
+    end: Option<MapEnd>,
+    pub counts: DownlinkCounts,
+}
+
+impl MapFrames {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes the device's bytes, in any pieces.
+    pub fn feed(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            if b != 0 {
+                if self.block.len() < MAX_DOWN_FRAME_LEN {
+                    self.block.push(b);
+                } else {
+                    self.overlong = true;
+                }
+                continue;
+            }
+            let mut block = std::mem::take(&mut self.block);
+            if std::mem::take(&mut self.overlong) {
+                self.counts.refused += 1;
+            } else if !block.is_empty() {
+                match downlink::decode(&mut block) {
+                    Ok((sequence, frame)) => self.accept(sequence, frame),
+                    Err(_) => self.counts.refused += 1,
+                }
+            }
+            block.clear();
+            self.block = block;
+        }
+    }
+
+    fn accept(&mut self, sequence: u32, frame: DownFrame) {
+        self.counts.frames += 1;
+        if let Some(expected) = self.next_sequence {
+            self.counts.lost += u64::from(sequence.wrapping_sub(expected));
+        }
+        self.next_sequence = Some(sequence.wrapping_add(1));
+        match frame {
+            DownFrame::Entity { index, entity } => {
+                let i = index as usize;
+                // An index past any map's size is a corrupt frame that passed its CRC.
+                if i >= 1 << 24 {
+                    self.counts.refused += 1;
+                    return;
+                }
+                if self.entities.len() <= i {
+                    self.entities.resize(i + 1, None);
+                }
+                if self.entities[i].replace(entity).is_none() {
+                    self.counts.entities += 1;
+                }
+            }
+            DownFrame::Progress { taken, frames } => {
+                self.taken += u64::from(taken.wrapping_sub(self.last_taken));
+                self.last_taken = taken;
+                self.counts.device_frames = frames;
+            }
+            DownFrame::End(end) => self.end = Some(end),
+        }
+    }
+
+    /// Bytes the device has taken from its ring so far.
+    pub fn taken(&self) -> u64 {
+        self.taken
+    }
+
+    /// Whether the device has sent its end.
+    pub fn ended(&self) -> bool {
+        self.end.is_some()
+    }
+
+    /// The map file, once the end has come: rebuilt from the entities as the device's own
+    /// encoder writes it, and checked against the length and CRC-32 it sent.
+    pub fn map_file(&self) -> Option<Result<Vec<u8>, DeviceError>> {
+        let end = self.end?;
+        Some(self.rebuild(&end))
+    }
+
+    fn rebuild(&self, end: &MapEnd) -> Result<Vec<u8>, DeviceError> {
+        let count = end.entities as usize;
+        let missing: Vec<u32> = (0..end.entities)
+            .filter(|&i| self.entities.get(i as usize).is_none_or(Option::is_none))
+            .collect();
+        if !missing.is_empty() {
+            return Err(DeviceError::Missing { missing });
+        }
+        let entities = self.entities.iter().take(count).flatten().copied();
+        let stored = entities.map(|e| stored_entity(e, end.shift, end.layout));
+        let origin: [f64; 3] = std::array::from_fn(|j| end.origin[j] + f64::from(end.shift[j]));
+        let mut out = vec![0u8; end.layout.encoded_len(count)];
+        let len = encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::Encode)?;
+        out.truncate(len);
+        let got_crc = crc32(&out);
+        if len != end.map_len as usize || got_crc != end.map_crc {
+            return Err(DeviceError::Mismatch {
+                got_len: len,
+                got_crc,
+                len: end.map_len,
+                crc: end.map_crc,
+            });
+        }
+        Ok(out)
+    }
+}
+
+/// How long the device may say nothing while it has work before the session is given up.
+pub const SILENCE: Duration = Duration::from_secs(30);
+
+/// Sends `stream` (encoded points frames) over `port`, never more than `window` bytes ahead of
+/// what the device has taken from its ring, and receives the map frames until the device's
+/// end; `progress` is called with (bytes sent, bytes taken) as they change.
+pub fn send_and_receive(
+    port: &mut (impl Read + Write),
+    stream: &[u8],
+    window: usize,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(Vec<u8>, DownlinkCounts), DeviceError> {
+    let mut frames = MapFrames::new();
+    let mut sent = 0usize;
+    let mut buf = [0u8; 4096];
+    let mut heard = Instant::now();
+    loop {
+        let in_flight = (sent as u64).saturating_sub(frames.taken()) as usize;
+        if sent < stream.len() && in_flight < window {
+            let n = (window - in_flight).min(stream.len() - sent).min(256);
+            port.write_all(&stream[sent..sent + n])?;
+            port.flush()?;
+            sent += n;
+            progress(sent, frames.taken());
+        }
+        match read_some(port, &mut buf) {
+            ReadOutcome::Bytes(n) => {
+                frames.feed(&buf[..n]);
+                heard = Instant::now();
+                progress(sent, frames.taken());
+            }
+            ReadOutcome::Idle => {}
+            ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
+        }
+        if let Some(map) = frames.map_file() {
+            return map.map(|m| (m, frames.counts.clone()));
+        }
+        if heard.elapsed() > SILENCE {
+            return Err(DeviceError::Silent {
+                seconds: SILENCE.as_secs(),
+                sent,
+                total: stream.len(),
+            });
+        }
+    }
+}
