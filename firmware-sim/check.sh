@@ -77,6 +77,24 @@ else
   echo "firmware: car6 after 1 MiB of idle zeros: the debug build's map differs"
   status=1
 fi
+# The board (issue 22): the STM32F405 image under QEMU's netduinoplus2, fed over its USART by
+# `mema device` on a pty, sends its map back as downlink frames; the map `mema device` rebuilds
+# from them must be `mema replay`'s at the board's layout, byte for byte.
+for cloud in car6.pcd demo; do
+  for model in paper shells; do
+    m="$work/$cloud/$model"
+    firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" > "$m/board.txt" 2>&1 \
+      || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
+    if cmp -s "$m/replay.mema" "$m/board.mema"; then
+      echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
+    else
+      echo "firmware: $cloud, $model: the board's map differs from mema replay:"
+      cmp "$m/replay.mema" "$m/board.mema" || true
+      tail -1 "$m/board.txt"
+      status=1
+    fi
+  done
+done
 for model in paper shells; do
   echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen, model $model)"
   target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt"
