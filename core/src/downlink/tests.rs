@@ -165,3 +165,78 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
     }
     Ok(())
 }
+
+/// Bytes of a hex string into `out`; the count.
+fn hex(s: &str, out: &mut [u8]) -> Result<usize, &'static str> {
+    let mut n = 0;
+    for pair in s.split_whitespace() {
+        *out.get_mut(n).or_fail("room")? = u8::from_str_radix(pair, 16).or_fail("hex")?;
+        n += 1;
+    }
+    Ok(n)
+}
+
+/// PROTOCOL.md's device-to-host examples, whose bytes were computed independently (Python's
+/// `struct`, `zlib.crc32` and a COBS written from its definition): mema emits exactly them and
+/// reads them back.
+#[test]
+fn protocol_examples() -> TestResult {
+    let entity = DownFrame::Entity {
+        index: 0,
+        entity: MapEntity {
+            entity: Entity {
+                center: Point3::new(1.5, -2.0, 0.25),
+                weights: [4.0, 0.0, 100.0],
+                rotation: Rotation {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 1.0,
+                },
+            },
+            kind: EntityKind::Pseudocylinder,
+        },
+    };
+    let progress = DownFrame::Progress {
+        taken: 3124,
+        frames: 2,
+    };
+    let end = DownFrame::End(MapEnd {
+        entities: 1,
+        layout: Layout::Oriented,
+        shift: [0.5, 0.0, -1.0],
+        origin: [512_000.25, -3.5, 1_024.0],
+        map_len: 86,
+        map_crc: 0x1234_5678,
+    });
+    let examples = [
+        (
+            0,
+            entity,
+            "02 81 01 01 01 01 01 01 01 01 02 02 01 03 c0 3f 01 01 02 c0 01 03 80 3e 01 03 80 40 \
+             01 01 01 01 01 03 c8 42 01 01 01 01 01 01 01 01 01 01 01 01 01 07 80 3f 4a a3 6f 07 00",
+        ),
+        (
+            1,
+            progress,
+            "04 81 02 01 01 01 03 34 0c 01 02 02 01 01 05 0f 71 10 58 00",
+        ),
+        (
+            2,
+            end,
+            "04 81 01 02 01 01 02 01 01 01 02 01 01 01 01 01 01 01 01 01 01 01 01 01 01 01 02 3f \
+             01 01 01 01 01 03 80 bf 01 01 01 05 01 40 1f 41 01 01 01 01 01 03 0c c0 01 01 01 01 \
+             01 04 90 40 56 01 01 09 78 56 34 12 73 9c 9c 37 00",
+        ),
+    ];
+    for (sequence, frame, wire) in examples {
+        let mut want = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = hex(wire, &mut want)?;
+        let mut got = [0u8; MAX_DOWN_FRAME_LEN];
+        let m = encode(sequence, &frame, &mut got).or_fail("encodes")?;
+        assert_eq!(got.get(..m), want.get(..n), "sequence {sequence}");
+        let back = decode(want.get_mut(..n - 1).or_fail("block")?).or_fail("decodes")?;
+        assert_eq!(back, (sequence, frame));
+    }
+    Ok(())
+}
