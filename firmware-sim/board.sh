@@ -9,6 +9,7 @@
 #
 #   firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper]
 #
+# MEMA=path/to/mema uses that build of the host's command instead of building one.
 # Needs: the thumbv7em-none-eabihf target and qemu-system-arm (scripts/test.sh installs both).
 set -euo pipefail
 usage() { echo "usage: firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper]" >&2; exit 2; }
@@ -33,7 +34,11 @@ cd "$(dirname "$0")/.."
 k=400
 working=150
 
-cargo build -q --release -p mema
+# The host's command: $MEMA if set (a mema already built), else built here.
+if [ -z "${MEMA:-}" ]; then
+  cargo build -q --release -p mema
+  MEMA="${CARGO_TARGET_DIR:-target}/release/mema"
+fi
 board=firmware-sim/boards/stm32f405
 # One target directory per model: both images stay built.
 (cd "$board" && cargo build -q --release --target-dir "target/$model" "${features[@]}")
@@ -57,5 +62,5 @@ for _ in $(seq 100); do
   sleep 0.1
 done
 [ -n "$pty" ] || { echo "board.sh: QEMU gave no pty" >&2; exit 1; }
-summary=$(target/release/mema device --port "$pty" "$input" -o "$out" --json)
+summary=$("$MEMA" device --port "$pty" "$input" -o "$out" --json)
 echo "{\"board\":\"stm32f405\",\"model\":\"$model\",\"k\":$k,\"working\":$working,\"device\":$summary}"

@@ -83,7 +83,7 @@ fi
 for cloud in car6.pcd demo; do
   for model in paper shells; do
     m="$work/$cloud/$model"
-    firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" > "$m/board.txt" 2>&1 \
+    MEMA=target/release/mema firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" > "$m/board.txt" 2>&1 \
       || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
     if cmp -s "$m/replay.mema" "$m/board.mema"; then
       echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
