@@ -41,7 +41,8 @@ if [ -z "${MEMA:-}" ]; then
 fi
 board=firmware-sim/boards/stm32f405
 # One target directory per model: both images stay built.
-(cd "$board" && cargo build -q --release --target-dir "target/$model" "${features[@]}")
+(cd "$board" && cargo fmt --check && cargo clippy -q --release --target-dir "target/$model" "${features[@]}" -- -D warnings \
+  && cargo build -q --release --target-dir "target/$model" "${features[@]}")
 image="$board/target/$model/thumbv7em-none-eabihf/release/mema-board-stm32f405"
 
 work=$(mktemp -d)

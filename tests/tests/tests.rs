@@ -48,6 +48,8 @@ mod poses;
 mod multiview;
 // The moving robot through the demo scene, streamed with its poses.
 mod drive;
+// The map back over the link: downlink frames rebuild replay's map; faults never a wrong one.
+mod device;
 // Outliers in files: a far point dropped before centring, or the precision check refusing.
 mod outliers;
 // The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).

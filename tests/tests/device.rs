@@ -1,0 +1,147 @@
+//! The map back over the link (issue 22): the firmware's downlink frames, taken by the host's
+//! `MapFrames` in any pieces, rebuild `mema replay`'s map byte for byte; with bytes of the
+//! downlink dropped, flipped or duplicated (seeded), the host never writes a wrong map: it
+//! either has the device's map to the bit or says which entities it lacks.
+
+use mema::link::device::{DeviceError, MapFrames};
+use mema_core::stream::StreamModel;
+use mema_firmware_sim::firmware::{
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
+};
+
+use crate::util::{Dir, MemaCommand, shared};
+
+type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
+
+/// The capture `mema scanner-sim` writes for `cloud`, and `mema replay`'s map of it at the
+/// image's layout (K = 400: 150 working, 250 frozen) in `model`.
+fn capture_and_replay(dir: &Dir, cloud: &str, model: &str) -> (Vec<u8>, Vec<u8>) {
+    let capture = dir.join(&format!("{cloud}.bin"));
+    if !capture.exists() {
+        MemaCommand::new(dir)
+            .args(["scanner-sim", "--port"])
+            .arg(&capture)
+            .arg(shared(cloud))
+            .run()
+            .assert_ok();
+    }
+    let map = dir.join(&format!("{cloud}-{model}.mema"));
+    MemaCommand::new(dir)
+        .arg("replay")
+        .arg(&capture)
+        .args(["-k", "400", "--working", "150", "--model", model, "-o"])
+        .arg(&map)
+        .run()
+        .assert_ok();
+    (
+        std::fs::read(&capture).expect("capture"),
+        std::fs::read(&map).expect("map"),
+    )
+}
+
+/// The device's side, as the board's main loop runs it: bytes in, ticks, the downlink's frames
+/// after each pass, the rest and the end after finishing. Returns everything it sent.
+fn device_downlink(capture: &[u8], model: StreamModel) -> Vec<u8> {
+    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, model);
+    let mut firmware: Box<Image> = Box::new(Firmware::with_reach(params, IMAGE_REACH));
+    let mut sent = Vec::new();
+    for chunk in capture.chunks(97) {
+        firmware.on_receive(chunk);
+        while firmware.busy() {
+            firmware.tick(|_| {});
+        }
+        firmware.send_downlink(|bytes| sent.extend_from_slice(bytes));
+    }
+    firmware.finish();
+    firmware
+        .send_end(|bytes| sent.extend_from_slice(bytes))
+        .expect("the map encodes");
+    sent
+}
+
+#[test]
+fn the_downlink_rebuilds_the_replay_map_in_both_models() {
+    let dir = Dir::new("downlink");
+    for model in ["paper", "shells"] {
+        let stream_model = if model == "paper" {
+            StreamModel::Paper
+        } else {
+            SHELLS
+        };
+        let (capture, replayed) = capture_and_replay(&dir, "car6.pcd", model);
+        let downlink = device_downlink(&capture, stream_model);
+        // In pieces of every size: the same map.
+        for piece in [1, 13, 4096] {
+            let mut frames = MapFrames::new();
+            for bytes in downlink.chunks(piece) {
+                frames.feed(bytes);
+            }
+            let map = frames.map_file().expect("an end").expect("a whole map");
+            assert_eq!(map, replayed, "{model}, pieces of {piece}");
+            assert_eq!((frames.counts.refused, frames.counts.lost), (0, 0));
+            assert!(frames.counts.entities > 250, "{model}: {:?}", frames.counts);
+        }
+    }
+}
+
+/// A seeded xorshift.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+}
+
+#[test]
+fn a_faulty_downlink_never_gives_a_wrong_map() {
+    let dir = Dir::new("downlink-faults");
+    let (capture, replayed) = capture_and_replay(&dir, "car6.pcd", "shells");
+    let downlink = device_downlink(&capture, SHELLS);
+    let (mut whole, mut incomplete) = (0, 0);
+    for seed in 1..=40u64 {
+        let mut rng = Rng(seed * 0x9E37_79B9_7F4A_7C15);
+        let faults = 1 + rng.next() % 4;
+        let mut line = downlink.clone();
+        for _ in 0..faults {
+            let at = (rng.next() % line.len() as u64) as usize;
+            match rng.next() % 3 {
+                0 => {
+                    line.remove(at);
+                }
+                1 => line[at] ^= 1 << (rng.next() % 8),
+                _ => {
+                    let b = line[at];
+                    line.insert(at, b);
+                }
+            }
+        }
+        let mut frames = MapFrames::new();
+        frames.feed(&line);
+        match frames.map_file() {
+            Some(Ok(map)) => {
+                assert_eq!(map, replayed, "seed {seed}: a map, and not the device's");
+                whole += 1;
+            }
+            Some(Err(DeviceError::Missing { missing })) => {
+                assert!(!missing.is_empty());
+                assert!(
+                    frames.counts.refused + frames.counts.lost > 0,
+                    "seed {seed}: entities missing with no fault seen"
+                );
+                incomplete += 1;
+            }
+            // The end frame itself was hit: nothing to write, and the host says so.
+            None => incomplete += 1,
+            Some(Err(e)) => panic!("seed {seed}: {e}"),
+        }
+    }
+    // Faults that hit progress frames leave the map whole; those that hit entities do not.
+    assert!(
+        whole > 0 && incomplete > 0,
+        "{whole} whole, {incomplete} incomplete"
+    );
+}
