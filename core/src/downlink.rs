@@ -18,9 +18,10 @@
 //! (x, y, z, w) as f32, in the mapper's frame (relative to the receiver's origin). The
 //! **end** frame says how the map's file is written from them: the count, the layout
 //! (0 axis-aligned, 1 oriented, 2 quantized, with the grid's three f32), the shift from the
-//! receiver's origin to the file's (f32), the receiver's origin (f64, metres), and the file's
-//! length and CRC-32, so a host that rebuilds the file with [`stored_entity`] and
-//! `map::encode_as` knows it holds the device's map to the bit. A **progress** frame says how
+//! receiver's origin to the file's (f32), the receiver's origin (f64, metres), the file's
+//! length and CRC-32 (so a host that rebuilds the file with [`stored_entity`] and
+//! `map::encode_as` knows it holds the device's map to the bit), and the points and points
+//! frames the device mapped. A **progress** frame says how
 //! many bytes the device has taken from its receive ring (u32, wrapping) and how many points
 //! frames it has mapped: a sender that keeps what it has sent and the device has not taken
 //! under the ring's size never overruns it, however slowly the device maps.
@@ -43,8 +44,9 @@ const HEADER_LEN: usize = 6;
 const CRC_LEN: usize = 4;
 /// An entity frame's payload: index, kind, centre, weights, rotation.
 pub const ENTITY_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 16;
-/// An end frame's payload: count, layout and grid, shift, origin, file length and CRC.
-pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4;
+/// An end frame's payload: count, layout and grid, shift, origin, file length and CRC, points
+/// and frames mapped.
+pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4 + 4 + 4;
 /// A progress frame's payload: bytes taken, frames mapped.
 pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4;
 /// The longest raw frame.
@@ -69,6 +71,9 @@ pub struct MapEnd {
     /// The file's length in bytes and its CRC-32.
     pub map_len: u32,
     pub map_crc: u32,
+    /// Points and points frames the device mapped (wrapping past 2^32).
+    pub points: u32,
+    pub frames: u32,
 }
 
 /// What a device-to-host frame carries.
@@ -159,6 +164,8 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
             }
             w.put(&end.map_len.to_le_bytes());
             w.put(&end.map_crc.to_le_bytes());
+            w.put(&end.points.to_le_bytes());
+            w.put(&end.frames.to_le_bytes());
         }
         DownFrame::Progress { taken, frames } => {
             w.put(&[KIND_PROGRESS]);
@@ -279,6 +286,8 @@ pub fn decode(block: &mut [u8]) -> Result<(u32, DownFrame), DownlinkError> {
             origin,
             map_len: r.u32()?,
             map_crc: r.u32()?,
+            points: r.u32()?,
+            frames: r.u32()?,
         })
     };
     Ok((sequence, frame))

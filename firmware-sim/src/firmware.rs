@@ -442,6 +442,8 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             origin: self.receiver.origin(),
             map_len: u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?,
             map_crc: crc.finish(),
+            points: self.mapper.stats().points as u32,
+            frames: self.stats.frames as u32,
         };
         send_frame(&mut self.down.sequence, &DownFrame::End(end), &mut sink);
         Ok(len)

@@ -80,6 +80,9 @@ fn the_downlink_rebuilds_the_replay_map_in_both_models() {
             assert_eq!(map, replayed, "{model}, pieces of {piece}");
             assert_eq!((frames.counts.refused, frames.counts.lost), (0, 0));
             assert!(frames.counts.entities > 250, "{model}: {:?}", frames.counts);
+            // car6's 10,031 points (scanner-sim says so as it writes them), every one mapped.
+            assert_eq!(frames.counts.points, 10_031);
+            assert!(frames.counts.device_frames > 0);
         }
     }
 }

@@ -73,6 +73,8 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
             origin,
             map_len: u32::try_from(len).or_fail("length")?,
             map_crc: crc32(file),
+            points: 2000,
+            frames: 0,
         };
         send(DownFrame::End(end), &mut wire, &mut at)?;
         // The host's side: blocks between delimiters, decoded, in sequence.
@@ -208,6 +210,8 @@ fn protocol_examples() -> TestResult {
         origin: [512_000.25, -3.5, 1_024.0],
         map_len: 86,
         map_crc: 0x1234_5678,
+        points: 256,
+        frames: 2,
     });
     let examples = [
         (
@@ -226,7 +230,7 @@ fn protocol_examples() -> TestResult {
             end,
             "04 81 01 02 01 01 02 01 01 01 02 01 01 01 01 01 01 01 01 01 01 01 01 01 01 01 02 3f \
              01 01 01 01 01 03 80 bf 01 01 01 05 01 40 1f 41 01 01 01 01 01 03 0c c0 01 01 01 01 \
-             01 04 90 40 56 01 01 09 78 56 34 12 73 9c 9c 37 00",
+             01 04 90 40 56 01 01 05 78 56 34 12 02 01 01 02 02 01 01 05 c3 24 4e 1a 00",
         ),
     ];
     for (sequence, frame, wire) in examples {

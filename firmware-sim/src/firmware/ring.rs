@@ -10,13 +10,13 @@ use core::sync::atomic::{AtomicUsize, Ordering};
 
 /// A byte ring of `N` bytes, usable in a `static`, with one producer and one consumer that may
 /// run in different contexts: a receive interrupt pushes ([`Ring::push`]) while the main loop
-/// reads ([`Ring::front`]) and consumes ([`Ring::consume`]). Each side owns one counter: the
+/// reads and consumes ([`Ring::consume_front`]). Each side owns one counter: the
 /// producer `tail`, the consumer `head`, both counting bytes since the start (wrapping), so
 /// the bytes held are `tail - head` and neither side ever writes what the other reads. A
 /// single-core Cortex-M needs no more than these loads and stores (and their ordering).
 ///
 /// The contract, as `heapless::spsc` has it but without splitting the ring: `push` is called
-/// from one context only, and `front`, `consume` and `clear` from one other context only
+/// from one context only, and `consume_front`, `taken` and `clear` from one other context only
 /// (or all of them from one context, as the simulator does).
 pub struct Ring<const N: usize> {
     buf: UnsafeCell<[u8; N]>,

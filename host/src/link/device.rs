@@ -54,7 +54,9 @@ pub struct DownlinkCounts {
     pub lost: u64,
     /// Entities received (each once).
     pub entities: usize,
-    /// The device's last progress: points frames it mapped.
+    /// Points and points frames the device mapped (its end frame's count, else its last
+    /// progress's frames).
+    pub points: u32,
     pub device_frames: u32,
 }
 
@@ -129,7 +131,11 @@ impl MapFrames {
                 self.last_taken = taken;
                 self.counts.device_frames = frames;
             }
-            DownFrame::End(end) => self.end = Some(end),
+            DownFrame::End(end) => {
+                self.counts.points = end.points;
+                self.counts.device_frames = end.frames;
+                self.end = Some(end);
+            }
         }
     }
 
