@@ -52,7 +52,7 @@ cleanup() {
   rm -rf "$work"
 }
 trap cleanup EXIT
-qemu-system-arm -machine netduinoplus2 -nographic -monitor none -serial pty \
+qemu-system-arm -machine netduinoplus2 -nographic -monitor none -serial pty -icount shift=0 \
   -kernel "$image" > "$work/qemu.txt" 2>&1 &
 qemu_pid=$!
 pty=

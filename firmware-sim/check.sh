@@ -87,6 +87,15 @@ for cloud in car6.pcd demo; do
       || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
     if cmp -s "$m/replay.mema" "$m/board.mema"; then
       echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
+      # Instructions a point (QEMU -icount; the receive interrupt and the downlink included)
+      # and the longest tick, from the board's own timing frame.
+      per_point=$(tail -1 "$m/board.txt" | grep -o '"per_point":[0-9.]*' | cut -d: -f2)
+      longest=$(tail -1 "$m/board.txt" | grep -o '"longest_tick":[0-9.]*' | cut -d: -f2)
+      printf '   %s, %s: %.0f instructions a point on the board, longest tick %.0f\n' "$cloud" "$model" "$per_point" "$longest"
+      if ! awk -v p="$per_point" 'BEGIN { exit !(p > 0 && p < 10000) }'; then
+        echo "firmware: $cloud, $model: $per_point instructions a point on the board, not under 10,000"
+        status=1
+      fi
     else
       echo "firmware: $cloud, $model: the board's map differs from mema replay:"
       cmp "$m/replay.mema" "$m/board.mema" || true

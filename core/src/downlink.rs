@@ -8,7 +8,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 1 | version `0x81` |
-//! | 1 | 1 | kind: `0` entity, `1` end of map, `2` progress |
+//! | 1 | 1 | kind: `0` entity, `1` end of map, `2` progress, `3` device timing |
 //! | 2 | 4 | sequence: 0 for the first frame after boot, +1 per frame |
 //! | 6 | n | the kind's payload |
 //! | 6 + n | 4 | CRC-32 of every byte before it |
@@ -49,6 +49,8 @@ pub const ENTITY_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 16;
 pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4 + 4 + 4;
 /// A progress frame's payload: bytes taken, frames mapped.
 pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4;
+/// A timing frame's payload: busy, interrupt and longest-tick counts, the calibration.
+pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8;
 /// The longest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + END_PAYLOAD_LEN + CRC_LEN;
 /// The longest frame on the wire, its delimiter included.
@@ -57,6 +59,7 @@ pub const MAX_DOWN_FRAME_LEN: usize = cobs_max_encoded_len(MAX_RAW_LEN) + 1;
 const KIND_ENTITY: u8 = 0;
 const KIND_END: u8 = 1;
 const KIND_PROGRESS: u8 = 2;
+const KIND_TIMING: u8 = 3;
 
 /// How the map's file is written from its entities.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,6 +92,24 @@ pub enum DownFrame {
         taken: u32,
         frames: u32,
     },
+    /// What the device's work cost it, in its timer's ticks, sent before the end.
+    Timing(DeviceTiming),
+}
+
+/// A device's own account of its work, in ticks of its timer, with the calibration that turns
+/// them into instructions (`calib_insns` instructions took `calib_ticks`): under QEMU's
+/// `-icount` the timer counts instructions executed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceTiming {
+    /// Ticks of the main loop's work (ticks of the firmware and the downlink), interrupts
+    /// within them included.
+    pub busy_ticks: u64,
+    /// Ticks in the receive interrupt, all of them.
+    pub interrupt_ticks: u64,
+    /// The longest single tick of the firmware.
+    pub longest_tick: u64,
+    pub calib_ticks: u64,
+    pub calib_insns: u64,
 }
 
 /// Why a frame was not decoded.
@@ -173,6 +194,19 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
             w.put(&taken.to_le_bytes());
             w.put(&frames.to_le_bytes());
         }
+        DownFrame::Timing(t) => {
+            w.put(&[KIND_TIMING]);
+            w.put(&sequence.to_le_bytes());
+            for v in [
+                t.busy_ticks,
+                t.interrupt_ticks,
+                t.longest_tick,
+                t.calib_ticks,
+                t.calib_insns,
+            ] {
+                w.put(&v.to_le_bytes());
+            }
+        }
     }
     let len = w.at;
     let crc = crc32(raw.get(..len).unwrap_or(&[]));
@@ -216,12 +250,21 @@ pub fn decode(block: &mut [u8]) -> Result<(u32, DownFrame), DownlinkError> {
         KIND_ENTITY => ENTITY_PAYLOAD_LEN,
         KIND_END => END_PAYLOAD_LEN,
         KIND_PROGRESS => PROGRESS_PAYLOAD_LEN,
+        KIND_TIMING => TIMING_PAYLOAD_LEN,
         other => return Err(DownlinkError::Code(other)),
     };
     if body.len() != HEADER_LEN + expected {
         return Err(DownlinkError::Length { got: len });
     }
-    let frame = if kind == KIND_PROGRESS {
+    let frame = if kind == KIND_TIMING {
+        DownFrame::Timing(DeviceTiming {
+            busy_ticks: r.u64()?,
+            interrupt_ticks: r.u64()?,
+            longest_tick: r.u64()?,
+            calib_ticks: r.u64()?,
+            calib_insns: r.u64()?,
+        })
+    } else if kind == KIND_PROGRESS {
         DownFrame::Progress {
             taken: r.u32()?,
             frames: r.u32()?,
@@ -337,6 +380,10 @@ impl Reader<'_> {
 
     fn f32(&mut self) -> Result<f32, DownlinkError> {
         Ok(f32::from_le_bytes(self.take()?))
+    }
+
+    fn u64(&mut self) -> Result<u64, DownlinkError> {
+        Ok(u64::from_le_bytes(self.take()?))
     }
 
     fn f64(&mut self) -> Result<f64, DownlinkError> {

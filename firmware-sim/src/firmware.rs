@@ -358,6 +358,13 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         }
     }
 
+    /// Whether mapping work is under way: a part-mapped frame or a deferred refit (bytes in the
+    /// ring aside). A board's main loop that ticks only when a frame's delimiter has come asks
+    /// this too, so no frame is left half-mapped.
+    pub fn mapping(&self) -> bool {
+        self.refit_due || self.cursor.is_some()
+    }
+
     /// Whether work is waiting: bytes in the ring, a part-mapped frame or a deferred refit.
     pub fn busy(&self) -> bool {
         self.refit_due || self.cursor.is_some() || !self.rx.borrow().is_empty()
@@ -388,7 +395,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         let frozen = self.mapper.frozen().len();
         while self.down.sent_frozen < frozen {
             let index = self.down.sent_frozen;
-            if let Some(entity) = self.mapper.entities().nth(index) {
+            if let Some(entity) = self.mapper.frozen_entity(index) {
                 send_frame(
                     &mut self.down.sequence,
                     &DownFrame::Entity {
@@ -412,6 +419,12 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                 &mut sink,
             );
         }
+    }
+
+    /// Sends one downlink frame of the caller's (a board's [`DownFrame::Timing`]) in the
+    /// downlink's sequence.
+    pub fn send_frame(&mut self, frame: &DownFrame, mut sink: impl FnMut(&[u8])) {
+        send_frame(&mut self.down.sequence, frame, &mut sink);
     }
 
     /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the

@@ -94,7 +94,9 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
                     entities.push(entity).or_fail("room")?;
                 }
                 DownFrame::End(end) => got_end = Some(end),
-                DownFrame::Progress { .. } => return Err("no progress was sent"),
+                DownFrame::Progress { .. } | DownFrame::Timing(_) => {
+                    return Err("no progress or timing was sent");
+                }
             }
         }
         let end = got_end.or_fail("an end frame")?;
@@ -154,10 +156,19 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         taken: u32::MAX - 3,
         frames: 102,
     };
-    let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
-    let m = encode(u32::MAX, &progress, &mut wire).or_fail("encodes")?;
-    let back = decode(wire.get_mut(..m - 1).or_fail("block")?).or_fail("decodes")?;
-    assert_eq!(back, (u32::MAX, progress));
+    let timing = DownFrame::Timing(DeviceTiming {
+        busy_ticks: 1 << 40,
+        interrupt_ticks: 3,
+        longest_tick: u64::MAX,
+        calib_ticks: 0,
+        calib_insns: 2_000_000,
+    });
+    for frame in [progress, timing] {
+        let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+        let m = encode(u32::MAX, &frame, &mut wire).or_fail("encodes")?;
+        let back = decode(wire.get_mut(..m - 1).or_fail("block")?).or_fail("decodes")?;
+        assert_eq!(back, (u32::MAX, frame));
+    }
     for cut in 0..block_len {
         let mut block = sent;
         assert!(

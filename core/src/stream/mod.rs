@@ -399,6 +399,16 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             })
     }
 
+    /// Frozen entity `index` as [`StreamMapper::entities`] gives it (the map's entity
+    /// `index`), without decoding the ones before it.
+    pub fn frozen_entity(&self, index: usize) -> Option<MapEntity> {
+        let entity = self.frozen.get(index)?.to_entity();
+        Some(MapEntity {
+            entity,
+            kind: entity.kind(self.sphere_tolerance()),
+        })
+    }
+
     /// Entities frozen out of working memory so far.
     pub fn frozen(&self) -> &[FrozenEntity] {
         &self.frozen

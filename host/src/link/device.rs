@@ -9,7 +9,9 @@ use std::io::{Read, Write};
 use std::time::{Duration, Instant};
 
 use mema_core::crc32::crc32;
-use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, stored_entity};
+use mema_core::downlink::{
+    self, DeviceTiming, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, stored_entity,
+};
 use mema_core::map::{MapEntity, encode_as};
 use serde::Serialize;
 
@@ -58,6 +60,34 @@ pub struct DownlinkCounts {
     /// progress's frames).
     pub points: u32,
     pub device_frames: u32,
+    /// What the work cost the device, in instructions, where it said (a timing frame).
+    pub instructions: Option<Instructions>,
+}
+
+/// A device's timing turned into instructions by its own calibration (under QEMU's
+/// `-icount`, its timer counts instructions).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Instructions {
+    /// The main loop's work and every receive interrupt, per point mapped.
+    pub per_point: f64,
+    /// The receive interrupt's share of that, per point.
+    pub interrupt_per_point: f64,
+    /// The longest single tick of the firmware.
+    pub longest_tick: f64,
+}
+
+impl Instructions {
+    fn of(t: &DeviceTiming, points: u32) -> Option<Self> {
+        if t.calib_ticks == 0 || points == 0 {
+            return None;
+        }
+        let insns = |ticks: u64| ticks as f64 * t.calib_insns as f64 / t.calib_ticks as f64;
+        Some(Self {
+            per_point: insns(t.busy_ticks) / f64::from(points),
+            interrupt_per_point: insns(t.interrupt_ticks) / f64::from(points),
+            longest_tick: insns(t.longest_tick),
+        })
+    }
 }
 
 /// The device's frames as they arrive: entities by index, the progress, the end.
@@ -72,6 +102,7 @@ pub struct MapFrames {
     taken: u64,
     last_taken: u32,
     end: Option<MapEnd>,
+    timing: Option<DeviceTiming>,
     pub counts: DownlinkCounts,
 }
 
@@ -131,9 +162,12 @@ impl MapFrames {
                 self.last_taken = taken;
                 self.counts.device_frames = frames;
             }
+            DownFrame::Timing(t) => self.timing = Some(t),
             DownFrame::End(end) => {
                 self.counts.points = end.points;
                 self.counts.device_frames = end.frames;
+                self.counts.instructions =
+                    self.timing.and_then(|t| Instructions::of(&t, end.points));
                 self.end = Some(end);
             }
         }

@@ -18,11 +18,13 @@
 #![no_main]
 
 mod clocks;
+mod timing;
 mod usart;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
+use mema_core::downlink::DownFrame;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
@@ -46,6 +48,9 @@ static RX: Ring<RX_CAPACITY> = Ring::new();
 /// Bytes the ring had no room for, and bytes the USART lost before the interrupt read them.
 static RING_OVERRUNS: AtomicU32 = AtomicU32::new(0);
 static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
+/// Delimiters received: a frame can only be whole after one, so the main loop ticks then
+/// (and while mapping is under way) rather than at every byte.
+static DELIMITERS: AtomicU32 = AtomicU32::new(0);
 
 type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>>;
 static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
@@ -65,14 +70,21 @@ fn boot(
 
 #[interrupt]
 fn USART1() {
+    let _timed = timing::InInterrupt::start();
     match usart::receive() {
         usart::Received::Byte(byte) => {
+            if byte == 0 {
+                DELIMITERS.fetch_add(1, Ordering::Relaxed);
+            }
             if RX.push(&[byte]) == 0 {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
         }
         usart::Received::Overrun(byte) => {
             LINE_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+            if byte == 0 {
+                DELIMITERS.fetch_add(1, Ordering::Relaxed);
+            }
             if RX.push(&[byte]) == 0 {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
@@ -90,6 +102,7 @@ fn main() -> ! {
         }
     };
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
+    let calibration = timing::start(&mut cp.SYST);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
     let model = if cfg!(feature = "paper") {
         StreamModel::Paper
@@ -105,27 +118,42 @@ fn main() -> ! {
     // SAFETY: the interrupt's handler only pushes into `RX`, which is built for a producer in
     // an interrupt; nothing else it touches is shared.
     unsafe {
-        cp.NVIC.set_priority(pac::Interrupt::USART1, 0);
+        // Below SysTick's 0, so the timer's wraps are counted while the handler is timed.
+        cp.NVIC.set_priority(pac::Interrupt::USART1, 0x10);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
     }
+    let mut work = timing::Work::default();
+    let mut delimiters = 0;
     loop {
-        while firmware.busy() {
-            firmware.tick(|_| {});
+        let now = DELIMITERS.load(Ordering::Relaxed);
+        if now != delimiters || firmware.mapping() {
+            delimiters = now;
+            // Until a tick neither maps nor finishes a frame: the ring then holds no whole
+            // frame (a tick decodes all it can), and the bytes of the next one are left to
+            // arrive, rather than ticked through a byte at a time as they come.
+            let mut more = true;
+            while more {
+                let mut finished = false;
+                work.tick(|| firmware.tick(|_| finished = true));
+                more = finished || firmware.mapping();
+            }
+            work.other(|| firmware.send_downlink(usart::send));
         }
-        firmware.send_downlink(usart::send);
         if firmware.stats().end_of_stream {
             break;
         }
-        // Sleep until a byte comes, without missing one that came since `busy` was asked:
-        // with interrupts masked, a pending one still wakes `wfi`, and runs once unmasked.
+        // Sleep until a delimiter comes, without missing one that came since it was looked
+        // at: with interrupts masked, a pending one still wakes `wfi`, and runs once unmasked.
         cortex_m::interrupt::free(|_| {
-            if !firmware.busy() {
+            if DELIMITERS.load(Ordering::Relaxed) == delimiters && !firmware.mapping() {
                 cortex_m::asm::wfi();
             }
         });
     }
     firmware.finish();
-    // The rest of the map goes out entity by entity: the device holds no copy of the file.
+    // What the stream cost, then the rest of the map entity by entity: the device holds no
+    // copy of the file.
+    firmware.send_frame(&DownFrame::Timing(work.report(calibration)), usart::send);
     let _ = firmware.send_end(usart::send);
     usart::flush();
     loop {
