@@ -25,7 +25,7 @@ use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::EncodeError;
+use mema_core::map::{EncodeError, MapEntity};
 use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::wire::DecoderStats;
@@ -165,6 +165,12 @@ fn send_frame(sequence: &mut u32, frame: &DownFrame, sink: &mut impl FnMut(&[u8]
         sink(out.get(..n).unwrap_or(&[]));
         *sequence = sequence.wrapping_add(1);
     }
+}
+
+/// Sends the map's entity `index` as the next frame.
+fn send_entity(sequence: &mut u32, index: usize, entity: MapEntity, sink: &mut impl FnMut(&[u8])) {
+    let index = index as u32;
+    send_frame(sequence, &DownFrame::Entity { index, entity }, sink);
 }
 
 /// A progress frame goes out once the device has taken this many bytes since the last one: a
@@ -396,14 +402,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         while self.down.sent_frozen < frozen {
             let index = self.down.sent_frozen;
             if let Some(entity) = self.mapper.frozen_entity(index) {
-                send_frame(
-                    &mut self.down.sequence,
-                    &DownFrame::Entity {
-                        index: index as u32,
-                        entity,
-                    },
-                    &mut sink,
-                );
+                send_entity(&mut self.down.sequence, index, entity, &mut sink);
             }
             self.down.sent_frozen += 1;
         }
@@ -435,14 +434,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         let first = self.down.sent_frozen;
         let mut count = first;
         for (index, entity) in self.mapper.entities().enumerate().skip(first) {
-            send_frame(
-                &mut self.down.sequence,
-                &DownFrame::Entity {
-                    index: index as u32,
-                    entity,
-                },
-                &mut sink,
-            );
+            send_entity(&mut self.down.sequence, index, entity, &mut sink);
             count = index + 1;
         }
         let mut crc = Crc32::new();

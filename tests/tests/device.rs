@@ -9,6 +9,7 @@ use mema_firmware_sim::firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
 };
 
+use crate::faults::Rng;
 use crate::util::{Dir, MemaCommand, shared};
 
 type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
@@ -84,18 +85,6 @@ fn the_downlink_rebuilds_the_replay_map_in_both_models() {
             assert_eq!(frames.counts.points, 10_031);
             assert!(frames.counts.device_frames > 0);
         }
-    }
-}
-
-/// A seeded xorshift.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        self.0
     }
 }
 

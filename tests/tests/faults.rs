@@ -7,10 +7,11 @@ use mema::io::load_cloud;
 use mema::link::frames::{POINTS_PER_FRAME, push_frame, quantise};
 use mema::link::stream::{Capacity, Link};
 
-struct Rng(u64);
+/// A seeded xorshift (also the downlink's fault injector, `device.rs`).
+pub(crate) struct Rng(pub(crate) u64);
 
 impl Rng {
-    fn next(&mut self) -> u64 {
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 ^= self.0 << 13;
         self.0 ^= self.0 >> 7;
         self.0 ^= self.0 << 17;
