@@ -30,8 +30,8 @@ case "$model" in
   *) echo "board.sh: --model is shells or paper, not $model" >&2; exit 2 ;;
 esac
 cd "$(dirname "$0")/.."
-# The board's layout: today's image's (firmware-sim's IMAGE_WORKING + IMAGE_FROZEN).
-k=400
+# The board's layout (firmware-sim's BOARD_WORKING + BOARD_FROZEN).
+k=700
 working=150
 
 # The host's command: $MEMA if set (a mema already built), else built here.

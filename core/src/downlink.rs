@@ -22,9 +22,11 @@
 //! length and CRC-32 (so a host that rebuilds the file with [`stored_entity`] and
 //! `map::encode_as` knows it holds the device's map to the bit), and the points and points
 //! frames the device mapped. A **progress** frame says how
-//! many bytes the device has taken from its receive ring (u32, wrapping) and how many points
-//! frames it has mapped: a sender that keeps what it has sent and the device has not taken
-//! under the ring's size never overruns it, however slowly the device maps.
+//! many bytes the device has taken from its receive ring (u32, wrapping), how many points
+//! frames it has mapped, and which carry frame it expects next with how many of the host's
+//! frames it refused ([`crate::uplink`]): a sender that keeps what it has sent and the device
+//! has not taken under the ring's size never overruns it, however slowly the device maps, and
+//! one that sees the refused count grow sends again from the frame expected.
 
 use crate::crc32::crc32;
 use crate::geometry::{Entity, EntityKind, Point3};
@@ -47,10 +49,12 @@ pub const ENTITY_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 16;
 /// An end frame's payload: count, layout and grid, shift, origin, file length and CRC, points
 /// and frames mapped.
 pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4 + 4 + 4;
-/// A progress frame's payload: bytes taken, frames mapped.
-pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4;
-/// A timing frame's payload: busy, interrupt and longest-tick counts, the calibration.
-pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8;
+/// A progress frame's payload: bytes taken, frames mapped, the carry frame expected next and
+/// the host's frames refused.
+pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4 + 4 + 4;
+/// A timing frame's payload: busy, interrupt and longest-tick counts, the calibration, the
+/// deepest stack.
+pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8 + 8;
 /// The longest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + END_PAYLOAD_LEN + CRC_LEN;
 /// The longest frame on the wire, its delimiter included.
@@ -87,10 +91,14 @@ pub enum DownFrame {
         entity: MapEntity,
     },
     End(MapEnd),
-    /// Bytes taken from the receive ring since boot (wrapping) and points frames mapped.
+    /// Bytes taken from the receive ring since boot (wrapping) and points frames mapped; the
+    /// number of the carry frame expected next and the host's frames refused since boot
+    /// ([`crate::uplink`]; both `0` for a device fed without carry frames).
     Progress {
         taken: u32,
         frames: u32,
+        next: u32,
+        refused: u32,
     },
     /// What the device's work cost it, in its timer's ticks, sent before the end.
     Timing(DeviceTiming),
@@ -110,6 +118,8 @@ pub struct DeviceTiming {
     pub longest_tick: u64,
     pub calib_ticks: u64,
     pub calib_insns: u64,
+    /// The deepest the stack went, in bytes (painted at boot; `0` where not measured).
+    pub stack_bytes: u64,
 }
 
 /// Why a frame was not decoded.
@@ -188,11 +198,17 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
             w.put(&end.points.to_le_bytes());
             w.put(&end.frames.to_le_bytes());
         }
-        DownFrame::Progress { taken, frames } => {
+        DownFrame::Progress {
+            taken,
+            frames,
+            next,
+            refused,
+        } => {
             w.put(&[KIND_PROGRESS]);
             w.put(&sequence.to_le_bytes());
-            w.put(&taken.to_le_bytes());
-            w.put(&frames.to_le_bytes());
+            for v in [taken, frames, next, refused] {
+                w.put(&v.to_le_bytes());
+            }
         }
         DownFrame::Timing(t) => {
             w.put(&[KIND_TIMING]);
@@ -203,6 +219,7 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
                 t.longest_tick,
                 t.calib_ticks,
                 t.calib_insns,
+                t.stack_bytes,
             ] {
                 w.put(&v.to_le_bytes());
             }
@@ -263,11 +280,14 @@ pub fn decode(block: &mut [u8]) -> Result<(u32, DownFrame), DownlinkError> {
             longest_tick: r.u64()?,
             calib_ticks: r.u64()?,
             calib_insns: r.u64()?,
+            stack_bytes: r.u64()?,
         })
     } else if kind == KIND_PROGRESS {
         DownFrame::Progress {
             taken: r.u32()?,
             frames: r.u32()?,
+            next: r.u32()?,
+            refused: r.u32()?,
         }
     } else if kind == KIND_ENTITY {
         let index = r.u32()?;

@@ -39,6 +39,7 @@ pub mod rotation;
 pub mod shell;
 pub mod stream;
 pub mod transform;
+pub mod uplink;
 pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};

@@ -19,18 +19,22 @@
 
 use core::borrow::Borrow;
 
-use mema_core::crc32::Crc32;
 use mema_core::de::{DeParams, OutOfBounds};
-use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
+
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::{EncodeError, MapEntity};
+use mema_core::map::EncodeError;
 use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::wire::DecoderStats;
 
+mod carrier;
+mod downlink;
 mod ring;
+pub use carrier::{Carrier, LineReport, Request};
+use downlink::Downlink;
+pub use downlink::PROGRESS_EVERY;
 pub use ring::Ring;
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next
@@ -41,6 +45,16 @@ pub const RX_CAPACITY: usize = mema_core::downlink::RING_BYTES;
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
 pub const IMAGE_WORKING: usize = 150;
 pub const IMAGE_FROZEN: usize = 250;
+/// The STM32F405 board's layout (`boards/stm32f405`): the same 150 working clusters and 550
+/// frozen entities, K = 700. The part's time binds before its RAM: K = 2,048, the streaming
+/// mapper's capacity, fits in 105 KiB of its 128 KiB SRAM, but every entity frozen costs a
+/// fit (130,000 to 160,000 instructions), and the demo drive, which freezes 1,374, then took
+/// 11,711 (shells) and 13,096 (paper) instructions a point under QEMU; at K = 700 it takes
+/// 9,479 (paper), under the 10,000 the board is held to. The map's fidelity at K = 700 against
+/// K = 400 and the host's batch map: docs/firmware.md.
+pub const BOARD_WORKING: usize = IMAGE_WORKING;
+pub const BOARD_FROZEN: usize = 550;
+
 /// The image's reach (metres from the map's origin on any axis; see
 /// [`mema_core::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
 /// first point can refuse more.
@@ -146,37 +160,6 @@ pub struct Firmware<const K: usize, const G: usize, const F: usize = 0, R = Ring
     stats: FirmwareStats,
     down: Downlink,
 }
-
-/// What the map's way back to the host has sent.
-#[derive(Clone, Copy, Debug, Default)]
-struct Downlink {
-    /// The next frame's sequence number.
-    sequence: u32,
-    /// Frozen entities already sent.
-    sent_frozen: usize,
-    /// The ring's taken count last reported.
-    reported: u32,
-}
-
-/// Encodes `frame` as number `sequence` (then counts it) and hands its bytes to `sink`.
-fn send_frame(sequence: &mut u32, frame: &DownFrame, sink: &mut impl FnMut(&[u8])) {
-    let mut out = [0u8; MAX_DOWN_FRAME_LEN];
-    if let Ok(n) = downlink::encode(*sequence, frame, &mut out) {
-        sink(out.get(..n).unwrap_or(&[]));
-        *sequence = sequence.wrapping_add(1);
-    }
-}
-
-/// Sends the map's entity `index` as the next frame.
-fn send_entity(sequence: &mut u32, index: usize, entity: MapEntity, sink: &mut impl FnMut(&[u8])) {
-    let index = index as u32;
-    send_frame(sequence, &DownFrame::Entity { index, entity }, sink);
-}
-
-/// A progress frame goes out once the device has taken this many bytes since the last one: a
-/// tenth of the ring, so a sender keeping the ring's size in flight is never held up long,
-/// for 20 bytes back per 312 in.
-pub const PROGRESS_EVERY: u32 = (RX_CAPACITY / 10) as u32;
 
 /// The state that survives a reset.
 #[derive(Debug)]
@@ -391,67 +374,6 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     /// buffer for the whole map, which at 400 entities would be 10 KB of its RAM.
     pub fn send_map(&self, sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
         self.mapper.encode_pieces(self.receiver.origin(), sink)
-    }
-
-    /// The downlink's frames due now ([`mema_core::downlink`]), each handed to `sink` whole:
-    /// the entities frozen since the last call (final, so each leaves the device once), then a
-    /// progress frame if the ring has given up [`PROGRESS_EVERY`] bytes since the last one.
-    /// For the main loop, between ticks.
-    pub fn send_downlink(&mut self, mut sink: impl FnMut(&[u8])) {
-        let frozen = self.mapper.frozen().len();
-        while self.down.sent_frozen < frozen {
-            let index = self.down.sent_frozen;
-            if let Some(entity) = self.mapper.frozen_entity(index) {
-                send_entity(&mut self.down.sequence, index, entity, &mut sink);
-            }
-            self.down.sent_frozen += 1;
-        }
-        let rx = self.rx.borrow();
-        let taken = rx.taken() as u32;
-        let since = taken.wrapping_sub(self.down.reported);
-        if since >= PROGRESS_EVERY {
-            self.down.reported = taken;
-            let frames = self.stats.frames as u32;
-            send_frame(
-                &mut self.down.sequence,
-                &DownFrame::Progress { taken, frames },
-                &mut sink,
-            );
-        }
-    }
-
-    /// Sends one downlink frame of the caller's (a board's [`DownFrame::Timing`]) in the
-    /// downlink's sequence.
-    pub fn send_frame(&mut self, frame: &DownFrame, mut sink: impl FnMut(&[u8])) {
-        send_frame(&mut self.down.sequence, frame, &mut sink);
-    }
-
-    /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
-    /// end frame with the file's layout, length and CRC-32, which the map is encoded once more
-    /// to compute, a piece at a time (no buffer for it). Returns the file's length.
-    pub fn send_end(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
-        self.send_downlink(&mut sink);
-        let first = self.down.sent_frozen;
-        let mut count = first;
-        for (index, entity) in self.mapper.entities().enumerate().skip(first) {
-            send_entity(&mut self.down.sequence, index, entity, &mut sink);
-            count = index + 1;
-        }
-        let mut crc = Crc32::new();
-        let len = self.send_map(|piece| crc.update(piece))?;
-        let layout = self.mapper.layout();
-        let end = MapEnd {
-            entities: u32::try_from(count).map_err(|_| EncodeError::TooManyEntities)?,
-            layout,
-            shift: self.mapper.file_shift(layout),
-            origin: self.receiver.origin(),
-            map_len: u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?,
-            map_crc: crc.finish(),
-            points: self.mapper.stats().points as u32,
-            frames: self.stats.frames as u32,
-        };
-        send_frame(&mut self.down.sequence, &DownFrame::End(end), &mut sink);
-        Ok(len)
     }
 
     /// Copies the mapper into `snapshot` (the memory that survives a reset). Meant for an idle

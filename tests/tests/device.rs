@@ -95,7 +95,7 @@ fn a_faulty_downlink_never_gives_a_wrong_map() {
     let downlink = device_downlink(&capture, SHELLS);
     let (mut whole, mut incomplete) = (0, 0);
     for seed in 1..=40u64 {
-        let mut rng = Rng(seed * 0x9E37_79B9_7F4A_7C15);
+        let mut rng = Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15));
         let faults = 1 + rng.next() % 4;
         let mut line = downlink.clone();
         for _ in 0..faults {

@@ -37,6 +37,8 @@ mod paper_tables;
 mod queries;
 // Automatic k: the tolerance mode meets T with fewer ellipsoids.
 mod tolerance;
+// The board under QEMU behind a faulty relay: what was lost is sent or asked again.
+mod board_link;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.
 mod stream;
 // The link's faults (issue 12): frames after the end, a sender that starts again, units out of

@@ -155,6 +155,8 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
     let progress = DownFrame::Progress {
         taken: u32::MAX - 3,
         frames: 102,
+        next: 7,
+        refused: u32::MAX,
     };
     let timing = DownFrame::Timing(DeviceTiming {
         busy_ticks: 1 << 40,
@@ -162,6 +164,7 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         longest_tick: u64::MAX,
         calib_ticks: 0,
         calib_insns: 2_000_000,
+        stack_bytes: 5_000,
     });
     for frame in [progress, timing] {
         let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
@@ -213,6 +216,8 @@ fn protocol_examples() -> TestResult {
     let progress = DownFrame::Progress {
         taken: 3124,
         frames: 2,
+        next: 13,
+        refused: 1,
     };
     let end = DownFrame::End(MapEnd {
         entities: 1,
@@ -234,7 +239,7 @@ fn protocol_examples() -> TestResult {
         (
             1,
             progress,
-            "04 81 02 01 01 01 03 34 0c 01 02 02 01 01 05 0f 71 10 58 00",
+            "04 81 02 01 01 01 03 34 0c 01 02 02 01 01 02 0d 01 01 02 01 01 01 05 7f e2 11 de 00",
         ),
         (
             2,

@@ -2,11 +2,8 @@
 //! device's receive ring, the map comes back as frames ([`mema_core::downlink`]), and the map
 //! file is rebuilt from them and checked against the length and CRC-32 the device sends.
 //!
-//! [`MapFrames`] takes the device's bytes in any pieces; [`send_and_receive`] runs a whole
+//! [`MapFrames`] takes the device's bytes in any pieces; [`super::session`] runs a whole
 //! session over a port.
-
-use std::io::{Read, Write};
-use std::time::{Duration, Instant};
 
 use mema_core::crc32::crc32;
 use mema_core::downlink::{
@@ -14,8 +11,6 @@ use mema_core::downlink::{
 };
 use mema_core::map::{MapEntity, encode_as};
 use serde::Serialize;
-
-use super::port::{ReadOutcome, read_some};
 
 /// Why a session gave no map.
 #[derive(Debug, thiserror::Error)]
@@ -33,7 +28,11 @@ pub enum DeviceError {
     },
     #[error("the device's map cannot be written: {0:?}")]
     Encode(mema_core::map::EncodeError),
-    #[error("the device said nothing for {seconds} s ({sent} of {total} bytes sent)")]
+    #[error(
+        "the device sent its end but entities {missing:?} never arrived intact, asked for {asks} times"
+    )]
+    StillMissing { missing: Vec<u32>, asks: u32 },
+    #[error("the device said nothing new for {seconds} s ({sent} of {total} bytes acknowledged)")]
     Silent {
         seconds: u64,
         sent: usize,
@@ -54,6 +53,14 @@ pub struct DownlinkCounts {
     pub refused: u64,
     /// Frames the sequence numbers say never arrived.
     pub lost: u64,
+    /// The host's frames the device refused (its count: damaged, or ahead of their turn).
+    pub device_refused: u32,
+    /// Carry frames the host sent again, and the times it went back to send them.
+    pub resent: u64,
+    pub went_back: u64,
+    /// Entities the host asked for again (each time asked), and the end.
+    pub asked_again: u64,
+    pub ends_asked: u64,
     /// Entities received (each once).
     pub entities: usize,
     /// Points and points frames the device mapped (its end frame's count, else its last
@@ -101,6 +108,9 @@ pub struct MapFrames {
     /// Bytes the device has taken from its ring (accumulated from its wrapping count).
     taken: u64,
     last_taken: u32,
+    /// The carry frame the device expects next (accumulated from its wrapping number).
+    acked: u64,
+    last_next: u32,
     end: Option<MapEnd>,
     timing: Option<DeviceTiming>,
     pub counts: DownlinkCounts,
@@ -157,9 +167,21 @@ impl MapFrames {
                     self.counts.entities += 1;
                 }
             }
-            DownFrame::Progress { taken, frames } => {
+            DownFrame::Progress {
+                taken,
+                frames,
+                next,
+                refused,
+            } => {
                 self.taken += u64::from(taken.wrapping_sub(self.last_taken));
                 self.last_taken = taken;
+                // A number behind the last is a stale report: never a step back.
+                let ahead = next.wrapping_sub(self.last_next);
+                if ahead <= u32::MAX / 2 {
+                    self.acked += u64::from(ahead);
+                    self.last_next = next;
+                }
+                self.counts.device_refused = self.counts.device_refused.max(refused);
                 self.counts.device_frames = frames;
             }
             DownFrame::Timing(t) => self.timing = Some(t),
@@ -178,9 +200,24 @@ impl MapFrames {
         self.taken
     }
 
+    /// Carry frames the device has taken (the number it expects next).
+    pub fn acked(&self) -> u64 {
+        self.acked
+    }
+
     /// Whether the device has sent its end.
     pub fn ended(&self) -> bool {
         self.end.is_some()
+    }
+
+    /// The entities the end says the map has and that have not arrived intact.
+    pub fn missing(&self) -> Vec<u32> {
+        let Some(end) = self.end else {
+            return Vec::new();
+        };
+        (0..end.entities)
+            .filter(|&i| self.entities.get(i as usize).is_none_or(Option::is_none))
+            .collect()
     }
 
     /// The map file, once the end has come: rebuilt from the entities as the device's own
@@ -192,9 +229,7 @@ impl MapFrames {
 
     fn rebuild(&self, end: &MapEnd) -> Result<Vec<u8>, DeviceError> {
         let count = end.entities as usize;
-        let missing: Vec<u32> = (0..end.entities)
-            .filter(|&i| self.entities.get(i as usize).is_none_or(Option::is_none))
-            .collect();
+        let missing = self.missing();
         if !missing.is_empty() {
             return Err(DeviceError::Missing { missing });
         }
@@ -214,52 +249,5 @@ impl MapFrames {
             });
         }
         Ok(out)
-    }
-}
-
-/// How long the device may say nothing while it has work before the session is given up.
-pub const SILENCE: Duration = Duration::from_secs(30);
-
-/// Sends `stream` (encoded points frames) over `port`, never more than `window` bytes ahead of
-/// what the device has taken from its ring, and receives the map frames until the device's
-/// end; `progress` is called with (bytes sent, bytes taken) as they change.
-pub fn send_and_receive(
-    port: &mut (impl Read + Write),
-    stream: &[u8],
-    window: usize,
-    mut progress: impl FnMut(usize, u64),
-) -> Result<(Vec<u8>, DownlinkCounts), DeviceError> {
-    let mut frames = MapFrames::new();
-    let mut sent = 0usize;
-    let mut buf = [0u8; 4096];
-    let mut heard = Instant::now();
-    loop {
-        let in_flight = (sent as u64).saturating_sub(frames.taken()) as usize;
-        if sent < stream.len() && in_flight < window {
-            let n = (window - in_flight).min(stream.len() - sent).min(256);
-            port.write_all(&stream[sent..sent + n])?;
-            port.flush()?;
-            sent += n;
-            progress(sent, frames.taken());
-        }
-        match read_some(port, &mut buf) {
-            ReadOutcome::Bytes(n) => {
-                frames.feed(&buf[..n]);
-                heard = Instant::now();
-                progress(sent, frames.taken());
-            }
-            ReadOutcome::Idle => {}
-            ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
-        }
-        if let Some(map) = frames.map_file() {
-            return map.map(|m| (m, frames.counts.clone()));
-        }
-        if heard.elapsed() > SILENCE {
-            return Err(DeviceError::Silent {
-                seconds: SILENCE.as_secs(),
-                sent,
-                total: stream.len(),
-            });
-        }
     }
 }

@@ -1,6 +1,7 @@
 //! The rangefinder link on the host: frames from a cloud (the scanner side, [`frames`]), bytes
 //! into the decoder and the streaming mapper (the robot side, [`stream`]), serial ports and
-//! pseudo-terminals ([`port`]) and capture files ([`capture`]).
+//! pseudo-terminals ([`port`]) and capture files ([`capture`]), and a mapping device's session
+//! ([`session`], [`device`]).
 //!
 //! The loops that run a link until its end (`mema stream`, `record`, `replay`, `scanner-sim`)
 //! are the command line's: they own Ctrl-C, progress lines and exit statuses.
@@ -9,4 +10,5 @@ pub mod device;
 pub mod frames;
 pub mod port;
 pub mod scanner;
+pub mod session;
 pub mod stream;

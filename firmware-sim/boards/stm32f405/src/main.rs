@@ -1,14 +1,17 @@
 //! The firmware on an STM32F405: `mema_firmware_sim::firmware::Firmware` fed by USART1's receive
 //! interrupt, the map sent back on USART1's transmitter.
 //!
-//! The interrupt takes each byte from the data register and pushes it into the ring the
-//! firmware ticks from (`RX`, single-producer single-consumer); the main loop ticks while there
-//! is work, sends what the downlink has due (entities as they freeze, progress as the ring
-//! empties: PROTOCOL.md, "Device to host"), and sleeps (`wfi`) while there is nothing to do.
-//! When the sender's end-of-stream frame has been mapped, the map is finished with the host's
-//! seed and its remaining entities and end frame go out. No semihosting: this image talks only
-//! through the USART. The entity model is shells, the host's default, or the paper's with the
-//! `paper` feature.
+//! The interrupt takes each byte from the data register and pushes it into the line's ring
+//! (`LINE`, single-producer single-consumer). The host sends the points stream in carry frames
+//! (PROTOCOL.md, "Host to device"): the main loop's [`Carrier`] passes on the stream bytes of
+//! each one taken in turn into the ring the firmware ticks from (`MAP`), so the firmware maps
+//! the host's stream whole and in order whatever the line did, and answers the host's requests.
+//! The loop ticks while there is work, sends what the downlink has due (entities as they
+//! freeze, progress with the carry frame expected next: "Device to host"), and sleeps (`wfi`)
+//! while there is nothing to do. When the sender's end-of-stream frame has been mapped, the map
+//! is finished with the host's seed, its remaining entities and end frame go out, and the
+//! device goes on answering requests. No semihosting: this image talks only through the USART.
+//! The entity model is shells, the host's default, or the paper's with the `paper` feature.
 //!
 //! Clocks: the PLL is set for 168 MHz from the 16 MHz internal oscillator, waiting a bounded
 //! time for it to lock; where it does not (QEMU's `netduinoplus2` models no RCC and reads it as
@@ -18,6 +21,10 @@
 #![no_main]
 
 mod clocks;
+// The 64 KiB image's painted stack, shared as a file: both images put the stack at the top of
+// RAM above their statics.
+#[path = "../../../image/src/stack.rs"]
+mod stack;
 mod timing;
 mod usart;
 
@@ -27,24 +34,27 @@ use cortex_m_rt::entry;
 use mema_core::downlink::DownFrame;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
-    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
-    model_params,
+    BOARD_FROZEN, BOARD_WORKING, Carrier, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY,
+    Request, Ring, SHELLS, model_params,
 };
 use panic_never as _;
 use static_cell::StaticCell;
 use stm32f4::stm32f405::{self as pac, interrupt};
 
-/// The layout of today's image (K = 400 as 150 working clusters and 250 frozen entities), so
-/// the board's map is `mema replay -k 400 --working 150`'s.
-const K: usize = IMAGE_WORKING;
+/// The board's layout, K = 2,048 as 150 working clusters and 1,898 frozen entities: the
+/// board's map is `mema replay -k 2048 --working 150`'s.
+const K: usize = BOARD_WORKING;
 const G: usize = IMAGE_BUCKETS;
-const F: usize = IMAGE_FROZEN;
+const F: usize = BOARD_FROZEN;
 const SEED: u64 = 0;
 /// The link's rate: 921,600 baud, 92 KB/s, as a companion computer's UART runs.
 const BAUD: u32 = 921_600;
 
-/// The receive ring: the interrupt pushes, the main loop's ticks consume.
-static RX: Ring<RX_CAPACITY> = Ring::new();
+/// The line's ring: the interrupt pushes, the main loop's carrier consumes.
+static LINE: Ring<RX_CAPACITY> = Ring::new();
+/// The points stream taken from the carry frames: the carrier pushes, the firmware's ticks
+/// consume.
+static MAP: Ring<RX_CAPACITY> = Ring::new();
 /// Bytes the ring had no room for, and bytes the USART lost before the interrupt read them.
 static RING_OVERRUNS: AtomicU32 = AtomicU32::new(0);
 static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
@@ -64,7 +74,7 @@ fn boot(
     slot.write(Firmware::with_ring(
         model_params(SEED, K, F, model),
         IMAGE_REACH,
-        &RX,
+        &MAP,
     ))
 }
 
@@ -76,7 +86,7 @@ fn USART1() {
             if byte == 0 {
                 DELIMITERS.fetch_add(1, Ordering::Relaxed);
             }
-            if RX.push(&[byte]) == 0 {
+            if LINE.push(&[byte]) == 0 {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
         }
@@ -85,7 +95,7 @@ fn USART1() {
             if byte == 0 {
                 DELIMITERS.fetch_add(1, Ordering::Relaxed);
             }
-            if RX.push(&[byte]) == 0 {
+            if LINE.push(&[byte]) == 0 {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
         }
@@ -115,48 +125,82 @@ fn main() -> ! {
         }
     };
     let firmware = boot(slot, model);
-    // SAFETY: the interrupt's handler only pushes into `RX`, which is built for a producer in
+    // SAFETY: the interrupt's handler only pushes into `LINE`, which is built for a producer in
     // an interrupt; nothing else it touches is shared.
     unsafe {
         // Below SysTick's 0, so the timer's wraps are counted while the handler is timed.
         cp.NVIC.set_priority(pac::Interrupt::USART1, 0x10);
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
     }
+    stack::paint();
     let mut work = timing::Work::default();
+    let mut carrier = Carrier::new();
     let mut delimiters = 0;
     loop {
         let now = DELIMITERS.load(Ordering::Relaxed);
-        if now != delimiters || firmware.mapping() {
+        if now != delimiters || firmware.mapping() || carrier.holding() {
             delimiters = now;
-            // Until a tick neither maps nor finishes a frame: the ring then holds no whole
-            // frame (a tick decodes all it can), and the bytes of the next one are left to
-            // arrive, rather than ticked through a byte at a time as they come.
-            let mut more = true;
-            while more {
+            // Until a pass neither maps nor finishes a frame nor holds carried bytes: the rings
+            // then hold no whole frame (a tick decodes all it can), and the bytes of the next
+            // one are left to arrive, rather than ticked through a byte at a time as they come.
+            loop {
+                work.other(|| carrier.pump(&LINE, &MAP, |r| answer(firmware, r, None)));
                 let mut finished = false;
                 work.tick(|| firmware.tick(|_| finished = true));
-                more = finished || firmware.mapping();
+                if !(finished || firmware.mapping() || carrier.holding()) {
+                    break;
+                }
             }
-            work.other(|| firmware.send_downlink(usart::send));
+            work.other(|| {
+                firmware.send_frozen(usart::send);
+                if let Some(report) = carrier.report_due(&LINE) {
+                    firmware.send_progress(report, usart::send);
+                }
+            });
         }
         if firmware.stats().end_of_stream {
             break;
         }
-        // Sleep until a delimiter comes, without missing one that came since it was looked
-        // at: with interrupts masked, a pending one still wakes `wfi`, and runs once unmasked.
-        cortex_m::interrupt::free(|_| {
-            if DELIMITERS.load(Ordering::Relaxed) == delimiters && !firmware.mapping() {
-                cortex_m::asm::wfi();
-            }
-        });
+        sleep_unless(|| DELIMITERS.load(Ordering::Relaxed) != delimiters || firmware.mapping());
     }
     firmware.finish();
+    carrier.close();
     // What the stream cost, then the rest of the map entity by entity: the device holds no
     // copy of the file.
-    firmware.send_frame(&DownFrame::Timing(work.report(calibration)), usart::send);
+    let timing = DownFrame::Timing(work.report(calibration, stack::high_water()));
+    firmware.send_frame(&timing, usart::send);
     let _ = firmware.send_end(usart::send);
-    usart::flush();
+    // Then the host's requests, for as long as it asks.
     loop {
-        cortex_m::asm::wfi();
+        delimiters = DELIMITERS.load(Ordering::Relaxed);
+        carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&timing)));
+        if let Some(report) = carrier.report_due(&LINE) {
+            firmware.send_progress(report, usart::send);
+        }
+        sleep_unless(|| DELIMITERS.load(Ordering::Relaxed) != delimiters);
     }
+}
+
+/// Answers a request of the host's: entities again, or (once the map is finished) the timing
+/// and end frames again.
+fn answer(firmware: &mut BoardFirmware, request: Request, timing: Option<&DownFrame>) {
+    match (request, timing) {
+        (Request::Resend { first, count }, _) => firmware.resend(first, count, usart::send),
+        (Request::ResendEnd, Some(timing)) => {
+            firmware.send_frame(timing, usart::send);
+            let _ = firmware.send_end_again(usart::send);
+        }
+        // Not finished yet: the end goes out when it is.
+        (Request::ResendEnd, None) => {}
+    }
+}
+
+/// Sleeps until an interrupt, unless `awake` says there is work: with interrupts masked, one
+/// that comes after the look still wakes `wfi`, and runs once unmasked.
+fn sleep_unless(awake: impl Fn() -> bool) {
+    cortex_m::interrupt::free(|_| {
+        if !awake() {
+            cortex_m::asm::wfi();
+        }
+    });
 }

@@ -126,8 +126,8 @@ impl Work {
         self.timed(f);
     }
 
-    /// The account the timing frame carries.
-    pub fn report(&self, calibration: Calibration) -> DeviceTiming {
+    /// The account the timing frame carries, with the deepest the stack went.
+    pub fn report(&self, calibration: Calibration, stack_bytes: usize) -> DeviceTiming {
         let interrupt = interrupt_ticks();
         DeviceTiming {
             busy_ticks: self.ticks + interrupt,
@@ -135,6 +135,7 @@ impl Work {
             longest_tick: self.longest_tick,
             calib_ticks: calibration.ticks,
             calib_insns: calibration.insns,
+            stack_bytes: stack_bytes as u64,
         }
     }
 }

@@ -79,9 +79,3 @@ pub fn send(bytes: &[u8]) {
         usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
     }
 }
-
-/// Waits (bounded) until the last byte has left the shift register.
-pub fn flush() {
-    let usart = usart1();
-    let _ = (0..TX_POLLS).any(|_| usart.sr().read().tc().bit_is_set());
-}

@@ -6,9 +6,10 @@ use serde::Serialize;
 use mema::io::atomic::write_file_atomically;
 use mema::io::kind::InputKind;
 use mema::io::output::check_map_output;
-use mema::link::device::{DownlinkCounts, send_and_receive};
+use mema::link::device::DownlinkCounts;
 use mema::link::port::open_duplex;
 use mema::link::scanner::{scans_of_input, send_scans};
+use mema::link::session::send_and_receive;
 use mema_core::downlink::RING_BYTES;
 
 use crate::cli::args::DeviceArgs;
@@ -46,9 +47,11 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let quiet = args.json;
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
-    let (map, counts) = send_and_receive(&mut port, &stream, RING_BYTES, |sent, taken| {
+    let (map, counts) = send_and_receive(&mut port, &stream, RING_BYTES, |done, taken| {
         if !quiet {
-            eprint!("\rmema device: {sent} of {total} bytes sent, {taken} taken");
+            eprint!(
+                "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
+            );
         }
     })
     .with_context(|| format!("{}: {name}", args.port.display()))?;
@@ -66,13 +69,16 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
         println!("{}", serde_json::to_string(&summary)?);
     } else {
         println!(
-            "{}: {} entities, {} bytes from the device ({} frames, {} refused, {} lost)",
+            "{}: {} entities, {} bytes from the device ({} frames, {} refused, {} lost; {} entities asked again); the device refused {} of ours, {} sent again",
             summary.output,
             summary.downlink.entities,
             summary.map_bytes,
             summary.downlink.frames,
             summary.downlink.refused,
-            summary.downlink.lost
+            summary.downlink.lost,
+            summary.downlink.asked_again,
+            summary.downlink.device_refused,
+            summary.downlink.resent,
         );
     }
     Ok(())

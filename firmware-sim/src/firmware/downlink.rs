@@ -1,0 +1,145 @@
+//! The firmware's side of the way back ([`mema_core::downlink`]): entities as they freeze,
+//! progress for the sender's window, the end, and what the host asks again.
+
+use core::borrow::Borrow;
+
+use mema_core::crc32::Crc32;
+use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
+use mema_core::map::{EncodeError, MapEntity};
+
+use super::{Firmware, LineReport, RX_CAPACITY, Ring};
+
+/// What the map's way back to the host has sent.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Downlink {
+    /// The next frame's sequence number.
+    pub(super) sequence: u32,
+    /// Frozen entities already sent.
+    pub(super) sent_frozen: usize,
+    /// The ring's taken count last reported.
+    pub(super) reported: u32,
+}
+
+/// Encodes `frame` as number `sequence` (then counts it) and hands its bytes to `sink`.
+fn send_frame(sequence: &mut u32, frame: &DownFrame, sink: &mut impl FnMut(&[u8])) {
+    let mut out = [0u8; MAX_DOWN_FRAME_LEN];
+    if let Ok(n) = downlink::encode(*sequence, frame, &mut out) {
+        sink(out.get(..n).unwrap_or(&[]));
+        *sequence = sequence.wrapping_add(1);
+    }
+}
+
+/// Sends the map's entity `index` as the next frame.
+fn send_entity(sequence: &mut u32, index: usize, entity: MapEntity, sink: &mut impl FnMut(&[u8])) {
+    let index = index as u32;
+    send_frame(sequence, &DownFrame::Entity { index, entity }, sink);
+}
+
+/// A progress frame goes out once the device has taken this many bytes since the last one: a
+/// tenth of the ring, so a sender keeping the ring's size in flight is never held up long,
+/// for 28 bytes back per 312 in.
+pub const PROGRESS_EVERY: u32 = (RX_CAPACITY / 10) as u32;
+
+impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>
+    Firmware<K, G, F, R>
+{
+    /// The downlink's frames due now, each handed to `sink` whole: the entities frozen since
+    /// the last call (final, so each leaves the device once), then a progress frame if the
+    /// ring has given up [`PROGRESS_EVERY`] bytes since the last one. For the main loop,
+    /// between ticks, of a device fed points frames directly (no carry frames).
+    pub fn send_downlink(&mut self, mut sink: impl FnMut(&[u8])) {
+        self.send_frozen(&mut sink);
+        let taken = self.rx.borrow().taken() as u32;
+        if taken.wrapping_sub(self.down.reported) >= PROGRESS_EVERY {
+            self.down.reported = taken;
+            let line = LineReport {
+                taken,
+                next: 0,
+                refused: 0,
+            };
+            self.send_progress(line, sink);
+        }
+    }
+
+    /// The entities frozen since the last call, each as a frame.
+    pub fn send_frozen(&mut self, mut sink: impl FnMut(&[u8])) {
+        let frozen = self.mapper.frozen().len();
+        while self.down.sent_frozen < frozen {
+            let index = self.down.sent_frozen;
+            if let Some(entity) = self.mapper.frozen_entity(index) {
+                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+            }
+            self.down.sent_frozen += 1;
+        }
+    }
+
+    /// A progress frame with the line's account (a [`super::Carrier`]'s, on a device fed
+    /// carry frames) and the points frames mapped.
+    pub fn send_progress(&mut self, line: LineReport, mut sink: impl FnMut(&[u8])) {
+        let frame = DownFrame::Progress {
+            taken: line.taken,
+            frames: self.stats.frames as u32,
+            next: line.next,
+            refused: line.refused,
+        };
+        send_frame(&mut self.down.sequence, &frame, &mut sink);
+    }
+
+    /// Sends one downlink frame of the caller's (a board's [`DownFrame::Timing`]) in the
+    /// downlink's sequence.
+    pub fn send_frame(&mut self, frame: &DownFrame, mut sink: impl FnMut(&[u8])) {
+        send_frame(&mut self.down.sequence, frame, &mut sink);
+    }
+
+    /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
+    /// end frame. Returns the file's length.
+    pub fn send_end(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
+        self.send_frozen(&mut sink);
+        let first = self.down.sent_frozen;
+        for (index, entity) in self.mapper.entities().enumerate().skip(first) {
+            send_entity(&mut self.down.sequence, index, entity, &mut sink);
+        }
+        self.send_end_again(sink)
+    }
+
+    /// The end frame alone (again, when the host asks): the file's layout, length and CRC-32,
+    /// which the map is encoded once more to compute, a piece at a time (no buffer for it).
+    pub fn send_end_again(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
+        let mut crc = Crc32::new();
+        let len = self.send_map(|piece| crc.update(piece))?;
+        let layout = self.mapper.layout();
+        let count = self.mapper.entities().count();
+        let end = MapEnd {
+            entities: u32::try_from(count).map_err(|_| EncodeError::TooManyEntities)?,
+            layout,
+            shift: self.mapper.file_shift(layout),
+            origin: self.receiver.origin(),
+            map_len: u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?,
+            map_crc: crc.finish(),
+            points: self.mapper.stats().points as u32,
+            frames: self.stats.frames as u32,
+        };
+        send_frame(&mut self.down.sequence, &DownFrame::End(end), &mut sink);
+        Ok(len)
+    }
+
+    /// Entity frames `first .. first + count` again, as the host asks: any frozen one, and
+    /// after the end of the stream any of the map's (a working cluster's entity is not final
+    /// before it).
+    pub fn resend(&mut self, first: u32, count: u16, mut sink: impl FnMut(&[u8])) {
+        let (first, count) = (first as usize, usize::from(count));
+        let frozen = self.mapper.frozen().len();
+        if self.stats.end_of_stream {
+            let entities = self.mapper.entities().enumerate().skip(first).take(count);
+            for (index, entity) in entities {
+                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+            }
+            return;
+        }
+        for index in first..first.saturating_add(count).min(frozen) {
+            if let Some(entity) = self.mapper.frozen_entity(index) {
+                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+            }
+        }
+    }
+}

@@ -1,0 +1,219 @@
+//! A whole `mema device` session over a port: the points stream goes out in carry frames
+//! ([`mema_core::uplink`]) within the device's receive ring, and again from the first one the
+//! device has not taken when it refuses one or stays quiet; the map comes back as frames
+//! ([`super::device::MapFrames`]), and what did not arrive intact is asked for again.
+
+use std::io::{Read, Write};
+use std::ops::Range;
+use std::time::{Duration, Instant};
+
+use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, UpFrame};
+
+use super::device::{DeviceError, DownlinkCounts, MapFrames};
+use super::port::{ReadOutcome, read_some};
+
+/// How long the device may say nothing new while it has work before the session is given up.
+pub const SILENCE: Duration = Duration::from_secs(30);
+/// How long frames may go unacknowledged, or an answer not come, before they are sent or asked
+/// for again. A device acknowledges within a tick (milliseconds); after this long with nothing
+/// taken, its ring is empty, whatever the line lost of what was counted in flight.
+pub const RETRY: Duration = Duration::from_secs(1);
+/// Times the same missing entities are asked for before the session gives up on them.
+pub const MAX_ASKS: u32 = 20;
+
+/// The stream as carry frames, each encoded once.
+struct CarryFrames {
+    wire: Vec<u8>,
+    frames: Vec<Range<usize>>,
+}
+
+impl CarryFrames {
+    fn of(stream: &[u8]) -> Result<Self, DeviceError> {
+        let mut wire = Vec::with_capacity(stream.len() + stream.len() / 20);
+        let mut frames = Vec::with_capacity(stream.len() / MAX_CARRIED + 1);
+        let mut out = [0u8; MAX_UP_FRAME_LEN];
+        for (sequence, bytes) in stream.chunks(MAX_CARRIED).enumerate() {
+            let frame = UpFrame::Carry {
+                // Numbers wrap at 2^32 as the device's do.
+                sequence: sequence as u32,
+                bytes,
+            };
+            let n = uplink::encode(&frame, &mut out)
+                .map_err(|e| DeviceError::Io(std::io::Error::other(format!("{e:?}"))))?;
+            let start = wire.len();
+            wire.extend_from_slice(&out[..n]);
+            frames.push(start..wire.len());
+        }
+        Ok(Self { wire, frames })
+    }
+
+    fn frame(&self, i: usize) -> &[u8] {
+        self.frames.get(i).map_or(&[], |r| &self.wire[r.clone()])
+    }
+}
+
+/// The sender's account of the line.
+struct Sender {
+    /// The next carry frame to send.
+    next: usize,
+    /// Bytes written, and those of them believed lost on the line (after a quiet spell the
+    /// device's ring is empty, whatever it has counted as taken).
+    written: u64,
+    lost: u64,
+    /// When the device last took a carry frame, and what it expected then.
+    acked_at: Instant,
+    acked: u64,
+    /// The device's refused count last seen, and the bytes written when the sender last went
+    /// back: a refusal of bytes written before that is one it has already answered.
+    refused: u32,
+    back_at: u64,
+}
+
+/// Sends `stream` (encoded points frames) over `port` in carry frames, never more than
+/// `window` bytes beyond what the device has taken from its ring, sends again what the device
+/// did not take, and receives the map frames until the map is whole; `progress` is called with
+/// (bytes of carry frames acknowledged, bytes taken) as they change.
+pub fn send_and_receive(
+    port: &mut (impl Read + Write),
+    stream: &[u8],
+    window: usize,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(Vec<u8>, DownlinkCounts), DeviceError> {
+    let carry = CarryFrames::of(stream)?;
+    let total = carry.frames.len();
+    let mut frames = MapFrames::new();
+    let mut s = Sender {
+        next: 0,
+        written: 0,
+        lost: 0,
+        acked_at: Instant::now(),
+        acked: 0,
+        refused: 0,
+        back_at: 0,
+    };
+    let mut buf = [0u8; 4096];
+    let mut heard = Instant::now();
+    let mut asked: Option<Instant> = None;
+    let mut asks = 0u32;
+    loop {
+        let acked = frames.acked().min(total as u64);
+        if acked != s.acked {
+            s.acked = acked;
+            s.acked_at = Instant::now();
+            heard = Instant::now();
+        }
+        let acked = acked as usize;
+        s.next = s.next.max(acked);
+        let pending = s.next > acked;
+        let mut refused_more = frames.counts.device_refused != s.refused;
+        if refused_more && frames.taken() + s.lost <= s.back_at {
+            s.refused = frames.counts.device_refused;
+            refused_more = false;
+        }
+        if pending && (refused_more || s.acked_at.elapsed() > RETRY) {
+            if !refused_more {
+                // Quiet for RETRY with frames out: the device's ring is empty.
+                s.lost = s.written.saturating_sub(frames.taken());
+            }
+            frames.counts.resent += (s.next - acked) as u64;
+            frames.counts.went_back += 1;
+            s.next = acked;
+            s.refused = frames.counts.device_refused;
+            s.back_at = s.written;
+            s.acked_at = Instant::now();
+        }
+        // Within the window, a few frames at a time, so the device's answers are read as
+        // they come.
+        let mut burst = Vec::new();
+        while s.next < total && burst.len() < 1024 {
+            let frame = carry.frame(s.next);
+            let in_flight = s.written.saturating_sub(frames.taken() + s.lost) as usize;
+            if in_flight + burst.len() + frame.len() > window {
+                break;
+            }
+            burst.extend_from_slice(frame);
+            s.next += 1;
+        }
+        if !burst.is_empty() {
+            port.write_all(&burst)?;
+            port.flush()?;
+            s.written += burst.len() as u64;
+        }
+        match read_some(port, &mut buf) {
+            ReadOutcome::Bytes(n) => {
+                let before = frames.counts.frames;
+                frames.feed(&buf[..n]);
+                if frames.counts.frames != before {
+                    heard = Instant::now();
+                }
+                let done = carry
+                    .frames
+                    .get(acked)
+                    .map_or(carry.wire.len(), |r| r.start);
+                progress(done, frames.taken());
+            }
+            ReadOutcome::Idle => {}
+            ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
+        }
+        if frames.ended() {
+            let missing = frames.missing();
+            if missing.is_empty() {
+                let map = frames.map_file().unwrap_or(Err(DeviceError::Missing {
+                    missing: Vec::new(),
+                }))?;
+                return Ok((map, frames.counts.clone()));
+            }
+            if asked.is_none_or(|t| t.elapsed() > RETRY) {
+                if asks == MAX_ASKS {
+                    return Err(DeviceError::StillMissing { missing, asks });
+                }
+                ask_for(port, &missing)?;
+                frames.counts.asked_again += missing.len() as u64;
+                asks += 1;
+                asked = Some(Instant::now());
+            }
+        } else if acked == total && asked.is_none_or(|t| t.elapsed() > 2 * RETRY) {
+            // Everything taken and no end yet: it may be finishing, or its end was lost.
+            let mut out = [0u8; MAX_UP_FRAME_LEN];
+            if let Ok(n) = uplink::encode(&UpFrame::ResendEnd, &mut out) {
+                if asked.is_some() {
+                    frames.counts.ends_asked += 1;
+                    port.write_all(&out[..n])?;
+                    port.flush()?;
+                }
+                asked = Some(Instant::now());
+            }
+        }
+        if heard.elapsed() > SILENCE {
+            let done = carry
+                .frames
+                .get(acked)
+                .map_or(carry.wire.len(), |r| r.start);
+            return Err(DeviceError::Silent {
+                seconds: SILENCE.as_secs(),
+                sent: done,
+                total: carry.wire.len(),
+            });
+        }
+    }
+}
+
+/// Asks for `missing` (sorted entity indices) again, in runs of at most [`MAX_RESEND`].
+fn ask_for(port: &mut impl Write, missing: &[u32]) -> Result<(), DeviceError> {
+    let mut out = [0u8; MAX_UP_FRAME_LEN];
+    let mut i = 0;
+    while let Some(&first) = missing.get(i) {
+        let mut count = 1u16;
+        while count < MAX_RESEND
+            && missing.get(i + usize::from(count)) == Some(&(first + u32::from(count)))
+        {
+            count += 1;
+        }
+        i += usize::from(count);
+        if let Ok(n) = uplink::encode(&UpFrame::Resend { first, count }, &mut out) {
+            port.write_all(&out[..n])?;
+        }
+    }
+    port.flush()?;
+    Ok(())
+}

@@ -1,0 +1,207 @@
+//! The board's link under line faults (issue 22): the STM32F405 image under QEMU, and
+//! `mema device` on the far end of a relay that drops, flips and duplicates bytes in both
+//! directions (seeded). The host must write `mema replay`'s map at the board's layout byte
+//! for byte, after sending again what the board refused and asking again for what it lost, and
+//! say so in its counts; it must never hang.
+
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use mema_firmware_sim::firmware::{BOARD_FROZEN, BOARD_WORKING};
+
+use crate::faults::Rng;
+use crate::stream::PtyPair;
+use crate::util::{Dir, MemaCommand, mema_bin, shared};
+
+/// A child process killed on drop.
+struct Killed(Child);
+
+impl Drop for Killed {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// The board image (shells), built as `firmware-sim/board.sh` builds it.
+fn board_image() -> PathBuf {
+    let board = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware-sim/boards/stm32f405");
+    let status = Command::new("cargo")
+        .args(["build", "-q", "--release", "--target-dir", "target/shells"])
+        .current_dir(&board)
+        .env_remove("CARGO_TARGET_DIR")
+        .status()
+        .expect("cargo runs");
+    assert!(status.success(), "the board image builds");
+    board.join("target/shells/thumbv7em-none-eabihf/release/mema-board-stm32f405")
+}
+
+/// The board under QEMU, its USART on a pty: the process and the pty's path.
+fn start_board(dir: &Dir, image: &Path) -> (Killed, PathBuf) {
+    let log = dir.join("qemu.txt");
+    let child = Command::new("qemu-system-arm")
+        .args([
+            "-machine",
+            "netduinoplus2",
+            "-nographic",
+            "-monitor",
+            "none",
+        ])
+        .args(["-serial", "pty", "-icount", "shift=0", "-kernel"])
+        .arg(image)
+        .stdout(File::create(&log).expect("log"))
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("qemu-system-arm runs (scripts/test.sh installs it)");
+    let qemu = Killed(child);
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        let text = std::fs::read_to_string(&log).unwrap_or_default();
+        if let Some(at) = text.find("/dev/pts/") {
+            let path: String = text[at..]
+                .chars()
+                .take_while(|c| !c.is_whitespace())
+                .collect();
+            return (qemu, PathBuf::from(path));
+        }
+        assert!(Instant::now() < deadline, "QEMU gave no pty: {text}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Copies `from` to `to` until either end goes, dropping, flipping or duplicating a byte at
+/// a time at `one_in` bytes (seeded); returns the faults made.
+fn relay(mut from: File, mut to: File, seed: u64, one_in: u64) -> std::thread::JoinHandle<u64> {
+    std::thread::spawn(move || {
+        let mut rng = Rng(seed);
+        let (mut buf, mut out, mut faults) = ([0u8; 512], Vec::with_capacity(1024), 0);
+        while let Ok(n) = from.read(&mut buf) {
+            if n == 0 {
+                break;
+            }
+            out.clear();
+            for &b in &buf[..n] {
+                if rng.next() % one_in != 0 {
+                    out.push(b);
+                    continue;
+                }
+                faults += 1;
+                match rng.next() % 3 {
+                    0 => {}
+                    1 => out.push(b ^ (1 << (rng.next() % 8))),
+                    _ => out.extend_from_slice(&[b, b]),
+                }
+            }
+            if to.write_all(&out).is_err() {
+                break;
+            }
+        }
+        faults
+    })
+}
+
+fn open(path: &Path) -> File {
+    OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+#[test]
+fn a_faulty_line_both_ways_still_gives_the_replay_map() {
+    let dir = Dir::new("board-link");
+    let capture = dir.join("car6.bin");
+    MemaCommand::new(&dir)
+        .args(["scanner-sim", "--port"])
+        .arg(&capture)
+        .arg(shared("car6.pcd"))
+        .run()
+        .assert_ok();
+    let k = (BOARD_WORKING + BOARD_FROZEN).to_string();
+    let working = BOARD_WORKING.to_string();
+    let replayed = dir.join("replay.mema");
+    MemaCommand::new(&dir)
+        .arg("replay")
+        .arg(&capture)
+        .args(["-k", &k, "--working", &working, "--model", "shells", "-o"])
+        .arg(&replayed)
+        .run()
+        .assert_ok();
+    let replayed = std::fs::read(&replayed).expect("replay's map");
+    let image = board_image();
+    let mut asked_again = 0;
+    for seed in [3u64, 11] {
+        let (qemu, board_pty) = start_board(&dir, &image);
+        let pair = PtyPair::new(&dir);
+        let board = open(&board_pty);
+        let near = open(&pair.a);
+        // Down (board to host) one byte in 2,000, up one in 4,000: tens of faults each way.
+        let down = relay(
+            board.try_clone().expect("clone"),
+            near.try_clone().expect("clone"),
+            seed,
+            2_000,
+        );
+        let up = relay(near, board, seed.wrapping_mul(0x9E37_79B9_7F4A_7C15), 4_000);
+        let out = dir.join(&format!("board-{seed}.mema"));
+        let child = Command::new(mema_bin())
+            .arg("device")
+            .arg("--port")
+            .arg(&pair.b)
+            .arg(&capture)
+            .arg("-o")
+            .arg(&out)
+            .arg("--json")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("mema runs");
+        let mut device = Killed(child);
+        let deadline = Instant::now() + Duration::from_secs(300);
+        while device.0.try_wait().expect("wait").is_none() {
+            assert!(Instant::now() < deadline, "seed {seed}: mema device hung");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        let mut stdout = String::new();
+        let mut stderr = String::new();
+        if let Some(mut s) = device.0.stdout.take() {
+            let _ = s.read_to_string(&mut stdout);
+        }
+        if let Some(mut s) = device.0.stderr.take() {
+            let _ = s.read_to_string(&mut stderr);
+        }
+        let status = device.0.wait().expect("status");
+        assert!(status.success(), "seed {seed}: {stderr}");
+        let summary: serde_json::Value = serde_json::from_str(stdout.trim()).expect("json");
+        let map = std::fs::read(&out).expect("the board's map");
+        assert!(
+            map == replayed,
+            "seed {seed}: the map is not replay's: {summary}"
+        );
+        eprintln!("seed {seed}: {summary}");
+        let count = |key: &str| summary[key].as_u64().unwrap_or(0);
+        // The board refused damaged carry frames and the host sent them again; the host saw
+        // damaged or missing downlink frames.
+        assert!(
+            count("device_refused") > 0 && count("resent") > 0,
+            "seed {seed}: {summary}"
+        );
+        assert!(
+            count("refused") + count("lost") > 0,
+            "seed {seed}: {summary}"
+        );
+        asked_again += count("asked_again") + count("ends_asked");
+        drop(pair);
+        drop(qemu);
+        let (up, down) = (up.join().unwrap_or(0), down.join().unwrap_or(0));
+        assert!(
+            up > 0 && down > 0,
+            "seed {seed}: {up} faults up, {down} down"
+        );
+    }
+    assert!(asked_again > 0, "no entity was lost on the way down");
+}
