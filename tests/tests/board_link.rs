@@ -84,7 +84,7 @@ fn relay(mut from: File, mut to: File, seed: u64, one_in: u64) -> std::thread::J
             }
             out.clear();
             for &b in &buf[..n] {
-                if rng.next() % one_in != 0 {
+                if !rng.next().is_multiple_of(one_in) {
                     out.push(b);
                     continue;
                 }
