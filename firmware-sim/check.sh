@@ -107,7 +107,9 @@ for cloud in car6.pcd demo; do
   done
 done
 for model in paper shells; do
-  echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen, model $model)"
-  target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt"
+  echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen; the board, K = 700: 150 + 550; model $model)"
+  target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt" \
+    --board "firmware-sim/boards/stm32f405/target/$model/thumbv7em-none-eabihf/release/mema-board-stm32f405" \
+    --board-run "$work/car6.pcd/$model/board.txt"
 done
 exit $status

@@ -11,7 +11,8 @@ use mema_core::wire::Decoder;
 
 use crate::board::TARGET_BOARD;
 use crate::firmware::{
-    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, RX_CAPACITY, Snapshot,
+    BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING,
+    RX_CAPACITY, Snapshot,
 };
 
 /// One capacity's static RAM.
@@ -152,6 +153,42 @@ pub struct Report {
     pub rows: Vec<StaticRow>,
     pub image: Option<ImageSize>,
     pub qemu: Option<QemuReport>,
+    /// The STM32F405 board's image, and what one run of it measured (`board.sh`'s summary).
+    pub board: Option<ImageSize>,
+    pub board_run: Option<BoardRun>,
+}
+
+/// The STM32F405 board: 1 MiB of flash, 128 KiB of SRAM (its 64 KiB of CCM aside).
+pub const BOARD_FLASH: u64 = 1024 * 1024;
+pub const BOARD_SRAM: u64 = 128 * 1024;
+
+/// What the board measured of itself in one run (the timing frame, through `mema device
+/// --json`, the last line `firmware-sim/board.sh` prints).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoardRun {
+    pub per_point: f64,
+    pub longest_tick: f64,
+    pub stack_bytes: u64,
+}
+
+impl BoardRun {
+    /// From `board.sh`'s summary line.
+    pub fn parse(text: &str) -> Option<Self> {
+        let line = text.lines().rev().find(|l| l.contains("\"per_point\""))?;
+        let number = |key: &str| -> Option<f64> {
+            let at = line.find(&format!("\"{key}\":"))? + key.len() + 3;
+            let rest = line.get(at..)?;
+            let end = rest
+                .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+                .unwrap_or(rest.len());
+            rest.get(..end)?.parse().ok()
+        };
+        Some(Self {
+            per_point: number("per_point")?,
+            longest_tick: number("longest_tick")?,
+            stack_bytes: number("stack_bytes")? as u64,
+        })
+    }
 }
 
 #[derive(Debug)]
@@ -195,8 +232,26 @@ pub fn llvm_size(image: &Path) -> Result<ImageSize, BudgetError> {
     }
 }
 
-pub fn report(image: Option<&Path>, qemu: Option<&Path>) -> Result<Report, BudgetError> {
+/// The budget: static RAM by layout, and each image given (the 64 KiB image with its QEMU
+/// report, the board's with its run's summary).
+pub fn report(
+    image: Option<&Path>,
+    qemu: Option<&Path>,
+    board: Option<&Path>,
+    board_run: Option<&Path>,
+) -> Result<Report, BudgetError> {
     let image = image.map(llvm_size).transpose()?;
+    let board = board.map(llvm_size).transpose()?;
+    let board_run = match board_run {
+        None => None,
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .map_err(|e| BudgetError::QemuReport(format!("{}: {e}", path.display())))?;
+            Some(BoardRun::parse(&text).ok_or_else(|| {
+                BudgetError::QemuReport(format!("{}: no board.sh summary", path.display()))
+            })?)
+        }
+    };
     let qemu = match qemu {
         None => None,
         Some(path) => {
@@ -213,10 +268,13 @@ pub fn report(image: Option<&Path>, qemu: Option<&Path>) -> Result<Report, Budge
             row::<150, 512, 0>(),
             row::<400, 1024, 0>(),
             row::<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>(),
+            row::<BOARD_WORKING, IMAGE_BUCKETS, BOARD_FROZEN>(),
             row::<1000, 2048, 0>(),
         ],
         image,
         qemu,
+        board,
+        board_run,
     })
 }
 
@@ -331,6 +389,37 @@ impl Report {
             );
             s += &q.tick_text().unwrap_or_default();
         }
+        s += &self.board_text();
+        s
+    }
+
+    fn board_text(&self) -> String {
+        let Some(b) = self.board else {
+            return String::new();
+        };
+        let (flash, ram) = (b.text + b.data, b.data + b.bss);
+        let mut s = format!(
+            "board image (STM32F405, thumbv7em-none-eabihf, K = {}: {BOARD_WORKING} working + {BOARD_FROZEN} frozen): flash {} (text {} + data {}) of 1 MiB, static RAM {} (data + bss {}) of 128 KiB SRAM\n",
+            BOARD_WORKING + BOARD_FROZEN,
+            kib(flash),
+            b.text,
+            b.data,
+            kib(ram),
+            ram,
+        );
+        if let Some(r) = self.board_run {
+            let used = ram + r.stack_bytes;
+            s += &format!(
+                "  RAM in use: static {} + stack high-water {} = {}; under 128 KiB: {}\n\
+                 \x20 under QEMU netduinoplus2 (-icount shift=0): {:.0} instructions per ingested point (receive interrupt and downlink included), longest tick {:.0}\n",
+                kib(ram),
+                kib(r.stack_bytes),
+                kib(used),
+                if used < BOARD_SRAM && flash < BOARD_FLASH { "yes" } else { "no" },
+                r.per_point,
+                r.longest_tick,
+            );
+        }
         s
     }
 
@@ -363,12 +452,25 @@ impl Report {
                 q.instructions_per_point().unwrap_or(0.0)
             )
         });
+        let board = self.board.map_or("null".to_string(), |b| {
+            let run = self.board_run.map_or("null".to_string(), |r| {
+                format!(
+                    "{{\"per_point\":{:.1},\"longest_tick\":{:.0},\"stack_bytes\":{}}}",
+                    r.per_point, r.longest_tick, r.stack_bytes
+                )
+            });
+            format!(
+                "{{\"text\":{},\"data\":{},\"bss\":{},\"run\":{run}}}",
+                b.text, b.data, b.bss
+            )
+        });
         format!(
-            "{{\"cluster_bytes\":{},\"static\":[{}],\"image\":{},\"qemu\":{}}}",
+            "{{\"cluster_bytes\":{},\"static\":[{}],\"image\":{},\"qemu\":{},\"board\":{}}}",
             self.cluster_bytes,
             rows.join(","),
             image,
-            qemu
+            qemu,
+            board
         )
     }
 }

@@ -143,10 +143,13 @@ pub fn dispatch(args: &[String]) -> Result<(), CliError> {
 
 #[cfg(feature = "reference")]
 fn crate_budget(args: &Args) -> Result<(), CliError> {
-    args.only(&["--image", "--qemu-report"])?;
+    args.only(&["--image", "--qemu-report", "--board", "--board-run"])?;
+    let path = |name: &str| args.get(&[name]).map(PathBuf::from);
     let report = mema_firmware_sim::budget::report(
-        args.get(&["--image"]).map(PathBuf::from).as_deref(),
-        args.get(&["--qemu-report"]).map(PathBuf::from).as_deref(),
+        path("--image").as_deref(),
+        path("--qemu-report").as_deref(),
+        path("--board").as_deref(),
+        path("--board-run").as_deref(),
     )
     .map_err(|e| failed(e.to_string()))?;
     if args.flag("--json") {

@@ -81,6 +81,8 @@ pub struct Instructions {
     pub interrupt_per_point: f64,
     /// The longest single tick of the firmware.
     pub longest_tick: f64,
+    /// The deepest the device's stack went, in bytes (0: not measured).
+    pub stack_bytes: u64,
 }
 
 impl Instructions {
@@ -93,6 +95,7 @@ impl Instructions {
             per_point: insns(t.busy_ticks) / f64::from(points),
             interrupt_per_point: insns(t.interrupt_ticks) / f64::from(points),
             longest_tick: insns(t.longest_tick),
+            stack_bytes: t.stack_bytes,
         })
     }
 }
