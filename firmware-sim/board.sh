@@ -7,20 +7,24 @@
 # k, working) and `mema device --json`'s counts. The same capture replays to the same bytes with
 #   mema replay CAPTURE -k K --working W --model MODEL
 #
-#   firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper]
+#   firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper] [--queries N]
 #
+# --queries N: after the map, N questions of it (nearest surface and ray cast) answered on the
+# board, checked against the host's answers, with the instructions one took.
 # MEMA=path/to/mema uses that build of the host's command instead of building one.
 # Needs: the thumbv7em-none-eabihf target and qemu-system-arm (scripts/test.sh installs both).
 set -euo pipefail
-usage() { echo "usage: firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper]" >&2; exit 2; }
+usage() { echo "usage: firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper] [--queries N]" >&2; exit 2; }
 [ $# -ge 2 ] || usage
 input=$(realpath "$1")
 out=$(realpath -m "$2")
 shift 2
 model=shells
+queries=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --model) [ $# -ge 2 ] || usage; model=$2; shift 2 ;;
+    --queries) [ $# -ge 2 ] || usage; queries=$2; shift 2 ;;
     *) usage ;;
   esac
 done
@@ -63,5 +67,5 @@ for _ in $(seq 100); do
   sleep 0.1
 done
 [ -n "$pty" ] || { echo "board.sh: QEMU gave no pty" >&2; exit 1; }
-summary=$("$MEMA" device --port "$pty" "$input" -o "$out" --json)
+summary=$("$MEMA" device --port "$pty" "$input" -o "$out" --queries "$queries" --json)
 echo "{\"board\":\"stm32f405\",\"model\":\"$model\",\"k\":$k,\"working\":$working,\"device\":$summary}"

@@ -8,7 +8,7 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 1 | version `0x81` |
-//! | 1 | 1 | kind: `0` entity, `1` end of map, `2` progress, `3` device timing |
+//! | 1 | 1 | kind: `0` entity, `1` end of map, `2` progress, `3` device timing, `4` answer |
 //! | 2 | 4 | sequence: 0 for the first frame after boot, +1 per frame |
 //! | 6 | n | the kind's payload |
 //! | 6 + n | 4 | CRC-32 of every byte before it |
@@ -55,6 +55,8 @@ pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4 + 4 + 4;
 /// A timing frame's payload: busy, interrupt and longest-tick counts, the calibration, the
 /// deepest stack.
 pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8 + 8;
+/// An answer frame's payload: the query's number, what, entity, value, ticks.
+pub const ANSWER_PAYLOAD_LEN: usize = 4 + 1 + 4 + 8 + 4;
 /// The longest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + END_PAYLOAD_LEN + CRC_LEN;
 /// The longest frame on the wire, its delimiter included.
@@ -64,6 +66,7 @@ const KIND_ENTITY: u8 = 0;
 const KIND_END: u8 = 1;
 const KIND_PROGRESS: u8 = 2;
 const KIND_TIMING: u8 = 3;
+const KIND_ANSWER: u8 = 4;
 
 /// How the map's file is written from its entities.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -102,6 +105,16 @@ pub enum DownFrame {
     },
     /// What the device's work cost it, in its timer's ticks, sent before the end.
     Timing(DeviceTiming),
+    /// The answer to a host's query ([`crate::uplink::UpFrame::Query`]): the entity found
+    /// (`u32::MAX`: none), the signed distance to the nearest surface or the distance along
+    /// the ray, and the timer's ticks the query took.
+    Answer {
+        query: u32,
+        ray: bool,
+        entity: u32,
+        value: f64,
+        ticks: u32,
+    },
 }
 
 /// A device's own account of its work, in ticks of its timer, with the calibration that turns
@@ -210,6 +223,21 @@ pub fn encode(sequence: u32, frame: &DownFrame, out: &mut [u8]) -> Result<usize,
                 w.put(&v.to_le_bytes());
             }
         }
+        DownFrame::Answer {
+            query,
+            ray,
+            entity,
+            value,
+            ticks,
+        } => {
+            w.put(&[KIND_ANSWER]);
+            w.put(&sequence.to_le_bytes());
+            w.put(&query.to_le_bytes());
+            w.put(&[u8::from(*ray)]);
+            w.put(&entity.to_le_bytes());
+            w.put(&value.to_le_bytes());
+            w.put(&ticks.to_le_bytes());
+        }
         DownFrame::Timing(t) => {
             w.put(&[KIND_TIMING]);
             w.put(&sequence.to_le_bytes());
@@ -268,12 +296,32 @@ pub fn decode(block: &mut [u8]) -> Result<(u32, DownFrame), DownlinkError> {
         KIND_END => END_PAYLOAD_LEN,
         KIND_PROGRESS => PROGRESS_PAYLOAD_LEN,
         KIND_TIMING => TIMING_PAYLOAD_LEN,
+        KIND_ANSWER => ANSWER_PAYLOAD_LEN,
         other => return Err(DownlinkError::Code(other)),
     };
     if body.len() != HEADER_LEN + expected {
         return Err(DownlinkError::Length { got: len });
     }
-    let frame = if kind == KIND_TIMING {
+    let frame = if kind == KIND_ANSWER {
+        let query = r.u32()?;
+        let ray = match r.u8()? {
+            0 => false,
+            1 => true,
+            other => return Err(DownlinkError::Code(other)),
+        };
+        let entity = r.u32()?;
+        let value = r.f64()?;
+        if value.is_nan() {
+            return Err(DownlinkError::Value);
+        }
+        DownFrame::Answer {
+            query,
+            ray,
+            entity,
+            value,
+            ticks: r.u32()?,
+        }
+    } else if kind == KIND_TIMING {
         DownFrame::Timing(DeviceTiming {
             busy_ticks: r.u64()?,
             interrupt_ticks: r.u64()?,

@@ -81,8 +81,10 @@ impl Rotation {
         if self.is_identity() {
             return v;
         }
-        let m = self.matrix();
-        [0, 1, 2].map(|i| m[i][0] * v[0] + m[i][1] * v[1] + m[i][2] * v[2])
+        let [r0, r1, r2] = self.matrix();
+        // Written out, not `[0, 1, 2].map(|i| ...)`: built for size, that leaves a bounds
+        // check (a panicking branch) in the firmware.
+        [r0, r1, r2].map(|r| r[0] * v[0] + r[1] * v[1] + r[2] * v[2])
     }
 
     /// `R^T v`: a world direction in the entity's frame.
@@ -90,8 +92,12 @@ impl Rotation {
         if self.is_identity() {
             return v;
         }
-        let m = self.matrix();
-        [0, 1, 2].map(|i| m[0][i] * v[0] + m[1][i] * v[1] + m[2][i] * v[2])
+        let [a, b, c] = self.matrix();
+        [
+            a[0] * v[0] + b[0] * v[1] + c[0] * v[2],
+            a[1] * v[0] + b[1] * v[1] + c[1] * v[2],
+            a[2] * v[0] + b[2] * v[1] + c[2] * v[2],
+        ]
     }
 
     /// The quaternion of a rotation matrix (Shepperd's method: the largest of the four

@@ -8,8 +8,8 @@
 //! | offset | size | field |
 //! |---|---|---|
 //! | 0 | 1 | version `0x82` |
-//! | 1 | 1 | kind: `0` carry, `1` resend entities, `2` resend the end |
-//! | 2 | 4 | carry: its number (0 for the first, +1 per carry frame); requests: `0` |
+//! | 1 | 1 | kind: `0` carry, `1` resend entities, `2` resend the end, `3` query |
+//! | 2 | 4 | carry: its number (0 for the first, +1 per carry frame); query: the host's number for it, which the answer repeats; other requests: `0` |
 //! | 6 | n | the kind's payload |
 //! | 6 + n | 4 | CRC-32 of every byte before it |
 //!
@@ -20,7 +20,9 @@
 //! makes of the same stream. Its progress frames say which number it expects next and how many
 //! frames it refused: the host sends again from there. A **resend entities** request (`first`
 //! u32, `count` u16) asks for entity frames again, a **resend the end** request (no payload)
-//! for the timing and end frames once the map is finished.
+//! for the timing and end frames once the map is finished, and a **query** (`what` u8: `0`
+//! nearest surface, `1` ray; a point and a direction, f32, in the map's frame) asks the
+//! finished map a question, answered by a downlink answer frame.
 
 use crate::crc32::crc32;
 use crate::wire::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
@@ -44,9 +46,11 @@ pub const MAX_UP_FRAME_LEN: usize = cobs_max_encoded_len(MAX_UP_RAW_LEN) + 1;
 const KIND_CARRY: u8 = 0;
 const KIND_RESEND: u8 = 1;
 const KIND_RESEND_END: u8 = 2;
+const KIND_QUERY: u8 = 3;
+const QUERY_LEN: usize = 1 + 12 + 12;
 
 /// What a host-to-device frame carries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum UpFrame<'a> {
     /// Stream bytes, number `sequence` of the carry frames.
     Carry { sequence: u32, bytes: &'a [u8] },
@@ -54,6 +58,14 @@ pub enum UpFrame<'a> {
     Resend { first: u32, count: u16 },
     /// The timing and end frames again, once the map is finished.
     ResendEnd,
+    /// The distance from `point` to the nearest surface, or (`ray`) the first surface along
+    /// `direction` from it; in the map's frame (metres from the receiver's origin).
+    Query {
+        number: u32,
+        ray: bool,
+        point: [f32; 3],
+        direction: [f32; 3],
+    },
 }
 
 /// Why a frame was not decoded.
@@ -96,6 +108,24 @@ pub fn encode(frame: &UpFrame<'_>, out: &mut [u8]) -> Result<usize, UplinkError>
             (KIND_RESEND, 0, 6)
         }
         UpFrame::ResendEnd => (KIND_RESEND_END, 0, 0),
+        UpFrame::Query {
+            number,
+            ray,
+            point,
+            direction,
+        } => {
+            let dst = raw
+                .get_mut(HEADER_LEN..HEADER_LEN + QUERY_LEN)
+                .ok_or(UplinkError::BufferTooSmall)?;
+            dst[0] = u8::from(ray);
+            for (slot, v) in dst[1..]
+                .chunks_exact_mut(4)
+                .zip(point.into_iter().chain(direction))
+            {
+                slot.copy_from_slice(&v.to_le_bytes());
+            }
+            (KIND_QUERY, number, QUERY_LEN)
+        }
     };
     raw[0] = UPLINK_VERSION;
     raw[1] = kind;
@@ -152,7 +182,31 @@ pub fn decode(block: &mut [u8]) -> Result<UpFrame<'_>, UplinkError> {
             })
         }
         (KIND_RESEND_END, 0) => Ok(UpFrame::ResendEnd),
-        (KIND_CARRY | KIND_RESEND | KIND_RESEND_END, _) => Err(UplinkError::Length { got: len }),
+        (KIND_QUERY, QUERY_LEN) => {
+            let mut v = [0f32; 6];
+            for (x, b) in v
+                .iter_mut()
+                .zip(payload.get(1..).unwrap_or(&[]).chunks_exact(4))
+            {
+                *x =
+                    f32::from_le_bytes(b.try_into().map_err(|_| UplinkError::Length { got: len })?);
+            }
+            let ray = match payload.first() {
+                Some(0) => false,
+                Some(1) => true,
+                Some(&other) => return Err(UplinkError::Code(other)),
+                None => return Err(UplinkError::Length { got: len }),
+            };
+            Ok(UpFrame::Query {
+                number: sequence,
+                ray,
+                point: [v[0], v[1], v[2]],
+                direction: [v[3], v[4], v[5]],
+            })
+        }
+        (KIND_CARRY | KIND_RESEND | KIND_RESEND_END | KIND_QUERY, _) => {
+            Err(UplinkError::Length { got: len })
+        }
         (other, _) => Err(UplinkError::Code(other)),
     }
 }

@@ -11,8 +11,8 @@ use mema_core::wire::Decoder;
 
 use crate::board::TARGET_BOARD;
 use crate::firmware::{
-    BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING,
-    RX_CAPACITY, Snapshot,
+    BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, RX_CAPACITY,
+    Snapshot,
 };
 
 /// One capacity's static RAM.
@@ -415,7 +415,11 @@ impl Report {
                 kib(ram),
                 kib(r.stack_bytes),
                 kib(used),
-                if used < BOARD_SRAM && flash < BOARD_FLASH { "yes" } else { "no" },
+                if used < BOARD_SRAM && flash < BOARD_FLASH {
+                    "yes"
+                } else {
+                    "no"
+                },
                 r.per_point,
                 r.longest_tick,
             );

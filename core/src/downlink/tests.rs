@@ -94,7 +94,7 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
                     entities.push(entity).or_fail("room")?;
                 }
                 DownFrame::End(end) => got_end = Some(end),
-                DownFrame::Progress { .. } | DownFrame::Timing(_) => {
+                DownFrame::Progress { .. } | DownFrame::Timing(_) | DownFrame::Answer { .. } => {
                     return Err("no progress or timing was sent");
                 }
             }
@@ -166,7 +166,14 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         calib_insns: 2_000_000,
         stack_bytes: 5_000,
     });
-    for frame in [progress, timing] {
+    let answer = DownFrame::Answer {
+        query: 9,
+        ray: true,
+        entity: u32::MAX,
+        value: f64::INFINITY,
+        ticks: 123_456,
+    };
+    for frame in [progress, timing, answer] {
         let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
         let m = encode(u32::MAX, &frame, &mut wire).or_fail("encodes")?;
         let back = decode(wire.get_mut(..m - 1).or_fail("block")?).or_fail("decodes")?;

@@ -86,5 +86,14 @@ fn a_damaged_carry_frame_is_refused() -> TestResult {
         bytes: &[],
     };
     assert_eq!(encode(&empty, &mut out), Err(UplinkError::BufferTooSmall));
+    let query = UpFrame::Query {
+        number: 77,
+        ray: true,
+        point: [1.5, -2.0, 1e6],
+        direction: [0.0, 0.6, -0.8],
+    };
+    let n = encode(&query, &mut out).or_fail("a query encodes")?;
+    let back = decode(out.get_mut(..n - 1).or_fail("block")?).or_fail("decodes")?;
+    assert_eq!(back, query);
     Ok(())
 }

@@ -9,12 +9,19 @@ use mema_core::uplink::{self, CARRIED_AT, MAX_UP_FRAME_LEN, UpFrame};
 use super::{PROGRESS_EVERY, Ring};
 
 /// A request of the host's.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Request {
     /// Entity frames `first .. first + count` again.
     Resend { first: u32, count: u16 },
     /// The timing and end frames again.
     ResendEnd,
+    /// A question for the finished map (in the map's frame).
+    Query {
+        number: u32,
+        ray: bool,
+        point: [f32; 3],
+        direction: [f32; 3],
+    },
 }
 
 /// What a progress frame reports of the line: bytes taken from the line's ring, the carry frame
@@ -165,6 +172,17 @@ impl Carrier {
             }
             Ok(UpFrame::Resend { first, count }) => Some(Request::Resend { first, count }),
             Ok(UpFrame::ResendEnd) => Some(Request::ResendEnd),
+            Ok(UpFrame::Query {
+                number,
+                ray,
+                point,
+                direction,
+            }) => Some(Request::Query {
+                number,
+                ray,
+                point,
+                direction,
+            }),
             Err(_) => {
                 self.refuse();
                 None

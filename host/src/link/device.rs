@@ -116,6 +116,8 @@ pub struct MapFrames {
     last_next: u32,
     end: Option<MapEnd>,
     timing: Option<DeviceTiming>,
+    /// Answers to queries, by the query's number: entity, value, ticks.
+    answers: std::collections::HashMap<u32, (u32, f64, u32)>,
     pub counts: DownlinkCounts,
 }
 
@@ -188,6 +190,15 @@ impl MapFrames {
                 self.counts.device_frames = frames;
             }
             DownFrame::Timing(t) => self.timing = Some(t),
+            DownFrame::Answer {
+                query,
+                entity,
+                value,
+                ticks,
+                ..
+            } => {
+                self.answers.insert(query, (entity, value, ticks));
+            }
             DownFrame::End(end) => {
                 self.counts.points = end.points;
                 self.counts.device_frames = end.frames;
@@ -201,6 +212,22 @@ impl MapFrames {
     /// Bytes the device has taken from its ring so far.
     pub fn taken(&self) -> u64 {
         self.taken
+    }
+
+    /// The answer to query `number`, if it has come: entity (`u32::MAX`: none), value, ticks.
+    pub fn answer(&self, number: u32) -> Option<(u32, f64, u32)> {
+        self.answers.get(&number).copied()
+    }
+
+    /// The entities received, in index order, in the map's frame (once the map is whole).
+    pub fn entities(&self) -> Vec<mema_core::geometry::Entity> {
+        self.entities.iter().flatten().map(|e| e.entity).collect()
+    }
+
+    /// Instructions per tick of the device's timer, from its timing frame's calibration.
+    pub fn instructions_per_tick(&self) -> Option<f64> {
+        let t = self.timing?;
+        (t.calib_ticks > 0).then(|| t.calib_insns as f64 / t.calib_ticks as f64)
     }
 
     /// Carry frames the device has taken (the number it expects next).

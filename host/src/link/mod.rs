@@ -9,6 +9,7 @@ pub mod capture;
 pub mod device;
 pub mod frames;
 pub mod port;
+pub mod queries;
 pub mod scanner;
 pub mod session;
 pub mod stream;

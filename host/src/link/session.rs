@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, UpFrame};
 
-use super::device::{DeviceError, DownlinkCounts, MapFrames};
+use super::device::{DeviceError, MapFrames};
 use super::port::{ReadOutcome, read_some};
 
 /// How long the device may say nothing new while it has work before the session is given up.
@@ -72,16 +72,18 @@ struct Sender {
 /// Sends `stream` (encoded points frames) over `port` in carry frames, never more than
 /// `window` bytes beyond what the device has taken from its ring, sends again what the device
 /// did not take, and receives the map frames until the map is whole; `progress` is called with
-/// (bytes of carry frames acknowledged, bytes taken) as they change.
+/// (bytes of carry frames acknowledged, bytes taken) as they change. `frames` takes the
+/// device's frames (its counts say what went wrong on the way) and goes on taking them after
+/// (queries: [`super::queries`]).
 pub fn send_and_receive(
     port: &mut (impl Read + Write),
     stream: &[u8],
     window: usize,
+    frames: &mut MapFrames,
     mut progress: impl FnMut(usize, u64),
-) -> Result<(Vec<u8>, DownlinkCounts), DeviceError> {
+) -> Result<Vec<u8>, DeviceError> {
     let carry = CarryFrames::of(stream)?;
     let total = carry.frames.len();
-    let mut frames = MapFrames::new();
     let mut s = Sender {
         next: 0,
         written: 0,
@@ -158,10 +160,9 @@ pub fn send_and_receive(
         if frames.ended() {
             let missing = frames.missing();
             if missing.is_empty() {
-                let map = frames.map_file().unwrap_or(Err(DeviceError::Missing {
+                return frames.map_file().unwrap_or(Err(DeviceError::Missing {
                     missing: Vec::new(),
-                }))?;
-                return Ok((map, frames.counts.clone()));
+                }));
             }
             if asked.is_none_or(|t| t.elapsed() > RETRY) {
                 if asks == MAX_ASKS {

@@ -32,6 +32,8 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
 use mema_core::downlink::DownFrame;
+use mema_core::geometry::Entity;
+use mema_core::query::brute_force;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
     BOARD_FROZEN, BOARD_WORKING, Carrier, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY,
@@ -64,6 +66,17 @@ static DELIMITERS: AtomicU32 = AtomicU32::new(0);
 
 type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>>;
 static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
+/// The finished map's entities, for the host's queries: scanned whole (28 KB at K = 700; the
+/// core's index over them would take 109 KB beside the mapper's 60).
+static QUERY_MAP: StaticCell<[Entity; K + F]> = StaticCell::new();
+/// How far a ray is followed, metres (the host's `RAY_REACH`).
+const RAY_REACH: f64 = 1_000.0;
+
+/// What the finished device answers from: its timing frame and its map's entities.
+struct Finished<'a> {
+    timing: DownFrame,
+    entities: &'a [Entity],
+}
 
 /// Builds the state in its static (out of line, so it is built in place, not on the stack).
 #[inline(never)]
@@ -170,10 +183,26 @@ fn main() -> ! {
     let timing = DownFrame::Timing(work.report(calibration, stack::high_water()));
     firmware.send_frame(&timing, usart::send);
     let _ = firmware.send_end(usart::send);
+    let entities = match QUERY_MAP.try_uninit() {
+        Some(slot) => {
+            let base = slot.as_mut_ptr().cast::<Entity>();
+            let mut n = 0;
+            for (i, e) in firmware.mapper().entities().take(K + F).enumerate() {
+                // SAFETY: i < K + F, inside the array, and each entity is written before the
+                // slice below reads it; written in place, so no 28 KB temporary on the stack.
+                unsafe { base.add(i).write(e.entity) };
+                n = i + 1;
+            }
+            // SAFETY: the first n entities were written above.
+            unsafe { core::slice::from_raw_parts(base, n) }
+        }
+        None => &[],
+    };
+    let finished = Finished { timing, entities };
     // Then the host's requests, for as long as it asks.
     loop {
         delimiters = DELIMITERS.load(Ordering::Relaxed);
-        carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&timing)));
+        carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&finished)));
         if let Some(report) = carrier.report_due(&LINE) {
             firmware.send_progress(report, usart::send);
         }
@@ -181,17 +210,46 @@ fn main() -> ! {
     }
 }
 
-/// Answers a request of the host's: entities again, or (once the map is finished) the timing
-/// and end frames again.
-fn answer(firmware: &mut BoardFirmware, request: Request, timing: Option<&DownFrame>) {
-    match (request, timing) {
+/// Answers a request of the host's: entities again, or once the map is finished the timing
+/// and end frames again, or a query of the map (the core's no_std queries, timed).
+fn answer(firmware: &mut BoardFirmware, request: Request, finished: Option<&Finished>) {
+    match (request, finished) {
         (Request::Resend { first, count }, _) => firmware.resend(first, count, usart::send),
-        (Request::ResendEnd, Some(timing)) => {
-            firmware.send_frame(timing, usart::send);
+        (Request::ResendEnd, Some(f)) => {
+            firmware.send_frame(&f.timing, usart::send);
             let _ = firmware.send_end_again(usart::send);
         }
-        // Not finished yet: the end goes out when it is.
-        (Request::ResendEnd, None) => {}
+        (
+            Request::Query {
+                number,
+                ray,
+                point,
+                direction,
+            },
+            Some(f),
+        ) => {
+            let (t0, i0) = (timing::now(), timing::interrupt_ticks());
+            let p = point.map(f64::from);
+            let (entity, value) = if ray {
+                brute_force::ray_cast(f.entities, p, direction.map(f64::from), RAY_REACH)
+                    .map_or((u32::MAX, f64::INFINITY), |h| (h.entity as u32, h.t))
+            } else {
+                brute_force::nearest(f.entities, p).map_or((u32::MAX, f64::INFINITY), |n| {
+                    (n.entity as u32, n.signed_distance)
+                })
+            };
+            let ticks = (timing::now() - t0).saturating_sub(timing::interrupt_ticks() - i0);
+            let frame = DownFrame::Answer {
+                query: number,
+                ray,
+                entity,
+                value,
+                ticks: ticks.min(u64::from(u32::MAX)) as u32,
+            };
+            firmware.send_frame(&frame, usart::send);
+        }
+        // Not finished yet: the end goes out when it is, and queries wait for the map.
+        (Request::ResendEnd | Request::Query { .. }, None) => {}
     }
 }
 

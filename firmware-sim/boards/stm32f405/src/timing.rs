@@ -24,7 +24,7 @@ fn SysTick() {
 }
 
 /// Ticks since the timer started (wraps included).
-fn now() -> u64 {
+pub fn now() -> u64 {
     loop {
         let before = WRAPS.load(Ordering::Relaxed);
         let current = SYST::get_current();
@@ -34,7 +34,7 @@ fn now() -> u64 {
     }
 }
 
-fn interrupt_ticks() -> u64 {
+pub fn interrupt_ticks() -> u64 {
     cortex_m::interrupt::free(|cs| IN_INTERRUPT.borrow(cs).get())
 }
 

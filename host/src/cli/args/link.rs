@@ -173,6 +173,11 @@ pub struct DeviceArgs {
     pub output: PathBuf,
     #[command(flatten)]
     pub bag: BagArg,
+    /// After the map, ask the device this many questions of it (nearest surface and ray cast,
+    /// alternately, near its entities), check each answer against the host's and report what
+    /// one costs the device.
+    #[arg(long, default_value_t = 0)]
+    pub queries: u32,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,

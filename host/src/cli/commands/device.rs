@@ -6,8 +6,9 @@ use serde::Serialize;
 use mema::io::atomic::write_file_atomically;
 use mema::io::kind::InputKind;
 use mema::io::output::check_map_output;
-use mema::link::device::DownlinkCounts;
+use mema::link::device::{DownlinkCounts, MapFrames};
 use mema::link::port::open_duplex;
+use mema::link::queries::{QueryReport, ask};
 use mema::link::scanner::{scans_of_input, send_scans};
 use mema::link::session::send_and_receive;
 use mema_core::downlink::RING_BYTES;
@@ -25,6 +26,8 @@ struct DeviceSummary {
     map_bytes: usize,
     #[serde(flatten)]
     downlink: DownlinkCounts,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    queries: Option<QueryReport>,
 }
 
 pub fn device(args: &DeviceArgs) -> Result<()> {
@@ -47,7 +50,8 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let quiet = args.json;
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
-    let (map, counts) = send_and_receive(&mut port, &stream, RING_BYTES, |done, taken| {
+    let mut frames = MapFrames::new();
+    let map = send_and_receive(&mut port, &stream, RING_BYTES, &mut frames, |done, taken| {
         if !quiet {
             eprint!(
                 "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
@@ -59,11 +63,27 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
         eprintln!();
     }
     write_file_atomically(&args.output, &map, "map")?;
+    let queries = if args.queries > 0 {
+        let report = ask(&mut port, &mut frames, args.queries, 0)
+            .with_context(|| format!("{}: queries", args.port.display()))?;
+        if report.agreed != report.asked {
+            anyhow::bail!(
+                "{}: the device answered {} of {} queries unlike the host",
+                args.port.display(),
+                report.asked - report.agreed,
+                report.asked
+            );
+        }
+        Some(report)
+    } else {
+        None
+    };
     let summary = DeviceSummary {
         output: args.output.display().to_string(),
         sent: total,
         map_bytes: map.len(),
-        downlink: counts,
+        downlink: frames.counts.clone(),
+        queries,
     };
     if args.json {
         println!("{}", serde_json::to_string(&summary)?);
