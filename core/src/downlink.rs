@@ -105,7 +105,7 @@ pub enum DownFrame {
     },
     /// What the device's work cost it, in its timer's ticks, sent before the end.
     Timing(DeviceTiming),
-    /// The answer to a host's query ([`crate::uplink::UpFrame::Query`]): the entity found
+    /// The answer to a host's query ([`crate::uplink::Request::Query`]): the entity found
     /// (`u32::MAX`: none), the signed distance to the nearest surface or the distance along
     /// the ray, and the timer's ticks the query took.
     Answer {

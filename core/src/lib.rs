@@ -66,4 +66,14 @@ mod test_support {
             self.map_err(|_| what)
         }
     }
+
+    /// The bytes of a hex string (PROTOCOL.md's examples) into `out`; the count.
+    pub fn hex(s: &str, out: &mut [u8]) -> Result<usize, &'static str> {
+        let mut n = 0;
+        for pair in s.split_whitespace() {
+            *out.get_mut(n).or_fail("room")? = u8::from_str_radix(pair, 16).or_fail("hex")?;
+            n += 1;
+        }
+        Ok(n)
+    }
 }

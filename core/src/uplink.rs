@@ -54,12 +54,20 @@ const QUERY_LEN: usize = 1 + 12 + 12;
 pub enum UpFrame<'a> {
     /// Stream bytes, number `sequence` of the carry frames.
     Carry { sequence: u32, bytes: &'a [u8] },
+    /// A request of the host's.
+    Request(Request),
+}
+
+/// A request of the host's, for the device to answer on the downlink.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Request {
     /// Entity frames `first .. first + count` again (count at most [`MAX_RESEND`]).
     Resend { first: u32, count: u16 },
     /// The timing and end frames again, once the map is finished.
     ResendEnd,
     /// The distance from `point` to the nearest surface, or (`ray`) the first surface along
-    /// `direction` from it; in the map's frame (metres from the receiver's origin).
+    /// `direction` from it; in the map's frame (metres from the receiver's origin). The answer
+    /// repeats `number`.
     Query {
         number: u32,
         ray: bool,
@@ -99,7 +107,7 @@ pub fn encode(frame: &UpFrame<'_>, out: &mut [u8]) -> Result<usize, UplinkError>
             dst.copy_from_slice(bytes);
             (KIND_CARRY, sequence, bytes.len())
         }
-        UpFrame::Resend { first, count } => {
+        UpFrame::Request(Request::Resend { first, count }) => {
             let dst = raw
                 .get_mut(HEADER_LEN..HEADER_LEN + 6)
                 .ok_or(UplinkError::BufferTooSmall)?;
@@ -107,13 +115,13 @@ pub fn encode(frame: &UpFrame<'_>, out: &mut [u8]) -> Result<usize, UplinkError>
             dst[4..].copy_from_slice(&count.to_le_bytes());
             (KIND_RESEND, 0, 6)
         }
-        UpFrame::ResendEnd => (KIND_RESEND_END, 0, 0),
-        UpFrame::Query {
+        UpFrame::Request(Request::ResendEnd) => (KIND_RESEND_END, 0, 0),
+        UpFrame::Request(Request::Query {
             number,
             ray,
             point,
             direction,
-        } => {
+        }) => {
             let dst = raw
                 .get_mut(HEADER_LEN..HEADER_LEN + QUERY_LEN)
                 .ok_or(UplinkError::BufferTooSmall)?;
@@ -176,12 +184,12 @@ pub fn decode(block: &mut [u8]) -> Result<UpFrame<'_>, UplinkError> {
             let [f0, f1, f2, f3, c0, c1] = payload
                 .try_into()
                 .map_err(|_| UplinkError::Length { got: len })?;
-            Ok(UpFrame::Resend {
+            Ok(UpFrame::Request(Request::Resend {
                 first: u32::from_le_bytes([f0, f1, f2, f3]),
                 count: u16::from_le_bytes([c0, c1]).min(MAX_RESEND),
-            })
+            }))
         }
-        (KIND_RESEND_END, 0) => Ok(UpFrame::ResendEnd),
+        (KIND_RESEND_END, 0) => Ok(UpFrame::Request(Request::ResendEnd)),
         (KIND_QUERY, QUERY_LEN) => {
             let mut v = [0f32; 6];
             for (x, b) in v
@@ -197,12 +205,12 @@ pub fn decode(block: &mut [u8]) -> Result<UpFrame<'_>, UplinkError> {
                 Some(&other) => return Err(UplinkError::Code(other)),
                 None => return Err(UplinkError::Length { got: len }),
             };
-            Ok(UpFrame::Query {
+            Ok(UpFrame::Request(Request::Query {
                 number: sequence,
                 ray,
                 point: [v[0], v[1], v[2]],
                 direction: [v[3], v[4], v[5]],
-            })
+            }))
         }
         (KIND_CARRY | KIND_RESEND | KIND_RESEND_END | KIND_QUERY, _) => {
             Err(UplinkError::Length { got: len })

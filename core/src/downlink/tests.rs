@@ -3,7 +3,7 @@ use crate::fit::FitParams;
 use crate::map::encode_as;
 use crate::shell::ShellParams;
 use crate::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
-use crate::test_support::{OrFail, TestResult};
+use crate::test_support::{OrFail, TestResult, hex};
 
 /// Tilted shells swept along x, so the mapper freezes the ones it leaves behind and its
 /// shells turn.
@@ -187,16 +187,6 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         );
     }
     Ok(())
-}
-
-/// Bytes of a hex string into `out`; the count.
-fn hex(s: &str, out: &mut [u8]) -> Result<usize, &'static str> {
-    let mut n = 0;
-    for pair in s.split_whitespace() {
-        *out.get_mut(n).or_fail("room")? = u8::from_str_radix(pair, 16).or_fail("hex")?;
-        n += 1;
-    }
-    Ok(n)
 }
 
 /// PROTOCOL.md's device-to-host examples, whose bytes were computed independently (Python's

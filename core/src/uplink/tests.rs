@@ -1,15 +1,5 @@
 use super::*;
-use crate::test_support::{OrFail, TestResult};
-
-/// Bytes of a hex string into `out`; the count.
-fn hex(s: &str, out: &mut [u8]) -> Result<usize, &'static str> {
-    let mut n = 0;
-    for pair in s.split_whitespace() {
-        *out.get_mut(n).or_fail("room")? = u8::from_str_radix(pair, 16).or_fail("hex")?;
-        n += 1;
-    }
-    Ok(n)
-}
+use crate::test_support::{OrFail, TestResult, hex};
 
 /// PROTOCOL.md's host-to-device examples, computed independently (Python's `struct`,
 /// `zlib.crc32` and a COBS written from its definition): mema emits exactly them and reads
@@ -26,10 +16,13 @@ fn protocol_examples() -> TestResult {
             "02 82 01 01 01 01 01 0c 04 02 02 08 01 01 01 ff c7 8b da 00",
         ),
         (
-            UpFrame::Resend { first: 7, count: 3 },
+            UpFrame::Request(Request::Resend { first: 7, count: 3 }),
             "03 82 01 01 01 01 02 07 01 01 02 03 04 ab 8b 8f 01 00",
         ),
-        (UpFrame::ResendEnd, "03 82 02 01 01 01 05 10 47 7a 98 00"),
+        (
+            UpFrame::Request(Request::ResendEnd),
+            "03 82 02 01 01 01 05 10 47 7a 98 00",
+        ),
     ];
     for (frame, wire) in examples {
         let mut want = [0u8; MAX_UP_FRAME_LEN];
@@ -86,12 +79,12 @@ fn a_damaged_carry_frame_is_refused() -> TestResult {
         bytes: &[],
     };
     assert_eq!(encode(&empty, &mut out), Err(UplinkError::BufferTooSmall));
-    let query = UpFrame::Query {
+    let query = UpFrame::Request(Request::Query {
         number: 77,
         ray: true,
         point: [1.5, -2.0, 1e6],
         direction: [0.0, 0.6, -0.8],
-    };
+    });
     let n = encode(&query, &mut out).or_fail("a query encodes")?;
     let back = decode(out.get_mut(..n - 1).or_fail("block")?).or_fail("decodes")?;
     assert_eq!(back, query);

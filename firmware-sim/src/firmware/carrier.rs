@@ -4,25 +4,10 @@
 //! whole and in order whatever the line dropped, flipped or repeated. What it refused and the
 //! number it expects go back in the progress frames; the host sends again from there.
 
+pub use mema_core::uplink::Request;
 use mema_core::uplink::{self, CARRIED_AT, MAX_UP_FRAME_LEN, UpFrame};
 
 use super::{PROGRESS_EVERY, Ring};
-
-/// A request of the host's.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Request {
-    /// Entity frames `first .. first + count` again.
-    Resend { first: u32, count: u16 },
-    /// The timing and end frames again.
-    ResendEnd,
-    /// A question for the finished map (in the map's frame).
-    Query {
-        number: u32,
-        ray: bool,
-        point: [f32; 3],
-        direction: [f32; 3],
-    },
-}
 
 /// What a progress frame reports of the line: bytes taken from the line's ring, the carry frame
 /// expected next, the host's frames refused.
@@ -170,19 +155,7 @@ impl Carrier {
                 }
                 None
             }
-            Ok(UpFrame::Resend { first, count }) => Some(Request::Resend { first, count }),
-            Ok(UpFrame::ResendEnd) => Some(Request::ResendEnd),
-            Ok(UpFrame::Query {
-                number,
-                ray,
-                point,
-                direction,
-            }) => Some(Request::Query {
-                number,
-                ray,
-                point,
-                direction,
-            }),
+            Ok(UpFrame::Request(request)) => Some(request),
             Err(_) => {
                 self.refuse();
                 None

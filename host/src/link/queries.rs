@@ -1,6 +1,6 @@
 //! Questions for a mapping device's finished map (`mema device --queries N`): the nearest
 //! surface to a point and the first surface along a ray, asked over the link
-//! ([`mema_core::uplink::UpFrame::Query`]) and answered by the device with the core's no_std
+//! ([`mema_core::uplink::Request::Query`]) and answered by the device with the core's no_std
 //! queries on its own map. Each answer is checked against the same query computed here over
 //! the entities the device sent, and its cost comes back in the device's timer ticks.
 
@@ -10,7 +10,7 @@ use std::time::Instant;
 use mema_core::geometry::Entity;
 use mema_core::query::brute_force;
 use mema_core::rng::{Pcg32, stream_rng, uniform};
-use mema_core::uplink::{self, MAX_UP_FRAME_LEN, UpFrame};
+use mema_core::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 use serde::Serialize;
 
 use super::device::{DeviceError, MapFrames};
@@ -77,12 +77,12 @@ pub fn ask(
     for number in 0..count {
         let ray = number % 2 == 1;
         let (point, direction) = query(&mut rng, &entities, ray);
-        let frame = UpFrame::Query {
+        let frame = UpFrame::Request(Request::Query {
             number,
             ray,
             point,
             direction,
-        };
+        });
         let n = uplink::encode(&frame, &mut out)
             .map_err(|e| DeviceError::Io(std::io::Error::other(format!("{e:?}"))))?;
         let mut asks = 0;

@@ -7,7 +7,7 @@ use std::io::{Read, Write};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
-use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, UpFrame};
+use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, Request, UpFrame};
 
 use super::device::{DeviceError, MapFrames};
 use super::port::{ReadOutcome, read_some};
@@ -143,9 +143,11 @@ pub fn send_and_receive(
         }
         match read_some(port, &mut buf) {
             ReadOutcome::Bytes(n) => {
-                let before = frames.counts.frames;
+                // Only news counts as hearing from the device: a device that answers every
+                // frame with a refusal, forever, is given up on as one that says nothing.
+                let before = (frames.counts.entities, frames.ended());
                 frames.feed(&buf[..n]);
-                if frames.counts.frames != before {
+                if (frames.counts.entities, frames.ended()) != before {
                     heard = Instant::now();
                 }
                 let done = carry
@@ -176,7 +178,7 @@ pub fn send_and_receive(
         } else if acked == total && asked.is_none_or(|t| t.elapsed() > 2 * RETRY) {
             // Everything taken and no end yet: it may be finishing, or its end was lost.
             let mut out = [0u8; MAX_UP_FRAME_LEN];
-            if let Ok(n) = uplink::encode(&UpFrame::ResendEnd, &mut out) {
+            if let Ok(n) = uplink::encode(&UpFrame::Request(Request::ResendEnd), &mut out) {
                 if asked.is_some() {
                     frames.counts.ends_asked += 1;
                     port.write_all(&out[..n])?;
@@ -211,7 +213,10 @@ fn ask_for(port: &mut impl Write, missing: &[u32]) -> Result<(), DeviceError> {
             count += 1;
         }
         i += usize::from(count);
-        if let Ok(n) = uplink::encode(&UpFrame::Resend { first, count }, &mut out) {
+        if let Ok(n) = uplink::encode(
+            &UpFrame::Request(Request::Resend { first, count }),
+            &mut out,
+        ) {
             port.write_all(&out[..n])?;
         }
     }

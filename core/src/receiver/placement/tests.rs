@@ -19,7 +19,15 @@ fn distance(c: f32, n: i64, e: i8) -> i128 {
     let d = u32::from((-e).max(0).unsigned_abs());
     let up = u32::from(e.max(0).unsigned_abs());
     let (m, k) = parts(c);
-    let c_scaled = (m * 10i128.pow(d)) << (k + 64);
+    // Below 2^-64 (zero's neighbours, when `n` is 0), rounded down to the scale: every such
+    // `c` is nearer 0 than any other `n 10^e`, which the ordering keeps. (Shifted by a
+    // negative amount, debug builds stopped here and release builds compared garbage.)
+    let scaled = m * 10i128.pow(d);
+    let c_scaled = if k + 64 >= 0 {
+        scaled << (k + 64)
+    } else {
+        scaled >> (-(k + 64)).min(127)
+    };
     let target = (i128::from(n) * 10i128.pow(up)) << 64;
     (c_scaled - target).abs()
 }

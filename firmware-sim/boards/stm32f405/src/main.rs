@@ -201,10 +201,15 @@ fn main() -> ! {
     let finished = Finished { timing, entities };
     // Then the host's requests, for as long as it asks.
     loop {
-        delimiters = DELIMITERS.load(Ordering::Relaxed);
-        carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&finished)));
-        if let Some(report) = carrier.report_due(&LINE) {
-            firmware.send_progress(report, usart::send);
+        // After a delimiter only: every byte's interrupt wakes the loop, and a pass over part
+        // of a frame would send a progress frame for each byte.
+        let now = DELIMITERS.load(Ordering::Relaxed);
+        if now != delimiters {
+            delimiters = now;
+            carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&finished)));
+            if let Some(report) = carrier.report_due(&LINE) {
+                firmware.send_progress(report, usart::send);
+            }
         }
         sleep_unless(|| DELIMITERS.load(Ordering::Relaxed) != delimiters);
     }

@@ -91,10 +91,14 @@ fn requests_come_through_and_a_closed_carrier_passes_nothing() {
     let (mut out, mut requests) = (Vec::new(), Vec::new());
     let mut line = frames[0].clone();
     let mut ask = [0u8; MAX_UP_FRAME_LEN];
-    let n = encode(&UpFrame::Resend { first: 9, count: 2 }, &mut ask).expect("encodes");
+    let n = encode(
+        &UpFrame::Request(Request::Resend { first: 9, count: 2 }),
+        &mut ask,
+    )
+    .expect("encodes");
     line.extend_from_slice(&ask[..n]);
     line.extend_from_slice(&frames[1]);
-    let n = encode(&UpFrame::ResendEnd, &mut ask).expect("encodes");
+    let n = encode(&UpFrame::Request(Request::ResendEnd), &mut ask).expect("encodes");
     line.extend_from_slice(&ask[..n]);
     deliver(&mut c, &line, &mut out, &mut requests);
     assert_eq!(out, s[..2 * MAX_CARRIED]);

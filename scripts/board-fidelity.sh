@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The board's map against the host's batch map at the same bytes (issue 22, docs/firmware.md,
+# "The board's layout"): each shared cloud encoded as `mema scanner-sim` sends it, mapped as the
+# board maps it (`mema replay -k K --working 150`, which the board equals byte for byte) at each
+# K given, then `mema map --bytes` of the same cloud at that map's size; both scored by
+# `mema eval` (two-way Chamfer distance, mm, 50,000 surface samples).
+#
+#   scripts/board-fidelity.sh [K ...]        (default: 400 700, today's image and the board)
+#
+# MEMA=path/to/mema uses that build; the clouds are read from ../shared/data in place.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ks=("$@")
+[ ${#ks[@]} -gt 0 ] || ks=(400 700)
+if [ -z "${MEMA:-}" ]; then
+  cargo build -q --release -p mema
+  MEMA="${CARGO_TARGET_DIR:-target}/release/mema"
+fi
+data=../shared/data
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+chamfer() { "$MEMA" eval "$1" "$2" --json --samples 50000 | python3 -c 'import json, sys; print("%.4f" % (1000 * json.load(sys.stdin)["chamfer"]))'; }
+printf '%-16s %6s %8s %9s %15s %15s %6s\n' cloud K bytes entities "board (mm)" "batch (mm)" ratio
+for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd five_people.pcd; do
+  "$MEMA" scanner-sim --port "$work/$cloud.bin" "$data/$cloud" 2>/dev/null
+  for k in "${ks[@]}"; do
+    board="$work/$cloud.$k.board.mema"
+    batch="$work/$cloud.$k.batch.mema"
+    "$MEMA" replay "$work/$cloud.bin" -k "$k" --working 150 -o "$board" >/dev/null 2>&1
+    bytes=$(stat -c %s "$board")
+    "$MEMA" map "$data/$cloud" --bytes "$bytes" -o "$batch" >/dev/null 2>&1
+    entities=$("$MEMA" info "$board" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["entities"])')
+    b=$(chamfer "$data/$cloud" "$board")
+    h=$(chamfer "$data/$cloud" "$batch")
+    printf '%-16s %6s %8s %9s %15s %15s %6.2f\n' "$cloud" "$k" "$bytes" "$entities" "$b" "$h" "$(python3 -c "print($b / $h)")"
+  done
+done
