@@ -67,6 +67,32 @@ mod test_support {
         }
     }
 
+    /// Every flip of a bit pattern in any byte of a frame's COBS block, and every cut of it,
+    /// makes `decodes` refuse it (a flip to the delimiter is a cut, made by the line).
+    pub fn damaged_blocks_are_refused<const N: usize>(
+        block: [u8; N],
+        len: usize,
+        decodes: impl Fn(&mut [u8]) -> bool,
+    ) -> TestResult {
+        for i in 0..len {
+            for flip in [0x01u8, 0x80, 0xff] {
+                let mut damaged = block;
+                let b = damaged.get_mut(i).or_fail("byte")?;
+                *b ^= flip;
+                if *b != 0 && decodes(damaged.get_mut(..len).or_fail("block")?) {
+                    return Err("a flipped byte was decoded");
+                }
+            }
+        }
+        for cut in 0..len {
+            let mut damaged = block;
+            if decodes(damaged.get_mut(..cut).or_fail("cut")?) {
+                return Err("a cut block was decoded");
+            }
+        }
+        Ok(())
+    }
+
     /// The bytes of a hex string (PROTOCOL.md's examples) into `out`; the count.
     pub fn hex(s: &str, out: &mut [u8]) -> Result<usize, &'static str> {
         let mut n = 0;

@@ -3,7 +3,7 @@ use crate::fit::FitParams;
 use crate::map::encode_as;
 use crate::shell::ShellParams;
 use crate::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
-use crate::test_support::{OrFail, TestResult, hex};
+use crate::test_support::{OrFail, TestResult, damaged_blocks_are_refused, hex};
 
 /// Tilted shells swept along x, so the mapper freezes the ones it leaves behind and its
 /// shells turn.
@@ -138,20 +138,7 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
     let (sequence, back) =
         decode(block.get_mut(..block_len).or_fail("block")?).or_fail("decodes")?;
     assert_eq!((sequence, back), (41, frame));
-    for i in 0..block_len {
-        for flip in [0x01u8, 0x80, 0xff] {
-            let mut block = sent;
-            let b = block.get_mut(i).or_fail("byte")?;
-            *b ^= flip;
-            if *b == 0 {
-                continue;
-            }
-            assert!(
-                decode(block.get_mut(..block_len).or_fail("block")?).is_err(),
-                "byte {i}"
-            );
-        }
-    }
+    damaged_blocks_are_refused(sent, block_len, |b| decode(b).is_ok())?;
     let progress = DownFrame::Progress {
         taken: u32::MAX - 3,
         frames: 102,
@@ -178,13 +165,6 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         let m = encode(u32::MAX, &frame, &mut wire).or_fail("encodes")?;
         let back = decode(wire.get_mut(..m - 1).or_fail("block")?).or_fail("decodes")?;
         assert_eq!(back, (u32::MAX, frame));
-    }
-    for cut in 0..block_len {
-        let mut block = sent;
-        assert!(
-            decode(block.get_mut(..cut).or_fail("cut")?).is_err(),
-            "cut at {cut}"
-        );
     }
     Ok(())
 }
