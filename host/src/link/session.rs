@@ -16,8 +16,11 @@ use super::port::{ReadOutcome, read_some};
 pub const SILENCE: Duration = Duration::from_secs(30);
 /// How long frames may go unacknowledged, or an answer not come, before they are sent or asked
 /// for again. A device acknowledges within a tick (milliseconds); after this long with nothing
-/// taken, its ring is empty, whatever the line lost of what was counted in flight.
+/// taken, its ring is empty, whatever the line lost of what was counted in flight. Each time it
+/// passes with nothing taken the sender waits twice as long, up to [`MAX_PATIENCE`]: a device
+/// slowed down (a loaded machine under QEMU) is not sent the same frames again and again.
 pub const RETRY: Duration = Duration::from_secs(1);
+pub const MAX_PATIENCE: Duration = Duration::from_secs(8);
 /// Times the same missing entities are asked for before the session gives up on them.
 pub const MAX_ASKS: u32 = 20;
 
@@ -63,6 +66,8 @@ struct Sender {
     /// When the device last took a carry frame, and what it expected then.
     acked_at: Instant,
     acked: u64,
+    /// How long to wait for an acknowledgement now.
+    patience: Duration,
     /// The device's refused count last seen, and the bytes written when the sender last went
     /// back: a refusal of bytes written before that is one it has already answered.
     refused: u32,
@@ -90,6 +95,7 @@ pub fn send_and_receive(
         lost: 0,
         acked_at: Instant::now(),
         acked: 0,
+        patience: RETRY,
         refused: 0,
         back_at: 0,
     };
@@ -102,6 +108,7 @@ pub fn send_and_receive(
         if acked != s.acked {
             s.acked = acked;
             s.acked_at = Instant::now();
+            s.patience = RETRY;
             heard = Instant::now();
         }
         let acked = acked as usize;
@@ -112,10 +119,11 @@ pub fn send_and_receive(
             s.refused = frames.counts.device_refused;
             refused_more = false;
         }
-        if pending && (refused_more || s.acked_at.elapsed() > RETRY) {
+        if pending && (refused_more || s.acked_at.elapsed() > s.patience) {
             if !refused_more {
-                // Quiet for RETRY with frames out: the device's ring is empty.
+                // Quiet that long with frames out: the device's ring is empty.
                 s.lost = s.written.saturating_sub(frames.taken());
+                s.patience = (s.patience * 2).min(MAX_PATIENCE);
             }
             frames.counts.resent += (s.next - acked) as u64;
             frames.counts.went_back += 1;

@@ -1,0 +1,225 @@
+//! `mema device`'s session (issue 22) against the firmware run in a thread as the board runs
+//! it (line ring, carrier, firmware ring, ticks, downlink), over an in-memory line that drops,
+//! flips and duplicates bytes both ways (seeded, more often than the QEMU relay test can
+//! afford): every seed ends with `mema replay`'s map byte for byte, the faults seen, sent and
+//! asked again, and none hangs.
+
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read, Write};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, channel};
+use std::thread;
+use std::time::Duration;
+
+use mema::link::device::MapFrames;
+use mema::link::session::send_and_receive;
+use mema_core::downlink::RING_BYTES;
+use mema_firmware_sim::firmware::{
+    Carrier, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY,
+    Request, Ring, SHELLS, model_params,
+};
+
+use crate::faults::Rng;
+use crate::util::{Dir, MemaCommand, shared};
+
+/// Bytes through a line that drops, flips or duplicates one in `one_in` (0: none).
+struct Line {
+    rng: Rng,
+    one_in: u64,
+    faults: u64,
+}
+
+impl Line {
+    fn carry(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let mut out = Vec::with_capacity(bytes.len() + 8);
+        for &b in bytes {
+            if self.one_in == 0 || !self.rng.next().is_multiple_of(self.one_in) {
+                out.push(b);
+                continue;
+            }
+            self.faults += 1;
+            match self.rng.next() % 3 {
+                0 => {}
+                1 => out.push(b ^ (1 << (self.rng.next() % 8))),
+                _ => out.extend_from_slice(&[b, b]),
+            }
+        }
+        out
+    }
+}
+
+/// The host's end: writes go through the faulty line to the device, reads wait a little for
+/// the device's bytes, as a serial port with a timeout does.
+struct Port {
+    to_device: Sender<Vec<u8>>,
+    from_device: Receiver<Vec<u8>>,
+    held: VecDeque<u8>,
+    line: Line,
+}
+
+impl Read for Port {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.held.is_empty() {
+            match self.from_device.recv_timeout(Duration::from_millis(20)) {
+                Ok(bytes) => self.held.extend(bytes),
+                Err(RecvTimeoutError::Timeout) => return Err(ErrorKind::TimedOut.into()),
+                Err(RecvTimeoutError::Disconnected) => return Ok(0),
+            }
+        }
+        let n = buf.len().min(self.held.len());
+        for (slot, b) in buf.iter_mut().zip(self.held.drain(..n)) {
+            *slot = b;
+        }
+        Ok(n)
+    }
+}
+
+impl Write for Port {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let bytes = self.line.carry(buf);
+        self.to_device
+            .send(bytes)
+            .map_err(|_| std::io::Error::from(ErrorKind::BrokenPipe))?;
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+type Device<'a> = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, &'a Ring<RX_CAPACITY>>;
+
+/// The device: the board's main loop, bytes from `input`, frames out through `line` to
+/// `output`, until the host hangs up. Returns the faults its line made.
+fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line) -> u64 {
+    let (line_ring, map_ring) = (Ring::<RX_CAPACITY>::new(), Ring::<RX_CAPACITY>::new());
+    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
+    let mut firmware: Box<Device> = Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
+    let mut carrier = Carrier::new();
+    let mut sent = Vec::new();
+    let mut finished = false;
+    loop {
+        match input.recv_timeout(Duration::from_millis(5)) {
+            // Past the ring's room the bytes are lost, as a UART overrun loses them.
+            Ok(bytes) => {
+                let _ = line_ring.push(&bytes);
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => return line.faults,
+        }
+        loop {
+            let mut requests = Vec::new();
+            carrier.pump(&line_ring, &map_ring, |r| requests.push(r));
+            for r in requests {
+                match r {
+                    Request::Resend { first, count } => {
+                        firmware.resend(first, count, |b| sent.extend_from_slice(b))
+                    }
+                    Request::ResendEnd if finished => {
+                        let _ = firmware.send_end_again(|b| sent.extend_from_slice(b));
+                    }
+                    _ => {}
+                }
+            }
+            if finished {
+                break;
+            }
+            let mut done = false;
+            firmware.tick(|_| done = true);
+            if !(done || firmware.mapping() || carrier.holding()) {
+                break;
+            }
+        }
+        if !finished {
+            firmware.send_frozen(|b| sent.extend_from_slice(b));
+        }
+        if let Some(report) = carrier.report_due(&line_ring) {
+            firmware.send_progress(report, |b| sent.extend_from_slice(b));
+        }
+        if !finished && firmware.stats().end_of_stream {
+            finished = true;
+            firmware.finish();
+            carrier.close();
+            let _ = firmware.send_end(|b| sent.extend_from_slice(b));
+        }
+        if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
+            return line.faults;
+        }
+        sent.clear();
+    }
+}
+
+#[test]
+fn sessions_through_faulty_lines_end_with_the_replay_map() {
+    let dir = Dir::new("session-faults");
+    let capture = dir.join("car6.bin");
+    MemaCommand::new(&dir)
+        .args(["scanner-sim", "--port"])
+        .arg(&capture)
+        .arg(shared("car6.pcd"))
+        .run()
+        .assert_ok();
+    let replayed = dir.join("replay.mema");
+    MemaCommand::new(&dir)
+        .arg("replay")
+        .arg(&capture)
+        .args(["-k", "400", "--working", "150", "--model", "shells", "-o"])
+        .arg(&replayed)
+        .run()
+        .assert_ok();
+    let (stream, replayed) = (
+        std::fs::read(&capture).expect("capture"),
+        std::fs::read(&replayed).expect("map"),
+    );
+    let (mut resent, mut asked_again) = (0, 0);
+    // Seed 0: a clean line, and nothing to send or ask again.
+    for seed in 0..6u64 {
+        let one_in = if seed == 0 { 0 } else { 1_500 };
+        let (to_device, device_in) = channel();
+        let (device_out, from_device) = channel();
+        let down = Line {
+            rng: Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1),
+            one_in,
+            faults: 0,
+        };
+        let device = thread::spawn(move || run_device(device_in, device_out, down));
+        let mut port = Port {
+            to_device,
+            from_device,
+            held: VecDeque::new(),
+            line: Line {
+                rng: Rng(seed.wrapping_add(0xD1B5_4A32_D192_ED03)),
+                one_in,
+                faults: 0,
+            },
+        };
+        let mut frames = MapFrames::new();
+        let map = send_and_receive(&mut port, &stream, RING_BYTES, &mut frames, |_, _| {});
+        let up_faults = port.line.faults;
+        drop(port);
+        let down_faults = device.join().expect("the device thread");
+        let map = map.unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let c = &frames.counts;
+        eprintln!("seed {seed}: {up_faults} faults up, {down_faults} down: {c:?}");
+        assert!(map == replayed, "seed {seed}: not replay's map: {c:?}");
+        if one_in == 0 {
+            // (Frames may still be sent again if the machine stalls the device for a second.)
+            assert_eq!(
+                (c.device_refused, c.refused, c.lost, c.asked_again),
+                (0, 0, 0, 0)
+            );
+            continue;
+        }
+        assert!(up_faults > 0 && down_faults > 0, "seed {seed}");
+        // Faults on the way up make the device refuse frames and the host send them again;
+        // those on the way down cost frames the host notices.
+        assert!(c.device_refused > 0 && c.resent > 0, "seed {seed}: {c:?}");
+        assert!(c.refused + c.lost > 0, "seed {seed}: {c:?}");
+        resent += c.resent;
+        asked_again += c.asked_again + c.ends_asked;
+    }
+    assert!(
+        resent > 0 && asked_again > 0,
+        "{resent} resent, {asked_again} asked again"
+    );
+}
