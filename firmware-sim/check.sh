@@ -79,16 +79,18 @@ else
 fi
 # The board (issue 22): the STM32F405 image under QEMU's netduinoplus2, fed over its USART by
 # `mema device` on a pty, sends its map back as downlink frames; the map `mema device` rebuilds
-# from them must be `mema replay`'s at the board's layout (K = 2,048: 150 working + 1,898
-# frozen, BOARD_WORKING/FROZEN), byte for byte.
+# from them must be `mema replay`'s at the board's layout (the k and working its summary line
+# names: BOARD_WORKING + BOARD_FROZEN), byte for byte.
 for cloud in car6.pcd demo; do
   for model in paper shells; do
     m="$work/$cloud/$model"
-    target/release/mema replay "$m/capture.bin" -k 2048 --working 150 --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
     # On car6 the board also answers 32 queries of its map (checked against the host's).
     queries=0; [ "$cloud" = car6.pcd ] && queries=32
     MEMA=target/release/mema firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" --queries "$queries" > "$m/board.txt" 2>&1 \
       || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
+    k=$(tail -1 "$m/board.txt" | grep -o '"k":[0-9]*' | cut -d: -f2)
+    working=$(tail -1 "$m/board.txt" | grep -o '"working":[0-9]*' | cut -d: -f2)
+    target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
     if cmp -s "$m/board-replay.mema" "$m/board.mema"; then
       echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
       # Instructions a point (QEMU -icount; the receive interrupt and the downlink included)
