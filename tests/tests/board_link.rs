@@ -12,9 +12,10 @@ use std::time::{Duration, Instant};
 
 use mema_firmware_sim::firmware::{BOARD_FROZEN, BOARD_WORKING};
 
+use crate::device::capture_and_replay;
 use crate::faults::Rng;
 use crate::stream::PtyPair;
-use crate::util::{Dir, MemaCommand, mema_bin, shared};
+use crate::util::{Dir, mema_bin};
 
 /// A child process killed on drop.
 struct Killed(Child);
@@ -114,24 +115,8 @@ fn open(path: &Path) -> File {
 #[test]
 fn a_faulty_line_both_ways_still_gives_the_replay_map() {
     let dir = Dir::new("board-link");
-    let capture = dir.join("car6.bin");
-    MemaCommand::new(&dir)
-        .args(["scanner-sim", "--port"])
-        .arg(&capture)
-        .arg(shared("car6.pcd"))
-        .run()
-        .assert_ok();
-    let k = (BOARD_WORKING + BOARD_FROZEN).to_string();
-    let working = BOARD_WORKING.to_string();
-    let replayed = dir.join("replay.mema");
-    MemaCommand::new(&dir)
-        .arg("replay")
-        .arg(&capture)
-        .args(["-k", &k, "--working", &working, "--model", "shells", "-o"])
-        .arg(&replayed)
-        .run()
-        .assert_ok();
-    let replayed = std::fs::read(&replayed).expect("replay's map");
+    let layout = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
+    let (capture, _, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
     let image = board_image();
     let mut asked_again = 0;
     for seed in [3u64, 11] {

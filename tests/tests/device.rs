@@ -3,6 +3,8 @@
 //! downlink dropped, flipped or duplicated (seeded), the host never writes a wrong map: it
 //! either has the device's map to the bit or says which entities it lacks.
 
+use std::path::PathBuf;
+
 use mema::link::device::{DeviceError, MapFrames};
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
@@ -14,9 +16,14 @@ use crate::util::{Dir, MemaCommand, shared};
 
 type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
 
-/// The capture `mema scanner-sim` writes for `cloud`, and `mema replay`'s map of it at the
-/// image's layout (K = 400: 150 working, 250 frozen) in `model`.
-fn capture_and_replay(dir: &Dir, cloud: &str, model: &str) -> (Vec<u8>, Vec<u8>) {
+/// The capture `mema scanner-sim` writes for `cloud` (its path and bytes), and `mema replay`'s
+/// map of it at `k` ellipsoids, `working` of them in working memory, in `model`.
+pub(crate) fn capture_and_replay(
+    dir: &Dir,
+    cloud: &str,
+    (k, working): (usize, usize),
+    model: &str,
+) -> (PathBuf, Vec<u8>, Vec<u8>) {
     let capture = dir.join(&format!("{cloud}.bin"));
     if !capture.exists() {
         MemaCommand::new(dir)
@@ -26,19 +33,21 @@ fn capture_and_replay(dir: &Dir, cloud: &str, model: &str) -> (Vec<u8>, Vec<u8>)
             .run()
             .assert_ok();
     }
-    let map = dir.join(&format!("{cloud}-{model}.mema"));
+    let map = dir.join(&format!("{cloud}-{k}-{model}.mema"));
+    let (k, working) = (k.to_string(), working.to_string());
     MemaCommand::new(dir)
         .arg("replay")
         .arg(&capture)
-        .args(["-k", "400", "--working", "150", "--model", model, "-o"])
+        .args(["-k", &k, "--working", &working, "--model", model, "-o"])
         .arg(&map)
         .run()
         .assert_ok();
-    (
-        std::fs::read(&capture).expect("capture"),
-        std::fs::read(&map).expect("map"),
-    )
+    let bytes = std::fs::read(&capture).expect("capture");
+    (capture, bytes, std::fs::read(&map).expect("map"))
 }
+
+/// The image's layout (K = 400: 150 working, 250 frozen).
+const IMAGE: (usize, usize) = (IMAGE_WORKING + IMAGE_FROZEN, IMAGE_WORKING);
 
 /// The device's side, as the board's main loop runs it: bytes in, ticks, the downlink's frames
 /// after each pass, the rest and the end after finishing. Returns everything it sent.
@@ -69,7 +78,7 @@ fn the_downlink_rebuilds_the_replay_map_in_both_models() {
         } else {
             SHELLS
         };
-        let (capture, replayed) = capture_and_replay(&dir, "car6.pcd", model);
+        let (_, capture, replayed) = capture_and_replay(&dir, "car6.pcd", IMAGE, model);
         let downlink = device_downlink(&capture, stream_model);
         // In pieces of every size: the same map.
         for piece in [1, 13, 4096] {
@@ -91,7 +100,7 @@ fn the_downlink_rebuilds_the_replay_map_in_both_models() {
 #[test]
 fn a_faulty_downlink_never_gives_a_wrong_map() {
     let dir = Dir::new("downlink-faults");
-    let (capture, replayed) = capture_and_replay(&dir, "car6.pcd", "shells");
+    let (_, capture, replayed) = capture_and_replay(&dir, "car6.pcd", IMAGE, "shells");
     let downlink = device_downlink(&capture, SHELLS);
     let (mut whole, mut incomplete) = (0, 0);
     for seed in 1..=40u64 {

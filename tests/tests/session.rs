@@ -18,8 +18,9 @@ use mema_firmware_sim::firmware::{
     Request, Ring, SHELLS, model_params,
 };
 
+use crate::device::capture_and_replay;
 use crate::faults::Rng;
-use crate::util::{Dir, MemaCommand, shared};
+use crate::util::Dir;
 
 /// Bytes through a line that drops, flips or duplicates one in `one_in` (0: none).
 struct Line {
@@ -152,25 +153,8 @@ fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line)
 #[test]
 fn sessions_through_faulty_lines_end_with_the_replay_map() {
     let dir = Dir::new("session-faults");
-    let capture = dir.join("car6.bin");
-    MemaCommand::new(&dir)
-        .args(["scanner-sim", "--port"])
-        .arg(&capture)
-        .arg(shared("car6.pcd"))
-        .run()
-        .assert_ok();
-    let replayed = dir.join("replay.mema");
-    MemaCommand::new(&dir)
-        .arg("replay")
-        .arg(&capture)
-        .args(["-k", "400", "--working", "150", "--model", "shells", "-o"])
-        .arg(&replayed)
-        .run()
-        .assert_ok();
-    let (stream, replayed) = (
-        std::fs::read(&capture).expect("capture"),
-        std::fs::read(&replayed).expect("map"),
-    );
+    let layout = (IMAGE_WORKING + IMAGE_FROZEN, IMAGE_WORKING);
+    let (_, stream, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
     let (mut resent, mut asked_again) = (0, 0);
     // Seed 0: a clean line, and nothing to send or ask again.
     for seed in 0..6u64 {
