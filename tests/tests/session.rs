@@ -11,7 +11,7 @@ use std::thread;
 use std::time::Duration;
 
 use mema::link::device::MapFrames;
-use mema::link::session::send_and_receive;
+use mema::link::session::{SILENCE, send_and_receive};
 use mema_core::downlink::RING_BYTES;
 use mema_firmware_sim::firmware::{
     Carrier, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY,
@@ -20,7 +20,7 @@ use mema_firmware_sim::firmware::{
 
 use crate::device::capture_and_replay;
 use crate::faults::Rng;
-use crate::util::Dir;
+use crate::util::{Dir, MemaCommand};
 
 /// Bytes through a line that drops, flips or duplicates one in `one_in` (0: none).
 struct Line {
@@ -178,7 +178,8 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
             },
         };
         let mut frames = MapFrames::new();
-        let map = send_and_receive(&mut port, &stream, RING_BYTES, &mut frames, |_, _| {});
+        let limits = (RING_BYTES, SILENCE);
+        let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_, _| {});
         let up_faults = port.line.faults;
         drop(port);
         let down_faults = device.join().expect("the device thread");
@@ -206,4 +207,52 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
         resent > 0 && asked_again > 0,
         "{resent} resent, {asked_again} asked again"
     );
+}
+
+/// A device that never answers, and one that answers only noise: `mema device` gives up after
+/// its idle timeout with one line and exit 1, and writes no map.
+#[test]
+fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
+    let dir = Dir::new("session-dead");
+    let (capture, _, _) = capture_and_replay(&dir, "car6.pcd", (400, 150), "shells");
+    for babble in [false, true] {
+        let pair = crate::stream::PtyPair::new(&dir);
+        let far = pair.a.clone();
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let stopping = stop.clone();
+        // The far end: read and drop what the host sends; answer noise, or nothing.
+        let device = thread::spawn(move || {
+            let Ok(mut port) = std::fs::OpenOptions::new()
+                .read(true)
+                .write(true)
+                .open(&far)
+            else {
+                return;
+            };
+            let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+            while !stopping.load(std::sync::atomic::Ordering::Relaxed) {
+                if babble {
+                    let noise: Vec<u8> = (0..64).map(|_| rng.next() as u8).collect();
+                    if port.write_all(&noise).is_err() {
+                        return;
+                    }
+                }
+                thread::sleep(Duration::from_millis(5));
+            }
+        });
+        let out = dir.join(&format!("dead-{babble}.mema"));
+        MemaCommand::new(&dir)
+            .args(["device", "--port"])
+            .arg(&pair.b)
+            .arg(&capture)
+            .arg("-o")
+            .arg(&out)
+            .args(["--idle-timeout", "2", "--json"])
+            .run()
+            .assert_error(1, "said nothing new for 2 s");
+        assert!(!out.exists(), "babble {babble}: a map was written");
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        drop(pair);
+        let _ = device.join();
+    }
 }

@@ -34,7 +34,7 @@ pub enum DeviceError {
     StillMissing { missing: Vec<u32>, asks: u32 },
     #[error("the device said nothing new for {seconds} s ({sent} of {total} bytes acknowledged)")]
     Silent {
-        seconds: u64,
+        seconds: f64,
         sent: usize,
         total: usize,
     },

@@ -94,7 +94,7 @@ pub fn ask(
             if asked.is_none_or(|t| t.elapsed() > RETRY) {
                 if asks == MAX_ASKS {
                     return Err(DeviceError::Silent {
-                        seconds: (RETRY * MAX_ASKS).as_secs(),
+                        seconds: (RETRY * MAX_ASKS).as_secs_f64(),
                         sent: number as usize,
                         total: count as usize,
                     });

@@ -12,7 +12,8 @@ use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, Request
 use super::device::{DeviceError, MapFrames};
 use super::port::{ReadOutcome, read_some};
 
-/// How long the device may say nothing new while it has work before the session is given up.
+/// How long the device may say nothing new (an acknowledgement, an entity, the end) before
+/// the session is given up, unless the caller says otherwise.
 pub const SILENCE: Duration = Duration::from_secs(30);
 /// How long frames may go unacknowledged, or an answer not come, before they are sent or asked
 /// for again. A device acknowledges within a tick (milliseconds); after this long with nothing
@@ -79,11 +80,12 @@ struct Sender {
 /// did not take, and receives the map frames until the map is whole; `progress` is called with
 /// (bytes of carry frames acknowledged, bytes taken) as they change. `frames` takes the
 /// device's frames (its counts say what went wrong on the way) and goes on taking them after
-/// (queries: [`super::queries`]).
+/// (queries: [`super::queries`]). After `silence` with nothing new from the device the session
+/// ends with [`DeviceError::Silent`].
 pub fn send_and_receive(
     port: &mut (impl Read + Write),
     stream: &[u8],
-    window: usize,
+    (window, silence): (usize, Duration),
     frames: &mut MapFrames,
     mut progress: impl FnMut(usize, u64),
 ) -> Result<Vec<u8>, DeviceError> {
@@ -195,13 +197,13 @@ pub fn send_and_receive(
                 asked = Some(Instant::now());
             }
         }
-        if heard.elapsed() > SILENCE {
+        if heard.elapsed() > silence {
             let done = carry
                 .frames
                 .get(acked)
                 .map_or(carry.wire.len(), |r| r.start);
             return Err(DeviceError::Silent {
-                seconds: SILENCE.as_secs(),
+                seconds: silence.as_secs_f64(),
                 sent: done,
                 total: carry.wire.len(),
             });

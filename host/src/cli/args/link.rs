@@ -178,6 +178,10 @@ pub struct DeviceArgs {
     /// one costs the device.
     #[arg(long, default_value_t = 0)]
     pub queries: u32,
+    /// Give up when the device has said nothing new (an acknowledgement, an entity, its end)
+    /// for this many seconds: exit status 1, no map written.
+    #[arg(long, value_name = "SECONDS", default_value_t = 30.0)]
+    pub idle_timeout: f64,
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,

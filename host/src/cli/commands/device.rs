@@ -1,5 +1,7 @@
 //! `mema device`: points out to a mapping device, its map back (`mema::link::device`).
 
+use std::time::Duration;
+
 use anyhow::{Context, Result};
 use serde::Serialize;
 
@@ -14,6 +16,7 @@ use mema::link::session::send_and_receive;
 use mema_core::downlink::RING_BYTES;
 
 use crate::cli::args::DeviceArgs;
+use crate::cli::errors::UsageError;
 
 /// The most bytes a capture may have.
 const CAPTURE_LIMIT: u64 = 1 << 30;
@@ -32,6 +35,13 @@ struct DeviceSummary {
 
 pub fn device(args: &DeviceArgs) -> Result<()> {
     check_map_output(&args.output)?;
+    let t = args.idle_timeout;
+    if !(t > 0.0 && t.is_finite() && t < 1e9) {
+        return Err(UsageError(format!(
+            "--idle-timeout {t} must be a positive number of seconds"
+        ))
+        .into());
+    }
     super::check_bag_args(&args.input, &args.bag)?;
     let name = args.input.display().to_string();
     let stream = match InputKind::of(&args.input) {
@@ -51,7 +61,8 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
     let mut frames = MapFrames::new();
-    let map = send_and_receive(&mut port, &stream, RING_BYTES, &mut frames, |done, taken| {
+    let limits = (RING_BYTES, Duration::from_secs_f64(t));
+    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |done, taken| {
         if !quiet {
             eprint!(
                 "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
