@@ -10,7 +10,9 @@ pub use args::{Cli, Command};
 
 /// Runs the subcommand `cli` holds.
 pub fn run(cli: &Cli) -> anyhow::Result<()> {
-    use commands::{bench, demo, demo_moving, device, eval, info, map, query, serial, toolbox};
+    use commands::{
+        bench, capture, demo, demo_moving, device, eval, info, map, query, serial, toolbox,
+    };
     match &cli.command {
         Command::Map(a) => map::map(a),
         Command::Eval(a) => eval::eval(a),
@@ -20,10 +22,10 @@ pub fn run(cli: &Cli) -> anyhow::Result<()> {
         Command::Ablation(a) => bench::ablation(a),
         Command::StreamBench(a) => bench::stream_bench(a),
         Command::Stream(a) => serial::stream(a),
-        Command::Record(a) => serial::record(a),
+        Command::Record(a) => capture::record(a),
         Command::Replay(a) => serial::replay(a),
         Command::Device(a) => device::device(a),
-        Command::ScannerSim(a) => serial::scanner_sim(a),
+        Command::ScannerSim(a) => capture::scanner_sim(a),
         Command::Query(a) => query::query(a),
         Command::Transform(a) => query::transform(a),
         Command::QueryBench(a) => query::query_bench(a),

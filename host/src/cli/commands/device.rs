@@ -15,11 +15,9 @@ use mema::link::scanner::{scans_of_input, send_scans};
 use mema::link::session::send_and_receive;
 use mema_core::downlink::RING_BYTES;
 
+use super::serial::CAPTURE_LIMIT;
 use crate::cli::args::DeviceArgs;
 use crate::cli::errors::UsageError;
-
-/// The most bytes a capture may have.
-const CAPTURE_LIMIT: u64 = 1 << 30;
 
 #[derive(Serialize)]
 struct DeviceSummary {

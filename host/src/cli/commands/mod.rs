@@ -1,5 +1,6 @@
 //! One handler per subcommand: check the arguments, call the library, print.
 pub mod bench;
+pub mod capture;
 pub mod demo;
 mod demo_files;
 pub mod demo_moving;
