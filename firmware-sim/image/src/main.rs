@@ -22,12 +22,9 @@
 
 mod io;
 mod stack;
+mod systick;
 
-use core::sync::atomic::{AtomicU32, Ordering};
-
-use cortex_m::peripheral::SYST;
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m_rt::{entry, exception};
+use cortex_m_rt::entry;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
@@ -35,6 +32,7 @@ use mema_firmware_sim::firmware::{
 use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
 use static_cell::StaticCell;
+use systick::now;
 
 /// Working clusters, centre-hash buckets and frozen entities of the image: K = 400 ellipsoids
 /// (the host tests map with `-k 400 --working 150`).
@@ -45,42 +43,6 @@ const SEED: u64 = 0;
 
 /// The application state lives in .bss, built in place at boot (never on the stack).
 static FIRMWARE: StaticCell<Firmware<K, G, F>> = StaticCell::new();
-
-/// SysTick wraps (24-bit counter).
-static WRAPS: AtomicU32 = AtomicU32::new(0);
-const RELOAD: u32 = 0x00FF_FFFF;
-
-#[exception]
-fn SysTick() {
-    WRAPS.fetch_add(1, Ordering::Relaxed);
-}
-
-fn now() -> u64 {
-    loop {
-        let before = WRAPS.load(Ordering::Relaxed);
-        let current = SYST::get_current();
-        if WRAPS.load(Ordering::Relaxed) == before {
-            return u64::from(before) * u64::from(RELOAD + 1) + u64::from(RELOAD - current);
-        }
-    }
-}
-
-/// Runs `n` iterations of a two-instruction loop: the calibration of ticks to instructions.
-fn spin(n: u32) {
-    if n == 0 {
-        return;
-    }
-    // SAFETY: a register-only countdown loop; touches no memory and no flags outside it.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "subs {0}, {0}, #1",
-            "bne 2b",
-            inout(reg) n => _,
-            options(nomem, nostack),
-        );
-    }
-}
 
 /// Builds the state in its static. Kept out of line so the compiler constructs the value in the
 /// slot itself rather than in a stack temporary (which would need as much stack as the state).
@@ -132,18 +94,8 @@ fn run() -> Result<(), &'static str> {
     let Some(mut core) = cortex_m::Peripherals::take() else {
         return Err("peripherals taken twice");
     };
-    core.SYST.set_clock_source(SystClkSource::Core);
-    core.SYST.set_reload(RELOAD);
-    core.SYST.clear_current();
-    core.SYST.enable_interrupt();
-    core.SYST.enable_counter();
-
-    // The counter reads 0 until its first reload: let it start before taking times.
-    spin(1_000);
-    let calib_insns: u32 = 2_000_000;
-    let t0 = now();
-    spin(calib_insns / 2);
-    let calib_ticks = now() - t0;
+    let calibration = systick::start(&mut core.SYST);
+    let (calib_ticks, calib_insns) = (calibration.ticks, calibration.insns);
 
     // `try_init_with`, not `init_with`: a second initialisation is an error, not a panic.
     let model = configured_model();
@@ -234,7 +186,7 @@ fn run() -> Result<(), &'static str> {
         (b"ingest_ticks", ingest_ticks),
         (b"finish_ticks", finish_ticks),
         (b"calib_ticks", calib_ticks),
-        (b"calib_insns", u64::from(calib_insns)),
+        (b"calib_insns", calib_insns),
         (b"stack_boot", stack_boot as u64),
         (b"stack_tick", stack_tick as u64),
         (b"stack_finish", stack_finish as u64),

@@ -25,6 +25,9 @@ mod clocks;
 // RAM above their statics.
 #[path = "../../../image/src/stack.rs"]
 mod stack;
+// And its SysTick clock and calibration.
+#[path = "../../../image/src/systick.rs"]
+mod systick;
 mod timing;
 mod usart;
 
@@ -125,7 +128,7 @@ fn main() -> ! {
         }
     };
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
-    let calibration = timing::start(&mut cp.SYST);
+    let calibration = systick::start(&mut cp.SYST);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
     let model = if cfg!(feature = "paper") {
         StreamModel::Paper
@@ -233,7 +236,7 @@ fn answer(firmware: &mut BoardFirmware, request: Request, finished: Option<&Fini
             },
             Some(f),
         ) => {
-            let (t0, i0) = (timing::now(), timing::interrupt_ticks());
+            let (t0, i0) = (systick::now(), timing::interrupt_ticks());
             let p = point.map(f64::from);
             let (entity, value) = if ray {
                 brute_force::ray_cast(f.entities, p, direction.map(f64::from), RAY_REACH)
@@ -243,7 +246,7 @@ fn answer(firmware: &mut BoardFirmware, request: Request, finished: Option<&Fini
                     (n.entity as u32, n.signed_distance)
                 })
             };
-            let ticks = (timing::now() - t0).saturating_sub(timing::interrupt_ticks() - i0);
+            let ticks = (systick::now() - t0).saturating_sub(timing::interrupt_ticks() - i0);
             let frame = DownFrame::Answer {
                 query: number,
                 ray,
