@@ -25,11 +25,12 @@ use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
 use mema_core::map::EncodeError;
-use mema_core::receiver::{Received, Receiver, ReceiverStats};
+use mema_core::link::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
-use mema_core::wire::DecoderStats;
+use mema_core::link::wire::DecoderStats;
 
 mod carrier;
+pub mod device;
 mod downlink;
 mod ring;
 pub use carrier::{Carrier, LineReport, Request};
@@ -39,7 +40,7 @@ pub use ring::Ring;
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next
 /// lands (the size `mema device` keeps in flight).
-pub const RX_CAPACITY: usize = mema_core::downlink::RING_BYTES;
+pub const RX_CAPACITY: usize = mema_core::link::downlink::RING_BYTES;
 
 /// The image's layout: K = 400 ellipsoids as 150 working clusters and 250 frozen entities, the
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
@@ -56,9 +57,9 @@ pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
 
 /// The image's reach (metres from the map's origin on any axis; see
-/// [`mema_core::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
+/// [`mema_core::link::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
 /// first point can refuse more.
-pub const IMAGE_REACH: f32 = mema_core::receiver::DEFAULT_REACH;
+pub const IMAGE_REACH: f32 = mema_core::link::receiver::DEFAULT_REACH;
 /// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
 /// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
 /// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters
@@ -199,7 +200,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     // stack temporary as large as the state (48 KiB of stack at boot, measured).
     #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
-        Self::with_reach(params, mema_core::receiver::DEFAULT_REACH)
+        Self::with_reach(params, mema_core::link::receiver::DEFAULT_REACH)
     }
 
     /// [`Firmware::new`] refusing points and poses farther than `reach` metres from the map's
@@ -231,6 +232,10 @@ impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
                 end_of_stream: false,
             },
             down: Downlink {
+                address: mema_core::link::frame::Address {
+                    session: 0,
+                    boot: 0,
+                },
                 sequence: 0,
                 sent_frozen: 0,
                 reported: 0,

@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use mema::link::device::MapFrames;
 use mema::link::session::{SILENCE, send_and_receive};
-use mema_core::downlink::RING_BYTES;
+use mema_core::link::downlink::RING_BYTES;
 use mema_firmware_sim::firmware::{
     Carrier, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY,
     Request, Ring, SHELLS, model_params,

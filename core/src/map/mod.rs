@@ -27,7 +27,7 @@
 
 pub mod record;
 
-use crate::crc32::{Crc32, crc32};
+use crate::link::crc32::{Crc32, crc32};
 use crate::geometry::{Entity, EntityKind};
 use record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN, Quantization};
 

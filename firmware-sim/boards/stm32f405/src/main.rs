@@ -34,7 +34,7 @@ mod usart;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
-use mema_core::downlink::DownFrame;
+use mema_core::link::downlink::DownFrame;
 use mema_core::geometry::Entity;
 use mema_core::query::brute_force;
 use mema_core::stream::StreamModel;

@@ -6,7 +6,7 @@
 use core::cell::Cell;
 
 use cortex_m::interrupt::Mutex;
-use mema_core::downlink::DeviceTiming;
+use mema_core::link::downlink::DeviceTiming;
 
 use crate::systick::{Calibration, now};
 

@@ -12,8 +12,8 @@ use mema::link::device::{DownlinkCounts, MapFrames};
 use mema::link::port::open_duplex;
 use mema::link::queries::{QueryReport, ask};
 use mema::link::scanner::{scans_of_input, send_scans};
-use mema::link::session::send_and_receive;
-use mema_core::downlink::RING_BYTES;
+use mema::link::session::{SessionEvent, send_and_receive};
+use mema_core::link::downlink::RING_BYTES;
 
 use super::serial::CAPTURE_LIMIT;
 use crate::cli::args::DeviceArgs;
@@ -58,14 +58,15 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let quiet = args.json;
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
-    let mut frames = MapFrames::new();
+    let mut frames = MapFrames::default();
     let limits = (RING_BYTES, Duration::from_secs_f64(t));
-    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |done, taken| {
-        if !quiet {
-            eprint!(
-                "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
-            );
-        }
+    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |event| match event {
+        SessionEvent::Progress { done, taken } if !quiet => eprint!(
+            "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
+        ),
+        SessionEvent::Progress { .. } => {}
+        // Said even with --json: the map written is then the whole stream's, from the start.
+        SessionEvent::Restart(why) => eprintln!("\nmema device: {why}; starting the session again"),
     })
     .with_context(|| format!("{}: {name}", args.port.display()))?;
     if !quiet {

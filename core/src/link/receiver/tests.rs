@@ -1,7 +1,8 @@
 use super::*;
 use crate::test_support::{OrFail, TestResult};
-use crate::wire::{
-    Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose, cobs_encode,
+use crate::link::cobs::cobs_encode;
+use crate::link::wire::{
+    Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose,
 };
 
 /// Appends frame `sequence` (COBS and delimiter) to `out` at `at`; returns the new end.
