@@ -4,8 +4,8 @@
 //! returns the first broken property instead of panicking; the callers panic.
 
 use crate::link::crc32::crc32;
-use crate::map::{CRC_LEN, Layout, MapEntity, MapFile, encode_as};
 use crate::link::wire::{Decoded, Decoder};
+use crate::map::{CRC_LEN, Layout, MapEntity, MapFile, encode_as};
 
 /// A property a decoder broke.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -24,10 +24,10 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::map::EncodeError;
 use mema_core::link::receiver::{Received, Receiver, ReceiverStats};
-use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 use mema_core::link::wire::DecoderStats;
+use mema_core::map::EncodeError;
+use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 
 mod carrier;
 pub mod device;

@@ -6,10 +6,10 @@
 use std::collections::HashMap;
 
 use mema_core::Point3;
-use mema_core::map::EncodeError;
 use mema_core::link::receiver::{Receiver, metres_of_nm};
-use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 use mema_core::link::wire::DecoderStats;
+use mema_core::map::EncodeError;
+use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 
 use crate::board::{Board, BoardError};
 use crate::fault::{FaultConfig, FaultInjector, FaultStats};

@@ -1,5 +1,6 @@
-//! `mema device`'s session (issue 22) against the firmware run in a thread as the board runs
-//! it (line ring, carrier, firmware ring, ticks, downlink), over an in-memory line that drops,
+//! `mema device`'s session (issues 22, 30) against the board's own loop run in a thread
+//! (`firmware::device::Device`: line ring, carrier, firmware ring, ticks, downlink, resets into
+//! a new session), over an in-memory line that drops,
 //! flips and duplicates bytes both ways (seeded, more often than the QEMU relay test can
 //! afford): every seed ends with `mema replay`'s map byte for byte, the faults seen, sent and
 //! asked again, and none hangs.
@@ -12,10 +13,13 @@ use std::time::Duration;
 
 use mema::link::device::MapFrames;
 use mema::link::session::{SILENCE, send_and_receive};
-use mema_core::link::downlink::RING_BYTES;
+use mema_core::geometry::{Entity, Point3};
+use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
+use mema_core::link::frame::Address;
+use mema_firmware_sim::firmware::device::{Device, NoClock, Poll};
 use mema_firmware_sim::firmware::{
-    Carrier, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY,
-    Request, Ring, SHELLS, model_params,
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
+    model_params,
 };
 
 use crate::device::capture_and_replay;
@@ -88,65 +92,60 @@ impl Write for Port {
     }
 }
 
-type Device<'a> = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, &'a Ring<RX_CAPACITY>>;
-
-/// The device: the board's main loop, bytes from `input`, frames out through `line` to
-/// `output`, until the host hangs up. Returns the faults its line made.
+/// The device: the board's main loop ([`Device`], the function the board calls), bytes from
+/// `input`, frames out through `line` to `output`, until the host hangs up; a start request
+/// for a new session "resets" it (a fresh firmware in a new boot), as the board resets. Returns
+/// the faults its line made.
 fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line) -> u64 {
-    let (line_ring, map_ring) = (Ring::<RX_CAPACITY>::new(), Ring::<RX_CAPACITY>::new());
-    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
-    let mut firmware: Box<Device> = Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
-    let mut carrier = Carrier::new();
-    let mut sent = Vec::new();
-    let mut finished = false;
+    let (mut boot, mut session) = (1u32, 0u32);
+    let layout = DeviceLayout {
+        capacity: (IMAGE_WORKING + IMAGE_FROZEN) as u32,
+        working: IMAGE_WORKING as u32,
+        model: 1,
+    };
     loop {
-        match input.recv_timeout(Duration::from_millis(5)) {
-            // Past the ring's room the bytes are lost, as a UART overrun loses them.
-            Ok(bytes) => {
-                let _ = line_ring.push(&bytes);
-            }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => return line.faults,
-        }
-        loop {
-            let mut requests = Vec::new();
-            carrier.pump(&line_ring, &map_ring, |r| requests.push(r));
-            for r in requests {
-                match r {
-                    Request::Resend { first, count } => {
-                        firmware.resend(first, count, |b| sent.extend_from_slice(b))
-                    }
-                    Request::ResendEnd if finished => {
-                        let _ = firmware.send_end_again(|b| sent.extend_from_slice(b));
-                    }
-                    _ => {}
+        let (line_ring, map_ring) = (Ring::<RX_CAPACITY>::new(), Ring::<RX_CAPACITY>::new());
+        let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
+        let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, _>> =
+            Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
+        let mut entities =
+            vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + IMAGE_FROZEN];
+        let address = Address { session, boot };
+        let mut device = Device::new(
+            &mut firmware,
+            (&line_ring, &map_ring),
+            address,
+            layout,
+            &mut entities,
+        );
+        let mut delimiters = 0u32;
+        let mut sent = Vec::new();
+        let reset = loop {
+            match input.recv_timeout(Duration::from_millis(5)) {
+                // Past the ring's room the bytes are lost, as a UART overrun loses them.
+                Ok(bytes) => {
+                    delimiters += bytes.iter().filter(|&&b| b == 0).count() as u32;
+                    let _ = line_ring.push(&bytes);
                 }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return line.faults,
             }
-            if finished {
-                break;
+            let mut poll = Poll::Idle;
+            while poll == Poll::Idle && device.awake(delimiters) {
+                poll = device.poll(delimiters, &mut NoClock, &mut |b: &[u8]| {
+                    sent.extend_from_slice(b)
+                });
             }
-            let mut done = false;
-            firmware.tick(|_| done = true);
-            if !(done || firmware.mapping() || carrier.holding()) {
-                break;
+            if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
+                return line.faults;
             }
-        }
-        if !finished {
-            firmware.send_frozen(|b| sent.extend_from_slice(b));
-        }
-        if let Some(report) = carrier.report_due(&line_ring) {
-            firmware.send_progress(report, |b| sent.extend_from_slice(b));
-        }
-        if !finished && firmware.stats().end_of_stream {
-            finished = true;
-            firmware.finish();
-            carrier.close();
-            let _ = firmware.send_end(|b| sent.extend_from_slice(b));
-        }
-        if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
-            return line.faults;
-        }
-        sent.clear();
+            sent.clear();
+            if let Poll::Reset { session } = poll {
+                break session;
+            }
+        };
+        session = reset;
+        boot += 1;
     }
 }
 
@@ -177,9 +176,9 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
                 faults: 0,
             },
         };
-        let mut frames = MapFrames::new();
+        let mut frames = MapFrames::default();
         let limits = (RING_BYTES, SILENCE);
-        let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_, _| {});
+        let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_| {});
         let up_faults = port.line.faults;
         drop(port);
         let down_faults = device.join().expect("the device thread");

@@ -2,8 +2,8 @@
 //! is, and one corrupt-but-CRC-valid frame or pose far away costs nothing of it.
 
 use mema::link::frames::push_frame_v2;
-use mema_core::stream::StreamModel;
 use mema_core::link::wire::{Content, FrameReprV2, QUATERNION_ONE, WirePose};
+use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::SHELLS;
 use mema_firmware_sim::harness::RunConfig;
 

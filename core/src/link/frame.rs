@@ -120,7 +120,11 @@ impl<T: AsRef<[u8]>> LinkFrame<T> {
     }
 
     pub fn version(&self) -> u8 {
-        self.buffer.as_ref().get(field::VERSION).copied().unwrap_or(0)
+        self.buffer
+            .as_ref()
+            .get(field::VERSION)
+            .copied()
+            .unwrap_or(0)
     }
 
     pub fn kind(&self) -> u8 {

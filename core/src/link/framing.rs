@@ -288,7 +288,10 @@ mod tests {
             return Err("a block");
         };
         assert_eq!(check_crc(block, 6), Ok(&[1, 0, 2, 0, 0, 3][..]));
-        assert!(matches!(check_crc(block, 7), Err(FramingError::Short { .. })));
+        assert!(matches!(
+            check_crc(block, 7),
+            Err(FramingError::Short { .. })
+        ));
         let mut bad = [0u8; 10];
         bad.copy_from_slice(block);
         bad[2] ^= 4;

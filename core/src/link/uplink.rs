@@ -139,9 +139,7 @@ pub fn decode(raw: &[u8]) -> Result<(Address, UpFrame<'_>), LinkError> {
                 });
             }
             // The payload of `raw` itself, for the caller's lifetime.
-            let bytes = raw
-                .get(CARRIED_AT..CARRIED_AT + bytes.len())
-                .unwrap_or(&[]);
+            let bytes = raw.get(CARRIED_AT..CARRIED_AT + bytes.len()).unwrap_or(&[]);
             UpFrame::Carry {
                 sequence: number,
                 bytes,

@@ -82,7 +82,11 @@ impl Carrier {
     ) -> Option<(Request, u32)> {
         loop {
             if self.holding() {
-                let bytes = self.blocks.raw(self.held_end).get(self.held..).unwrap_or(&[]);
+                let bytes = self
+                    .blocks
+                    .raw(self.held_end)
+                    .get(self.held..)
+                    .unwrap_or(&[]);
                 self.held += map.push(bytes);
                 if self.holding() {
                     return None;

@@ -411,7 +411,8 @@ impl MapFrames {
         let stored = entities.map(|e| stored_entity(e, end.shift, end.layout));
         let origin: [f64; 3] = std::array::from_fn(|j| end.origin[j] + f64::from(end.shift[j]));
         let mut out = vec![0u8; end.layout.encoded_len(count)];
-        let len = encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::MapEncode)?;
+        let len =
+            encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::MapEncode)?;
         out.truncate(len);
         let got_crc = crc32(&out);
         if len != end.map_len as usize || got_crc != end.map_crc {

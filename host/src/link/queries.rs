@@ -8,9 +8,9 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 use mema_core::geometry::Entity;
+use mema_core::link::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 use mema_core::query::brute_force;
 use mema_core::rng::{Pcg32, stream_rng, uniform};
-use mema_core::link::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 use serde::Serialize;
 
 use super::device::{DeviceError, MapFrames};

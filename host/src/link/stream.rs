@@ -3,8 +3,8 @@
 use anyhow::Result;
 use mema_core::fit::FitParams;
 use mema_core::link::receiver::{Receiver, ReceiverStats};
-use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
 use mema_core::link::wire::DecoderStats;
+use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
 
 use super::frames::{dequantise, quantise};
 use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
@@ -288,7 +288,10 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
     }
     mapper.finish();
     let origin = first.map(|v| i64::from(v) * 1_000_000);
-    Ok(map_of(&mapper, mema_core::link::receiver::metres_of_nm(origin)))
+    Ok(map_of(
+        &mapper,
+        mema_core::link::receiver::metres_of_nm(origin),
+    ))
 }
 
 /// The direct path the tests compare `scanner-sim` into `stream` against: the integers

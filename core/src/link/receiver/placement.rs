@@ -2,8 +2,8 @@
 //! origin), in the frame's unit.
 
 use crate::geometry::Point3;
-use crate::rotation::quaternion_matrix;
 use crate::link::wire::{Frame, WirePose};
+use crate::rotation::quaternion_matrix;
 
 /// A sensor pose the receiver holds, sensor to world: `x_world = R x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,9 +1,7 @@
 use super::*;
-use crate::test_support::{OrFail, TestResult};
 use crate::link::cobs::cobs_encode;
-use crate::link::wire::{
-    Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose,
-};
+use crate::link::wire::{Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose};
+use crate::test_support::{OrFail, TestResult};
 
 /// Appends frame `sequence` (COBS and delimiter) to `out` at `at`; returns the new end.
 fn push(

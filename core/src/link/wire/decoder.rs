@@ -197,9 +197,9 @@ impl Decoder {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_support::{OrFail, TestResult};
     use crate::link::cobs::cobs_encode;
     use crate::link::wire::{FrameRepr, MAX_RAW_LEN};
+    use crate::test_support::{OrFail, TestResult};
 
     /// Encodes frames 0..n with a few points each into `out`; returns the length.
     fn stream(n: u32, out: &mut [u8]) -> Result<usize, &'static str> {

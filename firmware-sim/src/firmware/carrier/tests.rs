@@ -30,12 +30,7 @@ fn carried(stream: &[u8], to: Address) -> Vec<Vec<u8>> {
 }
 
 /// Delivers `bytes` through the carrier into a map ring drained into `out` as it fills.
-fn deliver(
-    c: &mut Carrier,
-    bytes: &[u8],
-    out: &mut Vec<u8>,
-    requests: &mut Vec<(Request, u32)>,
-) {
+fn deliver(c: &mut Carrier, bytes: &[u8], out: &mut Vec<u8>, requests: &mut Vec<(Request, u32)>) {
     let line: Ring<4096> = Ring::new();
     let map: Ring<512> = Ring::new();
     for piece in bytes.chunks(1000) {

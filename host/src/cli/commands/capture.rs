@@ -45,7 +45,9 @@ pub fn record(args: &RecordArgs) -> Result<()> {
                 loop {
                     match watch.feed(window) {
                         mema_core::link::wire::Decoded::Consumed => break,
-                        mema_core::link::wire::Decoded::Rejected { remaining, .. } => window = remaining,
+                        mema_core::link::wire::Decoded::Rejected { remaining, .. } => {
+                            window = remaining
+                        }
                         mema_core::link::wire::Decoded::Frame { frame, remaining } => {
                             seen_end |= frame.end_of_stream();
                             window = remaining;

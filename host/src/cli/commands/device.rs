@@ -60,14 +60,22 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     // The device's ring holds RING_BYTES: never more than that is in flight.
     let mut frames = MapFrames::default();
     let limits = (RING_BYTES, Duration::from_secs_f64(t));
-    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |event| match event {
-        SessionEvent::Progress { done, taken } if !quiet => eprint!(
-            "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
-        ),
-        SessionEvent::Progress { .. } => {}
-        // Said even with --json: the map written is then the whole stream's, from the start.
-        SessionEvent::Restart(why) => eprintln!("\nmema device: {why}; starting the session again"),
-    })
+    let map = send_and_receive(
+        &mut port,
+        &stream,
+        limits,
+        &mut frames,
+        |event| match event {
+            SessionEvent::Progress { done, taken } if !quiet => eprint!(
+                "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
+            ),
+            SessionEvent::Progress { .. } => {}
+            // Said even with --json: the map written is then the whole stream's, from the start.
+            SessionEvent::Restart(why) => {
+                eprintln!("\nmema device: {why}; starting the session again")
+            }
+        },
+    )
     .with_context(|| format!("{}: {name}", args.port.display()))?;
     if !quiet {
         eprintln!();

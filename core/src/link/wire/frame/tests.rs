@@ -1,6 +1,6 @@
 use super::*;
-use crate::test_support::{OrFail, TestResult};
 use crate::link::wire::{Content, FrameRepr, FrameReprV2, QUATERNION_ONE};
+use crate::test_support::{OrFail, TestResult};
 
 const POINTS: [[i32; 3]; 3] = [[1, -2, 3], [i32::MAX, i32::MIN, 0], [-1500, 250, 999_999]];
 
@@ -200,7 +200,8 @@ fn protocol_example_v2() -> TestResult {
     ];
     assert_eq!(raw.get(..n).or_fail("raw")?, &want_raw);
     let mut wire = [0u8; 64];
-    let m = crate::link::cobs::cobs_encode(raw.get(..n).or_fail("raw")?, &mut wire).or_fail("fits")?;
+    let m =
+        crate::link::cobs::cobs_encode(raw.get(..n).or_fail("raw")?, &mut wire).or_fail("fits")?;
     let want_wire: [u8; 44] = [
         0x04, 0x02, 0x01, 0x09, 0x01, 0x01, 0x02, 0x02, 0x02, 0xfd, 0x02, 0x01, 0x01, 0x01, 0x03,
         0xe8, 0x03, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01,
