@@ -19,9 +19,22 @@ use super::serial::CAPTURE_LIMIT;
 use crate::cli::args::DeviceArgs;
 use crate::cli::errors::UsageError;
 
+/// What the device said of itself when the session began.
+#[derive(Serialize)]
+struct DeviceSays {
+    /// Entities its map holds at most, and of them working clusters.
+    capacity: u32,
+    working: u32,
+    model: &'static str,
+    /// Its boot's identifier.
+    boot: u32,
+}
+
 #[derive(Serialize)]
 struct DeviceSummary {
     output: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    layout: Option<DeviceSays>,
     /// Bytes sent to the device.
     sent: usize,
     map_bytes: usize,
@@ -96,8 +109,15 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     } else {
         None
     };
+    let layout = frames.device_layout().map(|l| DeviceSays {
+        capacity: l.capacity,
+        working: l.working,
+        model: if l.model == 0 { "paper" } else { "shells" },
+        boot: frames.address().boot,
+    });
     let summary = DeviceSummary {
         output: args.output.display().to_string(),
+        layout,
         sent: total,
         map_bytes: map.len(),
         downlink: frames.counts.clone(),
