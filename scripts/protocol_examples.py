@@ -48,7 +48,7 @@ def show(name, pair):
 
 UP, DOWN = 0x84, 0x83
 stream_start = bytes([0x00, 0x04, 0x02, 0x02, 0x08, 0x01, 0x01, 0x01])
-show("up: start session", frame(UP, 4, SESSION, 0, 0))
+show("up: start session", frame(UP, 4, SESSION, 0, 0, struct.pack("<I", 0)))
 show("up: carry 0", frame(UP, 0, SESSION, BOOT, 0, stream_start))
 show("up: resend 7..10", frame(UP, 1, SESSION, BOOT, 0, struct.pack("<IH", 7, 3)))
 show("up: resend end", frame(UP, 2, SESSION, BOOT, 0))

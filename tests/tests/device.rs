@@ -67,7 +67,7 @@ fn device_downlink(capture: &[u8], model: StreamModel) -> Vec<u8> {
 fn device_downlink_as(capture: &[u8], model: StreamModel, address: Address) -> Vec<u8> {
     let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, model);
     let mut firmware: Box<Image> = Box::new(Firmware::with_reach(params, IMAGE_REACH));
-    firmware.set_link_address(address);
+    firmware.set_link_address(address, 0);
     let mut sent = Vec::new();
     let started = DownFrame::Session {
         status: SessionStatus::Started,

@@ -12,11 +12,11 @@ use std::thread;
 use std::time::Duration;
 
 use mema::link::device::MapFrames;
-use mema::link::session::{SILENCE, send_and_receive};
+use mema::link::session::{SILENCE, SessionLimits, send_and_receive};
 use mema_core::geometry::{Entity, Point3};
 use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
 use mema_core::link::frame::Address;
-use mema_firmware_sim::firmware::device::{Device, NoClock, Poll};
+use mema_firmware_sim::firmware::device::{Boot, Device, NoClock, Poll};
 use mema_firmware_sim::firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
     model_params,
@@ -96,35 +96,54 @@ impl Write for Port {
 /// `input`, frames out through `line` to `output`, until the host hangs up; a start request
 /// for a new session "resets" it (a fresh firmware in a new boot), as the board resets. Returns
 /// the faults its line made.
-fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line) -> u64 {
-    let (mut boot, mut session) = (1u32, 0u32);
+fn run_device(
+    input: Receiver<Vec<u8>>,
+    output: Sender<Vec<u8>>,
+    mut line: Line,
+    near_wrap: bool,
+) -> u64 {
+    let (mut boot, mut session, mut first_carry) = (1u32, 0u32, 0u32);
+    // Every counter of the device just before its wrap, or from 0 as a board boots.
+    let (ring_start, first_sequence, first_delimiters) = if near_wrap {
+        (usize::MAX - 1_500, u32::MAX - 20, u32::MAX - 40)
+    } else {
+        (0, 0, 0)
+    };
     let layout = DeviceLayout {
         capacity: (IMAGE_WORKING + IMAGE_FROZEN) as u32,
         working: IMAGE_WORKING as u32,
         model: 1,
     };
     loop {
-        let (line_ring, map_ring) = (Ring::<RX_CAPACITY>::new(), Ring::<RX_CAPACITY>::new());
+        let (line_ring, map_ring) = (
+            Ring::<RX_CAPACITY>::counting_from(ring_start),
+            Ring::<RX_CAPACITY>::counting_from(ring_start),
+        );
         let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
         let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, _>> =
             Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
         let mut entities =
             vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + IMAGE_FROZEN];
-        let address = Address { session, boot };
+        let start = Boot {
+            address: Address { session, boot },
+            first_carry,
+            first_sequence,
+        };
         let mut device = Device::new(
             &mut firmware,
             (&line_ring, &map_ring),
-            address,
+            start,
             layout,
             &mut entities,
         );
-        let mut delimiters = 0u32;
+        let mut delimiters = first_delimiters;
         let mut sent = Vec::new();
         let reset = loop {
             match input.recv_timeout(Duration::from_millis(5)) {
                 // Past the ring's room the bytes are lost, as a UART overrun loses them.
                 Ok(bytes) => {
-                    delimiters += bytes.iter().filter(|&&b| b == 0).count() as u32;
+                    let zeros = bytes.iter().filter(|&&b| b == 0).count() as u32;
+                    delimiters = delimiters.wrapping_add(zeros);
                     let _ = line_ring.push(&bytes);
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -140,11 +159,11 @@ fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line)
                 return line.faults;
             }
             sent.clear();
-            if let Poll::Reset { session } = poll {
-                break session;
+            if let Poll::Reset { session, first } = poll {
+                break (session, first);
             }
         };
-        session = reset;
+        (session, first_carry) = reset;
         boot += 1;
     }
 }
@@ -155,9 +174,12 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
     let layout = (IMAGE_WORKING + IMAGE_FROZEN, IMAGE_WORKING);
     let (_, stream, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
     let (mut resent, mut asked_again) = (0, 0);
-    // Seed 0: a clean line, and nothing to send or ask again.
-    for seed in 0..6u64 {
-        let one_in = if seed == 0 { 0 } else { 1_500 };
+    // Seed 0: a clean line, and nothing to send or ask again. Seeds 6 and 7: every counter
+    // on both sides (the rings', the delimiters', the downlink's sequence, the carry numbers)
+    // starts just before its wrap and crosses it, through a faulty line and a clean one.
+    let cases = (0..6u64).map(|s| (s, false)).chain([(6, true), (7, true)]);
+    for (seed, near_wrap) in cases {
+        let one_in = if seed == 0 || seed == 7 { 0 } else { 1_500 };
         let (to_device, device_in) = channel();
         let (device_out, from_device) = channel();
         let down = Line {
@@ -165,7 +187,7 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
             one_in,
             faults: 0,
         };
-        let device = thread::spawn(move || run_device(device_in, device_out, down));
+        let device = thread::spawn(move || run_device(device_in, device_out, down, near_wrap));
         let mut port = Port {
             to_device,
             from_device,
@@ -177,7 +199,11 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
             },
         };
         let mut frames = MapFrames::default();
-        let limits = (RING_BYTES, SILENCE);
+        let limits = SessionLimits {
+            window: RING_BYTES,
+            silence: SILENCE,
+            first_carry: if near_wrap { u32::MAX - 5 } else { 0 },
+        };
         let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_| {});
         let up_faults = port.line.faults;
         drop(port);
@@ -248,7 +274,15 @@ fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
             .arg(&out)
             .args(["--idle-timeout", "2", "--json"])
             .run()
-            .assert_error(1, "said nothing new for 2 s");
+            // Noise is what a line at the wrong baud rate brings: said as such.
+            .assert_error(
+                1,
+                if babble {
+                    "no valid frame in 2 s"
+                } else {
+                    "said nothing new for 2 s"
+                },
+            );
         assert!(!out.exists(), "babble {babble}: a map was written");
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
         drop(pair);

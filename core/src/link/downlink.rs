@@ -60,6 +60,11 @@ pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4 + 4 + 4;
 pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8 + 8;
 /// An answer frame's payload: the query's number, what, entity, value, ticks.
 pub const ANSWER_PAYLOAD_LEN: usize = 4 + 1 + 4 + 8 + 4;
+/// The most entities a map sent over the link holds (a board holds 700; a host's streaming
+/// mapper 2,048): an end frame saying more, or an entity frame indexed past it, is refused, so
+/// no count from the line sizes more than this on the host.
+pub const MAX_MAP_ENTITIES: u32 = 1 << 20;
+
 /// A session frame's payload: status, reason, the map's capacity and working clusters, model.
 pub const SESSION_PAYLOAD_LEN: usize = 1 + 1 + 4 + 4 + 1;
 /// The longest raw frame.
@@ -341,6 +346,9 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
         KIND_ENTITY => {
             let mut r = f.payload_of(ENTITY_PAYLOAD_LEN)?;
             let index = r.u32()?;
+            if index >= MAX_MAP_ENTITIES {
+                return Err(LinkError::Value);
+            }
             let kind = EntityKind::from_u8(r.u8()?).ok_or(LinkError::Value)?;
             let center = Point3::new(r.f32()?, r.f32()?, r.f32()?);
             let weights = [r.f32()?, r.f32()?, r.f32()?];
@@ -371,6 +379,9 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
         KIND_END => {
             let mut r = f.payload_of(END_PAYLOAD_LEN)?;
             let entities = r.u32()?;
+            if entities > MAX_MAP_ENTITIES {
+                return Err(LinkError::Value);
+            }
             let code = r.u8()?;
             let grid = [r.f32()?, r.f32()?, r.f32()?];
             let shift = [r.f32()?, r.f32()?, r.f32()?];

@@ -11,7 +11,7 @@
 //! | 1 | 1 | kind: `0` carry, `1` resend entities, `2` resend the end, `3` query, `4` start a session |
 //! | 2 | 4 | session: the host's, never `0` |
 //! | 6 | 4 | boot: the device's boot the host talks to (`0` in a start request: any) |
-//! | 10 | 4 | carry: its number (0 for the first of the session, +1 per carry frame); query: the host's number for it, which the answer repeats; other requests: `0` |
+//! | 10 | 4 | carry: its number (from the start request's first, +1 per carry frame, wrapping); query: the host's number for it, which the answer repeats; other requests: `0` |
 //! | 14 | n | the kind's payload |
 //! | 14 + n | 4 | CRC-32 of every byte before it |
 //!
@@ -24,9 +24,10 @@
 //! u32, `count` u16) asks for entity frames again, a **resend the end** request (no payload)
 //! for the timing and end frames once the map is finished, and a **query** (`what` u8: `0`
 //! nearest surface, `1` ray; a point and a direction, f32, in the map's frame) asks the
-//! finished map a question, answered by a downlink answer frame. A **start** request begins
-//! the host's session: the device begins a fresh map for it (or says it is in it already), and
-//! takes the other frames only of the session it is in and addressed to its own boot.
+//! finished map a question, answered by a downlink answer frame. A **start** request (the
+//! number of the session's first carry frame, u32) begins the host's session: the device
+//! begins a fresh map for it (or says it is in it already), and takes the other frames only of
+//! the session it is in and addressed to its own boot.
 
 use super::frame::{Address, Emitter, HEADER_LEN, LinkError, LinkFrame};
 use super::framing::CRC_LEN;
@@ -52,6 +53,7 @@ const KIND_RESEND_END: u8 = 2;
 const KIND_QUERY: u8 = 3;
 const KIND_START: u8 = 4;
 const RESEND_LEN: usize = 4 + 2;
+const START_LEN: usize = 4;
 const QUERY_LEN: usize = 1 + 12 + 12;
 
 /// What a host-to-device frame carries.
@@ -66,9 +68,10 @@ pub enum UpFrame<'a> {
 /// A request of the host's, for the device to answer on the downlink.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Request {
-    /// Begin the frame's session: a device in another session (or none) begins a fresh map
-    /// and says so in a session frame; one already in it says so again.
-    Start,
+    /// Begin the frame's session, whose carry frames are numbered from `first`: a device in
+    /// another session (or none) begins a fresh map and says so in a session frame; one
+    /// already in it says so again.
+    Start { first: u32 },
     /// Entity frames `first .. first + count` again (count at most [`MAX_RESEND`]).
     Resend { first: u32, count: u16 },
     /// The timing and end frames again, once the map is finished.
@@ -97,7 +100,7 @@ pub fn encode(to: Address, frame: &UpFrame<'_>, out: &mut [u8]) -> Result<usize,
         UpFrame::Request(Request::Query { number, .. }) => (KIND_QUERY, number),
         UpFrame::Request(Request::Resend { .. }) => (KIND_RESEND, 0),
         UpFrame::Request(Request::ResendEnd) => (KIND_RESEND_END, 0),
-        UpFrame::Request(Request::Start) => (KIND_START, 0),
+        UpFrame::Request(Request::Start { .. }) => (KIND_START, 0),
     };
     let mut e = Emitter::new(UPLINK_VERSION, kind, to, number);
     match *frame {
@@ -118,7 +121,10 @@ pub fn encode(to: Address, frame: &UpFrame<'_>, out: &mut [u8]) -> Result<usize,
                 e.f32(v);
             }
         }
-        UpFrame::Request(Request::ResendEnd | Request::Start) => {}
+        UpFrame::Request(Request::Start { first }) => {
+            e.u32(first);
+        }
+        UpFrame::Request(Request::ResendEnd) => {}
     }
     e.seal(out)
 }
@@ -157,11 +163,11 @@ pub fn decode(raw: &[u8]) -> Result<(Address, UpFrame<'_>), LinkError> {
             UpFrame::Request(Request::ResendEnd)
         }
         KIND_START => {
-            frame.payload_of(0)?;
+            let first = frame.payload_of(START_LEN)?.u32()?;
             if address.session == 0 {
                 return Err(LinkError::Value);
             }
-            UpFrame::Request(Request::Start)
+            UpFrame::Request(Request::Start { first })
         }
         KIND_QUERY => {
             let mut p = frame.payload_of(QUERY_LEN)?;

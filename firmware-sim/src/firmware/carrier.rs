@@ -45,14 +45,14 @@ pub struct Carrier {
 
 impl Carrier {
     /// The carrier of a device in boot `address.boot`, in session `address.session` (`0`:
-    /// none, until a start request begins one).
-    pub const fn new(address: Address) -> Self {
+    /// none, until a start request begins one), whose carry frames are numbered from `first`.
+    pub const fn new(address: Address, first: u32) -> Self {
         Self {
             blocks: Deframer::new(),
             address,
             held: 0,
             held_end: 0,
-            next: 0,
+            next: first,
             refused: 0,
             alert: false,
             reported: 0,
@@ -136,8 +136,8 @@ impl Carrier {
                 return None;
             }
         };
-        if let UpFrame::Request(Request::Start) = frame {
-            return Some((Request::Start, from.session));
+        if let UpFrame::Request(start @ Request::Start { .. }) = frame {
+            return Some((start, from.session));
         }
         // Another session's frame, or one for another boot: never this map's.
         if from != self.address || self.address.session == 0 {

@@ -57,8 +57,19 @@ impl Clock for NoClock {
 pub enum Poll {
     /// Nothing more to do until bytes arrive: sleep unless [`Device::awake`] says otherwise.
     Idle,
-    /// A host asked for a new session: reset the device and boot it into `session`.
-    Reset { session: u32 },
+    /// A host asked for a new session: reset the device and boot it into `session`, its carry
+    /// frames numbered from `first`.
+    Reset { session: u32, first: u32 },
+}
+
+/// What a boot starts from: the device's boot and the session it was reset into (`0`: none),
+/// the number of that session's first carry frame, and where its own counters start (the
+/// downlink's sequence: `0` on a board; a test starts it just before its wrap).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Boot {
+    pub address: Address,
+    pub first_carry: u32,
+    pub first_sequence: u32,
 }
 
 /// The mapping device: the firmware fed by the line through the carrier, its map sent back.
@@ -86,16 +97,16 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
     pub fn new(
         firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>>,
         (line, map): (&'a Ring<RX_CAPACITY>, &'a Ring<RX_CAPACITY>),
-        address: Address,
+        boot: Boot,
         layout: DeviceLayout,
         entities: &'a mut [Entity],
     ) -> Self {
-        firmware.set_link_address(address);
+        firmware.set_link_address(boot.address, boot.first_sequence);
         Self {
             firmware,
             line,
             map,
-            carrier: Carrier::new(address),
+            carrier: Carrier::new(boot.address, boot.first_carry),
             layout,
             delimiters: 0,
             announce: true,
@@ -141,7 +152,7 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
             return Poll::Idle;
         }
         self.delimiters = delimiters;
-        let mut start = None;
+        let mut start: Option<(u32, u32)> = None;
         if self.finished.is_some() {
             // Finished: only after a delimiter (every byte's interrupt wakes the loop, and a
             // pass over part of a frame would send a progress frame for each byte).
@@ -158,11 +169,11 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
             }
         });
         match start {
-            Some(session) if session == self.carrier.address().session => {
+            Some((session, _)) if session == self.carrier.address().session => {
                 self.announce = true;
                 Poll::Idle
             }
-            Some(session) => Poll::Reset { session },
+            Some((session, first)) => Poll::Reset { session, first },
             None => Poll::Idle,
         }
     }
@@ -172,7 +183,7 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
         &mut self,
         clock: &mut impl Clock,
         send: &mut impl FnMut(&[u8]),
-        start: &mut Option<u32>,
+        start: &mut Option<(u32, u32)>,
     ) {
         let Self {
             firmware,
@@ -197,44 +208,33 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
         &mut self,
         clock: &mut impl Clock,
         send: &mut impl FnMut(&[u8]),
-        start: &mut Option<u32>,
+        start: &mut Option<(u32, u32)>,
     ) {
-        let Self {
-            firmware,
-            carrier,
-            line,
-            map,
-            entities,
-            finished,
-            ..
-        } = self;
         loop {
-            while let Some((r, session)) = clock.other(|| carrier.pump(line, map)) {
-                if let Some(s) = answer(firmware, r, session, finished, entities, clock, send) {
-                    *start = Some(s);
-                }
-            }
+            self.answer_requests(clock, send, start);
+            let firmware = &mut *self.firmware;
             let mut frame_done = false;
             clock.tick(|| firmware.tick(|_| frame_done = true));
-            if !(frame_done || firmware.mapping() || carrier.holding()) {
+            if !(frame_done || firmware.mapping() || self.carrier.holding()) {
                 break;
             }
         }
+        let firmware = &mut *self.firmware;
         clock.other(|| firmware.send_frozen(&mut *send));
-        if firmware.stats().end_of_stream && finished.is_none() {
+        if firmware.stats().end_of_stream && self.finished.is_none() {
             firmware.finish();
-            carrier.close();
+            self.carrier.close();
             // What the stream cost, then the rest of the map entity by entity: the device
             // holds no copy of the file.
             let timing = DownFrame::Timing(clock.timing());
             firmware.send_frame(&timing, &mut *send);
             let _ = firmware.send_end(&mut *send);
             let mut n = 0;
-            for (slot, e) in entities.iter_mut().zip(firmware.mapper().entities()) {
+            for (slot, e) in self.entities.iter_mut().zip(firmware.mapper().entities()) {
                 *slot = e.entity;
                 n += 1;
             }
-            *finished = Some((timing, n));
+            self.finished = Some((timing, n));
         }
     }
 }
@@ -250,9 +250,9 @@ fn answer<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPA
     entities: &[Entity],
     clock: &mut impl Clock,
     send: &mut impl FnMut(&[u8]),
-) -> Option<u32> {
+) -> Option<(u32, u32)> {
     match (request, finished) {
-        (Request::Start, _) => return Some(session),
+        (Request::Start { first }, _) => return Some((session, first)),
         (Request::Resend { first, count }, _) => firmware.resend(first, count, &mut *send),
         (Request::ResendEnd, Some((timing, _))) => {
             firmware.send_frame(timing, &mut *send);

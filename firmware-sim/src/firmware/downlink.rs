@@ -95,10 +95,11 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.down.address
     }
 
-    /// Sets the boot and session the frames say they are from: at boot, and when a session
-    /// begins.
-    pub fn set_link_address(&mut self, address: Address) {
+    /// Sets the boot and session the frames say they are from, and the next frame's sequence
+    /// number: at boot.
+    pub fn set_link_address(&mut self, address: Address, sequence: u32) {
         self.down.address = address;
+        self.down.sequence = sequence;
     }
 
     /// Sends one downlink frame of the caller's (a board's [`DownFrame::Timing`]) in the

@@ -62,6 +62,10 @@ pub enum DeviceError {
     Version(u8),
     #[error("a frame could not be encoded: {0}")]
     Encode(LinkError),
+    #[error(
+        "no valid frame in {seconds} s ({refused} blocks refused): a line at another baud rate than the device's garbles every byte"
+    )]
+    NoValidFrame { seconds: f64, refused: u64 },
     #[error("the port is gone: {0}")]
     Gone(String),
     #[error("the port: {0}")]
@@ -149,7 +153,8 @@ pub struct MapFrames {
     /// The points and points frames the stream sent holds: the device's end must say it
     /// mapped exactly these.
     expected: Option<(u32, u32)>,
-    entities: Vec<Option<MapEntity>>,
+    /// By index: a map of what arrived, so a corrupt index that passed its CRC sizes nothing.
+    entities: std::collections::BTreeMap<u32, MapEntity>,
     next_sequence: Option<u32>,
     /// Bytes the device has taken from its ring (accumulated from its wrapping count).
     taken: u64,
@@ -177,6 +182,12 @@ impl MapFrames {
     /// device counts): a map whose end frame says otherwise is refused.
     pub fn expect(&mut self, points: u32, frames: u32) {
         self.expected = Some((points, frames));
+    }
+
+    /// The session's carry frames are numbered from `first`: the device's first progress
+    /// expects it.
+    pub fn carry_from(&mut self, first: u32) {
+        self.last_next = first;
     }
 
     /// The host's session.
@@ -288,16 +299,7 @@ impl MapFrames {
         self.next_sequence = Some(sequence.wrapping_add(1));
         match frame {
             DownFrame::Entity { index, entity } => {
-                let i = index as usize;
-                // An index past any map's size is a corrupt frame that passed its CRC.
-                if i >= 1 << 24 {
-                    self.counts.refused += 1;
-                    return;
-                }
-                if self.entities.len() <= i {
-                    self.entities.resize(i + 1, None);
-                }
-                if self.entities[i].replace(entity).is_none() {
+                if self.entities.insert(index, entity).is_none() {
                     self.counts.entities += 1;
                 }
             }
@@ -353,8 +355,8 @@ impl MapFrames {
     /// end's count, every one of them arrived).
     pub fn entities(&self) -> Option<Vec<mema_core::geometry::Entity>> {
         let end = self.end?;
-        (0..end.entities as usize)
-            .map(|i| self.entities.get(i).copied().flatten().map(|e| e.entity))
+        (0..end.entities)
+            .map(|i| self.entities.get(&i).map(|e| e.entity))
             .collect()
     }
 
@@ -380,7 +382,7 @@ impl MapFrames {
             return Vec::new();
         };
         (0..end.entities)
-            .filter(|&i| self.entities.get(i as usize).is_none_or(Option::is_none))
+            .filter(|i| !self.entities.contains_key(i))
             .collect()
     }
 
@@ -407,7 +409,7 @@ impl MapFrames {
         if !missing.is_empty() {
             return Err(DeviceError::Missing { missing });
         }
-        let entities = self.entities.iter().take(count).flatten().copied();
+        let entities = self.entities.range(..end.entities).map(|(_, e)| *e);
         let stored = entities.map(|e| stored_entity(e, end.shift, end.layout));
         let origin: [f64; 3] = std::array::from_fn(|j| end.origin[j] + f64::from(end.shift[j]));
         let mut out = vec![0u8; end.layout.encoded_len(count)];

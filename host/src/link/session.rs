@@ -32,6 +32,16 @@ pub const MAX_ASKS: u32 = 20;
 /// Times a session is started again after the device restarted in it, before the host gives up.
 pub const MAX_RESTARTS: u32 = 3;
 
+/// How a session runs: never more than `window` bytes beyond what the device has taken from
+/// its ring, given up after `silence` with nothing new, carry frames numbered from
+/// `first_carry` (0; a test starts them just before their wrap).
+#[derive(Clone, Copy, Debug)]
+pub struct SessionLimits {
+    pub window: usize,
+    pub silence: Duration,
+    pub first_carry: u32,
+}
+
 /// What a session reports as it goes.
 #[derive(Debug)]
 pub enum SessionEvent<'a> {
@@ -74,14 +84,14 @@ struct CarryFrames {
 }
 
 impl CarryFrames {
-    fn of(stream: &[u8], to: Address) -> Result<Self, DeviceError> {
+    fn of(stream: &[u8], to: Address, first: u32) -> Result<Self, DeviceError> {
         let mut wire = Vec::with_capacity(stream.len() + stream.len() / 20);
         let mut frames = Vec::with_capacity(stream.len() / MAX_CARRIED + 1);
         let mut out = [0u8; MAX_UP_FRAME_LEN];
         for (sequence, bytes) in stream.chunks(MAX_CARRIED).enumerate() {
             let frame = UpFrame::Carry {
                 // Numbers wrap at 2^32 as the device's do.
-                sequence: sequence as u32,
+                sequence: first.wrapping_add(sequence as u32),
                 bytes,
             };
             let n = uplink::encode(to, &frame, &mut out).map_err(DeviceError::Encode)?;
@@ -127,7 +137,7 @@ struct Sender {
 pub fn send_and_receive(
     port: &mut (impl Read + Write),
     stream: &[u8],
-    (window, silence): (usize, Duration),
+    limits: SessionLimits,
     frames: &mut MapFrames,
     mut report: impl FnMut(SessionEvent<'_>),
 ) -> Result<Vec<u8>, DeviceError> {
@@ -135,9 +145,10 @@ pub fn send_and_receive(
     let mut restarts = 0;
     loop {
         *frames = MapFrames::for_session(new_session_id());
+        frames.carry_from(limits.first_carry);
         frames.counts.restarts = restarts;
         frames.expect(points, frame_count);
-        match one_session(port, stream, (window, silence), frames, &mut report) {
+        match one_session(port, stream, limits, frames, &mut report) {
             Err(e @ DeviceError::Rebooted { .. }) if restarts < MAX_RESTARTS => {
                 report(SessionEvent::Restart(&e));
                 restarts += 1;
@@ -150,7 +161,7 @@ pub fn send_and_receive(
 /// Asks the device to begin `frames`' session, again each [`RETRY`], until it says it has.
 fn start(
     port: &mut (impl Read + Write),
-    silence: Duration,
+    (silence, first, total): (Duration, u32, usize),
     frames: &mut MapFrames,
 ) -> Result<(), DeviceError> {
     let mut out = [0u8; MAX_UP_FRAME_LEN];
@@ -158,7 +169,7 @@ fn start(
         session: frames.session(),
         boot: 0,
     };
-    let n = uplink::encode(to, &UpFrame::Request(Request::Start), &mut out)
+    let n = uplink::encode(to, &UpFrame::Request(Request::Start { first }), &mut out)
         .map_err(DeviceError::Encode)?;
     let began = Instant::now();
     let mut asked: Option<Instant> = None;
@@ -171,10 +182,17 @@ fn start(
             if let Some(version) = frames.other_version() {
                 return Err(DeviceError::Version(version));
             }
+            let c = &frames.counts;
+            if c.refused > 0 && c.frames == 0 {
+                return Err(DeviceError::NoValidFrame {
+                    seconds: silence.as_secs_f64(),
+                    refused: c.refused,
+                });
+            }
             return Err(DeviceError::Silent {
                 seconds: silence.as_secs_f64(),
                 sent: 0,
-                total: 0,
+                total,
             });
         }
         if asked.is_none_or(|t| t.elapsed() > RETRY) {
@@ -195,13 +213,18 @@ fn start(
 fn one_session(
     port: &mut (impl Read + Write),
     stream: &[u8],
-    (window, silence): (usize, Duration),
+    limits: SessionLimits,
     frames: &mut MapFrames,
     report: &mut impl FnMut(SessionEvent<'_>),
 ) -> Result<Vec<u8>, DeviceError> {
-    start(port, silence, frames)?;
+    let SessionLimits {
+        window,
+        silence,
+        first_carry,
+    } = limits;
+    start(port, (silence, first_carry, stream.len()), frames)?;
     let to = frames.address();
-    let carry = CarryFrames::of(stream, to)?;
+    let carry = CarryFrames::of(stream, to, first_carry)?;
     let total = carry.frames.len();
     let mut s = Sender {
         next: 0,

@@ -26,8 +26,8 @@ fn protocol_examples() -> TestResult {
     let examples = [
         (
             any_boot,
-            UpFrame::Request(Request::Start),
-            "07 84 04 11 10 55 5e 01 01 01 01 01 01 01 05 18 c1 3b 57 00",
+            UpFrame::Request(Request::Start { first: 0 }),
+            "07 84 04 11 10 55 5e 01 01 01 01 01 01 01 01 01 01 01 05 74 77 39 ed 00",
         ),
         (
             TO,
@@ -99,7 +99,12 @@ fn a_damaged_carry_frame_is_refused() -> TestResult {
     assert_eq!(encode(TO, &empty, &mut out), Err(LinkError::BufferTooSmall));
     // A start without a session is no request.
     let none = Address::default();
-    let n = encode(none, &UpFrame::Request(Request::Start), &mut out).or_fail("encodes")?;
+    let n = encode(
+        none,
+        &UpFrame::Request(Request::Start { first: 0 }),
+        &mut out,
+    )
+    .or_fail("encodes")?;
     assert_eq!(
         decode_whole(out.get_mut(..n - 1).or_fail("block")?),
         Err(LinkError::Value)

@@ -203,12 +203,17 @@ mod tests {
 
     /// Encodes frames 0..n with a few points each into `out`; returns the length.
     fn stream(n: u32, out: &mut [u8]) -> Result<usize, &'static str> {
+        stream_from(0, n, out)
+    }
+
+    /// Encodes `n` frames numbered from `first` (wrapping) into `out`; returns the length.
+    fn stream_from(first: u32, n: u32, out: &mut [u8]) -> Result<usize, &'static str> {
         let mut at = 0;
-        for seq in 0..n {
+        for seq in (0..n).map(|i| first.wrapping_add(i)) {
             let pts = [[seq as i32, 2, 3], [4, 5, seq as i32 * 1000]];
             let repr = FrameRepr {
                 sequence: seq,
-                end_of_stream: seq + 1 == n,
+                end_of_stream: seq.wrapping_add(1) == first.wrapping_add(n),
                 unit_exponent: -3,
                 points: &pts,
             };
@@ -241,6 +246,22 @@ mod tests {
             }
         }
         found
+    }
+
+    /// A sender's sequence numbers crossing their wrap are one session, nothing lost.
+    #[test]
+    fn sequence_numbers_across_their_wrap() -> TestResult {
+        let mut wire = [0u8; 2048];
+        let n = stream_from(u32::MAX - 9, 20, &mut wire)?;
+        let mut d = Decoder::new();
+        let mut seqs = [0u32; 64];
+        assert_eq!(decode_all(&mut d, &wire[..n], 5, &mut seqs), 20);
+        for (i, &s) in seqs[..20].iter().enumerate() {
+            assert_eq!(s, (u32::MAX - 9).wrapping_add(i as u32));
+        }
+        let stats = d.stats();
+        assert_eq!((stats.accepted, stats.lost, stats.sessions), (20, 0, 1));
+        Ok(())
     }
 
     #[test]

@@ -39,7 +39,7 @@ use mema_core::geometry::Entity;
 use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
 use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::device::{Clock, Device, Poll};
+use mema_firmware_sim::firmware::device::{Boot, Clock, Device, Poll};
 use mema_firmware_sim::firmware::{
     BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS,
     model_params,
@@ -166,7 +166,7 @@ fn main() -> ! {
         }
     };
     // Which boot this is, and the session a host asked for before the reset that began it.
-    let (boot_id, session) = retained::take_boot();
+    let (boot_id, session, first_carry) = retained::take_boot();
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
     let calibration = systick::start(&mut cp.SYST);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
@@ -194,11 +194,15 @@ fn main() -> ! {
         working: K as u32,
         model: u8::from(!cfg!(feature = "paper")),
     };
-    let address = Address {
-        session,
-        boot: boot_id,
+    let boot = Boot {
+        address: Address {
+            session,
+            boot: boot_id,
+        },
+        first_carry,
+        first_sequence: 0,
     };
-    let mut device = Device::new(firmware, (&LINE, &MAP), address, layout, query_storage());
+    let mut device = Device::new(firmware, (&LINE, &MAP), boot, layout, query_storage());
     let mut clock = BoardClock {
         work: timing::Work::default(),
         calibration,
@@ -210,10 +214,10 @@ fn main() -> ! {
             &mut usart::send,
         ) {
             Poll::Idle => sleep_unless(|| device.awake(DELIMITERS.load(Ordering::Relaxed))),
-            Poll::Reset { session } => {
+            Poll::Reset { session, first } => {
                 // A new session's map starts from a fresh boot: nothing of the last in RAM.
                 usart::flush();
-                retained::reset_into(session)
+                retained::reset_into(session, first)
             }
         }
     }

@@ -14,13 +14,18 @@ fn stream(len: usize) -> Vec<u8> {
 
 /// The stream's carry frames on the wire, one `Vec` each.
 fn carried(stream: &[u8], to: Address) -> Vec<Vec<u8>> {
+    carried_from(stream, to, 0)
+}
+
+/// The same, numbered from `first`.
+fn carried_from(stream: &[u8], to: Address, first: u32) -> Vec<Vec<u8>> {
     stream
         .chunks(MAX_CARRIED)
         .enumerate()
         .map(|(i, bytes)| {
             let mut out = [0u8; MAX_UP_FRAME_LEN];
             let frame = UpFrame::Carry {
-                sequence: i as u32,
+                sequence: first.wrapping_add(i as u32),
                 bytes,
             };
             let n = encode(to, &frame, &mut out).expect("encodes");
@@ -61,7 +66,7 @@ fn deliver(c: &mut Carrier, bytes: &[u8], out: &mut Vec<u8>, requests: &mut Vec<
 fn only_the_next_frame_passes_on() {
     let s = stream(10 * MAX_CARRIED + 17);
     let frames = carried(&s, HERE);
-    let mut c = Carrier::new(HERE);
+    let mut c = Carrier::new(HERE, 0);
     let (mut out, mut requests) = (Vec::new(), Vec::new());
     // Frames 0..3 whole, 3 with a flipped byte, 4 and 5 (ahead of 3), 2 again (a repeat).
     let mut line = Vec::new();
@@ -95,7 +100,7 @@ fn only_the_next_frame_passes_on() {
 fn requests_come_through_and_a_closed_carrier_passes_nothing() {
     let s = stream(3 * MAX_CARRIED);
     let frames = carried(&s, HERE);
-    let mut c = Carrier::new(HERE);
+    let mut c = Carrier::new(HERE, 0);
     let (mut out, mut requests) = (Vec::new(), Vec::new());
     let mut line = frames[0].clone();
     let mut ask = [0u8; MAX_UP_FRAME_LEN];
@@ -155,7 +160,7 @@ fn only_the_sessions_frames_for_this_boot_pass_on() {
             },
         ),
     ] {
-        let mut c = Carrier::new(carrier_in);
+        let mut c = Carrier::new(carrier_in, 0);
         let (mut out, mut requests) = (Vec::new(), Vec::new());
         let mut line: Vec<u8> = carried(&s, sent_to).concat();
         let mut ask = [0u8; MAX_UP_FRAME_LEN];
@@ -174,8 +179,32 @@ fn only_the_sessions_frames_for_this_boot_pass_on() {
             session: 77,
             boot: 0,
         };
-        let n = encode(start, &UpFrame::Request(Request::Start), &mut ask).expect("encodes");
+        let n = encode(
+            start,
+            &UpFrame::Request(Request::Start { first: 9 }),
+            &mut ask,
+        )
+        .expect("encodes");
         deliver(&mut c, &ask[..n], &mut out, &mut requests);
-        assert_eq!(requests, [(Request::Start, 77)]);
+        assert_eq!(requests, [(Request::Start { first: 9 }, 77)]);
     }
+}
+
+/// Carry frames numbered across the wrap of their counter pass on in turn, and a frame from
+/// before the wrap sent again after it is a repeat, not one ahead.
+#[test]
+fn carry_numbers_across_their_wrap() {
+    let s = stream(8 * MAX_CARRIED + 5);
+    let first = u32::MAX - 3;
+    let frames = carried_from(&s, HERE, first);
+    let mut c = Carrier::new(HERE, first);
+    let (mut out, mut requests) = (Vec::new(), Vec::new());
+    let mut line: Vec<u8> = frames.concat();
+    line.extend_from_slice(&frames[1]);
+    deliver(&mut c, &line, &mut out, &mut requests);
+    assert_eq!(out, s);
+    assert_eq!(c.next, first.wrapping_add(9));
+    let probe: Ring<8> = Ring::new();
+    let report = c.report_due(&probe).expect("the repeat is reported");
+    assert_eq!((report.next, report.refused), (5, 0));
 }

@@ -12,7 +12,7 @@ use mema::link::device::{DownlinkCounts, MapFrames};
 use mema::link::port::open_duplex;
 use mema::link::queries::{QueryReport, ask};
 use mema::link::scanner::{scans_of_input, send_scans};
-use mema::link::session::{SessionEvent, send_and_receive};
+use mema::link::session::{SessionEvent, SessionLimits, send_and_receive};
 use mema_core::link::downlink::RING_BYTES;
 
 use super::serial::CAPTURE_LIMIT;
@@ -72,7 +72,11 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
     let mut frames = MapFrames::default();
-    let limits = (RING_BYTES, Duration::from_secs_f64(t));
+    let limits = SessionLimits {
+        window: RING_BYTES,
+        silence: Duration::from_secs_f64(t),
+        first_carry: 0,
+    };
     let map = send_and_receive(
         &mut port,
         &stream,
@@ -89,7 +93,7 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
             }
         },
     )
-    .with_context(|| format!("{}: {name}", args.port.display()))?;
+    .with_context(|| format!("{} at {} baud: {name}", args.port.display(), args.baud))?;
     if !quiet {
         eprintln!();
     }
