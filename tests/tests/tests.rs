@@ -58,6 +58,9 @@ mod device;
 mod outliers;
 // The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).
 mod docs;
+// Links that resolve: every relative link and anchor of the documentation, every section a
+// --help text cites.
+mod links;
 // The independent sender written from PROTOCOL.md alone.
 mod sender;
 // ROS 2 bags written by rosbags: the bunny scans in frame world map as bun.conf does, bit for

@@ -142,7 +142,7 @@ impl WorldBox {
     }
 }
 
-/// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,
+/// Eq. 13's part of `mema eval`'s JSON (documented in docs/command-line.md; keys are stable): `points`,
 /// the statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes,
 /// percent`.
 #[derive(Clone, Debug, Serialize)]
