@@ -92,6 +92,8 @@ mod first_run;
 // What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
 // fits the search box chose.
 mod honest_reports;
+// Counts that add up: read and every drop make the slots of every shared input, counted here.
+mod counts;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.
