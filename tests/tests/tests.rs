@@ -94,6 +94,8 @@ mod first_run;
 mod honest_reports;
 // Counts that add up: read and every drop make the slots of every shared input, counted here.
 mod counts;
+// Data a user can get: scripts/fetch-data.sh's list and checksums are the shared files'.
+mod data_sources;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.
