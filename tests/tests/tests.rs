@@ -96,6 +96,8 @@ mod honest_reports;
 mod counts;
 // Data a user can get: scripts/fetch-data.sh's list and checksums are the shared files'.
 mod data_sources;
+// One figure per name: map, eval, draw, info and Python agree on eq. 13 and bytes.
+mod one_figure;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.

@@ -247,7 +247,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     println!("{}", stats::format_memory_row(&report.memory));
     println!();
     println!(
-        "eq. 13 error per cluster (m), {} over the tolerance",
+        "eq. 13 as fitted (m; each cluster's error on its own points), {} over the tolerance",
         report.clusters_over_tolerance
     );
     println!("{}", stats::ERROR_HEADER);
@@ -298,7 +298,7 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
     println!(
-        "Table 4: eq. 13 error per cluster (m), over {} clusters",
+        "Table 4: eq. 13 as fitted (m; each cluster's error on its own points), over {} clusters",
         r.ellipsoidal.clusters
     );
     println!("{}", stats::ERROR_HEADER);
