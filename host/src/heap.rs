@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
 /// Heap bytes the default map holds per point at its peak, above the points themselves:
 /// measured on office1 (254,456 points) as 63 bytes a point of resident memory above the
-/// process's start with surface following, 27 without it or for `--paper` (README, "Memory").
+/// process's start with surface following, 27 without it or for `--paper` (docs/command-line.md, on memory).
 pub const MAP_BYTES_PER_POINT: usize = 64;
 
 thread_local! {

@@ -244,6 +244,33 @@ fn awkward_layouts_decode_to_numpys_points() {
     }
 }
 
+/// Issue 33: a bag's counts add up. What `map` read and every point it left out make numpy's
+/// slots of the topic's messages, on the `points:` line and in `--json`.
+#[test]
+fn a_bags_read_and_drops_add_up_to_numpys_slots() {
+    let (want, dropped, _) = expected();
+    let slots = want.iter().map(Vec::len).sum::<usize>() as u64 + dropped;
+    let dir = Dir::new("bag-counts");
+    let map = |json: bool| {
+        MemaCommand::new(&dir)
+            .arg("map")
+            .arg(messy())
+            .args(["--topic", "/cloud", "-k", "5", "-o", "messy.mema"])
+            .args(if json { &["--json"][..] } else { &[][..] })
+            .run()
+            .assert_ok()
+    };
+    let json = map(true).json();
+    let count = |v: &serde_json::Value| v.as_u64().expect("a count");
+    let sum = count(&json["filter"]["read"])
+        + count(&json["dropped_non_finite"])
+        + count(&json["outliers"]["dropped"]);
+    assert_eq!((sum, count(&json["slots"])), (slots, slots), "{json}");
+    assert_eq!(count(&json["dropped_non_finite"]), dropped, "{json}");
+    let text = map(false).stdout();
+    assert!(text.contains(&format!(": {slots} in the input")), "{text}");
+}
+
 #[test]
 fn a_missing_topic_or_transform_is_a_usage_error() {
     let dir = Dir::new("bag-usage");

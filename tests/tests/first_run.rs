@@ -84,13 +84,13 @@ fn the_demo_writes_where_it_is_told_and_says_so() {
         let path = json["files"][file].as_str().expect(file);
         assert!(dir.join(path).is_file(), "{path}");
     }
-    // The picture shows the demo's Table 4 mean under that name (it showed another error,
-    // nearest-centre eq. 13, as "mean e").
+    // The picture shows the demo's Table 4 mean under its name, "as fitted" (it showed another
+    // error, nearest-centre eq. 13, as "mean e").
     let mean = json["ellipsoidal"]["mean"].as_f64().expect("Table 4 mean");
     let title = json["picture_title"].as_str().expect("picture title");
     assert_eq!(
         title,
-        format!("map.mema: 60 entities, Table 4 mean {mean:.6}")
+        format!("map.mema: 60 entities, eq. 13 as fitted {mean:.6}")
     );
 }
 

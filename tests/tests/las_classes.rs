@@ -43,10 +43,11 @@ fn noise_and_withheld_points_stay_out_unless_asked_for() {
     );
     // `noise N withheld W points P zmax Z`, as laspy reads the file.
     let words: Vec<&str> = said.split_whitespace().collect();
-    let (noise, withheld, zmax): (usize, usize, f64) = match words.as_slice() {
-        ["noise", n, "withheld", w, "points", _, "zmax", z] => (
+    let (noise, withheld, points, zmax): (usize, usize, u64, f64) = match words.as_slice() {
+        ["noise", n, "withheld", w, "points", p, "zmax", z] => (
             n.parse().expect("n"),
             w.parse().expect("w"),
+            p.parse().expect("p"),
             z.parse().expect("z"),
         ),
         _ => panic!("the writer said {said:?}"),
@@ -73,6 +74,29 @@ fn noise_and_withheld_points_stay_out_unless_asked_for() {
         .json();
     assert_eq!(json["dropped_by_class"]["noise"], noise, "{json}");
     assert_eq!(json["dropped_by_class"]["withheld"], withheld, "{json}");
+    // Issue 33: what was read and every drop add up to laspy's count of the file's points.
+    let count = |v: &serde_json::Value| v.as_u64().expect("a count");
+    let sum = count(&json["filter"]["read"])
+        + count(&json["dropped_non_finite"])
+        + count(&json["outliers"]["dropped"])
+        + ["noise", "withheld", "other_classes"]
+            .iter()
+            .map(|k| count(&json["dropped_by_class"][k]))
+            .sum::<u64>();
+    assert_eq!((sum, count(&json["slots"])), (points, points), "{json}");
+    let line = mapped
+        .stdout()
+        .lines()
+        .find(|l| l.starts_with("points: "))
+        .map(str::to_owned)
+        .expect("a points line");
+    assert!(
+        line.contains(&format!(
+            "{} left out by class (--classes)",
+            noise + withheld
+        )) && line.contains(&format!(": {points} in the input")),
+        "{line}"
+    );
     // The file is in US feet; no entity of the default map reaches the noise 5,000 ft up.
     let top_ft = top_of(&dir, "clean.mema") / 0.3048;
     assert!(

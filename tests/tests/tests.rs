@@ -60,6 +60,9 @@ mod device;
 mod outliers;
 // The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).
 mod docs;
+// Links that resolve: every relative link and anchor of the documentation, every section a
+// --help text cites.
+mod links;
 // The independent sender written from PROTOCOL.md alone.
 mod sender;
 // ROS 2 bags written by rosbags: the bunny scans in frame world map as bun.conf does, bit for
@@ -91,6 +94,12 @@ mod first_run;
 // What map and eval say beside their tables: NaN points dropped, a map and a cloud apart,
 // fits the search box chose.
 mod honest_reports;
+// Counts that add up: read and every drop make the slots of every shared input, counted here.
+mod counts;
+// Data a user can get: scripts/fetch-data.sh's list and checksums are the shared files'.
+mod data_sources;
+// One figure per name: map, eval, draw, info and Python agree on eq. 13 and bytes.
+mod one_figure;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.

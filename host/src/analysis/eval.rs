@@ -142,9 +142,10 @@ impl WorldBox {
     }
 }
 
-/// Eq. 13's part of `mema eval`'s JSON (documented in the README; keys are stable): `points`,
-/// the statistics' `clusters, mean, std, max, min, total`, then `cloud_bytes, map_bytes,
-/// percent`.
+/// Eq. 13's part of `mema eval`'s JSON (documented in docs/command-line.md; keys are stable): `points`,
+/// the statistics' `clusters, mean, std, max, min, total` (eq. 13 by nearest centre: each point
+/// joins the entity of its nearest centre), then Table 2's `cloud_bytes, map_bytes, percent`
+/// (`map_bytes`: the entities at their records' bytes in the map's layout, as `mema map` counts).
 #[derive(Clone, Debug, Serialize)]
 pub struct EvalReport {
     pub points: usize,
@@ -199,7 +200,11 @@ pub fn evaluate(cloud: &LocalCloud, map: &HostMap) -> EvalReport {
         .filter(|(_, n)| **n > 0)
         .map(|(e, _)| e)
         .collect();
-    let memory = MemoryRow::new(points.len(), entities.len());
+    // Table 2 counts each entity at its record's bytes in the map's layout, as `mema map`
+    // counts the map it writes: 24 for the paper's axis-aligned entity, 14 for a quantized
+    // shell. The paper's own count, 24 for any entity, is `mema info`'s `paper_bytes`.
+    let memory =
+        MemoryRow::with_entity_bytes(points.len(), entities.len(), map.layout().record_len());
     EvalReport {
         points: points.len(),
         errors: ErrorStats::from_errors(&errors),

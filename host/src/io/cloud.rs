@@ -4,7 +4,7 @@ use anyhow::{Context, Result, bail};
 use mema_core::Point3;
 use std::path::Path;
 
-use super::bag::{BagOptions, read_bag};
+use super::bag::{BagOptions, read_bag_keeping};
 use super::conf::{RegisteredScan, read_registration};
 use super::kind::InputKind;
 use super::read::{
@@ -265,9 +265,10 @@ pub fn load_input_in_metres(
     load_input_keeping(path, given, bag, Screening::default())
 }
 
-/// [`load_input_in_metres`] leaving out of a cloud file what `screening` says: points of a
-/// classified file (LAS/LAZ) by class, isolated points ([`Screening`]; registrations and bags
-/// are read as they are).
+/// [`load_input_in_metres`] leaving out what `screening` says: points of a classified file
+/// (LAS/LAZ) by class, isolated points ([`Screening`]). A registration file's scans and a bag's
+/// messages are each screened on their own, in their own frame, as the file of that one scan
+/// would be; the counts are their sums.
 pub fn load_input_keeping(
     path: &Path,
     given: Option<&LengthUnit>,
@@ -276,8 +277,8 @@ pub fn load_input_keeping(
 ) -> Result<(LocalCloud, Units)> {
     match InputKind::of(path) {
         // Several registered scans (a `.conf`): all of them, in their common frame.
-        InputKind::Registration => load_registered_in_metres(path, given),
-        InputKind::Bag => load_bag_in_metres(path, bag, given),
+        InputKind::Registration => load_registered_keeping(path, given, screening),
+        InputKind::Bag => load_bag_keeping(path, bag, given, screening),
         InputKind::StandardInput | InputKind::Cloud => {
             load_cloud_file_keeping(path, given, screening)
         }
@@ -317,6 +318,17 @@ pub struct ScanInMetres {
     pub points: Vec<[f64; 3]>,
 }
 
+/// What the reads of a registration file's scans left out, summed over its scans, so that the
+/// points kept and these add up to the scans' slots.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScanDrops {
+    /// Slots with a NaN or infinite coordinate (an organized scan's empty returns).
+    pub non_finite: usize,
+    pub by_class: ClassDrops,
+    /// Isolated points; the worst is placed in the common frame.
+    pub outliers: OutlierDrops,
+}
+
 /// Every scan of registration file `path`, read in metres (scaled by `given`, else by the unit
 /// each file says, else taken as metres; the translations by the same unit), and the units of
 /// the first scan.
@@ -324,6 +336,18 @@ pub fn read_scans_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(Vec<ScanInMetres>, Units)> {
+    let (scans, units, _) = read_scans_keeping(path, given, Screening::DEFAULT)?;
+    Ok((scans, units))
+}
+
+/// [`read_scans_in_metres`] leaving out of each scan what `screening` says, as a read of that
+/// scan's file alone would, and what was left out.
+pub fn read_scans_keeping(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    screening: Screening,
+) -> Result<(Vec<ScanInMetres>, Units, ScanDrops)> {
+    let mut drops = ScanDrops::default();
     let mut out = Vec::new();
     let mut first_units = None;
     for scan in read_registration(path)? {
@@ -340,7 +364,7 @@ pub fn read_scans_in_metres(
             ),
             InputKind::StandardInput | InputKind::Cloud => {}
         }
-        let (cloud, units) = load_cloud_file_in_metres(&scan.path, given)
+        let (cloud, units) = load_cloud_file_keeping(&scan.path, given, screening)
             .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
         let scale = units.unit.metres;
         let points = cloud.world_points();
@@ -348,10 +372,13 @@ pub fn read_scans_in_metres(
             translation: scan.translation.map(|v| v * scale),
             ..scan
         };
+        drops.non_finite += cloud.dropped_non_finite;
+        drops.by_class.add(cloud.dropped_by_class);
+        drops.outliers.add(cloud.outliers, |p| scan.to_world(p));
         out.push(ScanInMetres { scan, points });
         first_units.get_or_insert(units);
     }
-    Ok((out, first_units.unwrap_or_else(Units::assumed)))
+    Ok((out, first_units.unwrap_or_else(Units::assumed), drops))
 }
 
 /// All scans of registration file `path` in the common frame, in metres, as one cloud.
@@ -359,12 +386,25 @@ pub fn load_registered_in_metres(
     path: &Path,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
-    let (scans, units) = read_scans_in_metres(path, given)?;
+    load_registered_keeping(path, given, Screening::DEFAULT)
+}
+
+/// [`load_registered_in_metres`] leaving out of each scan what `screening` says; the cloud
+/// counts what every scan's read left out.
+pub fn load_registered_keeping(
+    path: &Path,
+    given: Option<&LengthUnit>,
+    screening: Screening,
+) -> Result<(LocalCloud, Units)> {
+    let (scans, units, drops) = read_scans_keeping(path, given, screening)?;
     let world: Vec<[f64; 3]> = scans
         .iter()
         .flat_map(|s| s.points.iter().map(|p| s.scan.to_world(*p)))
         .collect();
     let mut cloud = LocalCloud::from_world(&world);
+    cloud.dropped_non_finite = drops.non_finite;
+    cloud.dropped_by_class = drops.by_class;
+    cloud.outliers = drops.outliers;
     cloud.unit = Some(FileUnit::Length {
         unit: LengthUnit::metre(),
         source: "scaled to metres",
@@ -390,10 +430,22 @@ pub fn load_bag_in_metres(
     options: &BagOptions,
     given: Option<&LengthUnit>,
 ) -> Result<(LocalCloud, Units)> {
-    let bag = read_bag(path, options, given)?;
+    load_bag_keeping(path, options, given, Screening::DEFAULT)
+}
+
+/// [`load_bag_in_metres`] leaving out of each message what `screening` says (see
+/// [`crate::io::bag::read_bag_keeping`]).
+pub fn load_bag_keeping(
+    path: &Path,
+    options: &BagOptions,
+    given: Option<&LengthUnit>,
+    screening: Screening,
+) -> Result<(LocalCloud, Units)> {
+    let bag = read_bag_keeping(path, options, given, screening)?;
     let world: Vec<[f64; 3]> = bag.scans.iter().flat_map(|s| s.world_points()).collect();
     let mut cloud = LocalCloud::from_world(&world);
     cloud.dropped_non_finite = usize::try_from(bag.dropped_non_finite).unwrap_or(usize::MAX);
+    cloud.outliers = bag.outliers;
     cloud.unit = Some(FileUnit::Length {
         unit: LengthUnit::metre(),
         source: "scaled to metres",

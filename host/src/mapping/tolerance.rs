@@ -150,7 +150,7 @@ fn split(points: &[Point3], node: &Node, seed: u64) -> Option<[Vec<u32>; 2]> {
 /// Every cluster of the result meets `t` over its own points (eq. 13's `S_i`). With
 /// `voronoi_rounds` > 0 the map is then checked the way `mema eval` judges any map: each point
 /// joins its nearest centre, clusters are refitted, and any cluster now over `t` is split again;
-/// this costs entities (README: tolerance mode).
+/// this costs entities (docs/tolerance.md).
 pub fn build(
     points: &[Point3],
     t: f64,

@@ -181,12 +181,12 @@ pub fn render(
         let errors = evaluate(cloud, map).errors;
         let title = match title_error {
             TitleError::NearestCentre => format!(
-                "{name}: {} entities, mean eq. 13 error {:.6}",
+                "{name}: {} entities, eq. 13 by nearest centre {:.6}",
                 map.entities.len(),
                 errors.mean
             ),
             TitleError::TableFour(means) => format!(
-                "{name}: {} entities, Table 4 mean {:.6}",
+                "{name}: {} entities, eq. 13 as fitted {:.6}",
                 map.entities.len(),
                 means.get(i).copied().unwrap_or(f64::NAN)
             ),

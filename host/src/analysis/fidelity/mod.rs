@@ -50,7 +50,7 @@ pub struct Completeness {
     pub p95: f64,
 }
 
-/// The two-way score of a map against a cloud (`mema eval`'s JSON keys; README, Fidelity).
+/// The two-way score of a map against a cloud (`mema eval`'s JSON keys; docs/command-line.md, "The commands").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct FidelityScore {
     pub accuracy: Accuracy,

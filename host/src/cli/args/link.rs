@@ -47,7 +47,7 @@ pub struct StreamShapeArgs {
     #[arg(long, value_enum, default_value_t = ModelArg::Shells)]
     pub model: ModelArg,
     /// Keep at most W clusters in working memory and freeze the rest into fitted entities once
-    /// the scan has left them (W <= k): a device's memory for k ellipsoids (README, "Streaming").
+    /// the scan has left them (W <= k): a device's memory for k ellipsoids (docs/streaming.md).
     #[arg(long, value_name = "W")]
     pub working: Option<usize>,
     /// Tolerance mode: merges keep each cluster's estimated eq. 13 error at or under T, and

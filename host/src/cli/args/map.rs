@@ -160,7 +160,7 @@ pub struct EvalArgs {
     pub units: UnitsArg,
     #[command(flatten)]
     pub bag: BagArg,
-    /// Print one JSON object (its keys are in the README) instead of the tables.
+    /// Print one JSON object instead of the tables (its keys: docs/command-line.md, "The commands").
     #[arg(long)]
     pub json: bool,
 }

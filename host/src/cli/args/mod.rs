@@ -99,7 +99,7 @@ pub enum Command {
     Device(DeviceArgs),
     /// Ask a map: signed distance and occupancy at a point, first hit along a ray.
     Query(QueryArgs),
-    /// Move a map rigidly (translation exact; rotations see README).
+    /// Move a map rigidly: translation exact, a rotation turns each entity (docs/queries.md).
     Transform(TransformArgs),
     /// Queries per second with the index vs a brute-force scan; the demo scan re-cast at its map.
     QueryBench(QueryBenchArgs),
@@ -111,7 +111,7 @@ pub enum Command {
     Completions(CompletionsArgs),
     /// Print the man page (roff), or write one page per command with --out-dir.
     Man(ManArgs),
-    /// Time the pipeline on the shared clouds against in-process baselines (README "Performance").
+    /// Time the pipeline on the shared clouds against in-process baselines (docs/performance.md).
     Bench(BenchArgs),
 }
 

@@ -101,7 +101,7 @@ fn explain(r: &MapReport, files: &DemoFiles, dir: &Path, noise: f64) {
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
     println!(
-        "Error (the paper's Table 4, eq. 13): for each cluster, the RMS distance from its points\n\
+        "Error as fitted (the paper's Table 4, eq. 13): for each cluster, the RMS distance from its points\n\
          to its entity's surface, in metres; its mean, spread (std), extremes and sum over the\n\
          {} clusters.",
         r.ellipsoidal.clusters

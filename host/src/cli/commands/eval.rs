@@ -58,14 +58,21 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         "cloud points: {} read, {} more dropped for a NaN or infinite coordinate",
         eq13.points, cloud.dropped_non_finite
     );
+    let record = map.layout().record_len();
+    println!("Table 2: memory (12 bytes per point, {record} per entity)");
     println!("{}", stats::MEMORY_HEADER);
     println!(
         "{}",
-        stats::format_memory_row(&MemoryRow::new(eq13.points, map.entities.len()))
+        stats::format_memory_row(&MemoryRow::with_entity_bytes(
+            eq13.points,
+            map.entities.len(),
+            record
+        ))
     );
     println!();
     println!(
-        "eq. 13 error (m) over {} non-empty clusters",
+        "eq. 13 by nearest centre (m; each point joins the entity of its nearest centre, where\n\
+         map's \"eq. 13 as fitted\" keeps each cluster's own points), over {} non-empty clusters",
         eq13.errors.clusters
     );
     println!("{}", stats::ERROR_HEADER);

@@ -19,8 +19,11 @@ struct InfoReport {
     /// Smallest and largest finite semi-axis.
     semi_axis_min: f64,
     semi_axis_max: f64,
-    /// The paper's count: 24 bytes per entity.
+    /// Table 2's count, as `mema map` and `mema eval` give it: each entity at its record's
+    /// bytes in the layout (`record_bytes`).
     map_bytes: usize,
+    /// The paper's count: 24 bytes for any entity (six f32).
+    paper_bytes: usize,
     file_bytes: u64,
     /// How `.mema` stores (or would store) these entities, and its bytes per entity.
     layout: String,
@@ -62,7 +65,8 @@ pub fn info(args: &InfoArgs) -> Result<()> {
         center_max: hi,
         semi_axis_min: rmin,
         semi_axis_max: rmax,
-        map_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
+        map_bytes: map.entities.len() * map.layout().record_len(),
+        paper_bytes: map.entities.len() * stats::MAP_BYTES_PER_ENTITY,
         file_bytes,
         layout: layout_name(&map.layout()).into(),
         oriented: map
@@ -95,8 +99,8 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             r.layout, r.record_bytes, r.oriented, r.entities
         );
         println!(
-            "bytes: {} on disk ({} at the paper's 24 per entity)",
-            r.file_bytes, r.map_bytes
+            "bytes: {} in the file; map bytes (Table 2, {} per entity) {}; {} at the paper's 24 per entity",
+            r.file_bytes, r.record_bytes, r.map_bytes, r.paper_bytes
         );
     }
     Ok(())

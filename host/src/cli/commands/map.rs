@@ -6,7 +6,7 @@ use mema::analysis::stats;
 use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance};
 use mema::io::Units;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
-use mema::io::read::input_name;
+use mema::io::read::{ClassDrops, input_name};
 use mema::link::scanner::{scans_of_input, unit_name};
 use mema::link::stream::{Capacity, link_params, stream_scans};
 use mema::mapping::filter::{self, FilterCounts, check_voxel};
@@ -212,13 +212,25 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if args.json {
         let mut doc = serde_json::to_value(&report)?;
         doc["unit"] = serde_json::to_value(&units)?;
+        doc["slots"] = slots(
+            &counts,
+            cloud.dropped_non_finite,
+            &cloud.dropped_by_class,
+            cloud.outliers.dropped,
+        )
+        .into();
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
     println!("unit: {units}, scaled to metres");
     println!(
         "{}",
-        points_line(&counts, cloud.dropped_non_finite, cloud.outliers.dropped)
+        points_line(
+            &counts,
+            cloud.dropped_non_finite,
+            &cloud.dropped_by_class,
+            cloud.outliers.dropped
+        )
     );
     println!(
         "tolerance {tolerance} m: k = {} ({} splits, {} merges{})",
@@ -235,7 +247,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     println!("{}", stats::format_memory_row(&report.memory));
     println!();
     println!(
-        "eq. 13 error per cluster (m), {} over the tolerance",
+        "eq. 13 as fitted (m; each cluster's error on its own points), {} over the tolerance",
         report.clusters_over_tolerance
     );
     println!("{}", stats::ERROR_HEADER);
@@ -258,13 +270,25 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
     if json {
         let mut doc = serde_json::to_value(r)?;
         doc["unit"] = serde_json::to_value(units)?;
+        doc["slots"] = slots(
+            &r.filter,
+            r.dropped_non_finite,
+            &r.dropped_by_class,
+            r.outliers.dropped,
+        )
+        .into();
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
     println!("unit: {units}, scaled to metres; map in metres");
     println!(
         "{}",
-        points_line(&r.filter, r.dropped_non_finite, r.outliers.dropped)
+        points_line(
+            &r.filter,
+            r.dropped_non_finite,
+            &r.dropped_by_class,
+            r.outliers.dropped
+        )
     );
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
@@ -274,7 +298,7 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
     println!("{}", stats::format_memory_row(&r.memory));
     println!();
     println!(
-        "Table 4: eq. 13 error per cluster (m), over {} clusters",
+        "Table 4: eq. 13 as fitted (m; each cluster's error on its own points), over {} clusters",
         r.ellipsoidal.clusters
     );
     println!("{}", stats::ERROR_HEADER);
@@ -308,20 +332,41 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
 }
 
 /// The points the map was made of: read, dropped for a NaN or infinite coordinate (a scanner's
-/// empty returns) or as isolated, and what `--crop` and `--voxel` left.
-fn points_line(counts: &FilterCounts, dropped: usize, isolated: usize) -> String {
+/// empty returns), by class or as isolated, and the input's slots these add up to (over every
+/// scan of a registration file or message of a bag); then what `--crop` and `--voxel` left.
+fn points_line(
+    counts: &FilterCounts,
+    dropped: usize,
+    by_class: &ClassDrops,
+    isolated: usize,
+) -> String {
     let mut line = format!(
         "points: {} read, {dropped} more dropped for a NaN or infinite coordinate",
         counts.read
     );
+    if by_class.total() > 0 {
+        line.push_str(&format!(
+            ", {} left out by class (--classes)",
+            by_class.total()
+        ));
+    }
     if isolated > 0 {
         line.push_str(&format!(", {isolated} as isolated (--outliers)"));
     }
+    let slots = slots(counts, dropped, by_class, isolated);
+    line.push_str(&format!(": {slots} in the input"));
+    let mut after = "; ";
     if let Some(n) = counts.cropped {
-        line.push_str(&format!(", {n} inside --crop"));
+        line.push_str(&format!("{after}{n} inside --crop"));
+        after = ", ";
     }
     if let Some(n) = counts.voxelized {
-        line.push_str(&format!(", {n} after --voxel"));
+        line.push_str(&format!("{after}{n} after --voxel"));
     }
     line
+}
+
+/// The input's slots: the points read and every one a read left out (`"slots"` in JSON).
+fn slots(counts: &FilterCounts, dropped: usize, by_class: &ClassDrops, isolated: usize) -> usize {
+    counts.read + dropped + by_class.total() + isolated
 }

@@ -151,7 +151,7 @@ pub struct StreamSummary {
     /// by the wait for the scanner to start (0 when every point came in one read).
     pub points_per_s: f64,
     /// Points that joined their nearest cluster beyond the join radius because the device's
-    /// pacing could not pay for room (README, "Pacing"): where the map is coarser than the
+    /// pacing could not pay for room (docs/firmware.md, "Longest tick, the link and pacing"): where the map is coarser than the
     /// points asked for.
     pub paced_joins: u64,
 }

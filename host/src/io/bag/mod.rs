@@ -42,7 +42,7 @@ use std::io::{BufReader, Read};
 use std::path::{Path, PathBuf};
 
 use crate::io::conf::to_world;
-use crate::io::read::{Cloud, Ctx, Format, Points, ReadError};
+use crate::io::read::{Cloud, Ctx, Format, OutlierDrops, Points, ReadError, Screening};
 use crate::io::units::{FileUnit, LengthUnit, Units};
 use cdr::{CdrError, Stamp};
 use pointcloud2::{LayoutError, PointCloud2};
@@ -110,6 +110,9 @@ pub struct BagScans {
     pub slots: u64,
     /// Points skipped for a NaN or infinite coordinate.
     pub dropped_non_finite: u64,
+    /// Isolated points left out, each message screened on its own as a file is
+    /// ([`read_bag_keeping`]); the worst is placed in the chosen frame.
+    pub outliers: OutlierDrops,
     pub units: Units,
 }
 
@@ -359,6 +362,18 @@ pub fn read_bag(
     options: &BagOptions,
     given: Option<&LengthUnit>,
 ) -> Result<BagScans, BagError> {
+    read_bag_keeping(path, options, given, Screening::DEFAULT)
+}
+
+/// [`read_bag`] leaving out of each message what `screening` says, in the message's own frame,
+/// as a cloud file of that scan would be screened: a registration file's scans and a bag of the
+/// same scans then lose the same points.
+pub fn read_bag_keeping(
+    path: &Path,
+    options: &BagOptions,
+    given: Option<&LengthUnit>,
+    screening: Screening,
+) -> Result<BagScans, BagError> {
     let name = path.display().to_string();
     let files = bag_files(path).ok_or_else(|| BagError::Mcap {
         name: name.clone(),
@@ -386,7 +401,7 @@ pub fn read_bag(
         unit: LengthUnit::metre(),
         source: "REP 103, ROS's metres",
     };
-    let ctx = Ctx::in_metres(&name, given);
+    let ctx = Ctx::in_metres_keeping(&name, given, screening);
     let mut out = BagScans {
         topic: topic.clone(),
         frame: options.frame.clone(),
@@ -395,6 +410,7 @@ pub fn read_bag(
         empty_messages: 0,
         slots: 0,
         dropped_non_finite: 0,
+        outliers: OutlierDrops::default(),
         units: Units::assumed(),
     };
     messages(&files, &name, |m| {
@@ -454,6 +470,9 @@ pub fn read_bag(
                 pose
             }
         };
+        out.outliers.add(read.outliers, |p| {
+            to_world(pose.translation, pose.rotation, p)
+        });
         let o = read.origin;
         out.scans.push(BagScan {
             frame_id: cloud.header.frame_id.clone(),

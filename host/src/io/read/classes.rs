@@ -56,6 +56,13 @@ impl ClassDrops {
     pub fn total(&self) -> usize {
         self.noise + self.withheld + self.other_classes
     }
+
+    /// Another read's counts added to these (the scans of one registration file).
+    pub fn add(&mut self, other: Self) {
+        self.noise += other.noise;
+        self.withheld += other.withheld;
+        self.other_classes += other.other_classes;
+    }
 }
 
 impl Classes {

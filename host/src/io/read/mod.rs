@@ -438,9 +438,14 @@ impl<'a> Ctx<'a> {
         Ctx(name, Scaling::File, Screening::DEFAULT)
     }
 
-    /// A cloud to be read in metres: by `given`, else the file's unit, else none.
-    pub(crate) const fn in_metres(name: &'a str, given: Option<&'a LengthUnit>) -> Self {
-        Ctx(name, Scaling::Metres(given), Screening::DEFAULT)
+    /// A cloud to be read in metres (by `given`, else the file's unit, else none), leaving out
+    /// what `screening` says.
+    pub(crate) const fn in_metres_keeping(
+        name: &'a str,
+        given: Option<&'a LengthUnit>,
+        screening: Screening,
+    ) -> Self {
+        Ctx(name, Scaling::Metres(given), screening)
     }
 
     /// The points of classified files this read keeps.

@@ -105,6 +105,24 @@ pub struct OutlierDrops {
     pub worst: Option<WorstOutlier>,
 }
 
+impl OutlierDrops {
+    /// Another read's drops added to these (the scans of one registration file, the messages
+    /// of a bag, each screened on its own as a file is): the counts add, the cut is the
+    /// widest, and the worst point is the farthest from its neighbours, placed by `place`
+    /// (its scan's pose) in the frame the reads are gathered in.
+    pub fn add(&mut self, other: Self, place: impl Fn([f64; 3]) -> [f64; 3]) {
+        self.dropped += other.dropped;
+        self.cut = self.cut.max(other.cut);
+        let farther = |w: &WorstOutlier| self.worst.is_none_or(|mine| w.distance > mine.distance);
+        if let Some(w) = other.worst.filter(farther) {
+            self.worst = Some(WorstOutlier {
+                at: place(w.at),
+                distance: w.distance,
+            });
+        }
+    }
+}
+
 /// Why a cloud was refused for its precision (lengths in metres: only reads in metres are
 /// screened).
 #[derive(Clone, Copy, Debug, PartialEq)]
