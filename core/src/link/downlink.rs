@@ -56,8 +56,8 @@ pub const END_PAYLOAD_LEN: usize = 4 + 1 + 12 + 12 + 24 + 4 + 4 + 4 + 4;
 /// the host's frames refused.
 pub const PROGRESS_PAYLOAD_LEN: usize = 4 + 4 + 4 + 4;
 /// A timing frame's payload: busy, interrupt and longest-tick counts, the calibration, the
-/// deepest stack.
-pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8 + 8;
+/// deepest stack, the busy cycles, the ring's and the line's overruns.
+pub const TIMING_PAYLOAD_LEN: usize = 8 + 8 + 8 + 8 + 8 + 8 + 8 + 4 + 4;
 /// An answer frame's payload: the query's number, what, entity, value, ticks.
 pub const ANSWER_PAYLOAD_LEN: usize = 4 + 1 + 4 + 8 + 4;
 /// The most entities a map sent over the link holds (a board holds 700; a host's streaming
@@ -174,6 +174,14 @@ pub struct DeviceTiming {
     pub calib_insns: u64,
     /// The deepest the stack went, in bytes (painted at boot; `0` where not measured).
     pub stack_bytes: u64,
+    /// The busy work in core clock cycles, counted by the part's own cycle counter (a
+    /// Cortex-M's DWT), interrupts included as in `busy_ticks`; `0` where there is none to
+    /// count (QEMU models no DWT: its figures are `busy_ticks`, instructions under `-icount`).
+    pub busy_cycles: u64,
+    /// Bytes lost because the receive ring was full, and bytes the UART lost before the
+    /// interrupt read them (an overrun flag): what a too-fast sender or a stalled loop cost.
+    pub ring_overruns: u32,
+    pub line_overruns: u32,
 }
 
 /// The file's record of `entity` in `layout` for a file shifted by `shift` from the mapper's
@@ -265,9 +273,11 @@ pub fn encode(
                 t.calib_ticks,
                 t.calib_insns,
                 t.stack_bytes,
+                t.busy_cycles,
             ] {
                 w.u64(v);
             }
+            w.u32(t.ring_overruns).u32(t.line_overruns);
         }
         DownFrame::Session { status, layout } => {
             let (code, reason) = match *status {
@@ -316,6 +326,9 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
                 calib_ticks: r.u64()?,
                 calib_insns: r.u64()?,
                 stack_bytes: r.u64()?,
+                busy_cycles: r.u64()?,
+                ring_overruns: r.u32()?,
+                line_overruns: r.u32()?,
             })
         }
         KIND_PROGRESS => {

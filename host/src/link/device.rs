@@ -116,6 +116,14 @@ pub struct Instructions {
     pub longest_tick: f64,
     /// The deepest the device's stack went, in bytes (0: not measured).
     pub stack_bytes: u64,
+    /// Core clock cycles a point, as the part's own cycle counter counted them (silicon; QEMU
+    /// has none, and its figures are the instructions above).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cycles_per_point: Option<f64>,
+    /// Bytes the device's receive ring had no room for, and bytes its UART lost before they
+    /// were read.
+    pub ring_overruns: u32,
+    pub line_overruns: u32,
 }
 
 impl Instructions {
@@ -129,6 +137,9 @@ impl Instructions {
             interrupt_per_point: insns(t.interrupt_ticks) / f64::from(points),
             longest_tick: insns(t.longest_tick),
             stack_bytes: t.stack_bytes,
+            cycles_per_point: (t.busy_cycles > 0).then(|| t.busy_cycles as f64 / f64::from(points)),
+            ring_overruns: t.ring_overruns,
+            line_overruns: t.line_overruns,
         })
     }
 }

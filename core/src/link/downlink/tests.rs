@@ -165,6 +165,9 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         calib_ticks: 0,
         calib_insns: 2_000_000,
         stack_bytes: 5_000,
+        busy_cycles: u64::MAX - 1,
+        ring_overruns: 7,
+        line_overruns: u32::MAX,
     });
     let answer = DownFrame::Answer {
         query: 9,
@@ -247,6 +250,9 @@ fn protocol_examples() -> TestResult {
         calib_ticks: 1_000,
         calib_insns: 1_000,
         stack_bytes: 5_400,
+        busy_cycles: 3_000_000,
+        ring_overruns: 0,
+        line_overruns: 2,
     });
     let answer = DownFrame::Answer {
         query: 77,
@@ -304,7 +310,7 @@ fn protocol_examples() -> TestResult {
             timing,
             "08 83 03 11 10 55 5e 07 01 01 02 05 01 01 04 80 84 1e 01 01 01 01 04 f0 49 02 01 01 \
              01 01 04 90 5f 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 18 \
-             15 01 01 01 01 01 05 b6 96 96 f1 00",
+             15 01 01 01 01 01 04 c0 c6 2d 01 01 01 01 01 01 01 01 02 02 01 01 05 bc ad 49 e4 00",
         ),
         (
             FROM,

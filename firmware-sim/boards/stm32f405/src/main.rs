@@ -31,6 +31,7 @@ mod stack;
 mod systick;
 mod timing;
 mod usart;
+mod watchdog;
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -113,7 +114,7 @@ fn USART1() {
             if byte == 0 {
                 DELIMITERS.fetch_add(1, Ordering::Relaxed);
             }
-            if LINE.push(&[byte]) == 0 {
+            if !LINE.push_byte(byte) {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
         }
@@ -122,7 +123,7 @@ fn USART1() {
             if byte == 0 {
                 DELIMITERS.fetch_add(1, Ordering::Relaxed);
             }
-            if LINE.push(&[byte]) == 0 {
+            if !LINE.push_byte(byte) {
                 RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
             }
         }
@@ -142,6 +143,7 @@ impl Clock for BoardClock {
     }
 
     fn other<T>(&mut self, work: impl FnOnce() -> T) -> T {
+        self.work.note_interrupt_cycles();
         self.work.other(work)
     }
 
@@ -153,7 +155,12 @@ impl Clock for BoardClock {
     }
 
     fn timing(&self) -> DeviceTiming {
-        self.work.report(self.calibration, stack::high_water())
+        let overruns = (
+            RING_OVERRUNS.load(Ordering::Relaxed),
+            LINE_OVERRUNS.load(Ordering::Relaxed),
+        );
+        self.work
+            .report(self.calibration, stack::high_water(), overruns)
     }
 }
 
@@ -169,6 +176,8 @@ fn main() -> ! {
     let (boot_id, session, first_carry) = retained::take_boot();
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
     let calibration = systick::start(&mut cp.SYST);
+    // Cycles as silicon counts them, beside the ticks (QEMU models no DWT: the count stays 0).
+    timing::start_cycles(&mut cp.DCB, &mut cp.DWT);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
     let model = if cfg!(feature = "paper") {
         StreamModel::Paper
@@ -189,6 +198,7 @@ fn main() -> ! {
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
     }
     stack::paint();
+    watchdog::start(&dp.IWDG);
     let layout = DeviceLayout {
         capacity: (K + F) as u32,
         working: K as u32,
@@ -208,6 +218,7 @@ fn main() -> ! {
         calibration,
     };
     loop {
+        watchdog::feed();
         match device.poll(
             DELIMITERS.load(Ordering::Relaxed),
             &mut clock,
