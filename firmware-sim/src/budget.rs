@@ -10,7 +10,7 @@ use mema_core::link::wire::Decoder;
 use mema_core::stream::{StreamCluster, StreamMapper};
 
 use crate::board::TARGET_BOARD;
-use crate::firmware::{
+use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, RX_CAPACITY,
     Snapshot,
 };
@@ -113,7 +113,7 @@ impl QemuReport {
              \x20 the {RX_CAPACITY}-byte ring fills in {:.1} ms at 921,600 baud: {fill:.0} instructions at 168 MHz and 1.5 cycles each, {:.1}x the longest tick\n\
              \x20 per point (point-only ticks) {:.0} instructions, per fit (freeze or refit) {:.0}, per merge pass {:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n",
             self.get("ticks")?,
-            crate::firmware::TICK_POINTS,
+            mema_firmware::TICK_POINTS,
             fill_s * 1e3,
             fill / plain.max(longest_unit),
             prices.per_point,

@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use mema_core::stream::StreamModel;
+use mema_firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::board::{Board, BoardSpec};
 use mema_firmware_sim::fault::FaultConfig;
-use mema_firmware_sim::firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::harness::{RunConfig, RunReport, run};
 
 /// The simulator's capacity: `-k` may be at most this (the budget's largest K).

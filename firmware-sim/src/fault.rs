@@ -11,8 +11,8 @@
 //!
 //! Byte faults are drawn per byte, in parts per million; resets per delivery, also in ppm.
 
-use crate::source::{ByteSource, Delivery};
 use mema_core::rng::{Pcg32, index_below, stream_rng};
+use mema_firmware::source::{ByteSource, Delivery};
 
 /// Fault rates, all in parts per million.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -152,7 +152,7 @@ impl<S> FaultInjector<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::source::UartSource;
+    use mema_firmware::source::UartSource;
 
     fn drain<S: ByteSource<Error = core::convert::Infallible>>(
         source: &mut S,

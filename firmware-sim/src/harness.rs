@@ -13,8 +13,8 @@ use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
 
 use crate::board::{Board, BoardError};
 use crate::fault::{FaultConfig, FaultInjector, FaultStats};
-use crate::firmware::{Firmware, FirmwareStats, Snapshot};
-use crate::source::{ByteSource, Delivery, UartSource};
+use mema_firmware::source::{ByteSource, Delivery, UartSource};
+use mema_firmware::{Firmware, FirmwareStats, Snapshot};
 
 /// How a capture is played.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

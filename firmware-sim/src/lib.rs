@@ -1,11 +1,5 @@
-//! `mema-firmware-sim`: the mema core run exactly as firmware runs it, and checked.
-//!
-//! The firmware parts are `no_std` and allocate nothing, so the Cortex-M4F image in `image/`
-//! links the very same code:
-//! - [`firmware`]: the application state (UART ring, frame decoder, streaming mapper) in one
-//!   struct meant for a `static`, advanced by [`firmware::Firmware::tick`], with snapshots for
-//!   restarts after a reset;
-//! - [`source`]: the byte-source boundary and a UART that delivers a capture in seeded chunks;
+//! `mema-firmware-sim`: the device's code (`mema-firmware`, the crate the Cortex-M4F image in
+//! `image/` and the STM32F405 board link) run exactly as firmware runs it, and checked:
 //! - [`fault`]: a seeded fault injector that wraps any byte source (noise, overruns, truncated
 //!   frames, resets);
 //! - [`board`]: a board model stricter than the hardware: a RAM budget checked before anything
@@ -19,8 +13,6 @@
 
 pub mod board;
 pub mod fault;
-pub mod firmware;
-pub mod source;
 
 #[cfg(feature = "reference")]
 pub mod budget;

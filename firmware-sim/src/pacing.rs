@@ -7,7 +7,7 @@
 
 use mema_core::map::EncodeError;
 
-use crate::firmware::Firmware;
+use mema_firmware::Firmware;
 
 /// 921,600 baud at 10 bits a byte (start, 8 data, stop).
 pub const LINK_BYTES_PER_S: f64 = 92_160.0;
@@ -103,7 +103,7 @@ pub fn run_paced<const K: usize, const G: usize, const F: usize>(
         ring_peak,
         ticks,
         longest_tick_s: longest,
-        ring_fill_s: crate::firmware::RX_CAPACITY as f64 / link.bytes_per_s,
+        ring_fill_s: mema_firmware::RX_CAPACITY as f64 / link.bytes_per_s,
         link_s: capture.len() as f64 / link.bytes_per_s,
         done_s: now,
         map,

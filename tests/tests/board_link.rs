@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use mema_firmware_sim::firmware::{BOARD_FROZEN, BOARD_WORKING};
+use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
 use crate::device::capture_and_replay;
 use crate::faults::Rng;

@@ -10,7 +10,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use mema_firmware_sim::firmware::{BOARD_FROZEN, BOARD_WORKING};
+use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
 use crate::board_link::{Killed, board_image, start_board};
 use crate::device::capture_and_replay;

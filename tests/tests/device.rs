@@ -9,7 +9,7 @@ use mema::link::device::{DeviceError, MapFrames};
 use mema_core::link::downlink::{DeviceLayout, DownFrame, SessionStatus};
 use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::{
+use mema_firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
 };
 

@@ -9,10 +9,10 @@ use std::process::Command;
 use mema::link::frames::{encode_stream, quantise};
 use mema_core::Point3;
 use mema_core::stream::StreamModel;
+use mema_firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::board::{Board, BoardSpec};
 use mema_firmware_sim::compare::{Setup, compare_clouds, shared_clouds};
 use mema_firmware_sim::fault::FaultConfig;
-use mema_firmware_sim::firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::harness::{RunConfig, RunReport, frames_of, map_of_frames, run};
 
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
@@ -478,7 +478,7 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
 /// processor that keeps up is found by bisection and printed (README's Firmware section).
 #[test]
 fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
-    use mema_firmware_sim::firmware::{IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING};
+    use mema_firmware::{IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING};
     use mema_firmware_sim::pacing::{LINK_BYTES_PER_S, Link, PacedReport, TickCost, run_paced};
     type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
     let dir = Dir::new("fw-paced");
@@ -531,9 +531,8 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         let pacing = params.pacing;
         let per_credit = (cost.per_fit / f64::from(pacing.freeze))
             .max(cost.per_merge_pass / f64::from(pacing.merge_pass));
-        let per_point_bound = cost.per_point
-            + per_credit
-            + cost.per_fit / f64::from(mema_firmware_sim::firmware::REFIT_INTERVAL);
+        let per_point_bound =
+            cost.per_point + per_credit + cost.per_fit / f64::from(mema_firmware::REFIT_INTERVAL);
         let points = unpaced_points(&capture);
         let bound = per_point_bound * points as f64 / m4f.link_s;
         // Bisection on the rate, in M instructions per second, for the README.

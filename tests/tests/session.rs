@@ -16,8 +16,8 @@ use mema::link::session::{SILENCE, SessionLimits, send_and_receive};
 use mema_core::geometry::{Entity, Point3};
 use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
 use mema_core::link::frame::Address;
-use mema_firmware_sim::firmware::device::{Boot, Device, NoClock, Poll};
-use mema_firmware_sim::firmware::{
+use mema_firmware::device::{Boot, Device, NoClock, Poll};
+use mema_firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
     model_params,
 };

@@ -4,7 +4,7 @@
 use mema::link::frames::push_frame_v2;
 use mema_core::link::wire::{Content, FrameReprV2, QUATERNION_ONE, WirePose};
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::SHELLS;
+use mema_firmware::SHELLS;
 use mema_firmware_sim::harness::RunConfig;
 
 use crate::firmware::play_model;

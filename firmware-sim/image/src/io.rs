@@ -3,7 +3,7 @@
 
 use cortex_m_semihosting::{nr, syscall};
 use mema_core::rng::{Pcg32, index_below, stream_rng};
-use mema_firmware_sim::source::{ByteSource, Delivery};
+use mema_firmware::source::{ByteSource, Delivery};
 
 fn open(path_nul: &[u8], mode: usize) -> Option<usize> {
     let len = path_nul.len().checked_sub(1)?;

@@ -1,4 +1,4 @@
-//! The firmware image: `mema_firmware_sim::firmware::Firmware` on a Cortex-M4F.
+//! The firmware image: `mema_firmware::Firmware` on a Cortex-M4F.
 //!
 //! Under `qemu-system-arm -machine mps2-an386 -semihosting`, it reads `capture.bin` from QEMU's
 //! working directory through semihosting, in chunks of 1..=256 bytes as a UART interrupt would
@@ -21,18 +21,17 @@
 #![no_main]
 
 mod io;
-mod stack;
-mod systick;
 
 use cortex_m_rt::entry;
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::{
+use mema_firmware::cortex_m::stack;
+use mema_firmware::cortex_m::systick::{self, now};
+use mema_firmware::source::{ByteSource, Delivery};
+use mema_firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
 };
-use mema_firmware_sim::source::{ByteSource, Delivery};
 use panic_never as _;
 use static_cell::StaticCell;
-use systick::now;
 
 /// Working clusters, centre-hash buckets and frozen entities of the image: K = 400 ellipsoids
 /// (the host tests map with `-k 400 --working 150`).

@@ -1,4 +1,4 @@
-//! The firmware on an STM32F405: `mema_firmware_sim::firmware::Firmware` fed by USART1's receive
+//! The firmware on an STM32F405: `mema_firmware::Firmware` fed by USART1's receive
 //! interrupt, the map sent back on USART1's transmitter.
 //!
 //! The interrupt takes each byte from the data register and pushes it into the line's ring
@@ -22,13 +22,6 @@
 
 mod clocks;
 mod retained;
-// The 64 KiB image's painted stack, shared as a file: both images put the stack at the top of
-// RAM above their statics.
-#[path = "../../../image/src/stack.rs"]
-mod stack;
-// And its SysTick clock and calibration.
-#[path = "../../../image/src/systick.rs"]
-mod systick;
 mod timing;
 mod usart;
 mod watchdog;
@@ -40,8 +33,9 @@ use mema_core::geometry::Entity;
 use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
 use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
-use mema_firmware_sim::firmware::device::{Boot, Clock, Device, Poll};
-use mema_firmware_sim::firmware::{
+use mema_firmware::cortex_m::{stack, systick};
+use mema_firmware::device::{Boot, Clock, Device, Poll};
+use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS,
     model_params,
 };

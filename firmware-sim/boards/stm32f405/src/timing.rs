@@ -10,7 +10,7 @@ use cortex_m::interrupt::Mutex;
 use cortex_m::peripheral::DWT;
 use mema_core::link::downlink::DeviceTiming;
 
-use crate::systick::{Calibration, now};
+use mema_firmware::cortex_m::systick::{Calibration, now};
 
 /// Ticks spent in the receive interrupt.
 static IN_INTERRUPT: Mutex<Cell<u64>> = Mutex::new(Cell::new(0));

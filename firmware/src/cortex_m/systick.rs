@@ -1,7 +1,6 @@
 //! Time on a Cortex-M: SysTick on the core clock, the wraps of its 24-bit counter counted by
 //! its exception, and a loop of known length that turns ticks into instructions (under QEMU's
-//! `-icount shift=0` the clock counts instructions). The board image (`boards/stm32f405`),
-//! which shares no crate with this one, includes this file as it is.
+//! `-icount shift=0` the clock counts instructions).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -47,7 +46,7 @@ fn spin(n: u32) {
 }
 
 /// The calibration: `insns` instructions of a known loop took `ticks`.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 pub struct Calibration {
     pub ticks: u64,
     pub insns: u64,

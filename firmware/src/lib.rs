@@ -1,6 +1,16 @@
-//! The firmware application: UART ring, frame decoder and streaming mapper in one struct, sized at
-//! compile time and meant to live in a `static` (see `image/` and the `run` command).
+//! `mema-firmware`: the device's code, `no_std` and without an allocator, the one copy the 64 KiB
+//! image (`firmware-sim/image`), the STM32F405 board (`firmware-sim/boards/stm32f405`) and the
+//! simulator that checks them (`mema-firmware-sim`) all build.
 //!
+//! - [`Firmware`]: UART ring, frame decoder and streaming mapper in one struct, sized at compile
+//!   time and meant to live in a `static`; [`Ring`], the receive ring an interrupt pushes into;
+//! - [`Carrier`] and [`device::Device`]: a mapping device's end of the host's link (carry
+//!   frames in turn, sessions, the map sent back), the board's main loop one pass at a time;
+//! - [`source`]: the byte-source boundary between a UART and the firmware;
+//! - `cortex_m` (feature `cortex-m`): what both Cortex-M images share, a painted stack and
+//!   SysTick's clock and calibration.
+//!
+//! The firmware application:
 //! The receive interrupt calls [`Firmware::on_receive`], which only copies bytes into the ring;
 //! the main loop calls [`Firmware::tick`], which decodes what the ring holds and maps the points
 //! of every accepted frame. Mapping never depends on how bytes were split between interrupts, so
@@ -17,6 +27,9 @@
 //! the RAM; the final map equals that of an uninterrupted run over the frames the restored mapper
 //! holds plus those accepted after the restart.
 
+#![cfg_attr(not(test), no_std)]
+#![deny(missing_debug_implementations)]
+
 use core::borrow::Borrow;
 
 use mema_core::de::{DeParams, OutOfBounds};
@@ -30,9 +43,12 @@ use mema_core::map::EncodeError;
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
 
 mod carrier;
+#[cfg(feature = "cortex-m")]
+pub mod cortex_m;
 pub mod device;
 mod downlink;
 mod ring;
+pub mod source;
 pub use carrier::{Carrier, LineReport, Request};
 use downlink::Downlink;
 pub use downlink::PROGRESS_EVERY;
