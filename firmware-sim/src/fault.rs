@@ -10,6 +10,11 @@
 //! - **reset**: the board resets, and the bytes of that delivery are lost with it.
 //!
 //! Byte faults are drawn per byte, in parts per million; resets per delivery, also in ppm.
+//!
+//! [`LineFaults`] is the line between two ends that both talk (a host and a mapping device):
+//! a byte dropped, one of its bits flipped, or the byte duplicated, at a rate of one byte in
+//! `one_in`. Every test of the link's faults, in memory or through QEMU's serial port, draws
+//! its faults from these two.
 
 use mema_core::rng::{Pcg32, index_below, stream_rng};
 use mema_firmware::source::{ByteSource, Delivery};
@@ -215,5 +220,74 @@ mod tests {
         let delimiters = out[..len].iter().filter(|&&b| b == 0).count();
         // An overrun (at most 64 bytes) spans at most one; a reset's delivery (200) at most two.
         assert!(delimiters as u64 + s.overruns + 2 * s.resets >= 200);
+    }
+}
+
+/// A serial line that drops, flips or duplicates bytes, one in `one_in` of them (`0`: a clean
+/// line), the kind of each fault equally likely; seeded, so a run is repeatable.
+#[derive(Clone, Debug)]
+pub struct LineFaults {
+    rng: Pcg32,
+    one_in: u32,
+    /// Faults made so far.
+    pub faults: u64,
+}
+
+impl LineFaults {
+    pub fn new(seed: u64, one_in: u32) -> Self {
+        Self {
+            rng: stream_rng(seed, 0x11FE),
+            one_in,
+            faults: 0,
+        }
+    }
+
+    /// Carries `bytes` across the line, handing what arrives to `out` byte by byte.
+    pub fn carry(&mut self, bytes: &[u8], mut out: impl FnMut(u8)) {
+        for &b in bytes {
+            if self.one_in == 0 || index_below(&mut self.rng, self.one_in as usize) != 0 {
+                out(b);
+                continue;
+            }
+            self.faults += 1;
+            match index_below(&mut self.rng, 3) {
+                0 => {}
+                1 => out(b ^ (1 << index_below(&mut self.rng, 8))),
+                _ => {
+                    out(b);
+                    out(b);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod line_tests {
+    use super::*;
+
+    /// A clean line carries every byte; a faulty one makes about the rate's faults, each a
+    /// byte dropped, flipped in one bit, or duplicated, and nothing else.
+    #[test]
+    fn the_line_makes_the_faults_it_counts() {
+        let bytes: [u8; 4096] = core::array::from_fn(|i| (i * 7) as u8);
+        let mut clean = LineFaults::new(1, 0);
+        let mut out = [0u8; 8192];
+        let mut n = 0;
+        clean.carry(&bytes, |b| {
+            out[n] = b;
+            n += 1;
+        });
+        assert_eq!((&out[..n], clean.faults), (&bytes[..], 0));
+        let mut line = LineFaults::new(7, 64);
+        n = 0;
+        line.carry(&bytes, |b| {
+            out[n] = b;
+            n += 1;
+        });
+        assert!((30..=100).contains(&line.faults), "{} faults", line.faults);
+        // Each fault changes the length by -1, 0 or +1, and no more bytes differ than faults
+        // can explain (checked on the length here; the links' tests check what they do).
+        assert!(n.abs_diff(bytes.len()) as u64 <= line.faults);
     }
 }

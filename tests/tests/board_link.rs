@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
 use crate::device::capture_and_replay;
-use crate::faults::Rng;
 use crate::stream::PtyPair;
 use crate::util::{Dir, mema_bin};
+use mema_firmware_sim::fault::LineFaults;
 
 /// A child process killed on drop.
 pub(crate) struct Killed(pub(crate) Child);
@@ -73,32 +73,21 @@ pub(crate) fn start_board(dir: &Dir, image: &Path, monitor: Option<&Path>) -> (K
 
 /// Copies `from` to `to` until either end goes, dropping, flipping or duplicating a byte at
 /// a time at `one_in` bytes (seeded); returns the faults made.
-fn relay(mut from: File, mut to: File, seed: u64, one_in: u64) -> std::thread::JoinHandle<u64> {
+fn relay(mut from: File, mut to: File, seed: u64, one_in: u32) -> std::thread::JoinHandle<u64> {
     std::thread::spawn(move || {
-        let mut rng = Rng(seed);
-        let (mut buf, mut out, mut faults) = ([0u8; 512], Vec::with_capacity(1024), 0);
+        let mut line = LineFaults::new(seed, one_in);
+        let (mut buf, mut out) = ([0u8; 512], Vec::with_capacity(1024));
         while let Ok(n) = from.read(&mut buf) {
             if n == 0 {
                 break;
             }
             out.clear();
-            for &b in &buf[..n] {
-                if !rng.next().is_multiple_of(one_in) {
-                    out.push(b);
-                    continue;
-                }
-                faults += 1;
-                match rng.next() % 3 {
-                    0 => {}
-                    1 => out.push(b ^ (1 << (rng.next() % 8))),
-                    _ => out.extend_from_slice(&[b, b]),
-                }
-            }
+            line.carry(&buf[..n], |b| out.push(b));
             if to.write_all(&out).is_err() {
                 break;
             }
         }
-        faults
+        line.faults
     })
 }
 

@@ -25,29 +25,16 @@ use mema_firmware::{
 use crate::device::capture_and_replay;
 use crate::faults::Rng;
 use crate::util::{Dir, MemaCommand};
+use mema_firmware_sim::fault::LineFaults;
 
-/// Bytes through a line that drops, flips or duplicates one in `one_in` (0: none).
-struct Line {
-    rng: Rng,
-    one_in: u64,
-    faults: u64,
-}
+/// Bytes through a line that drops, flips or duplicates one in `one_in` (0: none): the one
+/// fault injector of the link's tests.
+struct Line(LineFaults);
 
 impl Line {
     fn carry(&mut self, bytes: &[u8]) -> Vec<u8> {
         let mut out = Vec::with_capacity(bytes.len() + 8);
-        for &b in bytes {
-            if self.one_in == 0 || !self.rng.next().is_multiple_of(self.one_in) {
-                out.push(b);
-                continue;
-            }
-            self.faults += 1;
-            match self.rng.next() % 3 {
-                0 => {}
-                1 => out.push(b ^ (1 << (self.rng.next() % 8))),
-                _ => out.extend_from_slice(&[b, b]),
-            }
-        }
+        self.0.carry(bytes, |b| out.push(b));
         out
     }
 }
@@ -147,7 +134,7 @@ fn run_device(
                     let _ = line_ring.push(&bytes);
                 }
                 Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return line.faults,
+                Err(RecvTimeoutError::Disconnected) => return line.0.faults,
             }
             let mut poll = Poll::Idle;
             while poll == Poll::Idle && device.awake(delimiters) {
@@ -156,7 +143,7 @@ fn run_device(
                 });
             }
             if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
-                return line.faults;
+                return line.0.faults;
             }
             sent.clear();
             if let Poll::Reset { session, first } = poll {
@@ -182,21 +169,13 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
         let one_in = if seed == 0 || seed == 7 { 0 } else { 1_500 };
         let (to_device, device_in) = channel();
         let (device_out, from_device) = channel();
-        let down = Line {
-            rng: Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1),
-            one_in,
-            faults: 0,
-        };
+        let down = Line(LineFaults::new(seed.wrapping_mul(2) + 1, one_in));
         let device = thread::spawn(move || run_device(device_in, device_out, down, near_wrap));
         let mut port = Port {
             to_device,
             from_device,
             held: VecDeque::new(),
-            line: Line {
-                rng: Rng(seed.wrapping_add(0xD1B5_4A32_D192_ED03)),
-                one_in,
-                faults: 0,
-            },
+            line: Line(LineFaults::new(seed.wrapping_mul(2), one_in)),
         };
         let mut frames = MapFrames::default();
         let limits = SessionLimits {
@@ -205,7 +184,7 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
             first_carry: if near_wrap { u32::MAX - 5 } else { 0 },
         };
         let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_| {});
-        let up_faults = port.line.faults;
+        let up_faults = port.line.0.faults;
         drop(port);
         let down_faults = device.join().expect("the device thread");
         let map = map.unwrap_or_else(|e| panic!("seed {seed}: {e}"));
