@@ -4,7 +4,7 @@
 # `qemu-system-arm -machine netduinoplus2` with USART1 on a pty, runs `mema device` against it
 # with CAPTURE (or a cloud, bag or .conf, encoded as scanner-sim encodes them), writes the map
 # the board sent to OUT_MAP, and prints as its last line the summary: the board's layout (model,
-# k, working) and `mema device --json`'s counts. The same capture replays to the same bytes with
+# k, working, as the board says them) and `mema device --json`'s counts. The same capture replays to the same bytes with
 #   mema replay CAPTURE -k K --working W --model MODEL
 #
 #   firmware-sim/board.sh CAPTURE OUT_MAP [--model shells|paper] [--queries N]
@@ -34,9 +34,6 @@ case "$model" in
   *) echo "board.sh: --model is shells or paper, not $model" >&2; exit 2 ;;
 esac
 cd "$(dirname "$0")/.."
-# The board's layout (firmware-sim's BOARD_WORKING + BOARD_FROZEN).
-k=700
-working=150
 
 # The host's command: $MEMA if set (a mema already built), else built here.
 if [ -z "${MEMA:-}" ]; then
@@ -68,4 +65,7 @@ for _ in $(seq 100); do
 done
 [ -n "$pty" ] || { echo "board.sh: QEMU gave no pty" >&2; exit 1; }
 summary=$("$MEMA" device --port "$pty" "$input" -o "$out" --queries "$queries" --json)
+# The layout the image was built with, as the board itself says it when the session begins.
+k=$(printf '%s' "$summary" | grep -o '"capacity":[0-9]*' | cut -d: -f2)
+working=$(printf '%s' "$summary" | grep -o '"working":[0-9]*' | head -1 | cut -d: -f2)
 echo "{\"board\":\"stm32f405\",\"model\":\"$model\",\"k\":$k,\"working\":$working,\"device\":$summary}"

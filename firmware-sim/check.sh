@@ -88,8 +88,8 @@ for cloud in car6.pcd demo; do
     queries=0; [ "$cloud" = car6.pcd ] && queries=32
     MEMA=target/release/mema firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" --queries "$queries" > "$m/board.txt" 2>&1 \
       || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
-    k=$(tail -1 "$m/board.txt" | grep -o '"k":[0-9]*' | cut -d: -f2)
-    working=$(tail -1 "$m/board.txt" | grep -o '"working":[0-9]*' | cut -d: -f2)
+    k=$(tail -1 "$m/board.txt" | grep -o '"k":[0-9]*' | head -1 | cut -d: -f2)
+    working=$(tail -1 "$m/board.txt" | grep -o '"working":[0-9]*' | head -1 | cut -d: -f2)
     target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
     if cmp -s "$m/board-replay.mema" "$m/board.mema"; then
       echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"

@@ -3,9 +3,9 @@
 //! definition, so a campaign and a test run hold the decoders to the same promises. Each
 //! returns the first broken property instead of panicking; the callers panic.
 
-use crate::crc32::crc32;
+use crate::link::crc32::crc32;
+use crate::link::wire::{Decoded, Decoder};
 use crate::map::{CRC_LEN, Layout, MapEntity, MapFile, encode_as};
-use crate::wire::{Decoded, Decoder};
 
 /// A property a decoder broke.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

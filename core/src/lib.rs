@@ -17,10 +17,8 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod closest_point;
-pub mod crc32;
 pub mod de;
 pub mod de32;
-pub mod downlink;
 pub mod fit;
 pub mod fit32;
 pub mod fitness;
@@ -29,18 +27,16 @@ pub mod fuzz_checks;
 pub mod geometry;
 pub mod grid;
 pub mod kmeans;
+pub mod link;
 pub mod map;
 pub mod moments;
 mod num;
 pub mod query;
-pub mod receiver;
 pub mod rng;
 pub mod rotation;
 pub mod shell;
 pub mod stream;
 pub mod transform;
-pub mod uplink;
-pub mod wire;
 
 pub use geometry::{Degeneration, Entity, EntityKind, Point3};
 pub use map::{Map, MapEntity};

@@ -3,9 +3,9 @@
 //! as a plain split-decode-check of the same bytes says it should. (A coverage-guided
 //! cargo-fuzz target would need nightly; this seeded loop runs on stable in CI, in seconds.)
 
-use mema_core::wire::{
+use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode};
+use mema_core::link::wire::{
     Decoded, Decoder, Frame, FrameError, FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN,
-    cobs_decode_in_place, cobs_encode,
 };
 
 struct XorShift(u64);

@@ -3,7 +3,8 @@
 //! and 512 zeros in one chunk overflowed a 256 KiB stack. (In the test profile, at opt-level
 //! 3, the optimiser turned that recursion into a loop, so only a debug build shows it.)
 
-use mema_core::wire::{Decoded, Decoder, FrameRepr, MAX_RAW_LEN, cobs_encode};
+use mema_core::link::cobs::cobs_encode;
+use mema_core::link::wire::{Decoded, Decoder, FrameRepr, MAX_RAW_LEN};
 
 #[test]
 fn a_hundred_thousand_idle_zeros_in_one_chunk_on_a_small_stack() {

@@ -6,8 +6,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use mema_core::link::wire::Decoder;
 use mema_core::stream::{StreamCluster, StreamMapper};
-use mema_core::wire::Decoder;
 
 use crate::board::TARGET_BOARD;
 use crate::firmware::{

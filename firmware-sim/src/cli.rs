@@ -270,7 +270,7 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         .map_err(|_| failed("SNAPSHOT already has an owner"))?;
     // Power-on: the statics take this run's seed and k (their initialiser had the defaults).
     let params = model_params(seed, working, k - working, model);
-    let reach: f32 = args.number(&["--reach"], mema_core::receiver::DEFAULT_REACH)?;
+    let reach: f32 = args.number(&["--reach"], mema_core::link::receiver::DEFAULT_REACH)?;
     if !(reach > 0.0 && reach.is_finite()) {
         return Err(usage(format!(
             "--reach {reach}: must be a positive number of metres"

@@ -24,12 +24,13 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
+use mema_core::link::receiver::{Received, Receiver, ReceiverStats};
+use mema_core::link::wire::DecoderStats;
 use mema_core::map::EncodeError;
-use mema_core::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
-use mema_core::wire::DecoderStats;
 
 mod carrier;
+pub mod device;
 mod downlink;
 mod ring;
 pub use carrier::{Carrier, LineReport, Request};
@@ -39,7 +40,7 @@ pub use ring::Ring;
 
 /// The receive ring: two of the largest frames, so one frame can be decoded while the next
 /// lands (the size `mema device` keeps in flight).
-pub const RX_CAPACITY: usize = mema_core::downlink::RING_BYTES;
+pub const RX_CAPACITY: usize = mema_core::link::downlink::RING_BYTES;
 
 /// The image's layout: K = 400 ellipsoids as 150 working clusters and 250 frozen entities, the
 /// split that fits a 64 KiB part with its stack (`mema-firmware-sim budget`).
@@ -49,16 +50,16 @@ pub const IMAGE_FROZEN: usize = 250;
 /// frozen entities, K = 700. The part's time binds before its RAM: K = 2,048, the streaming
 /// mapper's capacity, fits in 105 KiB of its 128 KiB SRAM, but every entity frozen costs a
 /// fit (130,000 to 160,000 instructions), and the demo drive, which freezes 1,374, then took
-/// 11,711 (shells) and 13,096 (paper) instructions a point under QEMU; at K = 700 it takes
-/// 9,479 (paper), under the 10,000 the board is held to. The map's fidelity at K = 700 against
+/// 11,711 (shells) and 13,096 (paper) instructions a point under QEMU; at K = 700 it stays
+/// under the 10,000 the board is held to (check.sh). The map's fidelity at K = 700 against
 /// K = 400 and the host's batch map: docs/firmware.md.
 pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
 
 /// The image's reach (metres from the map's origin on any axis; see
-/// [`mema_core::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
+/// [`mema_core::link::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
 /// first point can refuse more.
-pub const IMAGE_REACH: f32 = mema_core::receiver::DEFAULT_REACH;
+pub const IMAGE_REACH: f32 = mema_core::link::receiver::DEFAULT_REACH;
 /// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
 /// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
 /// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters
@@ -199,7 +200,7 @@ impl<const K: usize, const G: usize, const F: usize> Firmware<K, G, F> {
     // stack temporary as large as the state (48 KiB of stack at boot, measured).
     #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
-        Self::with_reach(params, mema_core::receiver::DEFAULT_REACH)
+        Self::with_reach(params, mema_core::link::receiver::DEFAULT_REACH)
     }
 
     /// [`Firmware::new`] refusing points and poses farther than `reach` metres from the map's
@@ -231,6 +232,10 @@ impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
                 end_of_stream: false,
             },
             down: Downlink {
+                address: mema_core::link::frame::Address {
+                    session: 0,
+                    boot: 0,
+                },
                 sequence: 0,
                 sent_frozen: 0,
                 reported: 0,

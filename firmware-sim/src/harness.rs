@@ -6,10 +6,10 @@
 use std::collections::HashMap;
 
 use mema_core::Point3;
+use mema_core::link::receiver::{Receiver, metres_of_nm};
+use mema_core::link::wire::DecoderStats;
 use mema_core::map::EncodeError;
-use mema_core::receiver::{Receiver, metres_of_nm};
 use mema_core::stream::{StreamMapper, StreamParams, StreamStats};
-use mema_core::wire::DecoderStats;
 
 use crate::board::{Board, BoardError};
 use crate::fault::{FaultConfig, FaultInjector, FaultStats};
@@ -177,7 +177,7 @@ fn drive<
 /// first point, as a receiver that gets every frame takes it).
 pub fn frames_of(capture: &[u8], origin: Option<[i64; 3]>) -> HashMap<u32, Vec<Point3>> {
     let mut frames = HashMap::new();
-    Receiver::resuming(origin, mema_core::receiver::DEFAULT_REACH).feed_all(
+    Receiver::resuming(origin, mema_core::link::receiver::DEFAULT_REACH).feed_all(
         capture,
         |frame, placement| {
             frames.insert(frame.sequence(), placement.points(&frame).collect());

@@ -18,7 +18,7 @@ use crate::stream::PtyPair;
 use crate::util::{Dir, mema_bin};
 
 /// A child process killed on drop.
-struct Killed(Child);
+pub(crate) struct Killed(pub(crate) Child);
 
 impl Drop for Killed {
     fn drop(&mut self) {
@@ -28,7 +28,7 @@ impl Drop for Killed {
 }
 
 /// The board image (shells), built as `firmware-sim/board.sh` builds it.
-fn board_image() -> PathBuf {
+pub(crate) fn board_image() -> PathBuf {
     let board = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware-sim/boards/stm32f405");
     let status = Command::new("cargo")
         .args(["build", "-q", "--release", "--target-dir", "target/shells"])
@@ -40,17 +40,15 @@ fn board_image() -> PathBuf {
     board.join("target/shells/thumbv7em-none-eabihf/release/mema-board-stm32f405")
 }
 
-/// The board under QEMU, its USART on a pty: the process and the pty's path.
-fn start_board(dir: &Dir, image: &Path) -> (Killed, PathBuf) {
+/// The board under QEMU, its USART on a pty: the process and the pty's path. `monitor`: a
+/// Unix socket for QEMU's monitor (to reset the board mid-session).
+pub(crate) fn start_board(dir: &Dir, image: &Path, monitor: Option<&Path>) -> (Killed, PathBuf) {
     let log = dir.join("qemu.txt");
     let child = Command::new("qemu-system-arm")
-        .args([
-            "-machine",
-            "netduinoplus2",
-            "-nographic",
-            "-monitor",
-            "none",
-        ])
+        .args(["-machine", "netduinoplus2", "-nographic", "-monitor"])
+        .arg(monitor.map_or("none".to_string(), |m| {
+            format!("unix:{},server,nowait", m.display())
+        }))
         .args(["-serial", "pty", "-icount", "shift=0", "-kernel"])
         .arg(image)
         .stdout(File::create(&log).expect("log"))
@@ -104,7 +102,7 @@ fn relay(mut from: File, mut to: File, seed: u64, one_in: u64) -> std::thread::J
     })
 }
 
-fn open(path: &Path) -> File {
+pub(crate) fn open(path: &Path) -> File {
     OpenOptions::new()
         .read(true)
         .write(true)
@@ -120,7 +118,7 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
     let image = board_image();
     let mut asked_again = 0;
     for seed in [3u64, 11] {
-        let (qemu, board_pty) = start_board(&dir, &image);
+        let (qemu, board_pty) = start_board(&dir, &image, None);
         let pair = PtyPair::new(&dir);
         let board = open(&board_pty);
         let near = open(&pair.a);

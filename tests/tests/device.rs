@@ -6,6 +6,8 @@
 use std::path::PathBuf;
 
 use mema::link::device::{DeviceError, MapFrames};
+use mema_core::link::downlink::{DeviceLayout, DownFrame, SessionStatus};
+use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
 use mema_firmware_sim::firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
@@ -46,15 +48,36 @@ pub(crate) fn capture_and_replay(
     (capture, bytes, std::fs::read(&map).expect("map"))
 }
 
+/// The session these tests' device is in, and its boot.
+const SESSION: Address = Address {
+    session: 0x00C0_FFEE,
+    boot: 1,
+};
+
 /// The image's layout (K = 400: 150 working, 250 frozen).
 const IMAGE: (usize, usize) = (IMAGE_WORKING + IMAGE_FROZEN, IMAGE_WORKING);
 
 /// The device's side, as the board's main loop runs it: bytes in, ticks, the downlink's frames
 /// after each pass, the rest and the end after finishing. Returns everything it sent.
 fn device_downlink(capture: &[u8], model: StreamModel) -> Vec<u8> {
+    device_downlink_as(capture, model, SESSION)
+}
+
+/// [`device_downlink`] from a device in `address`'s boot and session.
+fn device_downlink_as(capture: &[u8], model: StreamModel, address: Address) -> Vec<u8> {
     let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, model);
     let mut firmware: Box<Image> = Box::new(Firmware::with_reach(params, IMAGE_REACH));
+    firmware.set_link_address(address, 0);
     let mut sent = Vec::new();
+    let started = DownFrame::Session {
+        status: SessionStatus::Started,
+        layout: DeviceLayout {
+            capacity: (IMAGE_WORKING + IMAGE_FROZEN) as u32,
+            working: IMAGE_WORKING as u32,
+            model: 1,
+        },
+    };
+    firmware.send_frame(&started, |bytes| sent.extend_from_slice(bytes));
     for chunk in capture.chunks(97) {
         firmware.on_receive(chunk);
         while firmware.busy() {
@@ -82,7 +105,7 @@ fn the_downlink_rebuilds_the_replay_map_in_both_models() {
         let downlink = device_downlink(&capture, stream_model);
         // In pieces of every size: the same map.
         for piece in [1, 13, 4096] {
-            let mut frames = MapFrames::new();
+            let mut frames = MapFrames::for_session(SESSION.session);
             for bytes in downlink.chunks(piece) {
                 frames.feed(bytes);
             }
@@ -120,7 +143,7 @@ fn a_faulty_downlink_never_gives_a_wrong_map() {
                 }
             }
         }
-        let mut frames = MapFrames::new();
+        let mut frames = MapFrames::for_session(SESSION.session);
         frames.feed(&line);
         match frames.map_file() {
             Some(Ok(map)) => {
@@ -145,4 +168,51 @@ fn a_faulty_downlink_never_gives_a_wrong_map() {
         whole > 0 && incomplete > 0,
         "{whole} whole, {incomplete} incomplete"
     );
+}
+
+/// The frames of another session (a previous host's map, sent again by a board that was not
+/// reset) never enter the map, whatever their CRC says; a frame from another boot of the
+/// device, once the session began, says the device restarted, and there is no map.
+#[test]
+fn another_sessions_or_boots_frames_never_enter_the_map() {
+    let dir = Dir::new("downlink-sessions");
+    let (_, capture, shells_map) = capture_and_replay(&dir, "car6.pcd", IMAGE, "shells");
+    let (_, _, paper_map) = capture_and_replay(&dir, "car6.pcd", IMAGE, "paper");
+    let earlier = Address {
+        session: SESSION.session + 1,
+        ..SESSION
+    };
+    let old = device_downlink_as(&capture, StreamModel::Paper, earlier);
+    let ours = device_downlink(&capture, SHELLS);
+    let mut frames = MapFrames::for_session(SESSION.session);
+    frames.feed(&old);
+    assert!(
+        frames.map_file().is_none(),
+        "another session's end was taken"
+    );
+    let foreign = frames.counts.foreign;
+    assert!(foreign > 250, "{:?}", frames.counts);
+    frames.feed(&ours);
+    let map = frames.map_file().expect("an end").expect("a whole map");
+    assert!(map == shells_map && map != paper_map);
+    assert_eq!(frames.counts.foreign, foreign);
+    // The same session from a later boot, after the first half of this one's frames.
+    let rebooted = Address {
+        boot: SESSION.boot + 1,
+        ..SESSION
+    };
+    let later = device_downlink_as(&capture, SHELLS, rebooted);
+    let mut frames = MapFrames::for_session(SESSION.session);
+    frames.feed(&ours[..ours.len() / 2]);
+    assert!(frames.broken().is_none());
+    frames.feed(&later);
+    assert!(
+        matches!(
+            frames.broken(),
+            Some(DeviceError::Rebooted { from: 1, to: 2 })
+        ),
+        "{:?}",
+        frames.broken()
+    );
+    assert!(frames.map_file().is_none());
 }

@@ -203,13 +203,13 @@ fn faults_anywhere_never_panic_and_accept_only_clean_frames() {
                 _ => bytes.insert(i, rng.next() as u8),
             }
         }
-        let mut decoder = mema_core::wire::Decoder::new();
+        let mut decoder = mema_core::link::wire::Decoder::new();
         let mut window: &[u8] = &bytes;
         loop {
             match decoder.feed(window) {
-                mema_core::wire::Decoded::Consumed => break,
-                mema_core::wire::Decoded::Rejected { remaining, .. } => window = remaining,
-                mema_core::wire::Decoded::Frame { frame, remaining } => {
+                mema_core::link::wire::Decoded::Consumed => break,
+                mema_core::link::wire::Decoded::Rejected { remaining, .. } => window = remaining,
+                mema_core::link::wire::Decoded::Frame { frame, remaining } => {
                     let seq = frame.sequence() as usize;
                     let sent = &wire
                         [seq * POINTS_PER_FRAME..((seq + 1) * POINTS_PER_FRAME).min(wire.len())];

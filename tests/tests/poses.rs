@@ -8,8 +8,8 @@ use mema::link::frames::{
     PosedScan, encode_posed_stream, encode_stream, push_frame_v2, quantise, wire_pose,
 };
 use mema::link::stream::{Capacity, map_points_directly};
-use mema_core::receiver::{Received, Receiver};
-use mema_core::wire::{Content, FrameReprV2, WirePose};
+use mema_core::link::receiver::{Received, Receiver};
+use mema_core::link::wire::{Content, FrameReprV2, WirePose};
 use nalgebra::{Point3 as P, UnitQuaternion, Vector3};
 
 /// car6's points (metres, around its bounding-box centre), standing for the world.

@@ -1,5 +1,6 @@
-//! `mema device`'s session (issue 22) against the firmware run in a thread as the board runs
-//! it (line ring, carrier, firmware ring, ticks, downlink), over an in-memory line that drops,
+//! `mema device`'s session (issues 22, 30) against the board's own loop run in a thread
+//! (`firmware::device::Device`: line ring, carrier, firmware ring, ticks, downlink, resets into
+//! a new session), over an in-memory line that drops,
 //! flips and duplicates bytes both ways (seeded, more often than the QEMU relay test can
 //! afford): every seed ends with `mema replay`'s map byte for byte, the faults seen, sent and
 //! asked again, and none hangs.
@@ -11,11 +12,14 @@ use std::thread;
 use std::time::Duration;
 
 use mema::link::device::MapFrames;
-use mema::link::session::{SILENCE, send_and_receive};
-use mema_core::downlink::RING_BYTES;
+use mema::link::session::{SILENCE, SessionLimits, send_and_receive};
+use mema_core::geometry::{Entity, Point3};
+use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
+use mema_core::link::frame::Address;
+use mema_firmware_sim::firmware::device::{Boot, Device, NoClock, Poll};
 use mema_firmware_sim::firmware::{
-    Carrier, Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY,
-    Request, Ring, SHELLS, model_params,
+    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
+    model_params,
 };
 
 use crate::device::capture_and_replay;
@@ -88,65 +92,79 @@ impl Write for Port {
     }
 }
 
-type Device<'a> = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, &'a Ring<RX_CAPACITY>>;
-
-/// The device: the board's main loop, bytes from `input`, frames out through `line` to
-/// `output`, until the host hangs up. Returns the faults its line made.
-fn run_device(input: Receiver<Vec<u8>>, output: Sender<Vec<u8>>, mut line: Line) -> u64 {
-    let (line_ring, map_ring) = (Ring::<RX_CAPACITY>::new(), Ring::<RX_CAPACITY>::new());
-    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
-    let mut firmware: Box<Device> = Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
-    let mut carrier = Carrier::new();
-    let mut sent = Vec::new();
-    let mut finished = false;
+/// The device: the board's main loop ([`Device`], the function the board calls), bytes from
+/// `input`, frames out through `line` to `output`, until the host hangs up; a start request
+/// for a new session "resets" it (a fresh firmware in a new boot), as the board resets. Returns
+/// the faults its line made.
+fn run_device(
+    input: Receiver<Vec<u8>>,
+    output: Sender<Vec<u8>>,
+    mut line: Line,
+    near_wrap: bool,
+) -> u64 {
+    let (mut boot, mut session, mut first_carry) = (1u32, 0u32, 0u32);
+    // Every counter of the device just before its wrap, or from 0 as a board boots.
+    let (ring_start, first_sequence, first_delimiters) = if near_wrap {
+        (usize::MAX - 1_500, u32::MAX - 20, u32::MAX - 40)
+    } else {
+        (0, 0, 0)
+    };
+    let layout = DeviceLayout {
+        capacity: (IMAGE_WORKING + IMAGE_FROZEN) as u32,
+        working: IMAGE_WORKING as u32,
+        model: 1,
+    };
     loop {
-        match input.recv_timeout(Duration::from_millis(5)) {
-            // Past the ring's room the bytes are lost, as a UART overrun loses them.
-            Ok(bytes) => {
-                let _ = line_ring.push(&bytes);
-            }
-            Err(RecvTimeoutError::Timeout) => {}
-            Err(RecvTimeoutError::Disconnected) => return line.faults,
-        }
-        loop {
-            let mut requests = Vec::new();
-            carrier.pump(&line_ring, &map_ring, |r| requests.push(r));
-            for r in requests {
-                match r {
-                    Request::Resend { first, count } => {
-                        firmware.resend(first, count, |b| sent.extend_from_slice(b))
-                    }
-                    Request::ResendEnd if finished => {
-                        let _ = firmware.send_end_again(|b| sent.extend_from_slice(b));
-                    }
-                    _ => {}
+        let (line_ring, map_ring) = (
+            Ring::<RX_CAPACITY>::counting_from(ring_start),
+            Ring::<RX_CAPACITY>::counting_from(ring_start),
+        );
+        let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
+        let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, _>> =
+            Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
+        let mut entities =
+            vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + IMAGE_FROZEN];
+        let start = Boot {
+            address: Address { session, boot },
+            first_carry,
+            first_sequence,
+        };
+        let mut device = Device::new(
+            &mut firmware,
+            (&line_ring, &map_ring),
+            start,
+            layout,
+            &mut entities,
+        );
+        let mut delimiters = first_delimiters;
+        let mut sent = Vec::new();
+        let reset = loop {
+            match input.recv_timeout(Duration::from_millis(5)) {
+                // Past the ring's room the bytes are lost, as a UART overrun loses them.
+                Ok(bytes) => {
+                    let zeros = bytes.iter().filter(|&&b| b == 0).count() as u32;
+                    delimiters = delimiters.wrapping_add(zeros);
+                    let _ = line_ring.push(&bytes);
                 }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return line.faults,
             }
-            if finished {
-                break;
+            let mut poll = Poll::Idle;
+            while poll == Poll::Idle && device.awake(delimiters) {
+                poll = device.poll(delimiters, &mut NoClock, &mut |b: &[u8]| {
+                    sent.extend_from_slice(b)
+                });
             }
-            let mut done = false;
-            firmware.tick(|_| done = true);
-            if !(done || firmware.mapping() || carrier.holding()) {
-                break;
+            if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
+                return line.faults;
             }
-        }
-        if !finished {
-            firmware.send_frozen(|b| sent.extend_from_slice(b));
-        }
-        if let Some(report) = carrier.report_due(&line_ring) {
-            firmware.send_progress(report, |b| sent.extend_from_slice(b));
-        }
-        if !finished && firmware.stats().end_of_stream {
-            finished = true;
-            firmware.finish();
-            carrier.close();
-            let _ = firmware.send_end(|b| sent.extend_from_slice(b));
-        }
-        if !sent.is_empty() && output.send(line.carry(&sent)).is_err() {
-            return line.faults;
-        }
-        sent.clear();
+            sent.clear();
+            if let Poll::Reset { session, first } = poll {
+                break (session, first);
+            }
+        };
+        (session, first_carry) = reset;
+        boot += 1;
     }
 }
 
@@ -156,9 +174,12 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
     let layout = (IMAGE_WORKING + IMAGE_FROZEN, IMAGE_WORKING);
     let (_, stream, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
     let (mut resent, mut asked_again) = (0, 0);
-    // Seed 0: a clean line, and nothing to send or ask again.
-    for seed in 0..6u64 {
-        let one_in = if seed == 0 { 0 } else { 1_500 };
+    // Seed 0: a clean line, and nothing to send or ask again. Seeds 6 and 7: every counter
+    // on both sides (the rings', the delimiters', the downlink's sequence, the carry numbers)
+    // starts just before its wrap and crosses it, through a faulty line and a clean one.
+    let cases = (0..6u64).map(|s| (s, false)).chain([(6, true), (7, true)]);
+    for (seed, near_wrap) in cases {
+        let one_in = if seed == 0 || seed == 7 { 0 } else { 1_500 };
         let (to_device, device_in) = channel();
         let (device_out, from_device) = channel();
         let down = Line {
@@ -166,7 +187,7 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
             one_in,
             faults: 0,
         };
-        let device = thread::spawn(move || run_device(device_in, device_out, down));
+        let device = thread::spawn(move || run_device(device_in, device_out, down, near_wrap));
         let mut port = Port {
             to_device,
             from_device,
@@ -177,9 +198,13 @@ fn sessions_through_faulty_lines_end_with_the_replay_map() {
                 faults: 0,
             },
         };
-        let mut frames = MapFrames::new();
-        let limits = (RING_BYTES, SILENCE);
-        let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_, _| {});
+        let mut frames = MapFrames::default();
+        let limits = SessionLimits {
+            window: RING_BYTES,
+            silence: SILENCE,
+            first_carry: if near_wrap { u32::MAX - 5 } else { 0 },
+        };
+        let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_| {});
         let up_faults = port.line.faults;
         drop(port);
         let down_faults = device.join().expect("the device thread");
@@ -249,7 +274,15 @@ fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
             .arg(&out)
             .args(["--idle-timeout", "2", "--json"])
             .run()
-            .assert_error(1, "said nothing new for 2 s");
+            // Noise is what a line at the wrong baud rate brings: said as such.
+            .assert_error(
+                1,
+                if babble {
+                    "no valid frame in 2 s"
+                } else {
+                    "said nothing new for 2 s"
+                },
+            );
         assert!(!out.exists(), "babble {babble}: a map was written");
         stop.store(true, std::sync::atomic::Ordering::Relaxed);
         drop(pair);

@@ -39,6 +39,8 @@ mod queries;
 mod tolerance;
 // The board under QEMU behind a faulty relay: what was lost is sent or asked again.
 mod board_link;
+// Sessions against one running board under QEMU, and a reset mid-session.
+mod board_sessions;
 // mema device's session against the firmware in a thread, through faulty lines both ways.
 mod session;
 // The serial link over a real pty pair: stream = replay = direct mapper, unplug, Ctrl-C.

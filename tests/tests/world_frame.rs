@@ -2,8 +2,8 @@
 //! is, and one corrupt-but-CRC-valid frame or pose far away costs nothing of it.
 
 use mema::link::frames::push_frame_v2;
+use mema_core::link::wire::{Content, FrameReprV2, QUATERNION_ONE, WirePose};
 use mema_core::stream::StreamModel;
-use mema_core::wire::{Content, FrameReprV2, QUATERNION_ONE, WirePose};
 use mema_firmware_sim::firmware::SHELLS;
 use mema_firmware_sim::harness::RunConfig;
 
@@ -265,7 +265,7 @@ enum Sent {
 
 /// The frames of a clean version 2 capture, in order.
 fn frames_of_capture(capture: &[u8]) -> Vec<Sent> {
-    use mema_core::wire::{Decoded, Decoder, FrameKind};
+    use mema_core::link::wire::{Decoded, Decoder, FrameKind};
     let mut decoder = Decoder::new();
     let mut out = Vec::new();
     let mut window = capture;

@@ -27,8 +27,8 @@
 
 pub mod record;
 
-use crate::crc32::{Crc32, crc32};
 use crate::geometry::{Entity, EntityKind};
+use crate::link::crc32::{Crc32, crc32};
 use record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN, Quantization};
 
 pub const MAGIC: [u8; 4] = *b"MEMA";

@@ -1,11 +1,13 @@
-//! The device's end of the host's carry frames ([`mema_core::uplink`]): it takes the line's
+//! The device's end of the host's carry frames ([`mema_core::link::uplink`]): it takes the line's
 //! bytes, passes on the stream bytes of each carry frame that is the next in number into the
 //! ring the firmware maps from, and refuses the rest, so the firmware sees the host's stream
 //! whole and in order whatever the line dropped, flipped or repeated. What it refused and the
 //! number it expects go back in the progress frames; the host sends again from there.
 
-pub use mema_core::uplink::Request;
-use mema_core::uplink::{self, CARRIED_AT, MAX_UP_FRAME_LEN, UpFrame};
+use mema_core::link::frame::Address;
+use mema_core::link::framing::{Block, Deframer};
+pub use mema_core::link::uplink::Request;
+use mema_core::link::uplink::{self, CARRIED_AT, MAX_UP_FRAME_LEN, UpFrame};
 
 use super::{PROGRESS_EVERY, Ring};
 
@@ -18,14 +20,16 @@ pub struct LineReport {
     pub refused: u32,
 }
 
-/// The carry frames' receiver (about 260 bytes: one frame's block).
+/// The carry frames' receiver (about 270 bytes: one frame's block). It takes frames only of
+/// the session the device is in and addressed to its boot; a start request it hands on with
+/// the session asked for, whatever the device is in.
 #[derive(Debug)]
 pub struct Carrier {
-    block: [u8; MAX_UP_FRAME_LEN],
-    len: usize,
-    /// Past a block too long for any frame: skipped to the next delimiter.
-    overlong: bool,
-    /// Stream bytes of the last carry frame not yet passed on: `block[held..held_end]`.
+    blocks: Deframer<MAX_UP_FRAME_LEN>,
+    /// The device's boot and the session it is in (`0`: none).
+    address: Address,
+    /// Stream bytes of the last carry frame not yet passed on: the deframer's raw frame from
+    /// `held` to `held_end`.
     held: usize,
     held_end: usize,
     next: u32,
@@ -39,21 +43,16 @@ pub struct Carrier {
     closed: bool,
 }
 
-impl Default for Carrier {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl Carrier {
-    pub const fn new() -> Self {
+    /// The carrier of a device in boot `address.boot`, in session `address.session` (`0`:
+    /// none, until a start request begins one), whose carry frames are numbered from `first`.
+    pub const fn new(address: Address, first: u32) -> Self {
         Self {
-            block: [0; MAX_UP_FRAME_LEN],
-            len: 0,
-            overlong: false,
+            blocks: Deframer::new(),
+            address,
             held: 0,
             held_end: 0,
-            next: 0,
+            next: first,
             refused: 0,
             alert: false,
             reported: 0,
@@ -74,20 +73,23 @@ impl Carrier {
     }
 
     /// Moves what the line's ring holds: stream bytes of carry frames taken in turn into `map`
-    /// while it has room (the rest waits in the carrier and the line's ring), requests to
-    /// `on_request`.
+    /// while it has room (the rest waits in the carrier and the line's ring), up to the next
+    /// request, which it returns with the session it came from (the bytes after it wait).
     pub fn pump<const N: usize, const M: usize>(
         &mut self,
         line: &Ring<N>,
         map: &Ring<M>,
-        mut on_request: impl FnMut(Request),
-    ) {
+    ) -> Option<(Request, u32)> {
         loop {
             if self.holding() {
-                let bytes = self.block.get(self.held..self.held_end).unwrap_or(&[]);
+                let bytes = self
+                    .blocks
+                    .raw(self.held_end)
+                    .get(self.held..)
+                    .unwrap_or(&[]);
                 self.held += map.push(bytes);
                 if self.holding() {
-                    return;
+                    return None;
                 }
             }
             let (mut empty, mut request) = (false, None);
@@ -95,57 +97,61 @@ impl Carrier {
                 empty = front.is_empty();
                 let mut at = 0;
                 while let Some(rest) = front.get(at..).filter(|r| !r.is_empty()) {
-                    // A run of block bytes, copied at once, up to the next delimiter.
-                    let run = rest.iter().position(|&b| b == 0).unwrap_or(rest.len());
-                    let room = self.block.len() - self.len;
-                    if let (Some(dst), Some(src)) = (
-                        self.block.get_mut(self.len..self.len + run.min(room)),
-                        rest.get(..run.min(room)),
-                    ) {
-                        dst.copy_from_slice(src);
-                    }
-                    self.len += run.min(room);
-                    self.overlong |= run > room;
-                    at += run;
-                    if at == front.len() {
-                        break;
-                    }
-                    at += 1;
+                    let Some(end) = self.blocks.accumulate(rest) else {
+                        return front.len();
+                    };
+                    at += end + 1;
                     request = self.end_block();
+                    // The carried bytes live in the deframer until passed on.
                     if request.is_some() || self.holding() {
                         return at;
                     }
                 }
-                front.len()
+                at
             });
-            if let Some(r) = request {
-                on_request(r);
+            if request.is_some() {
+                return request;
             }
             if empty {
-                return;
+                return None;
             }
         }
     }
 
     /// A delimiter has come: the block before it is a frame, or noise.
-    fn end_block(&mut self) -> Option<Request> {
-        let len = core::mem::take(&mut self.len);
-        if core::mem::take(&mut self.overlong) {
+    fn end_block(&mut self) -> Option<(Request, u32)> {
+        let raw = match self.blocks.end_block() {
+            Block::Idle => return None,
+            Block::Raw(raw) => raw,
+            Block::Refused(_) => {
+                self.refuse();
+                return None;
+            }
+        };
+        let raw_len = raw.len();
+        let (from, frame) = match uplink::decode(raw) {
+            Ok(decoded) => decoded,
+            Err(_) => {
+                self.refuse();
+                return None;
+            }
+        };
+        if let UpFrame::Request(start @ Request::Start { .. }) = frame {
+            return Some((start, from.session));
+        }
+        // Another session's frame, or one for another boot: never this map's.
+        if from != self.address || self.address.session == 0 {
             self.refuse();
             return None;
         }
-        if len == 0 {
-            return None;
-        }
-        let block = self.block.get_mut(..len)?;
-        match uplink::decode(block) {
-            Ok(UpFrame::Carry { sequence, bytes }) => {
+        match frame {
+            UpFrame::Carry { sequence, bytes } => {
                 let ahead = sequence.wrapping_sub(self.next);
                 if ahead == 0 {
                     self.next = self.next.wrapping_add(1);
                     if !self.closed {
                         self.held = CARRIED_AT;
-                        self.held_end = CARRIED_AT + bytes.len();
+                        self.held_end = (CARRIED_AT + bytes.len()).min(raw_len);
                     }
                 } else if ahead > u32::MAX / 2 {
                     // A repeat of one taken: the host has not heard that it was.
@@ -155,12 +161,13 @@ impl Carrier {
                 }
                 None
             }
-            Ok(UpFrame::Request(request)) => Some(request),
-            Err(_) => {
-                self.refuse();
-                None
-            }
+            UpFrame::Request(request) => Some((request, from.session)),
         }
+    }
+
+    /// The device's boot and session.
+    pub fn address(&self) -> Address {
+        self.address
     }
 
     fn refuse(&mut self) {

@@ -1,10 +1,11 @@
-//! The firmware's side of the way back ([`mema_core::downlink`]): entities as they freeze,
+//! The firmware's side of the way back ([`mema_core::link::downlink`]): entities as they freeze,
 //! progress for the sender's window, the end, and what the host asks again.
 
 use core::borrow::Borrow;
 
-use mema_core::crc32::Crc32;
-use mema_core::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
+use mema_core::link::crc32::Crc32;
+use mema_core::link::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
+use mema_core::link::frame::Address;
 use mema_core::map::{EncodeError, MapEntity};
 
 use super::{Firmware, LineReport, RX_CAPACITY, Ring};
@@ -12,6 +13,8 @@ use super::{Firmware, LineReport, RX_CAPACITY, Ring};
 /// What the map's way back to the host has sent.
 #[derive(Clone, Copy, Debug, Default)]
 pub(super) struct Downlink {
+    /// The device's boot and the session it is in, in every frame.
+    pub(super) address: Address,
     /// The next frame's sequence number.
     pub(super) sequence: u32,
     /// Frozen entities already sent.
@@ -20,19 +23,21 @@ pub(super) struct Downlink {
     pub(super) reported: u32,
 }
 
-/// Encodes `frame` as number `sequence` (then counts it) and hands its bytes to `sink`.
-fn send_frame(sequence: &mut u32, frame: &DownFrame, sink: &mut impl FnMut(&[u8])) {
-    let mut out = [0u8; MAX_DOWN_FRAME_LEN];
-    if let Ok(n) = downlink::encode(*sequence, frame, &mut out) {
-        sink(out.get(..n).unwrap_or(&[]));
-        *sequence = sequence.wrapping_add(1);
+impl Downlink {
+    /// Encodes `frame` as the next in sequence and hands its bytes to `sink`.
+    fn send(&mut self, frame: &DownFrame, sink: &mut impl FnMut(&[u8])) {
+        let mut out = [0u8; MAX_DOWN_FRAME_LEN];
+        if let Ok(n) = downlink::encode(self.address, self.sequence, frame, &mut out) {
+            sink(out.get(..n).unwrap_or(&[]));
+            self.sequence = self.sequence.wrapping_add(1);
+        }
     }
-}
 
-/// Sends the map's entity `index` as the next frame.
-fn send_entity(sequence: &mut u32, index: usize, entity: MapEntity, sink: &mut impl FnMut(&[u8])) {
-    let index = index as u32;
-    send_frame(sequence, &DownFrame::Entity { index, entity }, sink);
+    /// Sends the map's entity `index` as the next frame.
+    fn send_entity(&mut self, index: usize, entity: MapEntity, sink: &mut impl FnMut(&[u8])) {
+        let index = index as u32;
+        self.send(&DownFrame::Entity { index, entity }, sink);
+    }
 }
 
 /// A progress frame goes out once the device has taken this many bytes since the last one: a
@@ -67,7 +72,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         while self.down.sent_frozen < frozen {
             let index = self.down.sent_frozen;
             if let Some(entity) = self.mapper.frozen_entity(index) {
-                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+                self.down.send_entity(index, entity, &mut sink);
             }
             self.down.sent_frozen += 1;
         }
@@ -82,13 +87,25 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             next: line.next,
             refused: line.refused,
         };
-        send_frame(&mut self.down.sequence, &frame, &mut sink);
+        self.down.send(&frame, &mut sink);
+    }
+
+    /// The device's boot and session its frames say they are from.
+    pub fn link_address(&self) -> Address {
+        self.down.address
+    }
+
+    /// Sets the boot and session the frames say they are from, and the next frame's sequence
+    /// number: at boot.
+    pub fn set_link_address(&mut self, address: Address, sequence: u32) {
+        self.down.address = address;
+        self.down.sequence = sequence;
     }
 
     /// Sends one downlink frame of the caller's (a board's [`DownFrame::Timing`]) in the
     /// downlink's sequence.
     pub fn send_frame(&mut self, frame: &DownFrame, mut sink: impl FnMut(&[u8])) {
-        send_frame(&mut self.down.sequence, frame, &mut sink);
+        self.down.send(frame, &mut sink);
     }
 
     /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
@@ -97,7 +114,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.send_frozen(&mut sink);
         let first = self.down.sent_frozen;
         for (index, entity) in self.mapper.entities().enumerate().skip(first) {
-            send_entity(&mut self.down.sequence, index, entity, &mut sink);
+            self.down.send_entity(index, entity, &mut sink);
         }
         self.send_end_again(sink)
     }
@@ -119,7 +136,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             points: self.mapper.stats().points as u32,
             frames: self.stats.frames as u32,
         };
-        send_frame(&mut self.down.sequence, &DownFrame::End(end), &mut sink);
+        self.down.send(&DownFrame::End(end), &mut sink);
         Ok(len)
     }
 
@@ -132,13 +149,13 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         if self.stats.end_of_stream {
             let entities = self.mapper.entities().enumerate().skip(first).take(count);
             for (index, entity) in entities {
-                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+                self.down.send_entity(index, entity, &mut sink);
             }
             return;
         }
         for index in first..first.saturating_add(count).min(frozen) {
             if let Some(entity) = self.mapper.frozen_entity(index) {
-                send_entity(&mut self.down.sequence, index, entity, &mut sink);
+                self.down.send_entity(index, entity, &mut sink);
             }
         }
     }

@@ -10,9 +10,12 @@ use core::sync::atomic::{AtomicUsize, Ordering};
 
 /// A byte ring of `N` bytes, usable in a `static`, with one producer and one consumer that may
 /// run in different contexts: a receive interrupt pushes ([`Ring::push`]) while the main loop
-/// reads and consumes ([`Ring::consume_front`]). Each side owns one counter: the
-/// producer `tail`, the consumer `head`, both counting bytes since the start (wrapping), so
-/// the bytes held are `tail - head` and neither side ever writes what the other reads. A
+/// reads and consumes ([`Ring::consume_front`]). Each side owns a counter and a position: the
+/// producer `tail` and `tail_at`, the consumer `head` and `head_at`. The counters count bytes
+/// since the start and wrap, so the bytes held are `tail - head` across the wrap; the positions
+/// are where each side is in the buffer, kept below `N` by each side as it moves. (A position
+/// taken as `count % N` would jump at the counter's wrap, 2^32 bytes on a 32-bit part, 13 hours
+/// at 921,600 baud, unless `N` divides 2^32.) Neither side ever writes what the other reads. A
 /// single-core Cortex-M needs no more than these loads and stores (and their ordering).
 ///
 /// The contract, as `heapless::spsc` has it but without splitting the ring: `push` is called
@@ -20,10 +23,14 @@ use core::sync::atomic::{AtomicUsize, Ordering};
 /// (or all of them from one context, as the simulator does).
 pub struct Ring<const N: usize> {
     buf: UnsafeCell<[u8; N]>,
-    /// Bytes consumed since the start (wrapping); written by the consumer only.
+    /// Bytes consumed since the start (wrapping), and where the next one is; written by the
+    /// consumer only.
     head: AtomicUsize,
-    /// Bytes pushed since the start (wrapping); written by the producer only.
+    head_at: AtomicUsize,
+    /// Bytes pushed since the start (wrapping), and where the next goes; written by the
+    /// producer only.
     tail: AtomicUsize,
+    tail_at: AtomicUsize,
 }
 
 // SAFETY: the producer writes only bytes outside `head..tail` (free space) and publishes them
@@ -44,11 +51,26 @@ impl<const N: usize> core::fmt::Debug for Ring<N> {
 impl<const N: usize> Ring<N> {
     #[inline(always)]
     pub const fn new() -> Self {
+        Self::counting_from(0)
+    }
+
+    /// An empty ring whose counters start at `count` (a test starts them just before their
+    /// wrap).
+    #[inline(always)]
+    pub const fn counting_from(count: usize) -> Self {
         Self {
             buf: UnsafeCell::new([0; N]),
-            head: AtomicUsize::new(0),
-            tail: AtomicUsize::new(0),
+            head: AtomicUsize::new(count),
+            head_at: AtomicUsize::new(0),
+            tail: AtomicUsize::new(count),
+            tail_at: AtomicUsize::new(0),
         }
+    }
+
+    /// `at` moved on by `n <= N` bytes, kept below `N`.
+    fn advance(at: usize, n: usize) -> usize {
+        let next = at + n;
+        if next >= N { next - N } else { next }
     }
 
     /// Bytes held.
@@ -69,8 +91,11 @@ impl<const N: usize> Ring<N> {
 
     /// Drops every byte held (the consumer's side: a reset).
     pub fn clear(&self) {
-        self.head
-            .store(self.tail.load(Ordering::Acquire), Ordering::Release);
+        let head = self.head.load(Ordering::Relaxed);
+        let held = self.tail.load(Ordering::Acquire).wrapping_sub(head).min(N);
+        let at = Self::advance(self.head_at.load(Ordering::Relaxed), held);
+        self.head_at.store(at, Ordering::Relaxed);
+        self.head.store(head.wrapping_add(held), Ordering::Release);
     }
 
     /// Appends as much of `bytes` as fits; returns how much did (the producer's side).
@@ -79,7 +104,10 @@ impl<const N: usize> Ring<N> {
         let held = tail.wrapping_sub(self.head.load(Ordering::Acquire)).min(N);
         let kept = bytes.len().min(N - held);
         // Where the free space starts, and its part before the end of the buffer.
-        let at = tail % N;
+        let at = self
+            .tail_at
+            .load(Ordering::Relaxed)
+            .min(N.saturating_sub(1));
         let first = kept.min(N - at);
         let base = self.buf.get().cast::<u8>();
         // SAFETY: `at..at + first` and `0..kept - first` lie in the buffer (`at < N`,
@@ -89,6 +117,8 @@ impl<const N: usize> Ring<N> {
             core::ptr::copy_nonoverlapping(bytes.as_ptr(), base.add(at), first);
             core::ptr::copy_nonoverlapping(bytes.as_ptr().add(first), base, kept - first);
         }
+        self.tail_at
+            .store(Self::advance(at, kept), Ordering::Relaxed);
         self.tail.store(tail.wrapping_add(kept), Ordering::Release);
         kept
     }
@@ -100,7 +130,10 @@ impl<const N: usize> Ring<N> {
     pub fn consume_front(&self, read: impl FnOnce(&[u8]) -> usize) -> usize {
         let head = self.head.load(Ordering::Relaxed);
         let held = self.tail.load(Ordering::Acquire).wrapping_sub(head).min(N);
-        let at = head % N;
+        let at = self
+            .head_at
+            .load(Ordering::Relaxed)
+            .min(N.saturating_sub(1));
         let run = held.min(N - at);
         // SAFETY: `at..at + run` lies in the buffer and in the bytes held, which the producer
         // does not write until `head` below gives them back, after `read` has returned and
@@ -108,6 +141,8 @@ impl<const N: usize> Ring<N> {
         let front =
             unsafe { core::slice::from_raw_parts(self.buf.get().cast::<u8>().add(at), run) };
         let taken = read(front).min(run);
+        self.head_at
+            .store(Self::advance(at, taken), Ordering::Relaxed);
         self.head.store(head.wrapping_add(taken), Ordering::Release);
         taken
     }
@@ -127,7 +162,14 @@ mod tests {
     /// byte `k` of the stream is `k as u8`, so what the ring holds is known from the counts.
     #[test]
     fn holds_the_stream_between_what_went_in_and_out() {
-        let ring = Ring::<7>::new();
+        // From the start, and with the counters just before their wrap: the same stream.
+        for start in [0, usize::MAX - 300] {
+            holds_the_stream_from(start);
+        }
+    }
+
+    fn holds_the_stream_from(start: usize) {
+        let ring = Ring::<7>::counting_from(start);
         let (mut pushed, mut consumed) = (0usize, 0usize);
         let mut s = 5u32;
         for _ in 0..10_000 {
@@ -154,6 +196,8 @@ mod tests {
                 consumed += n;
             }
             assert_eq!(ring.len(), pushed - consumed);
+            assert_eq!(ring.taken(), start.wrapping_add(consumed));
         }
+        assert!(consumed > 1_000, "{consumed} bytes through");
     }
 }

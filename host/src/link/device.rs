@@ -1,14 +1,17 @@
 //! The host's side of a mapping device's link (`mema device`): the points go out within the
-//! device's receive ring, the map comes back as frames ([`mema_core::downlink`]), and the map
+//! device's receive ring, the map comes back as frames ([`mema_core::link::downlink`]), and the map
 //! file is rebuilt from them and checked against the length and CRC-32 the device sends.
 //!
 //! [`MapFrames`] takes the device's bytes in any pieces; [`super::session`] runs a whole
 //! session over a port.
 
-use mema_core::crc32::crc32;
-use mema_core::downlink::{
-    self, DeviceTiming, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, stored_entity,
+use mema_core::link::crc32::crc32;
+use mema_core::link::downlink::{
+    self, DOWNLINK_VERSION, DeviceLayout, DeviceTiming, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd,
+    SessionStatus, stored_entity,
 };
+use mema_core::link::frame::{Address, LinkError};
+use mema_core::link::framing::{Block, Deframer};
 use mema_core::map::{MapEntity, encode_as};
 use serde::Serialize;
 
@@ -27,7 +30,7 @@ pub enum DeviceError {
         crc: u32,
     },
     #[error("the device's map cannot be written: {0:?}")]
-    Encode(mema_core::map::EncodeError),
+    MapEncode(mema_core::map::EncodeError),
     #[error(
         "the device sent its end but entities {missing:?} never arrived intact, asked for {asks} times"
     )]
@@ -38,6 +41,31 @@ pub enum DeviceError {
         sent: usize,
         total: usize,
     },
+    #[error(
+        "the device restarted mid-session (boot {from} -> {to}): its map lost what it had mapped"
+    )]
+    Rebooted { from: u32, to: u32 },
+    #[error("the device refused the session: {0}")]
+    Refused(String),
+    #[error(
+        "the device mapped {got_points} points in {got_frames} frames, but the stream sent holds {points} in {frames}: not this stream's map"
+    )]
+    Counts {
+        got_points: u32,
+        got_frames: u32,
+        points: u32,
+        frames: u32,
+    },
+    #[error(
+        "the device speaks another protocol (version 0x{0:02x}; this mema speaks 0x{DOWNLINK_VERSION:02x}): update its firmware or mema"
+    )]
+    Version(u8),
+    #[error("a frame could not be encoded: {0}")]
+    Encode(LinkError),
+    #[error(
+        "no valid frame in {seconds} s ({refused} blocks refused): a line at another baud rate than the device's garbles every byte"
+    )]
+    NoValidFrame { seconds: f64, refused: u64 },
     #[error("the port is gone: {0}")]
     Gone(String),
     #[error("the port: {0}")]
@@ -63,6 +91,11 @@ pub struct DownlinkCounts {
     pub ends_asked: u64,
     /// Entities received (each once).
     pub entities: usize,
+    /// Frames intact but not of this session and boot (a previous session's, or another
+    /// host's): never part of the map.
+    pub foreign: u64,
+    /// Times the session was started again from the beginning (the device restarted).
+    pub restarts: u32,
     /// Points and points frames the device mapped (its end frame's count, else its last
     /// progress's frames).
     pub points: u32,
@@ -100,13 +133,28 @@ impl Instructions {
     }
 }
 
-/// The device's frames as they arrive: entities by index, the progress, the end.
+/// The device's frames as they arrive, of one session: entities by index, the progress, the
+/// end. Frames of other sessions, or from another boot of the device, are counted and left
+/// out; a frame from another boot after the session began says the device restarted.
 #[derive(Debug, Default)]
 pub struct MapFrames {
-    block: Vec<u8>,
-    /// Past a block too long for any frame: skipped to the next delimiter.
-    overlong: bool,
-    entities: Vec<Option<MapEntity>>,
+    blocks: Box<Deframer<MAX_DOWN_FRAME_LEN>>,
+    /// The host's session (`0`: none).
+    session: u32,
+    /// The device's boot that began the session, and what it said of itself.
+    boot: Option<u32>,
+    device: Option<DeviceLayout>,
+    /// The device restarted (the boot the session began in, the one now), or refused the
+    /// session (its reason).
+    rebooted: Option<(u32, u32)>,
+    refused_session: Option<u8>,
+    /// The version of the last frame of another protocol version.
+    other_version: Option<u8>,
+    /// The points and points frames the stream sent holds: the device's end must say it
+    /// mapped exactly these.
+    expected: Option<(u32, u32)>,
+    /// By index: a map of what arrived, so a corrupt index that passed its CRC sizes nothing.
+    entities: std::collections::BTreeMap<u32, MapEntity>,
     next_sequence: Option<u32>,
     /// Bytes the device has taken from its ring (accumulated from its wrapping count).
     taken: u64,
@@ -122,36 +170,128 @@ pub struct MapFrames {
 }
 
 impl MapFrames {
-    pub fn new() -> Self {
-        Self::default()
+    /// The frames of the host's session `session` (never `0`).
+    pub fn for_session(session: u32) -> Self {
+        Self {
+            session,
+            ..Self::default()
+        }
+    }
+
+    /// The points and points frames of the stream the host sends (wrapping at 2^32, as the
+    /// device counts): a map whose end frame says otherwise is refused.
+    pub fn expect(&mut self, points: u32, frames: u32) {
+        self.expected = Some((points, frames));
+    }
+
+    /// The session's carry frames are numbered from `first`: the device's first progress
+    /// expects it.
+    pub fn carry_from(&mut self, first: u32) {
+        self.last_next = first;
+    }
+
+    /// The host's session.
+    pub fn session(&self) -> u32 {
+        self.session
+    }
+
+    /// Who the host's frames go to: its session and, once the session began, the device's boot.
+    pub fn address(&self) -> Address {
+        Address {
+            session: self.session,
+            boot: self.boot.unwrap_or(0),
+        }
+    }
+
+    /// Whether the device has begun the session.
+    pub fn started(&self) -> bool {
+        self.boot.is_some()
+    }
+
+    /// What the device said of itself when the session began.
+    pub fn device_layout(&self) -> Option<DeviceLayout> {
+        self.device
+    }
+
+    /// Why the session cannot go on, if it cannot: the device restarted, refused it, or speaks
+    /// another protocol and nothing else.
+    pub fn broken(&self) -> Option<DeviceError> {
+        if let Some((from, to)) = self.rebooted {
+            return Some(DeviceError::Rebooted { from, to });
+        }
+        if let Some(reason) = self.refused_session {
+            let why = match reason {
+                downlink::REASON_LISTENING => "it maps a sensor wired to it".to_string(),
+                other => format!("reason {other}"),
+            };
+            return Some(DeviceError::Refused(why));
+        }
+        None
+    }
+
+    /// A version the device spoke that this host does not, if it never spoke this one.
+    pub fn other_version(&self) -> Option<u8> {
+        self.other_version.filter(|_| self.counts.frames == 0)
     }
 
     /// Takes the device's bytes, in any pieces.
     pub fn feed(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            if b != 0 {
-                if self.block.len() < MAX_DOWN_FRAME_LEN {
-                    self.block.push(b);
-                } else {
-                    self.overlong = true;
+        let mut rest = bytes;
+        while let Some(at) = self.blocks.accumulate(rest) {
+            rest = rest.get(at + 1..).unwrap_or(&[]);
+            let decoded = match self.blocks.end_block() {
+                Block::Idle => continue,
+                Block::Raw(raw) => downlink::decode(raw),
+                Block::Refused(e) => Err(e.into()),
+            };
+            match decoded {
+                Ok((from, sequence, frame)) => self.accept(from, sequence, frame),
+                Err(LinkError::Version(v)) => {
+                    self.other_version = Some(v);
+                    self.counts.refused += 1;
                 }
-                continue;
+                Err(_) => self.counts.refused += 1,
             }
-            let mut block = std::mem::take(&mut self.block);
-            if std::mem::take(&mut self.overlong) {
-                self.counts.refused += 1;
-            } else if !block.is_empty() {
-                match downlink::decode(&mut block) {
-                    Ok((sequence, frame)) => self.accept(sequence, frame),
-                    Err(_) => self.counts.refused += 1,
-                }
-            }
-            block.clear();
-            self.block = block;
         }
     }
 
-    fn accept(&mut self, sequence: u32, frame: DownFrame) {
+    /// Whether a frame from `from` belongs to the session, noting a restart of the device.
+    fn of_this_session(&mut self, from: Address, frame: &DownFrame) -> bool {
+        if let Some(boot) = self.boot {
+            if from.boot != boot {
+                self.rebooted.get_or_insert((boot, from.boot));
+                return false;
+            }
+            return from.session == self.session;
+        }
+        if from.session != self.session || self.session == 0 {
+            return false;
+        }
+        match frame {
+            DownFrame::Session {
+                status: SessionStatus::Started,
+                layout,
+            } => {
+                self.boot = Some(from.boot);
+                self.device = Some(*layout);
+                true
+            }
+            DownFrame::Session {
+                status: SessionStatus::Refused { reason },
+                ..
+            } => {
+                self.refused_session = Some(*reason);
+                false
+            }
+            _ => false,
+        }
+    }
+
+    fn accept(&mut self, from: Address, sequence: u32, frame: DownFrame) {
+        if !self.of_this_session(from, &frame) {
+            self.counts.foreign += 1;
+            return;
+        }
         self.counts.frames += 1;
         if let Some(expected) = self.next_sequence {
             self.counts.lost += u64::from(sequence.wrapping_sub(expected));
@@ -159,16 +299,7 @@ impl MapFrames {
         self.next_sequence = Some(sequence.wrapping_add(1));
         match frame {
             DownFrame::Entity { index, entity } => {
-                let i = index as usize;
-                // An index past any map's size is a corrupt frame that passed its CRC.
-                if i >= 1 << 24 {
-                    self.counts.refused += 1;
-                    return;
-                }
-                if self.entities.len() <= i {
-                    self.entities.resize(i + 1, None);
-                }
-                if self.entities[i].replace(entity).is_none() {
+                if self.entities.insert(index, entity).is_none() {
                     self.counts.entities += 1;
                 }
             }
@@ -190,6 +321,7 @@ impl MapFrames {
                 self.counts.device_frames = frames;
             }
             DownFrame::Timing(t) => self.timing = Some(t),
+            DownFrame::Session { .. } => {}
             DownFrame::Answer {
                 query,
                 entity,
@@ -219,9 +351,13 @@ impl MapFrames {
         self.answers.get(&number).copied()
     }
 
-    /// The entities received, in index order, in the map's frame (once the map is whole).
-    pub fn entities(&self) -> Vec<mema_core::geometry::Entity> {
-        self.entities.iter().flatten().map(|e| e.entity).collect()
+    /// The map's entities, in index order, in the map's frame, once the map is whole (the
+    /// end's count, every one of them arrived).
+    pub fn entities(&self) -> Option<Vec<mema_core::geometry::Entity>> {
+        let end = self.end?;
+        (0..end.entities)
+            .map(|i| self.entities.get(&i).map(|e| e.entity))
+            .collect()
     }
 
     /// Instructions per tick of the device's timer, from its timing frame's calibration.
@@ -246,7 +382,7 @@ impl MapFrames {
             return Vec::new();
         };
         (0..end.entities)
-            .filter(|&i| self.entities.get(i as usize).is_none_or(Option::is_none))
+            .filter(|i| !self.entities.contains_key(i))
             .collect()
     }
 
@@ -258,16 +394,27 @@ impl MapFrames {
     }
 
     fn rebuild(&self, end: &MapEnd) -> Result<Vec<u8>, DeviceError> {
+        if let Some((points, frames)) = self.expected
+            && (end.points, end.frames) != (points, frames)
+        {
+            return Err(DeviceError::Counts {
+                got_points: end.points,
+                got_frames: end.frames,
+                points,
+                frames,
+            });
+        }
         let count = end.entities as usize;
         let missing = self.missing();
         if !missing.is_empty() {
             return Err(DeviceError::Missing { missing });
         }
-        let entities = self.entities.iter().take(count).flatten().copied();
+        let entities = self.entities.range(..end.entities).map(|(_, e)| *e);
         let stored = entities.map(|e| stored_entity(e, end.shift, end.layout));
         let origin: [f64; 3] = std::array::from_fn(|j| end.origin[j] + f64::from(end.shift[j]));
         let mut out = vec![0u8; end.layout.encoded_len(count)];
-        let len = encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::Encode)?;
+        let len =
+            encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::MapEncode)?;
         out.truncate(len);
         let got_crc = crc32(&out);
         if len != end.map_len as usize || got_crc != end.map_crc {

@@ -2,9 +2,10 @@
 
 use anyhow::{Result, bail};
 use mema_core::Point3;
-use mema_core::wire::{
+use mema_core::link::cobs::cobs_encode;
+use mema_core::link::wire::{
     Content, FrameRepr, FrameReprV2, MAX_FRAME_LEN, MAX_POINTS, MAX_RAW_LEN, QUATERNION_ONE,
-    WirePose, cobs_encode,
+    WirePose,
 };
 
 /// Points per frame the simulator sends: 100, a round number under [`MAX_POINTS`].
@@ -23,7 +24,7 @@ pub fn quantise(p: Point3) -> Result<[i32; 3]> {
 
 /// What the robot's mapper receives for a wire point: exactly the decoder's conversion.
 pub fn dequantise(q: [i32; 3]) -> Point3 {
-    let scale = mema_core::wire::unit_scale(UNIT_EXPONENT).unwrap_or(f64::NAN);
+    let scale = mema_core::link::wire::unit_scale(UNIT_EXPONENT).unwrap_or(f64::NAN);
     Point3::new(
         (q[0] as f64 * scale) as f32,
         (q[1] as f64 * scale) as f32,
@@ -156,7 +157,7 @@ pub fn encode_posed_stream(scans: &[PosedScan<'_>], unit_exponent: i8) -> Result
 /// A rigid pose in metres and a unit quaternion (scalar last) as the wire carries it: the
 /// translation in units of `10^unit_exponent` m, the quaternion in units of 2^-30 with `w >= 0`.
 pub fn wire_pose(translation: [f64; 3], rotation: [f64; 4], unit_exponent: i8) -> Result<WirePose> {
-    let Some(scale) = mema_core::wire::unit_scale(unit_exponent) else {
+    let Some(scale) = mema_core::link::wire::unit_scale(unit_exponent) else {
         bail!("unit exponent {unit_exponent} is outside the wire's range");
     };
     let n = rotation.iter().map(|v| v * v).sum::<f64>().sqrt();

@@ -1,6 +1,6 @@
 //! Questions for a mapping device's finished map (`mema device --queries N`): the nearest
 //! surface to a point and the first surface along a ray, asked over the link
-//! ([`mema_core::uplink::Request::Query`]) and answered by the device with the core's no_std
+//! ([`mema_core::link::uplink::Request::Query`]) and answered by the device with the core's no_std
 //! queries on its own map. Each answer is checked against the same query computed here over
 //! the entities the device sent, and its cost comes back in the device's timer ticks.
 
@@ -8,9 +8,9 @@ use std::io::{Read, Write};
 use std::time::Instant;
 
 use mema_core::geometry::Entity;
+use mema_core::link::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 use mema_core::query::brute_force;
 use mema_core::rng::{Pcg32, stream_rng, uniform};
-use mema_core::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 use serde::Serialize;
 
 use super::device::{DeviceError, MapFrames};
@@ -68,7 +68,11 @@ pub fn ask(
     count: u32,
     seed: u64,
 ) -> Result<QueryReport, DeviceError> {
-    let entities = frames.entities();
+    let Some(entities) = frames.entities() else {
+        return Err(DeviceError::Missing {
+            missing: frames.missing(),
+        });
+    };
     let mut rng = stream_rng(seed, 0x5155_4552);
     let mut report = QueryReport::default();
     let (mut nearest_ticks, mut ray_ticks) = (0u64, 0u64);
@@ -83,8 +87,7 @@ pub fn ask(
             point,
             direction,
         });
-        let n = uplink::encode(&frame, &mut out)
-            .map_err(|e| DeviceError::Io(std::io::Error::other(format!("{e:?}"))))?;
+        let n = uplink::encode(frames.address(), &frame, &mut out).map_err(DeviceError::Encode)?;
         let mut asks = 0;
         let mut asked = None::<Instant>;
         let answer = loop {
@@ -105,7 +108,12 @@ pub fn ask(
                 asked = Some(Instant::now());
             }
             match read_some(port, &mut buf) {
-                ReadOutcome::Bytes(got) => frames.feed(&buf[..got]),
+                ReadOutcome::Bytes(got) => {
+                    frames.feed(&buf[..got]);
+                    if let Some(e) = frames.broken() {
+                        return Err(e);
+                    }
+                }
                 ReadOutcome::Idle => {}
                 ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
             }

@@ -28,7 +28,7 @@ use crate::io::drive::DriveScan;
 use crate::io::kind::InputKind;
 use crate::io::units::LengthUnit;
 use crate::kdtree::KdTree;
-use mema_core::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
+use mema_core::link::wire::{MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, WirePose, unit_scale};
 
 /// One scan as a sensor measured it: its pose, sensor to world (`x_world = R(q) x + t`), and its
 /// points in the sensor's frame, all in metres.

@@ -1,13 +1,18 @@
-//! A whole `mema device` session over a port: the points stream goes out in carry frames
-//! ([`mema_core::uplink`]) within the device's receive ring, and again from the first one the
-//! device has not taken when it refuses one or stays quiet; the map comes back as frames
-//! ([`super::device::MapFrames`]), and what did not arrive intact is asked for again.
+//! A whole `mema device` session over a port: the host starts a session of its own, which the
+//! device begins with a fresh map; the points stream goes out in carry frames
+//! ([`mema_core::link::uplink`]) within the device's receive ring, and again from the first one
+//! the device has not taken when it refuses one or stays quiet; the map comes back as frames
+//! ([`super::device::MapFrames`]), and what did not arrive intact is asked for again. A device
+//! that restarts mid-session is noticed at its first frame, and the session starts again from
+//! the beginning; a map whose counts are not the stream's is refused.
 
 use std::io::{Read, Write};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
-use mema_core::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, Request, UpFrame};
+use mema_core::link::frame::Address;
+use mema_core::link::receiver::{DEFAULT_REACH, Receiver};
+use mema_core::link::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, Request, UpFrame};
 
 use super::device::{DeviceError, MapFrames};
 use super::port::{ReadOutcome, read_some};
@@ -24,6 +29,53 @@ pub const RETRY: Duration = Duration::from_secs(1);
 pub const MAX_PATIENCE: Duration = Duration::from_secs(8);
 /// Times the same missing entities are asked for before the session gives up on them.
 pub const MAX_ASKS: u32 = 20;
+/// Times a session is started again after the device restarted in it, before the host gives up.
+pub const MAX_RESTARTS: u32 = 3;
+
+/// How a session runs: never more than `window` bytes beyond what the device has taken from
+/// its ring, given up after `silence` with nothing new, carry frames numbered from
+/// `first_carry` (0; a test starts them just before their wrap).
+#[derive(Clone, Copy, Debug)]
+pub struct SessionLimits {
+    pub window: usize,
+    pub silence: Duration,
+    pub first_carry: u32,
+}
+
+/// What a session reports as it goes.
+#[derive(Debug)]
+pub enum SessionEvent<'a> {
+    /// Bytes of carry frames the device has taken, bytes it has taken off its line.
+    Progress { done: usize, taken: u64 },
+    /// The session is starting again from the beginning, for this reason.
+    Restart(&'a DeviceError),
+}
+
+/// The points and points frames a device maps of `stream`, as the receiver of `mema replay`
+/// and of the device takes them (wrapping at 2^32, as the device's end frame counts).
+pub fn stream_counts(stream: &[u8]) -> (u32, u32) {
+    let mut receiver = Receiver::reaching(DEFAULT_REACH);
+    let (mut points, mut frames) = (0u32, 0u32);
+    receiver.feed_all(stream, |frame, placement| {
+        frames = frames.wrapping_add(1);
+        points = points.wrapping_add(placement.points(&frame).count() as u32);
+    });
+    (points, frames)
+}
+
+/// A session identifier no earlier session of this host is likely to have had: never 0.
+pub fn new_session_id() -> u32 {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as u64);
+    // splitmix64 of the time and the process: two hosts, or two runs, differ.
+    let mut z = nanos ^ (u64::from(std::process::id()) << 32);
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z as u32).max(1)
+}
 
 /// The stream as carry frames, each encoded once.
 struct CarryFrames {
@@ -32,18 +84,17 @@ struct CarryFrames {
 }
 
 impl CarryFrames {
-    fn of(stream: &[u8]) -> Result<Self, DeviceError> {
+    fn of(stream: &[u8], to: Address, first: u32) -> Result<Self, DeviceError> {
         let mut wire = Vec::with_capacity(stream.len() + stream.len() / 20);
         let mut frames = Vec::with_capacity(stream.len() / MAX_CARRIED + 1);
         let mut out = [0u8; MAX_UP_FRAME_LEN];
         for (sequence, bytes) in stream.chunks(MAX_CARRIED).enumerate() {
             let frame = UpFrame::Carry {
                 // Numbers wrap at 2^32 as the device's do.
-                sequence: sequence as u32,
+                sequence: first.wrapping_add(sequence as u32),
                 bytes,
             };
-            let n = uplink::encode(&frame, &mut out)
-                .map_err(|e| DeviceError::Io(std::io::Error::other(format!("{e:?}"))))?;
+            let n = uplink::encode(to, &frame, &mut out).map_err(DeviceError::Encode)?;
             let start = wire.len();
             wire.extend_from_slice(&out[..n]);
             frames.push(start..wire.len());
@@ -75,21 +126,105 @@ struct Sender {
     back_at: u64,
 }
 
-/// Sends `stream` (encoded points frames) over `port` in carry frames, never more than
-/// `window` bytes beyond what the device has taken from its ring, sends again what the device
-/// did not take, and receives the map frames until the map is whole; `progress` is called with
-/// (bytes of carry frames acknowledged, bytes taken) as they change. `frames` takes the
-/// device's frames (its counts say what went wrong on the way) and goes on taking them after
-/// (queries: [`super::queries`]). After `silence` with nothing new from the device the session
-/// ends with [`DeviceError::Silent`].
+/// Starts a session of its own with the device on `port`, sends `stream` (encoded points
+/// frames) in carry frames, never more than `window` bytes beyond what the device has taken
+/// from its ring, sends again what the device did not take, and receives the map frames until
+/// the map is whole. `frames` ends holding the last session's frames (its counts say what went
+/// wrong on the way) and goes on taking them after (queries: [`super::queries`]). A device that
+/// restarts mid-session is noticed and the session started again from the beginning, at most
+/// [`MAX_RESTARTS`] times. After `silence` with nothing new from the device the session ends
+/// with [`DeviceError::Silent`].
 pub fn send_and_receive(
     port: &mut (impl Read + Write),
     stream: &[u8],
-    (window, silence): (usize, Duration),
+    limits: SessionLimits,
     frames: &mut MapFrames,
-    mut progress: impl FnMut(usize, u64),
+    mut report: impl FnMut(SessionEvent<'_>),
 ) -> Result<Vec<u8>, DeviceError> {
-    let carry = CarryFrames::of(stream)?;
+    let (points, frame_count) = stream_counts(stream);
+    let mut restarts = 0;
+    loop {
+        *frames = MapFrames::for_session(new_session_id());
+        frames.carry_from(limits.first_carry);
+        frames.counts.restarts = restarts;
+        frames.expect(points, frame_count);
+        match one_session(port, stream, limits, frames, &mut report) {
+            Err(e @ DeviceError::Rebooted { .. }) if restarts < MAX_RESTARTS => {
+                report(SessionEvent::Restart(&e));
+                restarts += 1;
+            }
+            done => return done,
+        }
+    }
+}
+
+/// Asks the device to begin `frames`' session, again each [`RETRY`], until it says it has.
+fn start(
+    port: &mut (impl Read + Write),
+    (silence, first, total): (Duration, u32, usize),
+    frames: &mut MapFrames,
+) -> Result<(), DeviceError> {
+    let mut out = [0u8; MAX_UP_FRAME_LEN];
+    let to = Address {
+        session: frames.session(),
+        boot: 0,
+    };
+    let n = uplink::encode(to, &UpFrame::Request(Request::Start { first }), &mut out)
+        .map_err(DeviceError::Encode)?;
+    let began = Instant::now();
+    let mut asked: Option<Instant> = None;
+    let mut buf = [0u8; 4096];
+    while !frames.started() {
+        if let Some(e) = frames.broken() {
+            return Err(e);
+        }
+        if began.elapsed() > silence {
+            if let Some(version) = frames.other_version() {
+                return Err(DeviceError::Version(version));
+            }
+            let c = &frames.counts;
+            if c.refused > 0 && c.frames == 0 {
+                return Err(DeviceError::NoValidFrame {
+                    seconds: silence.as_secs_f64(),
+                    refused: c.refused,
+                });
+            }
+            return Err(DeviceError::Silent {
+                seconds: silence.as_secs_f64(),
+                sent: 0,
+                total,
+            });
+        }
+        if asked.is_none_or(|t| t.elapsed() > RETRY) {
+            port.write_all(&out[..n])?;
+            port.flush()?;
+            asked = Some(Instant::now());
+        }
+        match read_some(port, &mut buf) {
+            ReadOutcome::Bytes(got) => frames.feed(&buf[..got]),
+            ReadOutcome::Idle => {}
+            ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
+        }
+    }
+    Ok(())
+}
+
+/// One session, from its start to the map or the reason there is none.
+fn one_session(
+    port: &mut (impl Read + Write),
+    stream: &[u8],
+    limits: SessionLimits,
+    frames: &mut MapFrames,
+    report: &mut impl FnMut(SessionEvent<'_>),
+) -> Result<Vec<u8>, DeviceError> {
+    let SessionLimits {
+        window,
+        silence,
+        first_carry,
+    } = limits;
+    start(port, (silence, first_carry, stream.len()), frames)?;
+    let to = frames.address();
+    let carry = CarryFrames::of(stream, to, first_carry)?;
     let total = carry.frames.len();
     let mut s = Sender {
         next: 0,
@@ -157,6 +292,9 @@ pub fn send_and_receive(
                 // frame with a refusal, forever, is given up on as one that says nothing.
                 let before = (frames.counts.entities, frames.ended());
                 frames.feed(&buf[..n]);
+                if let Some(e) = frames.broken() {
+                    return Err(e);
+                }
                 if (frames.counts.entities, frames.ended()) != before {
                     heard = Instant::now();
                 }
@@ -164,7 +302,10 @@ pub fn send_and_receive(
                     .frames
                     .get(acked)
                     .map_or(carry.wire.len(), |r| r.start);
-                progress(done, frames.taken());
+                report(SessionEvent::Progress {
+                    done,
+                    taken: frames.taken(),
+                });
             }
             ReadOutcome::Idle => {}
             ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
@@ -180,7 +321,7 @@ pub fn send_and_receive(
                 if asks == MAX_ASKS {
                     return Err(DeviceError::StillMissing { missing, asks });
                 }
-                ask_for(port, &missing)?;
+                ask_for(port, to, &missing)?;
                 frames.counts.asked_again += missing.len() as u64;
                 asks += 1;
                 asked = Some(Instant::now());
@@ -188,7 +329,7 @@ pub fn send_and_receive(
         } else if acked == total && asked.is_none_or(|t| t.elapsed() > 2 * RETRY) {
             // Everything taken and no end yet: it may be finishing, or its end was lost.
             let mut out = [0u8; MAX_UP_FRAME_LEN];
-            if let Ok(n) = uplink::encode(&UpFrame::Request(Request::ResendEnd), &mut out) {
+            if let Ok(n) = uplink::encode(to, &UpFrame::Request(Request::ResendEnd), &mut out) {
                 if asked.is_some() {
                     frames.counts.ends_asked += 1;
                     port.write_all(&out[..n])?;
@@ -212,7 +353,7 @@ pub fn send_and_receive(
 }
 
 /// Asks for `missing` (sorted entity indices) again, in runs of at most [`MAX_RESEND`].
-fn ask_for(port: &mut impl Write, missing: &[u32]) -> Result<(), DeviceError> {
+fn ask_for(port: &mut impl Write, to: Address, missing: &[u32]) -> Result<(), DeviceError> {
     let mut out = [0u8; MAX_UP_FRAME_LEN];
     let mut i = 0;
     while let Some(&first) = missing.get(i) {
@@ -224,6 +365,7 @@ fn ask_for(port: &mut impl Write, missing: &[u32]) -> Result<(), DeviceError> {
         }
         i += usize::from(count);
         if let Ok(n) = uplink::encode(
+            to,
             &UpFrame::Request(Request::Resend { first, count }),
             &mut out,
         ) {

@@ -2,9 +2,9 @@
 
 use anyhow::Result;
 use mema_core::fit::FitParams;
-use mema_core::receiver::{Receiver, ReceiverStats};
+use mema_core::link::receiver::{Receiver, ReceiverStats};
+use mema_core::link::wire::DecoderStats;
 use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
-use mema_core::wire::DecoderStats;
 
 use super::frames::{dequantise, quantise};
 use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
@@ -208,7 +208,7 @@ impl Link {
     }
 
     /// The link refusing points and poses farther than `reach` metres from the map's origin on
-    /// any axis ([`mema_core::receiver::DEFAULT_REACH`] by default).
+    /// any axis ([`mema_core::link::receiver::DEFAULT_REACH`] by default).
     pub fn with_reach(mut self, reach: f32) -> Self {
         self.receiver = Receiver::reaching(reach);
         self
@@ -288,7 +288,10 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
     }
     mapper.finish();
     let origin = first.map(|v| i64::from(v) * 1_000_000);
-    Ok(map_of(&mapper, mema_core::receiver::metres_of_nm(origin)))
+    Ok(map_of(
+        &mapper,
+        mema_core::link::receiver::metres_of_nm(origin),
+    ))
 }
 
 /// The direct path the tests compare `scanner-sim` into `stream` against: the integers
@@ -298,7 +301,7 @@ pub fn map_points_directly_with(cloud: &LocalCloud, params: StreamParams) -> Res
 /// or receiver.
 pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Result<HostMap> {
     let wire = quantise_scans(&[SensorScan::of_cloud(cloud)?])?;
-    let unit = |e: i8| mema_core::wire::unit_scale(e).unwrap_or(f64::NAN);
+    let unit = |e: i8| mema_core::link::wire::unit_scale(e).unwrap_or(f64::NAN);
     let nm = |e: i8| 10i64.pow(u32::try_from(i16::from(e) + 9).unwrap_or(0));
     let (s, per_unit, per_pose_unit) = (
         unit(wire.unit_exponent),
@@ -325,7 +328,7 @@ pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Resul
         }
     }
     mapper.finish();
-    let origin = mema_core::receiver::metres_of_nm(origin.unwrap_or([0; 3]));
+    let origin = mema_core::link::receiver::metres_of_nm(origin.unwrap_or([0; 3]));
     Ok(map_of(&mapper, origin))
 }
 

@@ -21,6 +21,7 @@
 #![no_main]
 
 mod clocks;
+mod retained;
 // The 64 KiB image's painted stack, shared as a file: both images put the stack at the top of
 // RAM above their statics.
 #[path = "../../../image/src/stack.rs"]
@@ -34,20 +35,21 @@ mod usart;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
-use mema_core::downlink::DownFrame;
 use mema_core::geometry::Entity;
-use mema_core::query::brute_force;
+use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
+use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
+use mema_firmware_sim::firmware::device::{Boot, Clock, Device, Poll};
 use mema_firmware_sim::firmware::{
-    BOARD_FROZEN, BOARD_WORKING, Carrier, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY,
-    Request, Ring, SHELLS, model_params,
+    BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS,
+    model_params,
 };
 use panic_never as _;
 use static_cell::StaticCell;
 use stm32f4::stm32f405::{self as pac, interrupt};
 
-/// The board's layout, K = 2,048 as 150 working clusters and 1,898 frozen entities: the
-/// board's map is `mema replay -k 2048 --working 150`'s.
+/// The board's layout, K = 700 as 150 working clusters and 550 frozen entities: the board's
+/// map is `mema replay -k 700 --working 150`'s.
 const K: usize = BOARD_WORKING;
 const G: usize = IMAGE_BUCKETS;
 const F: usize = BOARD_FROZEN;
@@ -63,7 +65,7 @@ static MAP: Ring<RX_CAPACITY> = Ring::new();
 /// Bytes the ring had no room for, and bytes the USART lost before the interrupt read them.
 static RING_OVERRUNS: AtomicU32 = AtomicU32::new(0);
 static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
-/// Delimiters received: a frame can only be whole after one, so the main loop ticks then
+/// Delimiters received: a frame can only be whole after one, so the main loop works then
 /// (and while mapping is under way) rather than at every byte.
 static DELIMITERS: AtomicU32 = AtomicU32::new(0);
 
@@ -72,14 +74,6 @@ static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
 /// The finished map's entities, for the host's queries: scanned whole (28 KB at K = 700; the
 /// core's index over them would take 109 KB beside the mapper's 60).
 static QUERY_MAP: StaticCell<[Entity; K + F]> = StaticCell::new();
-/// How far a ray is followed, metres (the host's `RAY_REACH`).
-const RAY_REACH: f64 = 1_000.0;
-
-/// What the finished device answers from: its timing frame and its map's entities.
-struct Finished<'a> {
-    timing: DownFrame,
-    entities: &'a [Entity],
-}
 
 /// Builds the state in its static (out of line, so it is built in place, not on the stack).
 #[inline(never)]
@@ -92,6 +86,23 @@ fn boot(
         IMAGE_REACH,
         &MAP,
     ))
+}
+
+/// The query map's storage, zeroed in place (an entity of zeros is a valid value; a
+/// `[Entity; 700]` built as a value would be a 28 KB temporary on the stack).
+#[inline(never)]
+fn query_storage() -> &'static mut [Entity] {
+    match QUERY_MAP.try_uninit() {
+        Some(slot) => {
+            // SAFETY: all-zero bytes are a valid `[Entity; N]` (plain f32s), written before
+            // the array is read.
+            unsafe {
+                core::ptr::write_bytes(slot.as_mut_ptr(), 0, 1);
+                slot.assume_init_mut()
+            }
+        }
+        None => &mut [],
+    }
 }
 
 #[interrupt]
@@ -119,6 +130,33 @@ fn USART1() {
     }
 }
 
+/// The board's clock for the device's loop: SysTick, interrupts counted apart.
+struct BoardClock {
+    work: timing::Work,
+    calibration: systick::Calibration,
+}
+
+impl Clock for BoardClock {
+    fn tick(&mut self, work: impl FnOnce()) {
+        self.work.tick(work)
+    }
+
+    fn other<T>(&mut self, work: impl FnOnce() -> T) -> T {
+        self.work.other(work)
+    }
+
+    fn query<T>(&mut self, work: impl FnOnce() -> T) -> (T, u32) {
+        let (t0, i0) = (systick::now(), timing::interrupt_ticks());
+        let out = work();
+        let ticks = (systick::now() - t0).saturating_sub(timing::interrupt_ticks() - i0);
+        (out, ticks.min(u64::from(u32::MAX)) as u32)
+    }
+
+    fn timing(&self) -> DeviceTiming {
+        self.work.report(self.calibration, stack::high_water())
+    }
+}
+
 #[entry]
 fn main() -> ! {
     let (Some(dp), Some(mut cp)) = (pac::Peripherals::take(), cortex_m::Peripherals::take()) else {
@@ -127,6 +165,8 @@ fn main() -> ! {
             cortex_m::asm::wfi();
         }
     };
+    // Which boot this is, and the session a host asked for before the reset that began it.
+    let (boot_id, session, first_carry) = retained::take_boot();
     let clocks = clocks::setup(&dp.RCC, &dp.FLASH);
     let calibration = systick::start(&mut cp.SYST);
     usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
@@ -149,118 +189,39 @@ fn main() -> ! {
         cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
     }
     stack::paint();
-    let mut work = timing::Work::default();
-    let mut carrier = Carrier::new();
-    let mut delimiters = 0;
-    loop {
-        let now = DELIMITERS.load(Ordering::Relaxed);
-        if now != delimiters || firmware.mapping() || carrier.holding() {
-            delimiters = now;
-            // Until a pass neither maps nor finishes a frame nor holds carried bytes: the rings
-            // then hold no whole frame (a tick decodes all it can), and the bytes of the next
-            // one are left to arrive, rather than ticked through a byte at a time as they come.
-            loop {
-                work.other(|| carrier.pump(&LINE, &MAP, |r| answer(firmware, r, None)));
-                let mut finished = false;
-                work.tick(|| firmware.tick(|_| finished = true));
-                if !(finished || firmware.mapping() || carrier.holding()) {
-                    break;
-                }
-            }
-            work.other(|| {
-                firmware.send_frozen(usart::send);
-                if let Some(report) = carrier.report_due(&LINE) {
-                    firmware.send_progress(report, usart::send);
-                }
-            });
-        }
-        if firmware.stats().end_of_stream {
-            break;
-        }
-        sleep_unless(|| DELIMITERS.load(Ordering::Relaxed) != delimiters || firmware.mapping());
-    }
-    firmware.finish();
-    carrier.close();
-    // What the stream cost, then the rest of the map entity by entity: the device holds no
-    // copy of the file.
-    let timing = DownFrame::Timing(work.report(calibration, stack::high_water()));
-    firmware.send_frame(&timing, usart::send);
-    let _ = firmware.send_end(usart::send);
-    let entities = match QUERY_MAP.try_uninit() {
-        Some(slot) => {
-            let base = slot.as_mut_ptr().cast::<Entity>();
-            let mut n = 0;
-            for (i, e) in firmware.mapper().entities().take(K + F).enumerate() {
-                // SAFETY: i < K + F, inside the array, and each entity is written before the
-                // slice below reads it; written in place, so no 28 KB temporary on the stack.
-                unsafe { base.add(i).write(e.entity) };
-                n = i + 1;
-            }
-            // SAFETY: the first n entities were written above.
-            unsafe { core::slice::from_raw_parts(base, n) }
-        }
-        None => &[],
+    let layout = DeviceLayout {
+        capacity: (K + F) as u32,
+        working: K as u32,
+        model: u8::from(!cfg!(feature = "paper")),
     };
-    let finished = Finished { timing, entities };
-    // Then the host's requests, for as long as it asks.
+    let boot = Boot {
+        address: Address {
+            session,
+            boot: boot_id,
+        },
+        first_carry,
+        first_sequence: 0,
+    };
+    let mut device = Device::new(firmware, (&LINE, &MAP), boot, layout, query_storage());
+    let mut clock = BoardClock {
+        work: timing::Work::default(),
+        calibration,
+    };
     loop {
-        // After a delimiter only: every byte's interrupt wakes the loop, and a pass over part
-        // of a frame would send a progress frame for each byte.
-        let now = DELIMITERS.load(Ordering::Relaxed);
-        if now != delimiters {
-            delimiters = now;
-            carrier.pump(&LINE, &MAP, |r| answer(firmware, r, Some(&finished)));
-            if let Some(report) = carrier.report_due(&LINE) {
-                firmware.send_progress(report, usart::send);
+        match device.poll(
+            DELIMITERS.load(Ordering::Relaxed),
+            &mut clock,
+            &mut usart::send,
+        ) {
+            Poll::Idle => sleep_unless(|| device.awake(DELIMITERS.load(Ordering::Relaxed))),
+            Poll::Reset { session, first } => {
+                // A new session's map starts from a fresh boot: nothing of the last in RAM.
+                usart::flush();
+                retained::reset_into(session, first)
             }
         }
-        sleep_unless(|| DELIMITERS.load(Ordering::Relaxed) != delimiters);
     }
 }
-
-/// Answers a request of the host's: entities again, or once the map is finished the timing
-/// and end frames again, or a query of the map (the core's no_std queries, timed).
-fn answer(firmware: &mut BoardFirmware, request: Request, finished: Option<&Finished>) {
-    match (request, finished) {
-        (Request::Resend { first, count }, _) => firmware.resend(first, count, usart::send),
-        (Request::ResendEnd, Some(f)) => {
-            firmware.send_frame(&f.timing, usart::send);
-            let _ = firmware.send_end_again(usart::send);
-        }
-        (
-            Request::Query {
-                number,
-                ray,
-                point,
-                direction,
-            },
-            Some(f),
-        ) => {
-            let (t0, i0) = (systick::now(), timing::interrupt_ticks());
-            let p = point.map(f64::from);
-            let (entity, value) = if ray {
-                brute_force::ray_cast(f.entities, p, direction.map(f64::from), RAY_REACH)
-                    .map_or((u32::MAX, f64::INFINITY), |h| (h.entity as u32, h.t))
-            } else {
-                brute_force::nearest(f.entities, p).map_or((u32::MAX, f64::INFINITY), |n| {
-                    (n.entity as u32, n.signed_distance)
-                })
-            };
-            let ticks = (systick::now() - t0).saturating_sub(timing::interrupt_ticks() - i0);
-            let frame = DownFrame::Answer {
-                query: number,
-                ray,
-                entity,
-                value,
-                ticks: ticks.min(u64::from(u32::MAX)) as u32,
-            };
-            firmware.send_frame(&frame, usart::send);
-        }
-        // Not finished yet: the end goes out when it is, and queries wait for the map.
-        (Request::ResendEnd | Request::Query { .. }, None) => {}
-    }
-}
-
 /// Sleeps until an interrupt, unless `awake` says there is work: with interrupts masked, one
 /// that comes after the look still wakes `wfi`, and runs once unmasked.
 fn sleep_unless(awake: impl Fn() -> bool) {

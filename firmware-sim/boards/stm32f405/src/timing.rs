@@ -6,7 +6,7 @@
 use core::cell::Cell;
 
 use cortex_m::interrupt::Mutex;
-use mema_core::downlink::DeviceTiming;
+use mema_core::link::downlink::DeviceTiming;
 
 use crate::systick::{Calibration, now};
 
@@ -58,9 +58,9 @@ impl Work {
         self.longest_tick = self.longest_tick.max(dt);
     }
 
-    /// Other work of the main loop (the downlink).
-    pub fn other(&mut self, f: impl FnOnce()) {
-        self.timed(f);
+    /// Other work of the main loop (the carrier, the downlink).
+    pub fn other<T>(&mut self, f: impl FnOnce() -> T) -> T {
+        self.timed(f).0
     }
 
     /// The account the timing frame carries, with the deepest the stack went.

@@ -79,3 +79,9 @@ pub fn send(bytes: &[u8]) {
         usart.dr().write(|w| unsafe { w.bits(u16::from(byte)) });
     }
 }
+
+/// Waits, a bounded time, until the last byte has left the shift register (before a reset).
+pub fn flush() {
+    let usart = usart1();
+    let _ = (0..TX_POLLS).any(|_| usart.sr().read().tc().bit_is_set());
+}

@@ -57,7 +57,7 @@ pub struct StreamShapeArgs {
     /// Refuse points and poses farther than this from the map's origin (its first point) on
     /// any axis, in metres: a corrupt frame that passed its CRC, or a wrong unit, is counted
     /// and never mapped. 100 km by default, where f32 still resolves 4 mm.
-    #[arg(long, value_name = "METRES", default_value_t = mema_core::receiver::DEFAULT_REACH)]
+    #[arg(long, value_name = "METRES", default_value_t = mema_core::link::receiver::DEFAULT_REACH)]
     pub reach: f32,
 }
 

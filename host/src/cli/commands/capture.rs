@@ -27,7 +27,7 @@ pub fn record(args: &RecordArgs) -> Result<()> {
     let mut capture = CaptureWriter::create(&args.output)?;
     let stop = interrupted();
     // The decoder only watches for the end-of-stream frame; the capture keeps every byte.
-    let mut watch = mema_core::wire::Decoder::new();
+    let mut watch = mema_core::link::wire::Decoder::new();
     eprintln!("mema: listening on {}", args.port.display());
     let mut seen_end = false;
     let mut bytes = 0u64;
@@ -44,9 +44,11 @@ pub fn record(args: &RecordArgs) -> Result<()> {
                 let mut window = chunk;
                 loop {
                     match watch.feed(window) {
-                        mema_core::wire::Decoded::Consumed => break,
-                        mema_core::wire::Decoded::Rejected { remaining, .. } => window = remaining,
-                        mema_core::wire::Decoded::Frame { frame, remaining } => {
+                        mema_core::link::wire::Decoded::Consumed => break,
+                        mema_core::link::wire::Decoded::Rejected { remaining, .. } => {
+                            window = remaining
+                        }
+                        mema_core::link::wire::Decoded::Frame { frame, remaining } => {
                             seen_end |= frame.end_of_stream();
                             window = remaining;
                         }
@@ -108,7 +110,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
         bail!("the cloud has no points to send");
     }
     let sending = send_scans(&scans)?;
-    let half = 0.5 * mema_core::wire::unit_scale(sending.unit_exponent).unwrap_or(f64::NAN);
+    let half = 0.5 * mema_core::link::wire::unit_scale(sending.unit_exponent).unwrap_or(f64::NAN);
     eprintln!(
         "mema: scanner-sim: {} scan{}, unit {} (10^{} m) for a point spacing of {:.3} mm: rounding moves a coordinate by at most {:.3} mm",
         sending.scans,

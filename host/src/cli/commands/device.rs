@@ -12,16 +12,29 @@ use mema::link::device::{DownlinkCounts, MapFrames};
 use mema::link::port::open_duplex;
 use mema::link::queries::{QueryReport, ask};
 use mema::link::scanner::{scans_of_input, send_scans};
-use mema::link::session::send_and_receive;
-use mema_core::downlink::RING_BYTES;
+use mema::link::session::{SessionEvent, SessionLimits, send_and_receive};
+use mema_core::link::downlink::RING_BYTES;
 
 use super::serial::CAPTURE_LIMIT;
 use crate::cli::args::DeviceArgs;
 use crate::cli::errors::UsageError;
 
+/// What the device said of itself when the session began.
+#[derive(Serialize)]
+struct DeviceSays {
+    /// Entities its map holds at most, and of them working clusters.
+    capacity: u32,
+    working: u32,
+    model: &'static str,
+    /// Its boot's identifier.
+    boot: u32,
+}
+
 #[derive(Serialize)]
 struct DeviceSummary {
     output: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    layout: Option<DeviceSays>,
     /// Bytes sent to the device.
     sent: usize,
     map_bytes: usize,
@@ -58,16 +71,29 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let quiet = args.json;
     let total = stream.len();
     // The device's ring holds RING_BYTES: never more than that is in flight.
-    let mut frames = MapFrames::new();
-    let limits = (RING_BYTES, Duration::from_secs_f64(t));
-    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |done, taken| {
-        if !quiet {
-            eprint!(
+    let mut frames = MapFrames::default();
+    let limits = SessionLimits {
+        window: RING_BYTES,
+        silence: Duration::from_secs_f64(t),
+        first_carry: 0,
+    };
+    let map = send_and_receive(
+        &mut port,
+        &stream,
+        limits,
+        &mut frames,
+        |event| match event {
+            SessionEvent::Progress { done, taken } if !quiet => eprint!(
                 "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
-            );
-        }
-    })
-    .with_context(|| format!("{}: {name}", args.port.display()))?;
+            ),
+            SessionEvent::Progress { .. } => {}
+            // Said even with --json: the map written is then the whole stream's, from the start.
+            SessionEvent::Restart(why) => {
+                eprintln!("\nmema device: {why}; starting the session again")
+            }
+        },
+    )
+    .with_context(|| format!("{} at {} baud: {name}", args.port.display(), args.baud))?;
     if !quiet {
         eprintln!();
     }
@@ -87,8 +113,15 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     } else {
         None
     };
+    let layout = frames.device_layout().map(|l| DeviceSays {
+        capacity: l.capacity,
+        working: l.working,
+        model: if l.model == 0 { "paper" } else { "shells" },
+        boot: frames.address().boot,
+    });
     let summary = DeviceSummary {
         output: args.output.display().to_string(),
+        layout,
         sent: total,
         map_bytes: map.len(),
         downlink: frames.counts.clone(),

@@ -14,8 +14,8 @@ use mema::link::capture::CaptureWriter;
 use mema::link::port::{ReadOutcome, open_for_reading, read_some};
 use mema::link::scanner::{scans_of_input, send_scans};
 use mema::link::stream::{Capacity, Link, link_params};
+use mema_core::link::wire::DecoderStats;
 use mema_core::stream::StreamParams;
-use mema_core::wire::DecoderStats;
 
 use crate::cli::args::{ReplayArgs, StreamArgs, StreamShapeArgs};
 use crate::cli::errors::{LinkIdle, LinkLost, UsageError};

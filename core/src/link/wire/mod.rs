@@ -26,7 +26,7 @@
 //! used, points from byte 10, no poses (their points are in the world frame).
 //!
 //! On the wire the raw frame is COBS-encoded (Cheshire and Baker, 1999), so it contains no zero
-//! byte, and followed by one `0x00` delimiter. A receiver that joins mid-stream, or loses bytes,
+//! byte, and followed by one `0x00` delimiter: the link's one framing ([`super::framing`]). A receiver that joins mid-stream, or loses bytes,
 //! resynchronises at the next `0x00`.
 //!
 //! Why integers: a rangefinder measures to about a millimetre, i32 millimetres cover +-2,147 km
@@ -37,12 +37,10 @@
 //! [`FrameReprV2::emit`] cannot fail into a buffer of their `buffer_len()` bytes. The CRC check
 //! is skipped under `cfg(fuzzing)` so a fuzzer reaches the field logic.
 
-mod cobs;
 mod decoder;
 mod frame;
 mod repr;
 
-pub use cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
 pub use decoder::{Decoded, Decoder, DecoderStats, MAX_GAP};
 pub use frame::{Frame, FrameError, FrameKind};
 pub use repr::{Content, FrameRepr, FrameReprV2, WirePose};
@@ -57,7 +55,7 @@ pub const MAX_POINTS: usize = 128;
 pub const HEADER_LEN: usize = 14;
 /// Header bytes of a version 1 frame.
 pub const HEADER_LEN_V1: usize = 10;
-pub const CRC_LEN: usize = 4;
+pub const CRC_LEN: usize = super::framing::CRC_LEN;
 pub const POINT_LEN: usize = 12;
 /// A pose: translation (3 x i32) and quaternion (4 x i32).
 pub const POSE_LEN: usize = 28;
@@ -96,7 +94,7 @@ pub fn unit_scale(e: i8) -> Option<f64> {
 /// The largest raw frame (a version 2 points frame of [`MAX_POINTS`]).
 pub const MAX_RAW_LEN: usize = HEADER_LEN + POINT_LEN * MAX_POINTS + CRC_LEN;
 /// The largest frame on the wire, COBS overhead and delimiter included: size UART buffers from it.
-pub const MAX_FRAME_LEN: usize = cobs_max_encoded_len(MAX_RAW_LEN) + 1;
+pub const MAX_FRAME_LEN: usize = super::cobs::cobs_max_encoded_len(MAX_RAW_LEN) + 1;
 
 pub(crate) mod field {
     use core::ops::Range;

@@ -6,7 +6,7 @@ use super::{
     CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
     POINT_LEN, POSE_FRAME_LEN, VERSION, VERSION_1, field,
 };
-use crate::crc32::crc32;
+use crate::link::crc32::crc32;
 
 /// A sensor pose as the wire carries it: sensor to world, `x_world = R(q) x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

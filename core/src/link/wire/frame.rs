@@ -5,7 +5,7 @@ use super::{
     MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, QUATERNION_ONE, VERSION,
     VERSION_1, WirePose, field,
 };
-use crate::crc32::crc32;
+use crate::link::crc32::crc32;
 
 /// Why a raw frame was refused. Each kind is counted separately by the decoder.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

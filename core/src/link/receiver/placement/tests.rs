@@ -1,5 +1,5 @@
 use super::*;
-use crate::receiver::DEFAULT_REACH;
+use crate::link::receiver::DEFAULT_REACH;
 
 /// `v` as `m 2^k` with `m` an integer (sign included).
 fn parts(v: f32) -> (i128, i32) {
@@ -52,11 +52,11 @@ fn xorshift(mut s: u64) -> impl Iterator<Item = u64> {
 
 #[test]
 fn points_below_2_24_units_are_the_nearest_f32_and_the_f64_bits() {
-    for e in crate::wire::MIN_UNIT_EXPONENT..=crate::wire::MAX_UNIT_EXPONENT {
+    for e in crate::link::wire::MIN_UNIT_EXPONENT..=crate::link::wire::MAX_UNIT_EXPONENT {
         let p = Placement::new([0; 3], e, &Pose::START, DEFAULT_REACH);
         assert!(p.is_some(), "a placement at 0");
         let Some(p) = p else { return };
-        let scale = crate::wire::unit_scale(e).unwrap_or(f64::NAN);
+        let scale = crate::link::wire::unit_scale(e).unwrap_or(f64::NAN);
         let small = -70_000..=70_000;
         let wide = xorshift((i64::from(e) + 99) as u64)
             .take(20_000)
@@ -94,7 +94,7 @@ fn whole_offsets_are_exact_in_units_and_others_are_not_whole() {
             1,
             &WirePose {
                 translation: t,
-                rotation: [0, 0, 0, crate::wire::QUATERNION_ONE],
+                rotation: [0, 0, 0, crate::link::wire::QUATERNION_ONE],
             },
             exponent,
         )
@@ -129,7 +129,7 @@ fn whole_offsets_are_exact_in_units_and_others_are_not_whole() {
 #[test]
 fn a_scene_moved_anywhere_places_its_points_with_the_same_bits() {
     let half = libm::sqrt(0.5);
-    let q = (half * crate::wire::QUATERNION_ONE as f64).round() as i32;
+    let q = (half * crate::link::wire::QUATERNION_ONE as f64).round() as i32;
     let raw = [[1234, -5678, 910], [-3, 7, 100_000], [0, 0, 1]];
     let placed = |shift_mm: [i32; 3], rotation: [i32; 4]| {
         let pose = Pose::of_wire(
@@ -148,7 +148,7 @@ fn a_scene_moved_anywhere_places_its_points_with_the_same_bits() {
                 .map(|p| p.to_array().map(f32::to_bits))
         })
     };
-    for rotation in [[0, 0, 0, crate::wire::QUATERNION_ONE], [0, 0, q, q]] {
+    for rotation in [[0, 0, 0, crate::link::wire::QUATERNION_ONE], [0, 0, q, q]] {
         let home = placed([0; 3], rotation);
         assert!(home.iter().all(Option::is_some));
         // 2,000 km, the middle of the old 1,024 m cell, and odd millimetres.

@@ -1,6 +1,6 @@
 use super::*;
+use crate::link::wire::{Content, FrameRepr, FrameReprV2, QUATERNION_ONE};
 use crate::test_support::{OrFail, TestResult};
-use crate::wire::{Content, FrameRepr, FrameReprV2, QUATERNION_ONE};
 
 const POINTS: [[i32; 3]; 3] = [[1, -2, 3], [i32::MAX, i32::MIN, 0], [-1500, 250, 999_999]];
 
@@ -56,7 +56,7 @@ fn protocol_example() -> TestResult {
     ];
     assert_eq!(&raw[..n], &want_raw);
     let mut wire = [0u8; 64];
-    let m = crate::wire::cobs_encode(&raw[..n], &mut wire).or_fail("fits")?;
+    let m = crate::link::cobs::cobs_encode(&raw[..n], &mut wire).or_fail("fits")?;
     let want_wire: [u8; 39] = [
         0x04, 0x01, 0x01, 0x07, 0x01, 0x01, 0x02, 0x02, 0x02, 0xfd, 0x03, 0xe8, 0x03, 0x01, 0x07,
         0x30, 0xf8, 0xff, 0xff, 0xf4, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01,
@@ -200,7 +200,8 @@ fn protocol_example_v2() -> TestResult {
     ];
     assert_eq!(raw.get(..n).or_fail("raw")?, &want_raw);
     let mut wire = [0u8; 64];
-    let m = crate::wire::cobs_encode(raw.get(..n).or_fail("raw")?, &mut wire).or_fail("fits")?;
+    let m =
+        crate::link::cobs::cobs_encode(raw.get(..n).or_fail("raw")?, &mut wire).or_fail("fits")?;
     let want_wire: [u8; 44] = [
         0x04, 0x02, 0x01, 0x09, 0x01, 0x01, 0x02, 0x02, 0x02, 0xfd, 0x02, 0x01, 0x01, 0x01, 0x03,
         0xe8, 0x03, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01,
@@ -261,7 +262,7 @@ fn one_test_per_v2_rejection_rule() -> TestResult {
     // A pose frame claiming points (its CRC made right again).
     let mut c = good;
     c[6] = 1;
-    let crc = crate::crc32::crc32(&c[..n - 4]).to_le_bytes();
+    let crc = crate::link::crc32::crc32(&c[..n - 4]).to_le_bytes();
     c[n - 4..n].copy_from_slice(&crc);
     assert_eq!(check(&c[..n]), Err(FrameError::BadPose));
     let mut k = good;
@@ -292,8 +293,8 @@ fn one_test_per_v2_rejection_rule() -> TestResult {
 /// Every version 2 frame kind round-trips: emit, parse, compare, over edge values.
 #[test]
 fn v2_frames_round_trip() -> TestResult {
-    let mut buf = [0u8; crate::wire::MAX_RAW_LEN];
-    let many = [[7i32, -7, i32::MIN]; crate::wire::MAX_POINTS];
+    let mut buf = [0u8; crate::link::wire::MAX_RAW_LEN];
+    let many = [[7i32, -7, i32::MIN]; crate::link::wire::MAX_POINTS];
     for (points, pose) in [(&POINTS[..], 0u32), (&[][..], u32::MAX), (&many[..], 42)] {
         let repr = FrameReprV2 {
             sequence: u32::MAX,
@@ -316,7 +317,7 @@ fn v2_frames_round_trip() -> TestResult {
             (pose == 0, pose != 0)
         );
     }
-    let too_many = [[0i32; 3]; crate::wire::MAX_POINTS + 1];
+    let too_many = [[0i32; 3]; crate::link::wire::MAX_POINTS + 1];
     let big = FrameReprV2 {
         sequence: 0,
         end_of_stream: false,

@@ -26,7 +26,7 @@ mod placement;
 
 pub use placement::{Placement, Pose};
 
-use crate::wire::{
+use crate::link::wire::{
     Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
 };
 

@@ -1,8 +1,7 @@
 use super::*;
+use crate::link::cobs::cobs_encode;
+use crate::link::wire::{Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose};
 use crate::test_support::{OrFail, TestResult};
-use crate::wire::{
-    Content, FrameRepr, FrameReprV2, MAX_RAW_LEN, QUATERNION_ONE, WirePose, cobs_encode,
-};
 
 /// Appends frame `sequence` (COBS and delimiter) to `out` at `at`; returns the new end.
 fn push(

@@ -2,6 +2,7 @@
 //! kilobytes, and it hands back each frame with the unconsumed rest of the input.
 
 use super::{Frame, FrameError, MAX_FRAME_LEN};
+use crate::link::framing::{Block, Deframer, FramingError};
 
 /// Counters for every outcome, so a link's health can be reported.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -51,26 +52,14 @@ pub enum Decoded<'d, 'i> {
     },
 }
 
-/// COBS accumulator plus frame validation and sequence tracking, in fixed memory.
+/// The link's deframer plus frame validation and sequence tracking, in fixed memory.
 ///
-/// Blocks are COBS-decoded as their bytes arrive, into `buf`: one pass over each byte rather
+/// Blocks are COBS-decoded as their bytes arrive ([`Deframer`]): one pass over each byte rather
 /// than a copy and then a decode in place (a third of the firmware's cost per point beside
-/// the mapper, once its placement took no soft float). It takes and refuses exactly the blocks
-/// that [`super::cobs_decode_in_place`] does (a test compares the two on hostile input).
+/// the mapper, once its placement took no soft float).
 #[derive(Clone, Debug)]
 pub struct Decoder {
-    /// The block so far, decoded.
-    buf: [u8; MAX_FRAME_LEN],
-    /// Bytes of the block so far, encoded (what the oversize limit counts).
-    len: usize,
-    /// Decoded bytes of the block in `buf`.
-    out: usize,
-    /// Data bytes left in the block's current COBS group; 0: the next byte is a code.
-    run: u8,
-    /// The last code stands for a zero, written when another group follows it.
-    zero: bool,
-    /// Set when a block outgrew the buffer: bytes are dropped until the next delimiter.
-    overflowed: bool,
+    blocks: Deframer<MAX_FRAME_LEN>,
     /// Sequence number and CRC of the last accepted frame: a repeat matches both.
     last: Option<(u32, u32)>,
     /// Length of the frame last returned, still in `buf` until the next `feed` (0: none).
@@ -88,12 +77,7 @@ impl Decoder {
     #[inline(always)]
     pub const fn new() -> Self {
         Self {
-            buf: [0; MAX_FRAME_LEN],
-            len: 0,
-            out: 0,
-            run: 0,
-            zero: false,
-            overflowed: false,
+            blocks: Deframer::new(),
             last: None,
             held: 0,
             stats: DecoderStats {
@@ -123,7 +107,7 @@ impl Decoder {
     pub fn held_frame(&self) -> Option<Frame<&[u8]>> {
         match self.held {
             0 => None,
-            len => self.buf.get(..len).map(Frame::new_unchecked),
+            len => Some(Frame::new_unchecked(self.blocks.raw(len))),
         }
     }
 
@@ -135,27 +119,23 @@ impl Decoder {
         let mut counted = 0;
         loop {
             let rest = input.get(counted..).unwrap_or(&[]);
-            let Some(at) = self.accumulate(rest) else {
+            let Some(at) = self.blocks.accumulate(rest) else {
                 self.stats.bytes += rest.len() as u64;
                 return Decoded::Consumed;
             };
             let remaining = rest.get(at + 1..).unwrap_or(&[]);
             self.stats.bytes += (at + 1) as u64;
             counted += at + 1;
-            let (block_len, raw_len, unfinished) = (self.len, self.out, self.run != 0);
-            (self.len, self.out, self.run, self.zero) = (0, 0, 0, false);
-            if core::mem::take(&mut self.overflowed) {
-                return self.reject(FrameError::Oversized, remaining);
-            }
-            if block_len == 0 {
+            let raw = match self.blocks.end_block() {
                 // Back-to-back delimiters: idle line fill, not a frame.
-                continue;
-            }
-            if unfinished {
-                // The last code pointed past the block's end.
-                return self.reject(FrameError::BadCobs, remaining);
-            }
-            let raw = self.buf.get(..raw_len).unwrap_or(&[]);
+                Block::Idle => continue,
+                Block::Raw(raw) => raw,
+                Block::Refused(FramingError::Oversized) => {
+                    return self.reject(FrameError::Oversized, remaining);
+                }
+                Block::Refused(_) => return self.reject(FrameError::BadCobs, remaining),
+            };
+            let raw_len = raw.len();
             let frame = match Frame::new_checked(raw) {
                 Ok(frame) => frame,
                 Err(error) => return self.reject(error, remaining),
@@ -186,60 +166,11 @@ impl Decoder {
             self.last = Some((sequence, crc));
             self.stats.accepted += 1;
             self.held = raw_len;
-            let raw = self.buf.get(..raw_len).unwrap_or(&[]);
             return Decoded::Frame {
-                frame: Frame::new_unchecked(raw),
+                frame: Frame::new_unchecked(self.blocks.raw(raw_len)),
                 remaining,
             };
         }
-    }
-
-    /// COBS-decodes `input` into the block up to its first delimiter, and returns where that is
-    /// (`None`: the input ran out first).
-    // Out of line: inlined into the frame checks, its state went to the stack.
-    #[inline(never)]
-    fn accumulate(&mut self, input: &[u8]) -> Option<usize> {
-        let Self {
-            buf,
-            len,
-            out,
-            run,
-            zero,
-            overflowed,
-            ..
-        } = self;
-        // The block's state in locals: stores into `buf` may alias the fields to the compiler.
-        let (mut l, mut o, mut r, mut z) = (*len, *out, *run, *zero);
-        let mut end = None;
-        for (i, &byte) in input.iter().enumerate() {
-            if byte == 0 {
-                end = Some(i);
-                break;
-            }
-            if l == MAX_FRAME_LEN {
-                *overflowed = true;
-                continue;
-            }
-            l += 1;
-            // The decoded block is shorter than the encoded one, so `o < l` fits in `buf`.
-            if r != 0 {
-                r -= 1;
-                if let Some(slot) = buf.get_mut(o) {
-                    *slot = byte;
-                    o += 1;
-                }
-            } else {
-                // A code byte: the zero the previous code stood for, if any, then its data.
-                if z && let Some(slot) = buf.get_mut(o) {
-                    *slot = 0;
-                    o += 1;
-                }
-                r = byte - 1;
-                z = byte != 0xFF;
-            }
-        }
-        (*len, *out, *run, *zero) = (l, o, r, z);
-        end
     }
 
     fn reject<'d, 'i>(&'d mut self, error: FrameError, remaining: &'i [u8]) -> Decoded<'d, 'i> {
@@ -266,17 +197,23 @@ impl Decoder {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::link::cobs::cobs_encode;
+    use crate::link::wire::{FrameRepr, MAX_RAW_LEN};
     use crate::test_support::{OrFail, TestResult};
-    use crate::wire::{FrameRepr, MAX_RAW_LEN, cobs_encode};
 
     /// Encodes frames 0..n with a few points each into `out`; returns the length.
     fn stream(n: u32, out: &mut [u8]) -> Result<usize, &'static str> {
+        stream_from(0, n, out)
+    }
+
+    /// Encodes `n` frames numbered from `first` (wrapping) into `out`; returns the length.
+    fn stream_from(first: u32, n: u32, out: &mut [u8]) -> Result<usize, &'static str> {
         let mut at = 0;
-        for seq in 0..n {
+        for seq in (0..n).map(|i| first.wrapping_add(i)) {
             let pts = [[seq as i32, 2, 3], [4, 5, seq as i32 * 1000]];
             let repr = FrameRepr {
                 sequence: seq,
-                end_of_stream: seq + 1 == n,
+                end_of_stream: seq.wrapping_add(1) == first.wrapping_add(n),
                 unit_exponent: -3,
                 points: &pts,
             };
@@ -309,6 +246,22 @@ mod tests {
             }
         }
         found
+    }
+
+    /// A sender's sequence numbers crossing their wrap are one session, nothing lost.
+    #[test]
+    fn sequence_numbers_across_their_wrap() -> TestResult {
+        let mut wire = [0u8; 2048];
+        let n = stream_from(u32::MAX - 9, 20, &mut wire)?;
+        let mut d = Decoder::new();
+        let mut seqs = [0u32; 64];
+        assert_eq!(decode_all(&mut d, &wire[..n], 5, &mut seqs), 20);
+        for (i, &s) in seqs[..20].iter().enumerate() {
+            assert_eq!(s, (u32::MAX - 9).wrapping_add(i as u32));
+        }
+        let stats = d.stats();
+        assert_eq!((stats.accepted, stats.lost, stats.sessions), (20, 0, 1));
+        Ok(())
     }
 
     #[test]

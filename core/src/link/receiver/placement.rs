@@ -2,8 +2,8 @@
 //! origin), in the frame's unit.
 
 use crate::geometry::Point3;
+use crate::link::wire::{Frame, WirePose};
 use crate::rotation::quaternion_matrix;
-use crate::wire::{Frame, WirePose};
 
 /// A sensor pose the receiver holds, sensor to world: `x_world = R x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,7 +38,7 @@ impl Pose {
 
     /// A pose frame's pose: number `number`, translation in units of `10^exponent` m.
     pub fn of_wire(number: u32, wire: &WirePose, exponent: i8) -> Self {
-        let scale = crate::wire::unit_scale(exponent).unwrap_or(f64::NAN);
+        let scale = crate::link::wire::unit_scale(exponent).unwrap_or(f64::NAN);
         let [x, y, z, w] = wire.rotation;
         // q and -q are the same rotation: a zero vector part is the identity whatever w's sign.
         let rotation = (x != 0 || y != 0 || z != 0).then(|| {
@@ -206,7 +206,7 @@ impl Placement {
         let power = POWERS.get(usize::from(exponent.unsigned_abs()));
         Some(Self {
             origin,
-            scale: crate::wire::unit_scale(exponent).unwrap_or(f64::NAN),
+            scale: crate::link::wire::unit_scale(exponent).unwrap_or(f64::NAN),
             power: power.map_or(f32::NAN, |&p| p as f32),
             divide: exponent < 0,
             rotation: pose.rotation,
@@ -293,7 +293,7 @@ impl Placement {
         let local = match pose.rotation {
             None => nanometres3(raw, exponent)?,
             Some(rows) => {
-                let scale = crate::wire::unit_scale(exponent)?;
+                let scale = crate::link::wire::unit_scale(exponent)?;
                 let turned = turn(raw, scale, Some(rows));
                 let mut out = [0i64; 3];
                 for (slot, v) in out.iter_mut().zip(turned) {

@@ -1,9 +1,17 @@
 use super::*;
 use crate::fit::FitParams;
+use crate::link::crc32::crc32;
+use crate::link::framing::decode_block;
 use crate::map::encode_as;
 use crate::shell::ShellParams;
 use crate::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
 use crate::test_support::{OrFail, TestResult, damaged_blocks_are_refused, hex};
+
+/// The examples' session and boot (PROTOCOL.md).
+const FROM: Address = Address {
+    session: 0x5E55_1011,
+    boot: 7,
+};
 
 /// Tilted shells swept along x, so the mapper freezes the ones it leaves behind and its
 /// shells turn.
@@ -56,7 +64,7 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
         let mut sequence = 0u32;
         let mut send = |frame: DownFrame, wire: &mut [u8], at: &mut usize| -> TestResult {
             let out = wire.get_mut(*at..).or_fail("room on the wire")?;
-            *at += encode(sequence, &frame, out).or_fail("encodes")?;
+            *at += encode(FROM, sequence, &frame, out).or_fail("encodes")?;
             sequence += 1;
             Ok(())
         };
@@ -85,8 +93,9 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
             if block.is_empty() {
                 continue;
             }
-            let (seq, frame) = decode(block).or_fail("a sent frame decodes")?;
-            assert_eq!(seq, expected);
+            let raw = decode_block(block).or_fail("a block")?;
+            let (from, seq, frame) = decode(raw).or_fail("a sent frame decodes")?;
+            assert_eq!((from, seq), (FROM, expected));
             expected += 1;
             match frame {
                 DownFrame::Entity { index, entity } => {
@@ -94,7 +103,10 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
                     entities.push(entity).or_fail("room")?;
                 }
                 DownFrame::End(end) => got_end = Some(end),
-                DownFrame::Progress { .. } | DownFrame::Timing(_) | DownFrame::Answer { .. } => {
+                DownFrame::Progress { .. }
+                | DownFrame::Timing(_)
+                | DownFrame::Answer { .. }
+                | DownFrame::Session { .. } => {
                     return Err("no progress or timing was sent");
                 }
             }
@@ -132,13 +144,14 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
     };
     let frame = DownFrame::Entity { index: 7, entity };
     let mut sent = [0u8; MAX_DOWN_FRAME_LEN];
-    let n = encode(41, &frame, &mut sent).or_fail("encodes")?;
+    let n = encode(FROM, 41, &frame, &mut sent).or_fail("encodes")?;
     let mut block = sent;
     let block_len = n - 1;
-    let (sequence, back) =
-        decode(block.get_mut(..block_len).or_fail("block")?).or_fail("decodes")?;
-    assert_eq!((sequence, back), (41, frame));
-    damaged_blocks_are_refused(sent, block_len, |b| decode(b).is_ok())?;
+    let raw = decode_block(block.get_mut(..block_len).or_fail("block")?).or_fail("COBS")?;
+    assert_eq!(decode(raw).or_fail("decodes")?, (FROM, 41, frame));
+    damaged_blocks_are_refused(sent, block_len, |b| {
+        decode_block(b).is_ok_and(|raw| decode(raw).is_ok())
+    })?;
     let progress = DownFrame::Progress {
         taken: u32::MAX - 3,
         frames: 102,
@@ -160,11 +173,19 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
         value: f64::INFINITY,
         ticks: 123_456,
     };
-    for frame in [progress, timing, answer] {
+    let session = DownFrame::Session {
+        status: SessionStatus::Refused { reason: 200 },
+        layout: DeviceLayout {
+            capacity: u32::MAX,
+            working: 0,
+            model: 9,
+        },
+    };
+    for frame in [progress, timing, answer, session] {
         let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
-        let m = encode(u32::MAX, &frame, &mut wire).or_fail("encodes")?;
-        let back = decode(wire.get_mut(..m - 1).or_fail("block")?).or_fail("decodes")?;
-        assert_eq!(back, (u32::MAX, frame));
+        let m = encode(FROM, u32::MAX, &frame, &mut wire).or_fail("encodes")?;
+        let raw = decode_block(wire.get_mut(..m - 1).or_fail("block")?).or_fail("COBS")?;
+        assert_eq!(decode(raw).or_fail("decodes")?, (FROM, u32::MAX, frame));
     }
     Ok(())
 }
@@ -206,34 +227,101 @@ fn protocol_examples() -> TestResult {
         points: 256,
         frames: 2,
     });
+    let layout = DeviceLayout {
+        capacity: 700,
+        working: 150,
+        model: 1,
+    };
+    let booted = DownFrame::Session {
+        status: SessionStatus::Booted,
+        layout,
+    };
+    let started = DownFrame::Session {
+        status: SessionStatus::Started,
+        layout,
+    };
+    let timing = DownFrame::Timing(DeviceTiming {
+        busy_ticks: 2_000_000,
+        interrupt_ticks: 150_000,
+        longest_tick: 90_000,
+        calib_ticks: 1_000,
+        calib_insns: 1_000,
+        stack_bytes: 5_400,
+    });
+    let answer = DownFrame::Answer {
+        query: 77,
+        ray: true,
+        entity: 3,
+        value: 2.5,
+        ticks: 41_000,
+    };
+    let no_session = Address {
+        session: 0,
+        boot: FROM.boot,
+    };
     let examples = [
         (
+            no_session,
             0,
-            entity,
-            "02 81 01 01 01 01 01 01 01 01 02 02 01 03 c0 3f 01 01 02 c0 01 03 80 3e 01 03 80 40 \
-             01 01 01 01 01 03 c8 42 01 01 01 01 01 01 01 01 01 01 01 01 01 07 80 3f 4a a3 6f 07 00",
+            booted,
+            "03 83 05 01 01 01 02 07 01 01 01 01 01 01 01 01 03 bc 02 01 02 96 01 01 06 01 8e 2f \
+             21 16 00",
         ),
         (
+            FROM,
             1,
-            progress,
-            "04 81 02 01 01 01 03 34 0c 01 02 02 01 01 02 0d 01 01 02 01 01 01 05 7f e2 11 de 00",
+            started,
+            "08 83 05 11 10 55 5e 07 01 01 02 01 01 01 02 01 03 bc 02 01 02 96 01 01 06 01 13 95 \
+             42 a3 00",
         ),
         (
+            FROM,
             2,
+            entity,
+            "02 83 06 11 10 55 5e 07 01 01 02 02 01 01 01 01 01 01 02 02 01 03 c0 3f 01 01 02 c0 \
+             01 03 80 3e 01 03 80 40 01 01 01 01 01 03 c8 42 01 01 01 01 01 01 01 01 01 01 01 01 \
+             01 07 80 3f 46 08 70 a3 00",
+        ),
+        (
+            FROM,
+            3,
+            progress,
+            "08 83 02 11 10 55 5e 07 01 01 02 03 01 01 03 34 0c 01 02 02 01 01 02 0d 01 01 02 01 \
+             01 01 05 6d bb b3 c1 00",
+        ),
+        (
+            FROM,
+            4,
             end,
-            "04 81 01 02 01 01 02 01 01 01 02 01 01 01 01 01 01 01 01 01 01 01 01 01 01 01 02 3f \
-             01 01 01 01 01 03 80 bf 01 01 01 05 01 40 1f 41 01 01 01 01 01 03 0c c0 01 01 01 01 \
-             01 04 90 40 56 01 01 05 78 56 34 12 02 01 01 02 02 01 01 05 c3 24 4e 1a 00",
+            "08 83 01 11 10 55 5e 07 01 01 02 04 01 01 02 01 01 01 02 01 01 01 01 01 01 01 01 01 \
+             01 01 01 01 01 01 02 3f 01 01 01 01 01 03 80 bf 01 01 01 05 01 40 1f 41 01 01 01 01 \
+             01 03 0c c0 01 01 01 01 01 04 90 40 56 01 01 05 78 56 34 12 02 01 01 02 02 01 01 05 \
+             a4 50 7a 5b 00",
+        ),
+        (
+            FROM,
+            5,
+            timing,
+            "08 83 03 11 10 55 5e 07 01 01 02 05 01 01 04 80 84 1e 01 01 01 01 04 f0 49 02 01 01 \
+             01 01 04 90 5f 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 18 \
+             15 01 01 01 01 01 05 b6 96 96 f1 00",
+        ),
+        (
+            FROM,
+            6,
+            answer,
+            "08 83 04 11 10 55 5e 07 01 01 02 06 01 01 02 4d 01 01 03 01 03 01 01 01 01 01 01 01 \
+             01 05 04 40 28 a0 01 05 1e 81 7b e9 00",
         ),
     ];
-    for (sequence, frame, wire) in examples {
+    for (from, sequence, frame, wire) in examples {
         let mut want = [0u8; MAX_DOWN_FRAME_LEN];
         let n = hex(wire, &mut want)?;
         let mut got = [0u8; MAX_DOWN_FRAME_LEN];
-        let m = encode(sequence, &frame, &mut got).or_fail("encodes")?;
+        let m = encode(from, sequence, &frame, &mut got).or_fail("encodes")?;
         assert_eq!(got.get(..m), want.get(..n), "sequence {sequence}");
-        let back = decode(want.get_mut(..n - 1).or_fail("block")?).or_fail("decodes")?;
-        assert_eq!(back, (sequence, frame));
+        let raw = decode_block(want.get_mut(..n - 1).or_fail("block")?).or_fail("COBS")?;
+        assert_eq!(decode(raw).or_fail("decodes")?, (from, sequence, frame));
     }
     Ok(())
 }

@@ -1,0 +1,295 @@
+//! The device's main loop, one pass at a time: the same code on the STM32F405 board
+//! (`boards/stm32f405`, between its `wfi`s) and in the simulator's session tests.
+//!
+//! A pass moves what the line's ring holds through the [`Carrier`] (the host's stream in carry
+//! frames, its requests), ticks the [`Firmware`] while there is mapping work, sends what the
+//! downlink has due, and once the stream has ended finishes the map, sends its last entities
+//! and its end, and answers requests and queries. A start request for a session other than the
+//! one the device is in asks the caller to reset the device into it ([`Poll::Reset`]): the new
+//! session's map then starts from a fresh boot, with nothing of the last one in RAM.
+
+use core::borrow::Borrow;
+
+use mema_core::geometry::Entity;
+use mema_core::link::downlink::{DeviceLayout, DeviceTiming, DownFrame, SessionStatus};
+use mema_core::link::frame::Address;
+use mema_core::query::brute_force;
+
+use super::{Carrier, Firmware, RX_CAPACITY, Request, Ring};
+
+/// How far a ray is followed, metres (the host's `RAY_REACH`).
+pub const RAY_REACH: f64 = 1_000.0;
+
+/// The board's account of time: each piece of work runs inside one of these, so the timing
+/// frame can say what mapping cost (a board times with its clock; a simulator need not).
+pub trait Clock {
+    /// One tick of the firmware: mapping work, its longest kept apart.
+    fn tick(&mut self, work: impl FnOnce());
+    /// The loop's other work (the carrier, the downlink).
+    fn other<T>(&mut self, work: impl FnOnce() -> T) -> T;
+    /// A query's work, and the ticks it took.
+    fn query<T>(&mut self, work: impl FnOnce() -> T) -> (T, u32);
+    /// What the work has cost so far.
+    fn timing(&self) -> DeviceTiming;
+}
+
+/// A clock that keeps no time (the timing frame then says 0).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct NoClock;
+
+impl Clock for NoClock {
+    fn tick(&mut self, work: impl FnOnce()) {
+        work()
+    }
+    fn other<T>(&mut self, work: impl FnOnce() -> T) -> T {
+        work()
+    }
+    fn query<T>(&mut self, work: impl FnOnce() -> T) -> (T, u32) {
+        (work(), 0)
+    }
+    fn timing(&self) -> DeviceTiming {
+        DeviceTiming::default()
+    }
+}
+
+/// What the caller does after a pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Poll {
+    /// Nothing more to do until bytes arrive: sleep unless [`Device::awake`] says otherwise.
+    Idle,
+    /// A host asked for a new session: reset the device and boot it into `session`, its carry
+    /// frames numbered from `first`.
+    Reset { session: u32, first: u32 },
+}
+
+/// What a boot starts from: the device's boot and the session it was reset into (`0`: none),
+/// the number of that session's first carry frame, and where its own counters start (the
+/// downlink's sequence: `0` on a board; a test starts it just before its wrap).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Boot {
+    pub address: Address,
+    pub first_carry: u32,
+    pub first_sequence: u32,
+}
+
+/// The mapping device: the firmware fed by the line through the carrier, its map sent back.
+#[derive(Debug)]
+pub struct Device<'a, const K: usize, const G: usize, const F: usize> {
+    firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>>,
+    line: &'a Ring<RX_CAPACITY>,
+    map: &'a Ring<RX_CAPACITY>,
+    carrier: Carrier,
+    layout: DeviceLayout,
+    /// The line's delimiter count at the last pass that looked at the line.
+    delimiters: u32,
+    /// A session frame is due (at boot, and again when the host asks to start the session the
+    /// device is in: its answer may have been lost).
+    announce: bool,
+    /// The finished map's entities, for queries, and the timing frame sent with the end.
+    entities: &'a mut [Entity],
+    finished: Option<(DownFrame, usize)>,
+}
+
+impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
+    /// A device in boot `boot` (`session`: the one it booted into, `0` for none), mapping into
+    /// `firmware` from `map`, the line's bytes coming into `line`; `entities` holds the finished
+    /// map for queries (up to its length).
+    pub fn new(
+        firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>>,
+        (line, map): (&'a Ring<RX_CAPACITY>, &'a Ring<RX_CAPACITY>),
+        boot: Boot,
+        layout: DeviceLayout,
+        entities: &'a mut [Entity],
+    ) -> Self {
+        firmware.set_link_address(boot.address, boot.first_sequence);
+        Self {
+            firmware,
+            line,
+            map,
+            carrier: Carrier::new(boot.address, boot.first_carry),
+            layout,
+            delimiters: 0,
+            announce: true,
+            entities,
+            finished: None,
+        }
+    }
+
+    /// Whether a pass has work without new bytes: mapping under way, carried bytes waiting, a
+    /// frame to announce.
+    pub fn awake(&self, delimiters: u32) -> bool {
+        delimiters != self.delimiters
+            || self.announce
+            || self.firmware.mapping()
+            || self.carrier.holding()
+    }
+
+    pub fn firmware(&self) -> &Firmware<K, G, F, &'a Ring<RX_CAPACITY>> {
+        self.firmware
+    }
+
+    /// One pass of the main loop; `delimiters` is the count of `0x00` bytes the line has
+    /// received (a frame can be whole only after one), `send` puts bytes on the downlink.
+    pub fn poll(
+        &mut self,
+        delimiters: u32,
+        clock: &mut impl Clock,
+        send: &mut impl FnMut(&[u8]),
+    ) -> Poll {
+        if core::mem::take(&mut self.announce) {
+            let status = if self.carrier.address().session == 0 {
+                SessionStatus::Booted
+            } else {
+                SessionStatus::Started
+            };
+            let frame = DownFrame::Session {
+                status,
+                layout: self.layout,
+            };
+            self.firmware.send_frame(&frame, &mut *send);
+        }
+        if !self.awake(delimiters) {
+            return Poll::Idle;
+        }
+        self.delimiters = delimiters;
+        let mut start: Option<(u32, u32)> = None;
+        if self.finished.is_some() {
+            // Finished: only after a delimiter (every byte's interrupt wakes the loop, and a
+            // pass over part of a frame would send a progress frame for each byte).
+            self.answer_requests(clock, send, &mut start);
+        } else {
+            self.map_what_came(clock, send, &mut start);
+        }
+        let Self {
+            firmware, carrier, ..
+        } = self;
+        clock.other(|| {
+            if let Some(report) = carrier.report_due(self.line) {
+                firmware.send_progress(report, &mut *send);
+            }
+        });
+        match start {
+            Some((session, _)) if session == self.carrier.address().session => {
+                self.announce = true;
+                Poll::Idle
+            }
+            Some((session, first)) => Poll::Reset { session, first },
+            None => Poll::Idle,
+        }
+    }
+
+    /// Answers every request the line holds.
+    fn answer_requests(
+        &mut self,
+        clock: &mut impl Clock,
+        send: &mut impl FnMut(&[u8]),
+        start: &mut Option<(u32, u32)>,
+    ) {
+        let Self {
+            firmware,
+            carrier,
+            line,
+            map,
+            entities,
+            finished,
+            ..
+        } = self;
+        while let Some((r, session)) = clock.other(|| carrier.pump(line, map)) {
+            if let Some(s) = answer(firmware, r, session, finished, entities, clock, send) {
+                *start = Some(s);
+            }
+        }
+    }
+
+    /// Until a pass neither maps nor finishes a frame nor holds carried bytes: the rings then
+    /// hold no whole frame (a tick decodes all it can), and the bytes of the next one are left
+    /// to arrive, rather than ticked through a byte at a time as they come.
+    fn map_what_came(
+        &mut self,
+        clock: &mut impl Clock,
+        send: &mut impl FnMut(&[u8]),
+        start: &mut Option<(u32, u32)>,
+    ) {
+        loop {
+            self.answer_requests(clock, send, start);
+            let firmware = &mut *self.firmware;
+            let mut frame_done = false;
+            clock.tick(|| firmware.tick(|_| frame_done = true));
+            if !(frame_done || firmware.mapping() || self.carrier.holding()) {
+                break;
+            }
+        }
+        let firmware = &mut *self.firmware;
+        clock.other(|| firmware.send_frozen(&mut *send));
+        if firmware.stats().end_of_stream && self.finished.is_none() {
+            firmware.finish();
+            self.carrier.close();
+            // What the stream cost, then the rest of the map entity by entity: the device
+            // holds no copy of the file.
+            let timing = DownFrame::Timing(clock.timing());
+            firmware.send_frame(&timing, &mut *send);
+            let _ = firmware.send_end(&mut *send);
+            let mut n = 0;
+            for (slot, e) in self.entities.iter_mut().zip(firmware.mapper().entities()) {
+                *slot = e.entity;
+                n += 1;
+            }
+            self.finished = Some((timing, n));
+        }
+    }
+}
+
+/// Answers a request of the host's: entities again, or once the map is finished the timing
+/// and end frames again, or a query of the map (the core's no_std queries, timed). A start
+/// request is handed back with its session for the loop to act on.
+fn answer<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>(
+    firmware: &mut Firmware<K, G, F, R>,
+    request: Request,
+    session: u32,
+    finished: &Option<(DownFrame, usize)>,
+    entities: &[Entity],
+    clock: &mut impl Clock,
+    send: &mut impl FnMut(&[u8]),
+) -> Option<(u32, u32)> {
+    match (request, finished) {
+        (Request::Start { first }, _) => return Some((session, first)),
+        (Request::Resend { first, count }, _) => firmware.resend(first, count, &mut *send),
+        (Request::ResendEnd, Some((timing, _))) => {
+            firmware.send_frame(timing, &mut *send);
+            let _ = firmware.send_end_again(&mut *send);
+        }
+        (
+            Request::Query {
+                number,
+                ray,
+                point,
+                direction,
+            },
+            Some((_, n)),
+        ) => {
+            let map = entities.get(..*n).unwrap_or(&[]);
+            let ((entity, value), ticks) = clock.query(|| {
+                let p = point.map(f64::from);
+                if ray {
+                    brute_force::ray_cast(map, p, direction.map(f64::from), RAY_REACH)
+                        .map_or((u32::MAX, f64::INFINITY), |h| (h.entity as u32, h.t))
+                } else {
+                    brute_force::nearest(map, p).map_or((u32::MAX, f64::INFINITY), |n| {
+                        (n.entity as u32, n.signed_distance)
+                    })
+                }
+            });
+            let frame = DownFrame::Answer {
+                query: number,
+                ray,
+                entity,
+                value,
+                ticks,
+            };
+            firmware.send_frame(&frame, &mut *send);
+        }
+        // Not finished yet: the end goes out when it is, and queries wait for the map.
+        (Request::ResendEnd | Request::Query { .. }, None) => {}
+    }
+    None
+}
