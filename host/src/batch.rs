@@ -48,6 +48,21 @@ pub struct MapReport {
     pub output: String,
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
+    /// The input's slots: `filter.read` and every point the read left out (NaN or infinite,
+    /// by class, isolated), over every scan of a registration file or message of a bag.
+    pub slots: usize,
+}
+
+impl MapReport {
+    /// Sets what `--crop` and `--voxel` left of the points read, and the slots they and the
+    /// read's drops make.
+    pub fn set_filter(&mut self, filter: FilterCounts) {
+        self.slots = filter.read
+            + self.dropped_non_finite
+            + self.dropped_by_class.total()
+            + self.outliers.dropped;
+        self.filter = filter;
+    }
 }
 
 /// How many fitted semi-axes ended on a bound of the box DE searched (`--bounds`): there the
@@ -225,7 +240,7 @@ fn paper_map(
         EntityChoice::Ellipsoid => (ellipsoids, AxesOnBound::of(&fitted.ellipsoids, false)),
         EntityChoice::Sphere => (spheres, AxesOnBound::of(&fitted.spheres, true)),
     };
-    let report = MapReport {
+    let mut report = MapReport {
         model: Model::Paper,
         memory: MemoryRow::new(cloud.points.len(), chosen.entities.len()),
         ellipsoidal,
@@ -240,11 +255,13 @@ fn paper_map(
         dropped_by_class: cloud.dropped_by_class,
         outliers: cloud.outliers,
         output: String::new(),
-        filter: FilterCounts {
-            read: cloud.points.len(),
-            ..Default::default()
-        },
+        filter: FilterCounts::default(),
+        slots: 0,
     };
+    report.set_filter(FilterCounts {
+        read: cloud.points.len(),
+        ..Default::default()
+    });
     BuiltMap {
         map: chosen,
         report,
@@ -300,7 +317,7 @@ fn shells_map(
     let errors = stage("evaluating", || {
         pipeline::cluster_errors(&cloud.points, labels, &entities)
     });
-    let report = MapReport {
+    let mut report = MapReport {
         model: Model::Shells,
         memory: MemoryRow::with_entity_bytes(
             cloud.points.len(),
@@ -319,11 +336,13 @@ fn shells_map(
         dropped_by_class: cloud.dropped_by_class,
         outliers: cloud.outliers,
         output: String::new(),
-        filter: FilterCounts {
-            read: cloud.points.len(),
-            ..Default::default()
-        },
+        filter: FilterCounts::default(),
+        slots: 0,
     };
+    report.set_filter(FilterCounts {
+        read: cloud.points.len(),
+        ..Default::default()
+    });
     let labels = match surfaces {
         Some(s) => s.labels,
         None => clusters.labels,

@@ -225,9 +225,17 @@ fn demo_needs_no_files_and_writes_its_map() {
         "{}",
         ran.stdout()
     );
-    let map = HostMap::read(&dir.join("mema-demo/map.mema")).expect("paper demo map");
+    // In a folder of its own (issue 33): the default's files stay.
+    let map = HostMap::read(&dir.join("mema-demo-paper/map.mema")).expect("paper demo map");
     assert_eq!(map.entities.len(), 250);
     assert!(map.quantization.is_none());
+    assert_eq!(dir.listing(), ["mema-demo", "mema-demo-paper"]);
+    assert!(
+        HostMap::read(&dir.join("mema-demo/map.mema"))
+            .expect("the default demo's map")
+            .quantization
+            .is_some()
+    );
     assert!(
         map.entities
             .iter()

@@ -399,3 +399,30 @@ fn a_registration_file_is_screened_as_its_scans_are() {
         ouster.non_finite, ouster.slots, json["outliers"]["dropped"]
     );
 }
+
+/// eval reads the cloud as its file holds it (no outlier screening): its `cloud points:` line
+/// adds up to the same slots.
+#[test]
+fn evals_points_line_adds_up_too() {
+    let dir = Dir::new("eval-counts");
+    for name in ["ouster_os1.conf", "five_people.pcd", "office1.pcd"] {
+        let want = counted(&shared(name));
+        map_json(&dir, name);
+        let text = MemaCommand::new(&dir)
+            .arg("eval")
+            .arg(shared(name))
+            .args(["m.mema", "--samples", "2000"])
+            .run()
+            .assert_ok()
+            .stdout();
+        let line = text
+            .lines()
+            .find(|l| l.starts_with("cloud points: "))
+            .unwrap_or_else(|| panic!("{name}: no points line:\n{text}"));
+        let mut figures = numbers(line);
+        let total = figures.pop().expect("the total");
+        assert_eq!(total, want.slots, "{name}: {line}");
+        assert_eq!(figures.iter().sum::<usize>(), want.slots, "{name}: {line}");
+        assert_eq!(figures[1], want.non_finite, "{name}: {line}");
+    }
+}

@@ -100,6 +100,8 @@ mod counts;
 mod data_sources;
 // One figure per name: map, eval, draw, info and Python agree on eq. 13 and bytes.
 mod one_figure;
+// Pictures of a street: the dense frame, --around and --radius, the horizon view.
+mod lidar_pictures;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.

@@ -226,7 +226,7 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
     let built =
         build_map(&cloud, &config, model, options.shells, options.entity).context("points")?;
     let mut report = built.report;
-    report.filter = counts;
+    report.set_filter(counts);
     warnings.extend(degenerate_warning(&report, options.fit.threshold));
     let mut report = serde_json::to_value(&report)?;
     finish_report(&mut report, unit)?;

@@ -31,6 +31,7 @@ pub struct StreamBench {
     pub k: usize,
     pub stream_entities: usize,
     pub batch_entities: usize,
+    /// Mean eq. 13 by nearest centre of the streaming map, as `mema eval` gives it.
     pub stream_mean_error: f64,
     /// Largest per-cluster eq. 13 error of the streaming map (nearest-centre membership).
     pub stream_max_error: f64,

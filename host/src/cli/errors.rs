@@ -196,7 +196,7 @@ fn config_message(e: &ConfigError) -> String {
             "--working and --tolerance do not combine: frozen clusters cannot merge".into()
         }
         ConfigError::UpAlongView => {
-            "--view sensor --up z: the sensor view looks along z; consider --up y or no --up".into()
+            "--view sensor --up z: the sensor view looks along z; consider --up y or no --up, or --view horizon for a z-up lidar".into()
         }
         ConfigError::ZeroBudget(b) => format!("--budgets {b}: a budget is at least 1 byte"),
         // The extensions' messages name no flag; any variant added later reads as the library

@@ -23,9 +23,12 @@ pub enum View {
     Front,
     /// Along -x: y right, z up.
     Side,
-    /// Along +z from the sensor, as a depth camera or a lidar's forward beam sees: x right and
-    /// y down (the camera-frame convention), or the `--up` axis up when one is given.
+    /// Along +z from the sensor, as a depth camera sees: x right and y down (the camera-frame
+    /// convention), or the `--up` axis up when one is given.
     Sensor,
+    /// Along +x, a z-up lidar's forward (ROS's REP 103): y to the left, z up. A lidar's z is
+    /// up, so the sensor view would look at its sky; this looks along its horizon.
+    Horizon,
 }
 
 /// The world axis that points up in the picture (scans are z-up, many meshes and camera
@@ -77,6 +80,7 @@ impl View {
             View::Front => "front",
             View::Side => "side",
             View::Sensor => "sensor",
+            View::Horizon => "horizon",
         }
     }
 
@@ -108,6 +112,11 @@ impl View {
                 right: [1., 0., 0.],
                 up: [0., -1., 0.],
                 forward: [0., 0., 1.],
+            },
+            View::Horizon => Camera {
+                right: [0., -1., 0.],
+                up: [0., 0., 1.],
+                forward: [1., 0., 0.],
             },
         }
     }
@@ -156,6 +165,12 @@ fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     ]
 }
 
+/// The share of points at each end of a screen axis a dense frame may leave out.
+pub const DENSE_TAIL: f64 = 0.005;
+/// How many times wider than its dense part a cloud's whole range must be for the frame to
+/// hold the dense part only.
+pub const STRAY_SPAN: f64 = 2.5;
+
 /// What a picture must hold, on the screen plane: the range of `p · right` (`s`) and of
 /// `p · up` (`t`) over the points and the entities' silhouettes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -178,6 +193,46 @@ impl Extent {
             e.include(dot(*p, camera.right), dot(*p, camera.up));
         }
         e
+    }
+
+    /// The extent of where `points` are dense: on each screen axis, the range from the
+    /// [`DENSE_TAIL`] quantile to its complement, widened by a twentieth on each side, in place
+    /// of the whole range where that is over [`STRAY_SPAN`] times wider (a lidar sweep's few
+    /// returns hundreds of metres out around a street tens of metres wide). A compact cloud
+    /// keeps its whole range, so nothing of it is cut.
+    pub fn of_dense_points(camera: &Camera, points: &[[f64; 3]]) -> Self {
+        let whole = Self::of_points(camera, points);
+        let axis = |v: [f64; 3], range: [f64; 2]| -> [f64; 2] {
+            let mut values: Vec<f64> = points.iter().map(|p| dot(*p, v)).collect();
+            values.retain(|x| x.is_finite());
+            if values.len() < 100 {
+                return range;
+            }
+            let at = |q: f64, values: &mut Vec<f64>| {
+                let i = ((values.len() - 1) as f64 * q).round() as usize;
+                *values.select_nth_unstable_by(i, f64::total_cmp).1
+            };
+            let (lo, hi) = (
+                at(DENSE_TAIL, &mut values),
+                at(1.0 - DENSE_TAIL, &mut values),
+            );
+            let pad = (hi - lo) / 20.0;
+            let dense = [lo - pad, hi + pad];
+            if range[1] - range[0] > STRAY_SPAN * (dense[1] - dense[0]) {
+                dense
+            } else {
+                range
+            }
+        };
+        Extent {
+            s: axis(camera.right, whole.s),
+            t: axis(camera.up, whole.t),
+        }
+    }
+
+    /// Whether the screen point (s, t) lies in the extent.
+    pub fn holds(&self, s: f64, t: f64) -> bool {
+        (self.s[0]..=self.s[1]).contains(&s) && (self.t[0]..=self.t[1]).contains(&t)
     }
 
     /// Grows to hold the screen point (s, t); a non-finite one is left out.
@@ -273,7 +328,14 @@ mod tests {
     /// level (front and side), and whose top view looks straight down that axis.
     #[test]
     fn cameras_turn_with_the_up_axis() {
-        let views = [View::Iso, View::Top, View::Front, View::Side, View::Sensor];
+        let views = [
+            View::Iso,
+            View::Top,
+            View::Front,
+            View::Side,
+            View::Sensor,
+            View::Horizon,
+        ];
         for view in views {
             for up in [None, Some(Up::X), Some(Up::Y), Some(Up::Z)] {
                 let Ok(c) = view.camera_with(up) else {
@@ -289,7 +351,9 @@ mod tests {
                 }
                 let axis = up.unwrap_or(Up::Z).axis();
                 match view {
-                    View::Front | View::Side => assert_eq!(c.up[axis], 1.0, "{view:?} {up:?}"),
+                    View::Front | View::Side | View::Horizon => {
+                        assert_eq!(c.up[axis], 1.0, "{view:?} {up:?}")
+                    }
                     View::Top => assert_eq!(c.forward[axis], -1.0, "{view:?} {up:?}"),
                     View::Iso => assert!(c.up[axis] > 0.8, "{view:?} {up:?}"),
                     View::Sensor => {

@@ -4,6 +4,7 @@
 use serde::Serialize;
 use std::str::FromStr;
 
+use super::camera::dot;
 use super::draw::{self, Extent, Frame, LegendEntry, Raster, ScaleBar, Style, Up, View};
 use super::export::Bounds;
 use crate::analysis::eval::evaluate;
@@ -81,6 +82,9 @@ pub struct DrawReport {
     pub up: Option<Up>,
     pub style: Style,
     pub points: usize,
+    /// Points outside the frame, which holds where the points are dense (0 for a compact
+    /// cloud: see [`super::camera::Extent::of_dense_points`]).
+    pub points_outside: usize,
     pub point_size: i64,
     pub point_colour: [u8; 3],
     pub panels: Vec<Panel>,
@@ -155,7 +159,13 @@ pub fn render(
     // Extents lie on the screen plane, whatever a frame's scale and offset, so a probe frame
     // measures them; every panel then fits the one extent into its own plot, at one scale.
     let plot_at = |i: u32| [i * panel_w + 8, top, plot_w, plot_h];
-    let mut extent = Extent::of_points(&camera, &points);
+    // Framed where the points are dense: a few strays far out must not shrink the rest to a
+    // blob (`Extent::of_dense_points`); what lies outside is counted in the report.
+    let mut extent = Extent::of_dense_points(&camera, &points);
+    let outside = points
+        .iter()
+        .filter(|p| !extent.holds(dot(**p, camera.right), dot(**p, camera.up)))
+        .count();
     let probe = Frame::fit_extent(cloud.origin, camera, &extent, plot_at(0));
     let reach = entity_reach(&extent, &probe, plot_at(0));
     for ((_, map), clips) in maps.iter().zip(&clips) {
@@ -239,6 +249,7 @@ pub fn render(
         up,
         style,
         points: points.len(),
+        points_outside: outside,
         point_size,
         point_colour: draw::POINT_COLOUR,
         panels,

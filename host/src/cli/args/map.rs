@@ -180,9 +180,10 @@ pub struct DemoArgs {
     #[arg(short, default_value_t = 250)]
     pub k: usize,
     /// Where the demo writes the scan (scan.ply), its map (map.mema) and a picture of both
-    /// (picture.png); made if missing. Each file is written whole or not at all.
-    #[arg(long, value_name = "DIR", default_value = "mema-demo")]
-    pub out_dir: PathBuf,
+    /// (picture.png); made if missing. Each file is written whole or not at all. [default:
+    /// mema-demo, mema-demo-paper with --paper, mema-demo-moving with --moving]
+    #[arg(long, value_name = "DIR")]
+    pub out_dir: Option<PathBuf>,
     #[command(flatten)]
     pub fit: FitArgs,
     /// Map the scan with the paper's method (Tables 2 and 4 with the spherical comparison)
@@ -219,4 +220,20 @@ pub struct AblationArgs {
 
 fn parse_outliers(s: &str) -> Result<mema::io::read::Outliers, String> {
     s.parse()
+}
+
+impl DemoArgs {
+    /// The demo's folder: `--out-dir`, else one per variant, so that running one variant
+    /// after another leaves each one's files.
+    pub fn out_dir(&self) -> PathBuf {
+        self.out_dir.clone().unwrap_or_else(|| {
+            PathBuf::from(if self.moving {
+                "mema-demo-moving"
+            } else if self.paper {
+                "mema-demo-paper"
+            } else {
+                "mema-demo"
+            })
+        })
+    }
 }

@@ -67,9 +67,12 @@ pub enum ViewArg {
     Front,
     /// Along -x: y right, z up.
     Side,
-    /// Along the sensor's axis, +z from its origin: x right, y down (a depth camera's or a
-    /// lidar's own frame), or the --up axis up.
+    /// Along a camera's axis, +z from its origin: x right, y down (a depth camera's frame), or
+    /// the --up axis up.
     Sensor,
+    /// Along a z-up lidar's horizon, +x (its forward, as ROS's REP 103 has it): y to the left,
+    /// z up.
+    Horizon,
 }
 
 /// `--up`: [`Up`] for the command line.
@@ -110,6 +113,7 @@ impl From<ViewArg> for View {
             ViewArg::Front => View::Front,
             ViewArg::Side => View::Side,
             ViewArg::Sensor => View::Sensor,
+            ViewArg::Horizon => View::Horizon,
         }
     }
 }
@@ -149,6 +153,18 @@ pub struct DrawArgs {
     /// `mema map --entity sphere` writes the spherical one).
     #[arg(long, value_name = "MAP")]
     pub compare: Option<PathBuf>,
+    /// Draw only the points within --radius of this world point (metres) and the entities
+    /// centred there, framed to them: a lidar sweep's street rather than its farthest strays.
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        requires = "radius",
+        allow_hyphen_values = true
+    )]
+    pub around: Option<String>,
+    /// The radius of --around, in metres.
+    #[arg(long, value_name = "R", requires = "around")]
+    pub radius: Option<f64>,
     #[command(flatten)]
     pub units: UnitsArg,
     /// Print the picture's geometry (frames, legends) as JSON.

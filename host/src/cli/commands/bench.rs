@@ -35,7 +35,7 @@ pub fn stream_bench(args: &StreamBenchArgs) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&r)?);
     } else {
         println!(
-            "{}: {} points, k = {}, model {:?}\n  entities: stream {} / batch {}\n  mean eq. 13 error: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  two-way score, stream / batch: Chamfer {:.6} / {:.6}, accuracy mean {:.6} / {:.6}, completeness mean {:.6} / {:.6}, phantom {:.3} / {:.3}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
+            "{}: {} points, k = {}, model {:?}\n  entities: stream {} / batch {}\n  eq. 13 by nearest centre (as mema eval), mean: stream {:.6} / batch {:.6} ({:+.1}%), stream max {:.6}\n  two-way score, stream / batch: Chamfer {:.6} / {:.6}, accuracy mean {:.6} / {:.6}, completeness mean {:.6} / {:.6}, phantom {:.3} / {:.3}\n  ingest, one thread: mapper {:.0} points/s ({:.1}x SRI-500), wire+mapper {:.0} points/s ({:.1}x)\n  final refit {:.3} s, {} merges",
             input_name(&args.input),
             r.points,
             r.k,

@@ -31,7 +31,7 @@ struct DemoJson<'a> {
 
 pub fn demo(args: &DemoArgs) -> Result<()> {
     let config = args.fit.config(args.k)?;
-    let dir = &args.out_dir;
+    let dir = &args.out_dir();
     std::fs::create_dir_all(dir)
         .with_context(|| format!("--out-dir {}: cannot make the directory", dir.display()))?;
     let files = DemoFiles::in_dir(dir);

@@ -48,7 +48,7 @@ pub fn demo_moving(args: &DemoArgs) -> Result<()> {
     } else {
         Model::Shells
     };
-    let dir = &args.out_dir;
+    let dir = &args.out_dir();
     std::fs::create_dir_all(dir)
         .with_context(|| format!("--out-dir {}: cannot make the directory", dir.display()))?;
     let files = DemoFiles::in_dir(dir);

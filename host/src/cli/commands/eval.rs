@@ -54,9 +54,18 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         return Ok(());
     }
     println!("cloud unit: {units}, scaled to metres; lengths below in metres");
+    // As map's points line: the points read and every drop add up to the input's slots.
+    let by_class = cloud.dropped_by_class.total();
+    let class_text = if by_class > 0 {
+        format!(", {by_class} left out by class (--classes)")
+    } else {
+        String::new()
+    };
     println!(
-        "cloud points: {} read, {} more dropped for a NaN or infinite coordinate",
-        eq13.points, cloud.dropped_non_finite
+        "cloud points: {} read, {} more dropped for a NaN or infinite coordinate{class_text}: {} in the input",
+        eq13.points,
+        cloud.dropped_non_finite,
+        eq13.points + cloud.dropped_non_finite + by_class
     );
     let record = map.layout().record_len();
     println!("Table 2: memory (12 bytes per point, {record} per entity)");

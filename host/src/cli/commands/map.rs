@@ -86,7 +86,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
         args.labels.as_deref(),
     )
     .with_context(|| input_name(&args.input))?;
-    report.filter = counts;
+    report.set_filter(counts);
     if !warn_if_degenerate(&report, args.fit.threshold, &units) {
         warn_if_on_bounds(&report, args, &units);
     }
@@ -212,13 +212,7 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
     if args.json {
         let mut doc = serde_json::to_value(&report)?;
         doc["unit"] = serde_json::to_value(&units)?;
-        doc["slots"] = slots(
-            &counts,
-            cloud.dropped_non_finite,
-            &cloud.dropped_by_class,
-            cloud.outliers.dropped,
-        )
-        .into();
+
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
@@ -270,13 +264,7 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
     if json {
         let mut doc = serde_json::to_value(r)?;
         doc["unit"] = serde_json::to_value(units)?;
-        doc["slots"] = slots(
-            &r.filter,
-            r.dropped_non_finite,
-            &r.dropped_by_class,
-            r.outliers.dropped,
-        )
-        .into();
+
         println!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }
@@ -353,7 +341,8 @@ fn points_line(
     if isolated > 0 {
         line.push_str(&format!(", {isolated} as isolated (--outliers)"));
     }
-    let slots = slots(counts, dropped, by_class, isolated);
+    // As `MapReport::set_filter` counts them (the tolerance mode's report has no drops).
+    let slots = counts.read + dropped + by_class.total() + isolated;
     line.push_str(&format!(": {slots} in the input"));
     let mut after = "; ";
     if let Some(n) = counts.cropped {
@@ -364,9 +353,4 @@ fn points_line(
         line.push_str(&format!("{after}{n} after --voxel"));
     }
     line
-}
-
-/// The input's slots: the points read and every one a read left out (`"slots"` in JSON).
-fn slots(counts: &FilterCounts, dropped: usize, by_class: &ClassDrops, isolated: usize) -> usize {
-    counts.read + dropped + by_class.total() + isolated
 }

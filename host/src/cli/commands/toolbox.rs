@@ -5,6 +5,7 @@ use clap::CommandFactory;
 use mema::io::mapfile::{HostMap, write_file_atomically};
 use mema::io::output::check_output_file;
 use mema::progress::stage;
+use mema::render::crop::Ball;
 use mema::render::export::{
     self as mesh, Bounds, ExportReport, MeshFormat, MeshSize, Tessellation,
 };
@@ -42,11 +43,34 @@ fn read_map(path: &Path) -> Result<HostMap> {
 
 pub fn draw(args: &DrawArgs) -> Result<()> {
     check_output(&args.output, &["png"], "picture")?;
+    let ball = match (&args.around, args.radius) {
+        (Some(around), Some(radius)) => {
+            let centre = super::query::parse_numbers::<3>(around, "--around")?;
+            Some(Ball::new(centre, radius).map_err(|e| UsageError(e.to_string()))?)
+        }
+        _ => None,
+    };
     let (cloud, _) = read_in_metres(&args.input, &args.units)?;
     let mut maps = vec![(file_name(&args.map), read_map(&args.map)?)];
     if let Some(other) = &args.compare {
         maps.push((file_name(other), read_map(other)?));
     }
+    let cloud = match ball {
+        Some(ball) => {
+            for (name, map) in &mut maps {
+                *map = ball.map(map);
+                if map.entities.is_empty() {
+                    anyhow::bail!(
+                        "{name}: no entity is centred within {} m of --around",
+                        ball.radius
+                    );
+                }
+            }
+            ball.cloud(&cloud)
+                .with_context(|| args.input.display().to_string())?
+        }
+        None => cloud,
+    };
     // The renderer shows its own progress, counted over the entities.
     let (raster, mut report) = render(
         &cloud,
@@ -68,6 +92,12 @@ pub fn draw(args: &DrawArgs) -> Result<()> {
             println!(
                 "{}: {} entities, eq. 13 by nearest centre {:.6} (as mema eval)",
                 p.map, p.entities, p.mean_error
+            );
+        }
+        if report.points_outside > 0 {
+            println!(
+                "frame: where the points are dense; {} of {} points lie outside it (--around X,Y,Z --radius R frames any part)",
+                report.points_outside, report.points
             );
         }
         let up = report.up.map_or(String::new(), |u| {
