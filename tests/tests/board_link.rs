@@ -14,7 +14,7 @@ use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
 use crate::device::capture_and_replay;
 use crate::stream::PtyPair;
-use crate::util::{Dir, mema_bin};
+use crate::util::Dir;
 use mema_firmware_sim::fault::LineFaults;
 
 /// A child process killed on drop.
@@ -120,35 +120,8 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
         );
         let up = relay(near, board, seed.wrapping_mul(0x9E37_79B9_7F4A_7C15), 4_000);
         let out = dir.join(&format!("board-{seed}.mema"));
-        let child = Command::new(mema_bin())
-            .arg("device")
-            .arg("--port")
-            .arg(&pair.b)
-            .arg(&capture)
-            .arg("-o")
-            .arg(&out)
-            .arg("--json")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("mema runs");
-        let mut device = Killed(child);
-        let deadline = Instant::now() + Duration::from_secs(300);
-        while device.0.try_wait().expect("wait").is_none() {
-            assert!(Instant::now() < deadline, "seed {seed}: mema device hung");
-            std::thread::sleep(Duration::from_millis(100));
-        }
-        let mut stdout = String::new();
-        let mut stderr = String::new();
-        if let Some(mut s) = device.0.stdout.take() {
-            let _ = s.read_to_string(&mut stdout);
-        }
-        if let Some(mut s) = device.0.stderr.take() {
-            let _ = s.read_to_string(&mut stderr);
-        }
-        let status = device.0.wait().expect("status");
-        assert!(status.success(), "seed {seed}: {stderr}");
-        let summary: serde_json::Value = serde_json::from_str(stdout.trim()).expect("json");
+        let (ok, summary, stderr) = crate::board_sessions::session(&pair.b, &capture, &out, None);
+        assert!(ok, "seed {seed}: {stderr}");
         let map = std::fs::read(&out).expect("the board's map");
         assert!(
             map == replayed,

@@ -18,7 +18,7 @@ use crate::util::{Dir, mema_bin};
 
 /// Runs `mema device --json` for `capture` against `port`, asking QEMU's monitor for a
 /// `system_reset` after `reset_after` if given; its exit status, summary and stderr.
-fn session(
+pub(crate) fn session(
     port: &Path,
     capture: &Path,
     out: &Path,

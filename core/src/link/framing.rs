@@ -45,10 +45,21 @@ impl core::error::Error for FramingError {}
 /// Writes the CRC-32 of `raw[..body_len]` after it, then the raw frame COBS-encoded into `out`
 /// with its delimiter; returns the bytes to send, or `None` if `raw` or `out` is too short.
 pub fn seal(raw: &mut [u8], body_len: usize, out: &mut [u8]) -> Option<usize> {
+    let len = put_crc(raw, body_len)?;
+    frame_raw(raw.get(..len)?, out)
+}
+
+/// Writes the CRC-32 of `raw[..body_len]` after it: the raw frame's length.
+pub fn put_crc(raw: &mut [u8], body_len: usize) -> Option<usize> {
     let crc = crc32(raw.get(..body_len)?);
     raw.get_mut(body_len..body_len + CRC_LEN)?
         .copy_from_slice(&crc.to_le_bytes());
-    let n = cobs_encode(raw.get(..body_len + CRC_LEN)?, out)?;
+    Some(body_len + CRC_LEN)
+}
+
+/// A raw frame (its CRC in place) COBS-encoded into `out` with its delimiter: the bytes to send.
+pub fn frame_raw(raw: &[u8], out: &mut [u8]) -> Option<usize> {
+    let n = cobs_encode(raw, out)?;
     *out.get_mut(n)? = 0;
     Some(n + 1)
 }

@@ -2,7 +2,7 @@
 
 use anyhow::{Result, bail};
 use mema_core::Point3;
-use mema_core::link::cobs::cobs_encode;
+use mema_core::link::framing;
 use mema_core::link::wire::{
     Content, FrameRepr, FrameReprV2, MAX_FRAME_LEN, MAX_POINTS, MAX_RAW_LEN, QUATERNION_ONE,
     WirePose,
@@ -36,11 +36,10 @@ pub fn dequantise(q: [i32; 3]) -> Point3 {
 fn push_framed(out: &mut Vec<u8>, raw: &[u8]) -> Result<()> {
     let start = out.len();
     out.resize(start + MAX_FRAME_LEN, 0);
-    let Some(n) = cobs_encode(raw, &mut out[start..]) else {
+    let Some(n) = framing::frame_raw(raw, &mut out[start..]) else {
         bail!("COBS buffer too small");
     };
     out.truncate(start + n);
-    out.push(0);
     Ok(())
 }
 

@@ -5,7 +5,6 @@ use super::{
     MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, QUATERNION_ONE, VERSION,
     VERSION_1, WirePose, field,
 };
-use crate::link::crc32::crc32;
 
 /// Why a raw frame was refused. Each kind is counted separately by the decoder.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -317,13 +316,11 @@ impl<T: AsRef<[u8]>> Frame<T> {
     }
 
     pub fn stored_crc(&self) -> u32 {
-        let b = self.buffer.as_ref();
-        u32_at(b, b.len().saturating_sub(CRC_LEN))
+        crate::link::framing::crcs(self.buffer.as_ref()).0
     }
 
     pub fn computed_crc(&self) -> u32 {
-        let b = self.buffer.as_ref();
-        crc32(b.get(..b.len().saturating_sub(CRC_LEN)).unwrap_or(&[]))
+        crate::link::framing::crcs(self.buffer.as_ref()).1
     }
 }
 

@@ -6,7 +6,6 @@ use super::{
     CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
     POINT_LEN, POSE_FRAME_LEN, VERSION, VERSION_1, field,
 };
-use crate::link::crc32::crc32;
 
 /// A sensor pose as the wire carries it: sensor to world, `x_world = R(q) x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -44,11 +43,11 @@ fn emit_points(body: &mut [u8], points: &[[i32; 3]]) {
     }
 }
 
-/// Splits `out` into the frame's first `len - 4` bytes and its CRC, zeroed; `None` if short.
-fn frame_buffer(out: &mut [u8], len: usize) -> Option<(&mut [u8], &mut [u8])> {
+/// The first `len - 4` bytes of `out`, zeroed, the CRC's four zeroed after them; `None` if short.
+fn frame_body(out: &mut [u8], len: usize) -> Option<&mut [u8]> {
     let out = out.get_mut(..len)?;
     out.fill(0);
-    Some(out.split_at_mut(len.checked_sub(CRC_LEN)?))
+    out.get_mut(..len.checked_sub(CRC_LEN)?)
 }
 
 /// The header fields both versions share.
@@ -88,7 +87,7 @@ impl FrameRepr<'_> {
             return None;
         }
         let len = self.buffer_len();
-        let (body, crc_bytes) = frame_buffer(out, len)?;
+        let body = frame_body(out, len)?;
         let flags = if self.end_of_stream {
             FLAG_END_OF_STREAM
         } else {
@@ -104,8 +103,7 @@ impl FrameRepr<'_> {
             self.unit_exponent,
         )?;
         emit_points(points, self.points);
-        crc_bytes.copy_from_slice(&crc32(body).to_le_bytes());
-        Some(len)
+        crate::link::framing::put_crc(out, len - CRC_LEN)
     }
 }
 
@@ -144,7 +142,7 @@ impl FrameReprV2<'_> {
     /// one is written as given; the receiver refuses it.)
     pub fn emit(&self, out: &mut [u8]) -> Option<usize> {
         let len = self.buffer_len();
-        let (body, crc_bytes) = frame_buffer(out, len)?;
+        let body = frame_body(out, len)?;
         let flags = (u8::from(self.end_of_stream) * FLAG_END_OF_STREAM)
             | (u8::from(self.session_start) * FLAG_SESSION_START);
         let (header, rest) = body.split_at_mut(HEADER_LEN);
@@ -176,7 +174,6 @@ impl FrameReprV2<'_> {
         header
             .get_mut(field::POSE_NUMBER)?
             .copy_from_slice(&number.to_le_bytes());
-        crc_bytes.copy_from_slice(&crc32(body).to_le_bytes());
-        Some(len)
+        crate::link::framing::put_crc(out, len - CRC_LEN)
     }
 }
