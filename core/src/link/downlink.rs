@@ -387,6 +387,9 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
             let shift = [r.f32()?, r.f32()?, r.f32()?];
             let origin = [r.f64()?, r.f64()?, r.f64()?];
             let layout = match code {
+                // The grid is `0` but in the quantized layout (PROTOCOL.md): other bytes there
+                // would be a second end frame for one map (found by `downlink_decoder`).
+                0 | 1 if grid.iter().any(|g| g.to_bits() != 0) => return Err(LinkError::Value),
                 0 => Layout::AxisAligned,
                 1 => Layout::Oriented,
                 2 => {

@@ -325,3 +325,44 @@ fn protocol_examples() -> TestResult {
     }
     Ok(())
 }
+
+/// An end frame of the axis-aligned or oriented layout whose grid is not `0` (PROTOCOL.md), a
+/// `-0.0` included, is refused: read as its layout, it would re-encode to other bytes, a second
+/// end frame for one map (what the `downlink_decoder` fuzz target checks).
+#[test]
+fn an_end_with_a_grid_outside_the_quantized_layout_is_refused() -> TestResult {
+    for layout in [Layout::AxisAligned, Layout::Oriented] {
+        let end = DownFrame::End(MapEnd {
+            entities: 3,
+            layout,
+            shift: [0.5, 0.0, -1.0],
+            origin: [512_000.25, -3.5, 1_024.0],
+            map_len: 86,
+            map_crc: 0x1234_5678,
+            points: 256,
+            frames: 2,
+        });
+        let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = encode(FROM, 4, &end, &mut wire).or_fail("encodes")?;
+        let raw = decode_block(wire.get_mut(..n - 1).or_fail("block")?).or_fail("COBS")?;
+        assert_eq!(decode(raw).or_fail("decodes")?.2, end);
+        let mut copy = [0u8; MAX_RAW_LEN];
+        let copy = copy.get_mut(..raw.len()).or_fail("room")?;
+        copy.copy_from_slice(raw);
+        // The grid's first f32 (payload offset 5) as -0.0, then as 0.5.
+        for (at, byte) in [(HEADER_LEN + 8, 0x80), (HEADER_LEN + 8, 0x3f)] {
+            *copy.get_mut(at).or_fail("grid")? = byte;
+            let body = copy.len() - CRC_LEN;
+            let crc = crc32(copy.get(..body).or_fail("body")?);
+            copy.get_mut(body..)
+                .or_fail("crc")?
+                .copy_from_slice(&crc.to_le_bytes());
+            assert_eq!(
+                decode(copy).map(|d| d.2),
+                Err(LinkError::Value),
+                "{layout:?}"
+            );
+        }
+    }
+    Ok(())
+}
