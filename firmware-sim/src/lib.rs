@@ -27,6 +27,8 @@ pub mod budget;
 #[cfg(feature = "reference")]
 pub mod compare;
 #[cfg(feature = "std")]
+pub mod fuzz_checks;
+#[cfg(feature = "std")]
 pub mod harness;
 #[cfg(feature = "std")]
 pub mod pacing;
