@@ -14,11 +14,12 @@
 use mema_core::geometry::{Entity, Point3};
 use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
 use mema_core::link::crc32::crc32;
-use mema_core::link::downlink::DeviceLayout;
+use mema_core::link::downlink::{self, DeviceLayout, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::link::frame::Address;
 use mema_core::link::framing::CRC_LEN;
 use mema_core::link::uplink::{self, MAX_CARRIED, MAX_UP_FRAME_LEN, UpFrame};
 use mema_core::link::wire::{FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN};
+use mema_core::map::Layout;
 
 use crate::firmware::device::{Boot, Device, NoClock, Poll};
 use crate::firmware::{
@@ -406,6 +407,25 @@ pub fn tiny_session(first_carry: u32) -> TinySession {
     }
 }
 
+/// A downlink frame (its delimiter included) as it is, or if an end frame, saying the
+/// oriented layout.
+fn as_oriented(frame: &[u8]) -> Vec<u8> {
+    let mut raw = frame[..frame.len() - 1].to_vec();
+    let Some(n) = cobs_decode_in_place(&mut raw) else {
+        return frame.to_vec();
+    };
+    let Ok((from, sequence, DownFrame::End(end))) = downlink::decode(&raw[..n]) else {
+        return frame.to_vec();
+    };
+    let end = DownFrame::End(MapEnd {
+        layout: Layout::Oriented,
+        ..end
+    });
+    let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+    let n = downlink::encode(from, sequence, &end, &mut wire).unwrap_or(0);
+    wire[..n].to_vec()
+}
+
 /// The blocks of a stream with their delimiters: one frame each.
 fn frames_of(bytes: &[u8]) -> Vec<Vec<u8>> {
     bytes
@@ -467,10 +487,14 @@ pub fn link_seeds() -> Vec<(&'static str, String, Vec<u8>)> {
         let mut lost = frames.clone();
         lost.remove(frames.len() / 2);
         let lost = lost.concat();
+        // The end saying the oriented layout (its length and CRC then not the map's: the
+        // assembler's check makes them right), so mutations reach full-precision records.
+        let oriented: Vec<u8> = frames.iter().flat_map(|f| as_oriented(f)).collect();
         for (name, piece, crcs_right, expected, bytes) in [
             ("whole", 63u8, true, (s.points, s.frames), &s.downlink),
             ("unexpected", 0, false, (0, 0), &s.downlink),
             ("lost", 200, true, (s.points, s.frames), &lost),
+            ("oriented", 31, true, (s.points, s.frames), &oriented),
         ] {
             let mut input = vec![piece, u8::from(crcs_right)];
             for v in [s.address.session, expected.0, expected.1] {

@@ -138,6 +138,13 @@ fn check_down(raw: &[u8]) -> Result<bool, Violation> {
                 && e.center.is_finite()
                 && e.weights.iter().all(|w| w.is_finite() && *w >= 0.0)
                 && [r.x, r.y, r.z, r.w].iter().all(|q| q.is_finite())
+                && libm::fabs(
+                    [r.x, r.y, r.z, r.w]
+                        .iter()
+                        .map(|&q| f64::from(q) * f64::from(q))
+                        .sum::<f64>()
+                        - 1.0,
+                ) <= 1e-5
         }
         DownFrame::End(end) => {
             end.entities <= MAX_MAP_ENTITIES

@@ -363,7 +363,14 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
                 && [rotation.x, rotation.y, rotation.z, rotation.w]
                     .iter()
                     .all(|q| q.is_finite());
-            if !finite {
+            // A unit quaternion, within the map file's own tolerance (`map::record`, 1e-5 on
+            // the squared norm in f64): another would make the host write a map that no
+            // reader takes (found by the `map_frames` fuzz check).
+            let norm2: f64 = [rotation.x, rotation.y, rotation.z, rotation.w]
+                .iter()
+                .map(|&q| f64::from(q) * f64::from(q))
+                .sum();
+            if !finite || !((norm2 - 1.0).abs() <= 1e-5) {
                 return Err(LinkError::Value);
             }
             let entity = Entity {

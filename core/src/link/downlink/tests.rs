@@ -366,3 +366,37 @@ fn an_end_with_a_grid_outside_the_quantized_layout_is_refused() -> TestResult {
     }
     Ok(())
 }
+
+/// An entity frame whose rotation is not a unit quaternion (within the map file's 1e-5 on the
+/// squared norm) is refused: the host would rebuild from it a map no reader takes, though its
+/// length and CRC were the device's (the `map_frames` fuzz check's finding, on an end saying
+/// the oriented layout). One within the tolerance is taken.
+#[test]
+fn an_entity_whose_rotation_is_not_unit_is_refused() -> TestResult {
+    for (w, taken) in [(2.0f32, false), (1.0 + 1e-5, false), (1.0 + 2e-6, true)] {
+        let entity = MapEntity {
+            entity: Entity {
+                center: Point3::new(1.5, -2.0, 0.25),
+                weights: [4.0, 1.0, 100.0],
+                rotation: Rotation {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w,
+                },
+            },
+            kind: EntityKind::Ellipsoid,
+        };
+        let frame = DownFrame::Entity { index: 3, entity };
+        let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = encode(FROM, 9, &frame, &mut wire).or_fail("encodes")?;
+        let raw = decode_block(wire.get_mut(..n - 1).or_fail("block")?).or_fail("COBS")?;
+        let got = decode(raw);
+        if taken {
+            assert_eq!(got.or_fail("decodes")?.2, frame);
+        } else {
+            assert_eq!(got.map(|d| d.2), Err(LinkError::Value), "w = {w}");
+        }
+    }
+    Ok(())
+}
