@@ -1,7 +1,7 @@
 //! The board's receiver of the host's frames ([`Carrier`]) on any bytes, and the seeds of the
 //! link's fuzz targets: the property `firmware-sim/fuzz`'s `carrier` target checks under
 //! cargo-fuzz (`scripts/fuzz.sh`) and the test suite checks on mutations of the same seeds
-//! (`tests/tests/fuzzing_link.rs`), one definition for both.
+//! (`tests/tests/fuzzing.rs`), one definition for both.
 //!
 //! The property: the carrier, fed through a line [`Ring`] in pieces and passing on into a
 //! small map ring drained a few bytes at a time (so it holds carried bytes while the map ring

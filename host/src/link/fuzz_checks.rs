@@ -1,6 +1,6 @@
 //! The host's assembler of a device's frames ([`MapFrames`]) on any bytes: the property
 //! `host/fuzz`'s `map_frames` target checks under cargo-fuzz (`scripts/fuzz.sh`) and the test
-//! suite checks on mutations of the same seeds (`tests/tests/fuzzing_link.rs`).
+//! suite checks on mutations of the same seeds (`tests/tests/fuzzing.rs`).
 //!
 //! The same bytes fed whole and in pieces of other sizes give the same counts, entities, end
 //! and map; no more entities than frames taken; the counts are those of a model written apart
