@@ -4,8 +4,12 @@
 # clouds' maps in every layout; `wire_decoder`, with their captures) and the host's readers
 # (host/fuzz: `cloud_readers`, PLY, PCD, LAS/LAZ, XYZ and KITTI seeded with the clouds
 # themselves; `bag_messages`, the CDR of the PointCloud2 and TFMessage messages of the bags the
-# bag tests write with rosbags). The test suite checks the same properties on mutations of the
-# same seeds on stable (tests/tests/fuzzing.rs); this is the long campaign.
+# bag tests write with rosbags) and the link's frames (core/fuzz: `uplink_decoder` and
+# `downlink_decoder`; firmware-sim/fuzz: `carrier`, the board's receiver of the host's frames;
+# host/fuzz: `map_frames`, the host's assembler of the device's), seeded with a tiny session
+# between a host and the board's loop (firmware-sim/examples/link_seeds.rs: a few frames each,
+# so a campaign makes thousands of runs a second). The test suite checks the same properties on
+# mutations of the same seeds on stable (tests/tests/fuzzing.rs); this is the long campaign.
 #
 # A finding does not end a campaign: each runs in libFuzzer's fork mode and goes on past
 # crashes, timeouts and running out of memory, and keeps every input that caused one in
@@ -36,6 +40,9 @@ for cloud in car6.pcd lamppost.pcd bun_zipper.ply milk.pcd; do
   { printf '\x0c'; cat "$corpus/capture.bin"; } > "$corpus/wire_decoder/$cloud.bin"
 done
 rm -f "$corpus/capture.bin"
+# The link's targets: frames of a tiny session, the carrier's line and the assembler's bytes
+# with their headers (mema_firmware_sim::fuzz_checks::link_seeds).
+cargo run -q --release -p mema-firmware-sim --example link_seeds -- "$corpus"
 
 # The readers' target reads its input under the name its first byte picks
 # (mema::io::read::fuzz_checks::NAMES: 0 .ply, 1 .pcd, 2 .las, 3 .laz, 4 .xyz, 5 .bin), since
@@ -100,12 +107,16 @@ campaign() {
 
 campaign core/fuzz map_decoder 262144
 campaign core/fuzz wire_decoder 262144
+campaign core/fuzz uplink_decoder 8192
+campaign core/fuzz downlink_decoder 8192
+campaign firmware-sim/fuzz carrier 8192
 # Built as the binary ships (-O: no debug assertions). With them, the laz crate's decoder stops
 # a campaign within seconds at its own debug_assert!(sym < 1 << 16) (decoders.rs:284) on corrupt
 # arithmetic-coded data, where a release build reads on and the reader returns its one-line
 # error.
 campaign host/fuzz cloud_readers 1048576 -O
 campaign host/fuzz bag_messages 1048576 -O
+campaign host/fuzz map_frames 8192 -O
 
 echo "== campaigns (findings kept in $findings/TARGET, logs in target/fuzz-TARGET.log)"
 printf '%s\n' "${summary[@]}"

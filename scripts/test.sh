@@ -32,6 +32,7 @@ cargo build -p mema-core --no-default-features
 echo "== fuzz targets build (campaigns: scripts/fuzz.sh; their properties are tested below)"
 (cd core/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 (cd host/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
+(cd firmware-sim/fuzz && cargo fmt --check && cargo clippy -q -- -D warnings)
 echo "== the host library builds without the command line (no clap)"
 cargo check -p mema --lib --no-default-features
 echo "== the library's documentation builds without warnings"

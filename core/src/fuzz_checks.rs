@@ -7,6 +7,9 @@ use crate::link::crc32::crc32;
 use crate::link::wire::{Decoded, Decoder};
 use crate::map::{CRC_LEN, Layout, MapEntity, MapFile, encode_as};
 
+mod link;
+pub use link::{FramesOutcome, MAX_CHECKED_BLOCK, downlink_frames, uplink_frames};
+
 /// A property a decoder broke.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Violation {
@@ -18,6 +21,11 @@ pub enum Violation {
     ChunkingChangedFrames,
     /// The wire decoder's counters disagree with what it returned.
     CountersDisagree,
+    /// A host-device frame the decoder accepted does not re-encode, with the address and
+    /// number it decoded, to the raw frame it came from.
+    FrameNoRoundTrip,
+    /// A host-device frame the decoder accepted carries a value outside the protocol's bounds.
+    FrameOutOfBounds,
 }
 
 /// Largest map the check re-encodes (the scratch buffer is on the stack).

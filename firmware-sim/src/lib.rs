@@ -6,7 +6,7 @@
 //!   runs, peak use tracked, a second owner of the state refused.
 //!
 //! With the `std` feature: [`harness`] drives source, board and firmware and logs what was
-//! accepted. With `reference`: an independent f64 reference on `nalgebra` ([`mod@reference`]) and
+//! accepted, and [`fuzz_checks`] holds the carrier's fuzz property and the link's seeds. With `reference`: an independent f64 reference on `nalgebra` ([`mod@reference`]) and
 //! its comparison with the core ([`compare`]), and the memory budget report ([`budget`]).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_debug_implementations)]
@@ -18,6 +18,8 @@ pub mod fault;
 pub mod budget;
 #[cfg(feature = "reference")]
 pub mod compare;
+#[cfg(feature = "std")]
+pub mod fuzz_checks;
 #[cfg(feature = "std")]
 pub mod harness;
 #[cfg(feature = "std")]

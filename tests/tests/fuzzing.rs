@@ -233,3 +233,122 @@ fn cloud_readers_hold_their_properties_on_mutated_real_files() {
         "{clouds} clouds, {errors} errors"
     );
 }
+
+/// The link's seeds for `target` (`mema_firmware_sim::fuzz_checks::link_seeds`, what
+/// `scripts/fuzz.sh` seeds the campaigns with).
+fn link_seeds(target: &str) -> Vec<(String, Vec<u8>)> {
+    let seeds: Vec<_> = mema_firmware_sim::fuzz_checks::link_seeds()
+        .into_iter()
+        .filter(|(t, _, _)| *t == target)
+        .map(|(_, name, bytes)| (name, bytes))
+        .collect();
+    assert!(seeds.len() >= 6, "{target}: {} seeds", seeds.len());
+    seeds
+}
+
+/// Both decoders on mutations of a tiny session's frames, each block also with its CRC made
+/// right: whatever they accept re-encodes to its raw frame, within the protocol's bounds
+/// (`fuzz_checks::{uplink_frames, downlink_frames}`, the campaigns' properties). Both outcomes
+/// are reached: mutations past the CRC are refused and taken alike.
+#[test]
+fn link_decoders_re_encode_what_they_take_from_mutated_session_frames() {
+    use mema_core::fuzz_checks::{FramesOutcome, downlink_frames, uplink_frames};
+    let mut m = Mutator(0x6a09_e667_f3bc_c909);
+    type Check = fn(&[u8]) -> Result<FramesOutcome, mema_core::fuzz_checks::Violation>;
+    for (target, check) in [
+        ("uplink_decoder", uplink_frames as Check),
+        ("downlink_decoder", downlink_frames as Check),
+    ] {
+        let mut total = FramesOutcome::default();
+        for (name, seed) in link_seeds(target) {
+            let itself = check(&seed).unwrap_or_else(|v| panic!("{target} {name}: {v:?}"));
+            assert!(
+                itself.decoded > 0 && itself.refused == 0,
+                "{name}: {itself:?}"
+            );
+            for round in 0..1_500 {
+                let bytes = m.mutate(&seed, round);
+                let got = check(&bytes).unwrap_or_else(|v| panic!("{name}, round {round}: {v:?}"));
+                total.decoded += got.decoded;
+                total.refused += got.refused;
+            }
+        }
+        assert!(
+            total.decoded > 10_000 && total.refused > 5_000,
+            "{target}: {total:?}"
+        );
+    }
+}
+
+/// The board's carrier on mutations of a tiny session's line (its body, and now and then
+/// its piece and drain sizes): it passes on exactly the carry frames' bytes, hands on exactly
+/// the requests and reports what a plain model of the same bytes says
+/// (`mema_firmware_sim::fuzz_checks::carrier`).
+#[test]
+fn carrier_passes_on_what_a_plain_model_says_of_mutated_lines() {
+    use mema_firmware_sim::fuzz_checks::{CARRIER_HEADER, carrier};
+    let mut m = Mutator(0xbb67_ae85_84ca_a73b);
+    let (mut passed, mut refused, mut requests) = (0, 0, 0);
+    for (name, seed) in link_seeds("carrier") {
+        let itself = carrier(&seed).unwrap_or_else(|v| panic!("{name}: {v:?}"));
+        assert!(
+            itself.passed > 0 && itself.requests > 0,
+            "{name}: {itself:?}"
+        );
+        let (header, body) = seed.split_at(CARRIER_HEADER);
+        for round in 0..1_500 {
+            let mut input = header.to_vec();
+            if round % 5 == 0 {
+                input[0] = m.next() as u8;
+                input[1] = m.next() as u8;
+            }
+            // Every other round with the CRCs made right, so mutations reach the fields.
+            input[2] = (round % 2) as u8;
+            input.extend(m.mutate(body, round));
+            let got = carrier(&input).unwrap_or_else(|v| panic!("{name}, round {round}: {v:?}"));
+            passed += got.passed;
+            refused += got.refused;
+            requests += got.requests;
+        }
+    }
+    assert!(
+        passed > 1_000_000 && refused > 5_000 && requests > 5_000,
+        "{passed} bytes passed on, {refused} refused, {requests} requests"
+    );
+}
+
+/// The host's assembler on mutations of a tiny session's downlink: the same account in any
+/// pieces, the model's counts, and a map only of the end's length and CRC that reads back,
+/// also once they are made right (`mema::link::fuzz_checks::map_frames`). The seeds reach
+/// the map (but the one with a frame lost), and so do many mutations.
+#[test]
+fn map_frames_give_one_account_and_only_the_devices_map_on_mutated_downlinks() {
+    use mema::link::fuzz_checks::{FRAMES_HEADER, map_frames};
+    let mut m = Mutator(0x3c6e_f372_fe94_f82b);
+    let (mut maps, mut made_right, mut ended) = (0, 0, 0);
+    for (name, seed) in link_seeds("map_frames") {
+        let itself = map_frames(&seed).unwrap_or_else(|v| panic!("{name}: {v:?}"));
+        // With a frame lost, no map; the oriented end's length and CRC are made right.
+        let (lost, oriented) = (name.ends_with("lost"), name.ends_with("oriented"));
+        assert_eq!(itself.map, !lost && !oriented, "{name}: {itself:?}");
+        assert_eq!(itself.map_made_right, !lost, "{name}: {itself:?}");
+        assert!(itself.ended && itself.entities > 0, "{name}: {itself:?}");
+        let (header, body) = seed.split_at(FRAMES_HEADER);
+        for round in 0..1_000 {
+            let mut input = header.to_vec();
+            if round % 5 == 0 {
+                input[0] = m.next() as u8;
+            }
+            input[1] = (round % 2) as u8;
+            input.extend(m.mutate(body, round));
+            let got = map_frames(&input).unwrap_or_else(|v| panic!("{name}, round {round}: {v:?}"));
+            maps += usize::from(got.map);
+            made_right += usize::from(got.map_made_right);
+            ended += usize::from(got.ended);
+        }
+    }
+    assert!(
+        maps > 1_000 && made_right > 1_000 && ended > 3_000,
+        "{maps} maps, {made_right} made right, {ended} ended"
+    );
+}

@@ -376,7 +376,14 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
                 && [rotation.x, rotation.y, rotation.z, rotation.w]
                     .iter()
                     .all(|q| q.is_finite());
-            if !finite {
+            // A unit quaternion, within the map file's own tolerance (`map::record`, 1e-5 on
+            // the squared norm in f64): another would make the host write a map that no
+            // reader takes (found by the `map_frames` fuzz check).
+            let norm2: f64 = [rotation.x, rotation.y, rotation.z, rotation.w]
+                .iter()
+                .map(|&q| f64::from(q) * f64::from(q))
+                .sum();
+            if !finite || !((norm2 - 1.0).abs() <= 1e-5) {
                 return Err(LinkError::Value);
             }
             let entity = Entity {
@@ -400,6 +407,9 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
             let shift = [r.f32()?, r.f32()?, r.f32()?];
             let origin = [r.f64()?, r.f64()?, r.f64()?];
             let layout = match code {
+                // The grid is `0` but in the quantized layout (PROTOCOL.md): other bytes there
+                // would be a second end frame for one map (found by `downlink_decoder`).
+                0 | 1 if grid.iter().any(|g| g.to_bits() != 0) => return Err(LinkError::Value),
                 0 => Layout::AxisAligned,
                 1 => Layout::Oriented,
                 2 => {

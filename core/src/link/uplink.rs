@@ -135,6 +135,11 @@ pub fn decode(raw: &[u8]) -> Result<(Address, UpFrame<'_>), LinkError> {
     let frame = LinkFrame::new_checked(raw, UPLINK_VERSION)?;
     let address = frame.address();
     let number = frame.number();
+    // Only carry frames and queries carry a number; the other requests' is `0` (PROTOCOL.md),
+    // so no two frames mean one request (found by the `uplink_decoder` fuzz target).
+    if !matches!(frame.kind(), KIND_CARRY | KIND_QUERY) && number != 0 {
+        return Err(LinkError::Value);
+    }
     let up = match frame.kind() {
         KIND_CARRY => {
             let bytes = frame.payload();

@@ -331,3 +331,78 @@ fn protocol_examples() -> TestResult {
     }
     Ok(())
 }
+
+/// An end frame of the axis-aligned or oriented layout whose grid is not `0` (PROTOCOL.md), a
+/// `-0.0` included, is refused: read as its layout, it would re-encode to other bytes, a second
+/// end frame for one map (what the `downlink_decoder` fuzz target checks).
+#[test]
+fn an_end_with_a_grid_outside_the_quantized_layout_is_refused() -> TestResult {
+    for layout in [Layout::AxisAligned, Layout::Oriented] {
+        let end = DownFrame::End(MapEnd {
+            entities: 3,
+            layout,
+            shift: [0.5, 0.0, -1.0],
+            origin: [512_000.25, -3.5, 1_024.0],
+            map_len: 86,
+            map_crc: 0x1234_5678,
+            points: 256,
+            frames: 2,
+        });
+        let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = encode(FROM, 4, &end, &mut wire).or_fail("encodes")?;
+        let raw = decode_block(wire.get_mut(..n - 1).or_fail("block")?).or_fail("COBS")?;
+        assert_eq!(decode(raw).or_fail("decodes")?.2, end);
+        let mut copy = [0u8; MAX_RAW_LEN];
+        let copy = copy.get_mut(..raw.len()).or_fail("room")?;
+        copy.copy_from_slice(raw);
+        // The grid's first f32 (payload offset 5) as -0.0, then as 0.5.
+        for (at, byte) in [(HEADER_LEN + 8, 0x80), (HEADER_LEN + 8, 0x3f)] {
+            *copy.get_mut(at).or_fail("grid")? = byte;
+            let body = copy.len() - CRC_LEN;
+            let crc = crc32(copy.get(..body).or_fail("body")?);
+            copy.get_mut(body..)
+                .or_fail("crc")?
+                .copy_from_slice(&crc.to_le_bytes());
+            assert_eq!(
+                decode(copy).map(|d| d.2),
+                Err(LinkError::Value),
+                "{layout:?}"
+            );
+        }
+    }
+    Ok(())
+}
+
+/// An entity frame whose rotation is not a unit quaternion (within the map file's 1e-5 on the
+/// squared norm) is refused: the host would rebuild from it a map no reader takes, though its
+/// length and CRC were the device's (the `map_frames` fuzz check's finding, on an end saying
+/// the oriented layout). One within the tolerance is taken.
+#[test]
+fn an_entity_whose_rotation_is_not_unit_is_refused() -> TestResult {
+    for (w, taken) in [(2.0f32, false), (1.0 + 1e-5, false), (1.0 + 2e-6, true)] {
+        let entity = MapEntity {
+            entity: Entity {
+                center: Point3::new(1.5, -2.0, 0.25),
+                weights: [4.0, 1.0, 100.0],
+                rotation: Rotation {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w,
+                },
+            },
+            kind: EntityKind::Ellipsoid,
+        };
+        let frame = DownFrame::Entity { index: 3, entity };
+        let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = encode(FROM, 9, &frame, &mut wire).or_fail("encodes")?;
+        let raw = decode_block(wire.get_mut(..n - 1).or_fail("block")?).or_fail("COBS")?;
+        let got = decode(raw);
+        if taken {
+            assert_eq!(got.or_fail("decodes")?.2, frame);
+        } else {
+            assert_eq!(got.map(|d| d.2), Err(LinkError::Value), "w = {w}");
+        }
+    }
+    Ok(())
+}

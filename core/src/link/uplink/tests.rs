@@ -111,3 +111,33 @@ fn a_damaged_carry_frame_is_refused() -> TestResult {
     );
     Ok(())
 }
+
+/// A request whose number is not `0` where PROTOCOL.md says it is (resend, resend the end,
+/// start) is refused: read as the request, it would re-encode to other bytes, so two frames
+/// would mean one request (the `uplink_decoder` fuzz target's first finding: a resend-the-end
+/// numbered 9).
+#[test]
+fn a_request_numbered_where_none_is_is_refused() -> TestResult {
+    for request in [
+        Request::Resend { first: 7, count: 3 },
+        Request::ResendEnd,
+        Request::Start { first: 5 },
+    ] {
+        let mut wire = [0u8; MAX_UP_FRAME_LEN];
+        let n = encode(TO, &UpFrame::Request(request), &mut wire).or_fail("encodes")?;
+        let block = wire.get_mut(..n - 1).or_fail("block")?;
+        let raw_len = decode_block(block).or_fail("a block")?.len();
+        // The number field set to 9, the CRC made right again.
+        let mut raw = [0u8; MAX_UP_RAW_LEN];
+        let raw = raw.get_mut(..raw_len).or_fail("room")?;
+        raw.copy_from_slice(block.get(..raw_len).or_fail("raw")?);
+        assert_eq!(decode(raw).map(|(_, f)| f), Ok(UpFrame::Request(request)));
+        raw[10] = 9;
+        let crc = crate::link::crc32::crc32(raw.get(..raw_len - CRC_LEN).or_fail("body")?);
+        raw.get_mut(raw_len - CRC_LEN..)
+            .or_fail("crc")?
+            .copy_from_slice(&crc.to_le_bytes());
+        assert_eq!(decode(raw), Err(LinkError::Value), "{request:?}");
+    }
+    Ok(())
+}

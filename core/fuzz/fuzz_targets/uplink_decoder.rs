@@ -1,0 +1,12 @@
+//! Any bytes as host-to-device frames, each block as it is and with its CRC made right: what
+//! the uplink decoder accepts is within the protocol's bounds and re-encodes to its raw frame.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use mema_core::fuzz_checks::uplink_frames;
+
+fuzz_target!(|data: &[u8]| {
+    if let Err(violation) = uplink_frames(data) {
+        panic!("{violation:?}");
+    }
+});
