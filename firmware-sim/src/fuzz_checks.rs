@@ -21,8 +21,8 @@ use mema_core::link::uplink::{self, MAX_CARRIED, MAX_UP_FRAME_LEN, UpFrame};
 use mema_core::link::wire::{FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN};
 use mema_core::map::Layout;
 
-use crate::firmware::device::{Boot, Device, NoClock, Poll};
-use crate::firmware::{
+use mema_firmware::device::{Boot, Device, NoClock, Poll};
+use mema_firmware::{
     Carrier, Firmware, IMAGE_REACH, RX_CAPACITY, Request, Ring, SHELLS, model_params,
 };
 
