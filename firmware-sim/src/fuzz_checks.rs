@@ -214,7 +214,9 @@ pub fn carrier(data: &[u8]) -> Result<CarrierOutcome, CarrierViolation> {
     if got != expected {
         return Err(CarrierViolation::Requests { got, expected });
     }
-    // The line has gone quiet with every byte taken: a report is due, and says it all.
+    // The line has gone quiet with every byte taken and the stream has ended: a report is due,
+    // and says it all (mid-stream a quiet line is not reported: PROGRESS_EVERY bytes are).
+    c.close();
     let report = c.report_due(&line).map(|r| (r.taken, r.next, r.refused));
     let want = (!bytes.is_empty()).then_some((bytes.len() as u32, x.next, x.refused));
     if report != want {
