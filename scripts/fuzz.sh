@@ -102,7 +102,7 @@ campaign() {
   found=$(find "$findings/$target" -type f -newer "$started" | wc -l)
   total=$((total + found))
   grep -E '^(#[0-9]+:|INFO: (fuzzed|exiting)|==[0-9]+==ERROR|.*panicked)' "$log" | tail -4 || true
-  summary+=("$(printf '%-14s %8s s %12s runs %4s findings' "$target" "$seconds" "${runs:-0}" "$found")")
+  summary+=("$(printf '%-17s %5s s %12s runs %4s findings' "$target" "$seconds" "${runs:-0}" "$found")")
 }
 
 campaign core/fuzz map_decoder 262144

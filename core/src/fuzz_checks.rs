@@ -8,7 +8,9 @@ use crate::link::wire::{Decoded, Decoder};
 use crate::map::{CRC_LEN, Layout, MapEntity, MapFile, encode_as};
 
 mod link;
-pub use link::{FramesOutcome, MAX_CHECKED_BLOCK, downlink_frames, uplink_frames};
+pub use link::{
+    FramesOutcome, MAX_CHECKED_BLOCK, crcs_made_right, downlink_frames, plain_blocks, uplink_frames,
+};
 
 /// A property a decoder broke.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

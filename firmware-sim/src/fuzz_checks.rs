@@ -11,12 +11,11 @@
 //! it: the bytes split at every `0x00`, each block COBS-decoded in place by the plain decoder
 //! and read by `uplink::decode`, then the protocol's rules (PROTOCOL.md, "Host to device").
 
+use mema_core::fuzz_checks::{crcs_made_right, plain_blocks};
 use mema_core::geometry::{Entity, Point3};
-use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
-use mema_core::link::crc32::crc32;
+use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode};
 use mema_core::link::downlink::{self, DeviceLayout, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::link::frame::Address;
-use mema_core::link::framing::CRC_LEN;
 use mema_core::link::uplink::{self, MAX_CARRIED, MAX_UP_FRAME_LEN, UpFrame};
 use mema_core::link::wire::{FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN};
 use mema_core::map::Layout;
@@ -98,20 +97,13 @@ fn model(address: Address, first: u32, bytes: &[u8]) -> Expected {
         next: first,
         ..Expected::default()
     };
-    let mut blocks: Vec<&[u8]> = bytes.split(|&b| b == 0).collect();
-    blocks.pop();
-    for block in blocks.into_iter().filter(|b| !b.is_empty()) {
-        // The carrier keeps one longest frame's block: a longer one is refused whole.
-        if block.len() > MAX_UP_FRAME_LEN {
+    // The carrier keeps one longest frame's block: a longer one is refused whole.
+    plain_blocks(bytes, MAX_UP_FRAME_LEN, |_, raw| {
+        let Some(raw) = raw else {
             x.refused += 1;
-            continue;
-        }
-        let mut raw = block.to_vec();
-        let Some(n) = cobs_decode_in_place(&mut raw) else {
-            x.refused += 1;
-            continue;
+            return;
         };
-        match uplink::decode(&raw[..n]) {
+        match uplink::decode(raw) {
             Err(_) => x.refused += 1,
             // A start request is for the device to act on, whatever session it is in.
             Ok((from, UpFrame::Request(start @ Request::Start { .. }))) => {
@@ -130,31 +122,8 @@ fn model(address: Address, first: u32, bytes: &[u8]) -> Expected {
                 // Behind: a repeat of one taken, dropped without counting.
             }
         }
-    }
+    });
     x
-}
-
-/// `bytes` with the CRC of every block that COBS-decodes to four bytes or more made right
-/// (and the block encoded again), the other blocks as they are.
-pub fn crcs_made_right(bytes: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(bytes.len() + 16);
-    for (i, block) in bytes.split(|&b| b == 0).enumerate() {
-        if i > 0 {
-            out.push(0);
-        }
-        let mut raw = block.to_vec();
-        match cobs_decode_in_place(&mut raw) {
-            Some(n) if n >= CRC_LEN => {
-                let crc = crc32(&raw[..n - CRC_LEN]);
-                raw[n - CRC_LEN..n].copy_from_slice(&crc.to_le_bytes());
-                let mut wire = vec![0u8; cobs_max_encoded_len(n)];
-                let m = cobs_encode(&raw[..n], &mut wire).unwrap_or(0);
-                out.extend_from_slice(&wire[..m]);
-            }
-            _ => out.extend_from_slice(block),
-        }
-    }
-    out
 }
 
 /// The carrier on a fuzz input ([`CARRIER_HEADER`], then the line's bytes): what it passes on,
@@ -175,7 +144,9 @@ pub fn carrier(data: &[u8]) -> Result<CarrierOutcome, CarrierViolation> {
     let first = u32_at(11);
     let fixed;
     let bytes = if header[2] & 1 == 1 {
-        fixed = crcs_made_right(bytes);
+        let mut made = Vec::with_capacity(bytes.len() + 16);
+        crcs_made_right(bytes, |piece| made.extend_from_slice(piece));
+        fixed = made;
         &fixed[..]
     } else {
         bytes

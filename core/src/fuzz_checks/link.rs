@@ -10,7 +10,7 @@ use super::Violation;
 use crate::link::cobs::cobs_decode_in_place;
 use crate::link::crc32::crc32;
 use crate::link::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MAX_MAP_ENTITIES};
-use crate::link::framing::CRC_LEN;
+use crate::link::framing::{CRC_LEN, seal};
 use crate::link::uplink::{self, MAX_CARRIED, MAX_RESEND, MAX_UP_FRAME_LEN, Request, UpFrame};
 
 /// Longest block the checks decode: four times the longest frame of either direction. A longer
@@ -73,6 +73,61 @@ fn each_block(
         }
     }
     Ok(outcome)
+}
+
+/// The blocks a plain reader sees in `bytes`, for the models the carrier's and the assembler's
+/// checks hold them to: each block ended by a delimiter (what follows the last one is no frame
+/// yet), empty ones left out, COBS-decoded in place by the plain decoder if at most `longest`
+/// bytes (a receiver keeps no longer block). `each` gets the block's place in `bytes` and its
+/// raw frame, or `None` for a block refused before any header is read.
+pub fn plain_blocks(
+    bytes: &[u8],
+    longest: usize,
+    mut each: impl FnMut(core::ops::Range<usize>, Option<&[u8]>),
+) {
+    let mut buf = [0u8; MAX_CHECKED_BLOCK];
+    let (mut at, mut rest) = (0, bytes);
+    while let Some(end) = rest.iter().position(|&b| b == 0) {
+        let (block, span) = (rest.get(..end).unwrap_or(&[]), at..at + end);
+        (at, rest) = (at + end + 1, rest.get(end + 1..).unwrap_or(&[]));
+        if block.is_empty() {
+            continue;
+        }
+        let copy = buf
+            .get_mut(..block.len())
+            .filter(|_| block.len() <= longest);
+        let raw = copy.and_then(|copy| {
+            copy.copy_from_slice(block);
+            let n = cobs_decode_in_place(copy)?;
+            copy.get(..n)
+        });
+        each(span, raw);
+    }
+}
+
+/// `bytes` with every block that COBS-decodes to a CRC's length or more sealed again with its
+/// CRC made right (by the one framing, [`seal`]), the other blocks as they are, delimiters
+/// kept, handed to `emit` in pieces: what the carrier's and the assembler's checks feed, so that
+/// mutations reach the fields behind a frame's CRC (a block longer than
+/// [`MAX_CHECKED_BLOCK`] is no frame and stays as it is).
+pub fn crcs_made_right(bytes: &[u8], mut emit: impl FnMut(&[u8])) {
+    let mut raw = [0u8; MAX_CHECKED_BLOCK];
+    let mut wire = [0u8; MAX_CHECKED_BLOCK + MAX_CHECKED_BLOCK / 254 + 2];
+    for (i, block) in bytes.split(|&b| b == 0).enumerate() {
+        if i > 0 {
+            emit(&[0]);
+        }
+        let sealed = raw.get_mut(..block.len()).and_then(|copy| {
+            copy.copy_from_slice(block);
+            let n = cobs_decode_in_place(copy)?;
+            seal(copy, n.checked_sub(CRC_LEN)?, &mut wire)
+        });
+        match sealed {
+            // Without the delimiter `seal` adds: the block's own follows.
+            Some(m) => emit(wire.get(..m - 1).unwrap_or(&[])),
+            None => emit(block),
+        }
+    }
 }
 
 /// `wire` (an encoder's output, delimiter included) holds no zero before its delimiter and

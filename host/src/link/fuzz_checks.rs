@@ -14,13 +14,12 @@
 
 use std::collections::BTreeMap;
 
-use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode, cobs_max_encoded_len};
+use mema_core::fuzz_checks::{crcs_made_right, plain_blocks};
 use mema_core::link::crc32::crc32;
 use mema_core::link::downlink::{
     self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, SessionStatus, stored_entity,
 };
 use mema_core::link::frame::Address;
-use mema_core::link::framing::CRC_LEN;
 use mema_core::map::{MapEntity, MapFile, encode_as};
 
 use super::device::MapFrames;
@@ -137,27 +136,10 @@ struct Model {
 fn model(session: u32, bytes: &[u8]) -> Model {
     let mut m = Model::default();
     let mut boot = None;
-    let mut at = 0;
-    let mut blocks: Vec<&[u8]> = bytes.split(|&b| b == 0).collect();
-    blocks.pop();
-    for block in blocks {
-        let span = at..at + block.len();
-        at += block.len() + 1;
-        if block.is_empty() {
-            continue;
-        }
-        if block.len() > MAX_DOWN_FRAME_LEN {
+    plain_blocks(bytes, MAX_DOWN_FRAME_LEN, |span, raw| {
+        let Some(Ok((from, sequence, frame))) = raw.map(downlink::decode) else {
             m.refused += 1;
-            continue;
-        }
-        let mut raw = block.to_vec();
-        let Some(n) = cobs_decode_in_place(&mut raw) else {
-            m.refused += 1;
-            continue;
-        };
-        let Ok((from, sequence, frame)) = downlink::decode(&raw[..n]) else {
-            m.refused += 1;
-            continue;
+            return;
         };
         // The session's frames: of its number, from the boot whose session frame said it
         // started it.
@@ -179,7 +161,7 @@ fn model(session: u32, bytes: &[u8]) -> Model {
         };
         if !ours {
             m.foreign += 1;
-            continue;
+            return;
         }
         m.frames += 1;
         match frame {
@@ -189,7 +171,7 @@ fn model(session: u32, bytes: &[u8]) -> Model {
             DownFrame::End(end) => m.end = Some((end, span, from, sequence)),
             _ => {}
         }
-    }
+    });
     m
 }
 
@@ -230,29 +212,6 @@ fn check_map(map: &[u8], end: &MapEnd, expected: Option<(u32, u32)>) -> Result<(
     }
 }
 
-/// `bytes` with the CRC of every block that COBS-decodes to four bytes or more made right
-/// (and the block encoded again), the other blocks as they are.
-pub fn crcs_made_right(bytes: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(bytes.len() + 16);
-    for (i, block) in bytes.split(|&b| b == 0).enumerate() {
-        if i > 0 {
-            out.push(0);
-        }
-        let mut raw = block.to_vec();
-        match cobs_decode_in_place(&mut raw) {
-            Some(n) if n >= CRC_LEN => {
-                let crc = crc32(&raw[..n - CRC_LEN]);
-                raw[n - CRC_LEN..n].copy_from_slice(&crc.to_le_bytes());
-                let mut wire = vec![0u8; cobs_max_encoded_len(n)];
-                let m = cobs_encode(&raw[..n], &mut wire).unwrap_or(0);
-                out.extend_from_slice(&wire[..m]);
-            }
-            _ => out.extend_from_slice(block),
-        }
-    }
-    out
-}
-
 /// The assembler on a fuzz input ([`FRAMES_HEADER`], then the device's bytes).
 pub fn map_frames(data: &[u8]) -> Result<Outcome, Violation> {
     let Some((header, bytes)) = data.split_first_chunk::<FRAMES_HEADER>() else {
@@ -266,7 +225,9 @@ pub fn map_frames(data: &[u8]) -> Result<Outcome, Violation> {
     let expected = Some((u32_at(6), u32_at(10))).filter(|e| *e != (0, 0));
     let fixed;
     let bytes = if header[1] & 1 == 1 {
-        fixed = crcs_made_right(bytes);
+        let mut made = Vec::with_capacity(bytes.len() + 16);
+        crcs_made_right(bytes, |piece| made.extend_from_slice(piece));
+        fixed = made;
         &fixed[..]
     } else {
         bytes

@@ -8,6 +8,7 @@
 pub mod capture;
 pub mod device;
 pub mod frames;
+#[cfg(feature = "fuzzing")]
 pub mod fuzz_checks;
 pub mod port;
 pub mod queries;
