@@ -6,8 +6,9 @@
 use std::path::PathBuf;
 
 use mema::link::device::{DeviceError, MapFrames};
-use mema_core::link::downlink::{DeviceLayout, DownFrame, SessionStatus};
+use mema_core::link::downlink::{self, DeviceLayout, DownFrame, MAX_DOWN_FRAME_LEN, SessionStatus};
 use mema_core::link::frame::Address;
+use mema_core::link::framing;
 use mema_core::stream::StreamModel;
 use mema_firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
@@ -206,4 +207,36 @@ fn another_sessions_or_boots_frames_never_enter_the_map() {
         frames.broken()
     );
     assert!(frames.map_file().is_none());
+}
+
+/// A device that speaks an older downlink (version 0x81, before sessions) is named as such,
+/// and none of its frames is taken as this version's, even with its CRC right.
+#[test]
+fn an_older_protocols_frames_are_named_and_never_taken() {
+    let started = DownFrame::Session {
+        status: SessionStatus::Started,
+        layout: DeviceLayout {
+            capacity: 700,
+            working: 150,
+            model: 1,
+        },
+    };
+    let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
+    let n = downlink::encode(SESSION, 0, &started, &mut wire).expect("encodes");
+    let mut block = wire[..n - 1].to_vec();
+    let raw_len = framing::decode_block(&mut block).expect("a block").len();
+    let mut raw = block[..raw_len].to_vec();
+    raw[0] = 0x81;
+    let body = raw_len - framing::CRC_LEN;
+    framing::put_crc(&mut raw, body).expect("room");
+    let mut old = [0u8; MAX_DOWN_FRAME_LEN];
+    let m = framing::frame_raw(&raw, &mut old).expect("frames");
+    let mut frames = MapFrames::for_session(SESSION.session);
+    frames.feed(&old[..m]);
+    frames.feed(&old[..m]);
+    assert_eq!(frames.other_version(), Some(0x81));
+    assert!(!frames.started());
+    assert_eq!((frames.counts.frames, frames.counts.refused), (0, 2));
+    let said = DeviceError::Version(0x81).to_string();
+    assert!(said.contains("0x81") && said.contains("0x83"), "{said}");
 }
