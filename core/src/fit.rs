@@ -558,5 +558,4 @@ pub fn fit_sphere_paper<R: Rng + ?Sized>(
 }
 
 #[cfg(test)]
-#[path = "fit_tests.rs"]
 mod tests;

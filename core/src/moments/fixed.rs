@@ -541,5 +541,4 @@ impl FixedMoments {
 }
 
 #[cfg(test)]
-#[path = "fixed_tests.rs"]
 mod tests;

@@ -506,5 +506,4 @@ impl Node {
 }
 
 #[cfg(test)]
-#[path = "units_tests.rs"]
 mod tests;

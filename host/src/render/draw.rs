@@ -533,5 +533,4 @@ pub fn draw_panel(
 }
 
 #[cfg(test)]
-#[path = "draw_tests.rs"]
 mod tests;
