@@ -2,7 +2,10 @@
 //! is, and one corrupt-but-CRC-valid frame or pose far away costs nothing of it.
 
 use mema::link::frames::push_frame_v2;
-use mema_core::link::wire::{Content, FrameReprV2, QUATERNION_ONE, WirePose};
+use mema_core::link::cobs::cobs_encode;
+use mema_core::link::wire::{
+    Content, FrameRepr, FrameReprV2, MAX_FRAME_LEN, MAX_RAW_LEN, QUATERNION_ONE, WirePose,
+};
 use mema_core::stream::StreamModel;
 use mema_firmware::SHELLS;
 use mema_firmware_sim::harness::RunConfig;
@@ -98,7 +101,7 @@ fn v2(sequence: u32, end: bool, exponent: i8, content: Content) -> Vec<u8> {
     out
 }
 
-fn pose(number: u32, translation: [i32; 3]) -> Content<'static> {
+fn pose(number: u32, translation: [i64; 3]) -> Content<'static> {
     Content::Pose {
         number,
         pose: WirePose {
@@ -199,54 +202,110 @@ fn moved_conf(dir: &Dir, shift: [f64; 3]) -> std::path::PathBuf {
     dir.write("moved.conf", out.as_bytes())
 }
 
+/// Where robots' world frames put a scene (metres): the middle of the old 1,024 m cell; UTM
+/// in central Europe (northing 5,400 km) and near the far end of northings (9,000 km); ECEF
+/// at mid latitudes, in both signs.
+const WORLD_SHIFTS: [[f64; 3]; 5] = [
+    [512.4, -511.6, 512.5],
+    [500_000.37, 5_400_000.81, 312.4],
+    [833_999.2, 8_999_999.6, 1_204.3],
+    [4_198_000.4, 612_000.9, 4_762_000.2],
+    [-2_700_000.45, -4_300_000.15, 3_850_000.7],
+];
+
+/// `bun.conf` moved by `shift`, sent as `scanner-sim --conf` sends it: the capture's path.
+fn moved_capture(dir: &Dir, shift: [f64; 3], name: &str) -> std::path::PathBuf {
+    let conf = moved_conf(dir, shift);
+    let capture = dir.join(&format!("{name}.bin"));
+    MemaCommand::new(dir)
+        .arg("scanner-sim")
+        .arg("--conf")
+        .arg(&conf)
+        .arg("--port")
+        .arg(&capture)
+        .run()
+        .assert_ok();
+    capture
+}
+
+/// The two-way Chamfer against `bun_zipper.ply` of map `map` (in `dir`) moved back by `shift`.
+fn chamfer_moved_back(dir: &Dir, map: &str, shift: [f64; 3]) -> f64 {
+    let back = shift.map(|v| format!("{}", -v)).join(",");
+    let moved_back = format!("{map}-back.mema");
+    MemaCommand::new(dir)
+        .args(["transform", map, "-o", &moved_back])
+        .arg(format!("--translate={back}"))
+        .run()
+        .assert_ok();
+    eval_chamfer(dir, &shared("bun_zipper.ply"), &moved_back)
+}
+
 /// The five bunny scans with their poses, streamed as `scanner-sim --conf` sends them, with the
-/// world frame moved up to 2,000 km (in the middle of the old 1,024 m cell too): replayed and
-/// through the firmware's path, the map moved back scores within 1.02x the two-way Chamfer
-/// against `bun_zipper.ply` of the same scans at the origin (3.6x worse before).
+/// world frame moved as far as UTM's northings and ECEF's coordinates put a robot (poses past
+/// i32 millimetres go as wide pose frames): replayed and through the firmware's path, the map
+/// moved back scores within 1.02x the two-way Chamfer against `bun_zipper.ply` of the same
+/// scans at the origin.
 #[test]
-fn the_bunny_maps_alike_anywhere_in_the_world() {
+fn the_bunny_maps_alike_anywhere_on_the_globe() {
     let dir = Dir::new("world-bunny");
-    let zipper = shared("bun_zipper.ply");
     let chamfer_at = |shift: [f64; 3]| {
-        let conf = moved_conf(&dir, shift);
-        MemaCommand::new(&dir)
-            .arg("scanner-sim")
-            .arg("--conf")
-            .arg(&conf)
-            .args(["--port", "moved.bin"])
-            .run()
-            .assert_ok();
-        let (code, json, map) = replay(
-            &dir,
-            "moved",
-            &std::fs::read(dir.join("moved.bin")).expect("capture"),
-            "150",
-            &[],
-        );
+        let capture = std::fs::read(moved_capture(&dir, shift, "moved")).expect("capture");
+        let (code, json, map) = replay(&dir, "moved", &capture, "150", &[]);
         assert_eq!(code, 0, "{json}");
-        let capture = std::fs::read(dir.join("moved.bin")).expect("capture");
+        assert_eq!(json["poses"], 5, "{shift:?}: {json}");
         let firmware = play_model(&capture, (150, 0), SHELLS, &RunConfig::default());
         assert_eq!(firmware.map, map, "{shift:?}: firmware vs replay");
-        let back = shift.map(|v| format!("{}", -v)).join(",");
-        MemaCommand::new(&dir)
-            .args(["transform", "moved.mema", "-o", "back.mema"])
-            .arg(format!("--translate={back}"))
-            .run()
-            .assert_ok();
-        eval_chamfer(&dir, &zipper, "back.mema")
+        chamfer_moved_back(&dir, "moved.mema", shift)
     };
     let home = chamfer_at([0.0; 3]);
-    for shift in [
-        [512.4, -511.6, 512.5],
-        [1_999_488.3, -1_500_000.7, 123.45],
-        [-2_000_000.0, 2_000_000.0, -1_999_999.5],
-    ] {
+    for shift in WORLD_SHIFTS {
         let far = chamfer_at(shift);
+        eprintln!("{shift:?}: Chamfer {far} m, {} x the origin's", far / home);
         assert!(
             far <= 1.02 * home,
             "{shift:?}: Chamfer {far} m against {home} m at the origin"
         );
     }
+}
+
+/// The same on the STM32F405 board under QEMU, at ECEF's coordinates (6,400 km from the
+/// Earth's centre) and the board's layout: its map is `mema replay`'s bytes, and within 1.02x
+/// of the Chamfer of the scans at the origin.
+#[test]
+fn the_board_maps_the_bunny_in_earth_centred_coordinates() {
+    use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
+    let dir = Dir::new("world-board");
+    let (k, working) = (
+        (BOARD_WORKING + BOARD_FROZEN).to_string(),
+        BOARD_WORKING.to_string(),
+    );
+    let layout = ["--working", working.as_str()];
+    let home = moved_capture(&dir, [0.0; 3], "home");
+    let (code, json, _) = replay(&dir, "home", &std::fs::read(home).expect("capture"), &k, &layout);
+    assert_eq!(code, 0, "{json}");
+    let at_home = chamfer_moved_back(&dir, "home.mema", [0.0; 3]);
+    let shift = WORLD_SHIFTS[4];
+    let capture = moved_capture(&dir, shift, "ecef");
+    let (code, json, replayed) = replay(
+        &dir,
+        "ecef",
+        &std::fs::read(&capture).expect("capture"),
+        &k,
+        &layout,
+    );
+    assert_eq!(code, 0, "{json}");
+    let image = crate::board_link::board_image();
+    let (_qemu, pty) = crate::board_link::start_board(&dir, &image, None);
+    let out = dir.join("board.mema");
+    let (ok, summary, stderr) = crate::board_sessions::session(&pty, &capture, &out, None);
+    assert!(ok, "{stderr}");
+    let board = std::fs::read(&out).expect("the board's map");
+    assert!(board == replayed, "the board's map is not replay's: {summary}");
+    let far = chamfer_moved_back(&dir, "board.mema", shift);
+    assert!(
+        far <= 1.02 * at_home,
+        "Chamfer {far} m on the board at {shift:?} against {at_home} m at the origin"
+    );
 }
 
 /// A frame of a capture, as its sender meant it.
@@ -312,10 +371,7 @@ fn rewritten(frames: &[Sent], shift: [i64; 3], glitches: bool) -> Vec<u8> {
                 pose,
             } => {
                 let per_metre = 10i64.pow(u32::from((-exponent).unsigned_abs()));
-                let translation = [0, 1, 2].map(|j| {
-                    i32::try_from(i64::from(pose.translation[j]) + shift[j] * per_metre)
-                        .expect("the moved pose fits its unit")
-                });
+                let translation = [0, 1, 2].map(|j| pose.translation[j] + shift[j] * per_metre);
                 let moved = WirePose {
                     translation,
                     ..*pose
@@ -528,4 +584,110 @@ fn one_far_entity_leaves_the_others_their_places() {
     let mut alone = Link::with_params(params);
     alone.feed(&clean);
     assert!(alone.finish().quantization.is_some());
+}
+
+/// A stream whose every frame the receiver refuses maps nothing, and says so: `replay` exits 1
+/// with the reason rather than 0 with an empty map (poses past the world's 20,000 km, which
+/// all its points name; then frames whose every CRC is wrong).
+#[test]
+fn a_stream_whose_every_frame_is_refused_exits_non_zero_with_the_reason() {
+    let dir = Dir::new("all-refused");
+    let plane = plane();
+    let mut beyond = vec![0u8];
+    for (i, pose_number) in (1..=3u32).enumerate() {
+        // 30,000 km in millimetres: a wide pose, past any world frame.
+        let far = 30_000_000_000_i64 + i as i64;
+        beyond.extend(v2(2 * i as u32, false, -3, pose(pose_number, [far, 0, 0])));
+        beyond.extend(v2(
+            2 * i as u32 + 1,
+            i == 2,
+            -3,
+            Content::Points {
+                pose: pose_number,
+                points: &plane,
+            },
+        ));
+    }
+    let (code, json, _) = replay(&dir, "beyond", &beyond, "8", &[]);
+    assert_eq!(code, 1, "{json}");
+    let ran = MemaCommand::new(&dir)
+        .args(["replay", "beyond.bin", "-k", "8", "-o", "beyond.mema"])
+        .run();
+    assert_eq!(ran.output.status.code(), Some(1), "{}", ran.stderr());
+    assert!(
+        ran.stderr()
+            .contains("nothing was mapped: 3 poses out of reach"),
+        "{}",
+        ran.stderr()
+    );
+    // Every CRC wrong: the frames are rejected, and that is the reason given.
+    let mut broken = vec![0u8];
+    for (sequence, half) in plane.chunks(64).enumerate() {
+        let mut raw = [0u8; MAX_RAW_LEN];
+        let len = FrameRepr {
+            sequence: sequence as u32,
+            end_of_stream: sequence == 1,
+            unit_exponent: -3,
+            points: half,
+        }
+        .emit(&mut raw)
+        .expect("emit");
+        raw[len - 1] ^= 0x10;
+        let mut framed = vec![0u8; MAX_FRAME_LEN];
+        let n = cobs_encode(&raw[..len], &mut framed).expect("encode");
+        broken.extend(&framed[..n]);
+        broken.push(0);
+    }
+    dir.write("broken.bin", &broken);
+    let ran = MemaCommand::new(&dir)
+        .args(["replay", "broken.bin", "-k", "8", "-o", "broken.mema"])
+        .run();
+    assert_eq!(ran.output.status.code(), Some(1), "{}", ran.stderr());
+    assert!(
+        ran.stderr()
+            .contains("nothing was mapped: 2 frames rejected (2 bad CRC)"),
+        "{}",
+        ran.stderr()
+    );
+}
+
+/// A sensor glitch as the very first point of a stream (1,500 km out in the sensor frame),
+/// which used to become the map's origin and leave every later point out of reach: the origin
+/// is the point most of the first frame lies near, the glitch is refused, and the map (replay
+/// and the firmware's path) is the clean stream's to within 1.02x of its Chamfer.
+#[test]
+fn a_glitch_as_the_very_first_point_costs_nothing() {
+    let dir = Dir::new("first-glitch");
+    let capture = moved_capture(&dir, WORLD_SHIFTS[1], "utm");
+    let mut frames = frames_of_capture(&std::fs::read(&capture).expect("capture"));
+    let clean = rewritten(&frames, [0; 3], false);
+    let first = frames
+        .iter_mut()
+        .find_map(|f| match f {
+            Sent::Points { points, .. } if !points.is_empty() => Some(points),
+            _ => None,
+        })
+        .expect("a points frame");
+    first[0] = [1_500_000_000, -7, 3];
+    let glitched = rewritten(&frames, [0; 3], false);
+    let mut chamfers = Vec::new();
+    for (name, bytes) in [("clean", &clean), ("glitched", &glitched)] {
+        let (code, json, map) = replay(&dir, name, bytes, "150", &[]);
+        assert_eq!(code, 0, "{name}: {json}");
+        let refused = json["points_out_of_reach"].as_u64();
+        assert_eq!(refused, Some(u64::from(name == "glitched")), "{json}");
+        let firmware = play_model(bytes, (150, 0), SHELLS, &RunConfig::default());
+        assert_eq!(firmware.map, map, "{name}: firmware vs replay");
+        chamfers.push(chamfer_moved_back(
+            &dir,
+            &format!("{name}.mema"),
+            WORLD_SHIFTS[1],
+        ));
+    }
+    assert!(
+        chamfers[1] <= 1.02 * chamfers[0],
+        "Chamfer {} m with the glitch against {} m clean",
+        chamfers[1],
+        chamfers[0]
+    );
 }

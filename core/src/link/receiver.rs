@@ -36,9 +36,10 @@ use crate::link::wire::{
 /// a glitch (a wrong unit, a corrupt frame that passed its CRC) and is counted, never mapped.
 pub const DEFAULT_REACH: f32 = 100_000.0;
 
-/// Farthest a world coordinate may be from the world frame's 0 (nanometres): the link's
-/// millimetre range, 2,147 km. The origin is taken, and poses are held, only within it.
-pub const WORLD_LIMIT_NM: i64 = i32::MAX as i64 * 1_000_000;
+/// Farthest a world coordinate may be from the world frame's 0 (nanometres): 20,000 km, twice
+/// the farthest frame robots are given poses in (UTM's northings reach 10,000 km, ECEF's
+/// coordinates 6,400 km). The origin is taken, and poses are held, only within it.
+pub const WORLD_LIMIT_NM: i64 = 20_000_000 * 1_000_000_000;
 
 /// An origin in whole nanometres, in metres: the map file's f64 origin.
 pub fn metres_of_nm(origin: [i64; 3]) -> [f64; 3] {
@@ -235,11 +236,11 @@ impl Receiver {
             return Received::Consumed;
         };
         if self.origin.is_none() {
-            // The first point, exactly, if it is within the world's range (else the next
-            // frame's): a map's points then reach the mapper with the same bits wherever the
-            // world frame puts it.
-            self.origin = held
-                .point(0)
+            // A point of the first frame, exactly, if it is within the world's range (else
+            // the next frame's): a map's points then reach the mapper with the same bits
+            // wherever the world frame puts it. The point most of the frame lies near, so a
+            // glitch as the very first point does not put the origin out of the scene's reach.
+            self.origin = anchor(&held, frame.exponent, self.reach)
                 .and_then(|raw| Placement::world_nm(raw, frame.exponent, &pose))
                 .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM));
         }
@@ -351,6 +352,36 @@ impl Receiver {
     pub const fn decoder_stats(&self) -> &DecoderStats {
         self.decoder.stats()
     }
+}
+
+/// The first point of `frame` that more than half of its points lie near (within half the
+/// reach on every axis of the sensor frame, so within the reach however the pose turns them),
+/// else the point most lie near: where the map's origin goes. A sensor glitch among the first
+/// frame's points is then never the origin, which would leave the scene out of reach. Integer
+/// compares only, and it stops at the first point a majority lies near, which in a frame
+/// without glitches is the first: it costs a device one pass over one frame.
+fn anchor(frame: &Frame<&[u8]>, exponent: i8, reach: f32) -> Option<[i32; 3]> {
+    let scale = crate::link::wire::unit_scale(exponent)?;
+    // Saturating: a reach of more units than u64 holds takes every point as near.
+    let near = (f64::from(reach) / 2.0 / scale) as u64;
+    let count = usize::from(frame.point_count());
+    let (mut best, mut most) = (None, 0usize);
+    for p in frame.points_from(0) {
+        let mut neighbours = 0usize;
+        for q in frame.points_from(0) {
+            let near_all = (u64::from(p[0].abs_diff(q[0])) <= near)
+                & (u64::from(p[1].abs_diff(q[1])) <= near)
+                & (u64::from(p[2].abs_diff(q[2])) <= near);
+            neighbours += usize::from(near_all);
+        }
+        if neighbours > count / 2 {
+            return Some(p);
+        }
+        if neighbours > most {
+            (best, most) = (Some(p), neighbours);
+        }
+    }
+    best
 }
 
 #[cfg(test)]

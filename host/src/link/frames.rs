@@ -166,15 +166,16 @@ pub fn wire_pose(translation: [f64; 3], rotation: [f64; 4], unit_exponent: i8) -
     let sign = if rotation[3] < 0.0 { -1.0 } else { 1.0 };
     let one = f64::from(QUATERNION_ONE);
     let q = rotation.map(|v| (sign * v / n * one).round() as i32);
-    let mut t = [0i32; 3];
+    let mut t = [0i64; 3];
     for (slot, v) in t.iter_mut().zip(translation) {
         let units = (v / scale).round();
-        if units.is_nan() || units.abs() > f64::from(i32::MAX) {
+        // i64 units reach 9.2 million km even in nanometres: past that is no world frame.
+        if !(units.abs() < 9.0e18) {
             bail!(
-                "translation {translation:?} m does not fit the wire's i32 units of 10^{unit_exponent} m"
+                "translation {translation:?} m does not fit the wire's i64 units of 10^{unit_exponent} m"
             );
         }
-        *slot = units as i32;
+        *slot = units as i64;
     }
     Ok(WirePose {
         translation: t,

@@ -204,12 +204,9 @@ pub fn quantise_scans(scans: &[SensorScan]) -> Result<WireScans> {
         .flat_map(|s| s.points.iter().flatten())
         .fold(0.0f64, |m, v| m.max(v.abs()));
     let unit_exponent = choose_unit(spacing, reach)?;
-    let shift = scans
-        .iter()
-        .flat_map(|s| s.translation.iter())
-        .fold(0.0f64, |m, v| m.max(v.abs()));
-    // The poses in the points' unit where it holds them, else the first coarser one that does.
-    let pose_exponent = choose_unit(0.0, shift)?.max(unit_exponent);
+    // The poses in the points' unit: a translation past i32 in it goes as a wide pose, so a
+    // world frame of the globe's keeps the points' resolution.
+    let pose_exponent = unit_exponent;
     let scale = unit_scale(unit_exponent).unwrap_or(f64::NAN);
     let scans = scans
         .iter()

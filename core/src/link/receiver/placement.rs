@@ -17,11 +17,11 @@ pub struct Pose {
     /// `t`, metres.
     pub translation: [f64; 3],
     /// `t` as the wire sent it, in units of `10^exponent` m.
-    pub wire_translation: [i32; 3],
+    pub wire_translation: [i64; 3],
     pub exponent: i8,
     /// `t` in whole nanometres, the unit every wire unit is a whole number of: a placement
     /// subtracts the map's origin from it exactly ([`Placement`]). `None` past the i64 range
-    /// (9,200 km), far beyond the link's.
+    /// (9.2 million km), far beyond any world frame's.
     pub translation_nm: Option<[i64; 3]>,
 }
 
@@ -67,11 +67,11 @@ fn nanometres_per_unit(exponent: i8) -> Option<i64> {
 }
 
 /// `units` of `10^exponent` m in nanometres, exactly, if within i64.
-pub(super) fn nanometres(units: i32, exponent: i8) -> Option<i64> {
-    i64::from(units).checked_mul(nanometres_per_unit(exponent)?)
+pub(super) fn nanometres(units: i64, exponent: i8) -> Option<i64> {
+    units.checked_mul(nanometres_per_unit(exponent)?)
 }
 
-fn nanometres3(units: [i32; 3], exponent: i8) -> Option<[i64; 3]> {
+fn nanometres3(units: [i64; 3], exponent: i8) -> Option<[i64; 3]> {
     let [x, y, z] = units;
     Some([
         nanometres(x, exponent)?,
@@ -291,14 +291,14 @@ impl Placement {
     pub(super) fn world_nm(raw: [i32; 3], exponent: i8, pose: &Pose) -> Option<[i64; 3]> {
         let t = pose.translation_nm?;
         let local = match pose.rotation {
-            None => nanometres3(raw, exponent)?,
+            None => nanometres3(raw.map(i64::from), exponent)?,
             Some(rows) => {
                 let scale = crate::link::wire::unit_scale(exponent)?;
                 let turned = turn(raw, scale, Some(rows));
                 let mut out = [0i64; 3];
                 for (slot, v) in out.iter_mut().zip(turned) {
                     let nm = libm::round(v * 1e9);
-                    // Within i64 (9,200 km), or refused.
+                    // Within i64 (9.2 million km), or refused.
                     if !(nm.abs() < 9.0e18) {
                         return None;
                     }

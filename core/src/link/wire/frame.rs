@@ -3,7 +3,7 @@
 use super::{
     CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
     MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, QUATERNION_ONE, VERSION,
-    VERSION_1, WirePose, field,
+    VERSION_1, WIDE_POSE_FRAME_LEN, WirePose, field,
 };
 
 /// Why a raw frame was refused. Each kind is counted separately by the decoder.
@@ -86,7 +86,8 @@ impl core::error::Error for FrameError {}
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FrameKind {
     Points,
-    /// The sensor's pose for the points frames that name its number (version 2).
+    /// The sensor's pose for the points frames that name its number (version 2): kind 1, or
+    /// kind 2 with a wide translation ([`Frame::wide_pose`]).
     Pose,
 }
 
@@ -113,6 +114,17 @@ fn u32_at(bytes: &[u8], at: usize) -> u32 {
 fn i32_at(bytes: &[u8], at: usize) -> i32 {
     u32_at(bytes, at) as i32
 }
+
+fn i64_at(bytes: &[u8], at: usize) -> i64 {
+    let mut b = [0u8; 8];
+    if let Some(src) = bytes.get(at..at + 8) {
+        b.copy_from_slice(src);
+    }
+    i64::from_le_bytes(b)
+}
+
+/// The kind byte of a wide pose frame.
+pub(crate) const KIND_WIDE_POSE: u8 = 2;
 
 /// The raw length of a points frame of `points` in `version`.
 pub(crate) const fn points_len(version: u8, points: usize) -> usize {
@@ -172,6 +184,7 @@ impl<T: AsRef<[u8]>> Frame<T> {
         })?;
         let expected = match kind {
             FrameKind::Points => points_len(version, count as usize),
+            FrameKind::Pose if self.wide_pose() => WIDE_POSE_FRAME_LEN,
             FrameKind::Pose => POSE_FRAME_LEN,
         };
         if len != expected {
@@ -245,9 +258,15 @@ impl<T: AsRef<[u8]>> Frame<T> {
         }
         match byte_at(self.buffer.as_ref(), field::KIND) {
             0 => Some(FrameKind::Points),
-            1 => Some(FrameKind::Pose),
+            1 | KIND_WIDE_POSE => Some(FrameKind::Pose),
             _ => None,
         }
+    }
+
+    /// A pose frame whose translation is three i64 (kind 2), for world frames past i32 in the
+    /// frame's unit.
+    pub fn wide_pose(&self) -> bool {
+        self.version() == VERSION && byte_at(self.buffer.as_ref(), field::KIND) == KIND_WIDE_POSE
     }
 
     /// Version 2: a points frame's pose, or a pose frame's own number. Version 1: 0, the
@@ -298,11 +317,17 @@ impl<T: AsRef<[u8]>> Frame<T> {
             return None;
         }
         let b = self.buffer.as_ref();
-        b.get(field::TRANSLATION..field::ROTATION + 16)?;
-        let t = |k: usize| i32_at(b, field::TRANSLATION + 4 * k);
-        let q = |k: usize| i32_at(b, field::ROTATION + 4 * k);
+        let (translation, rotation) = if self.wide_pose() {
+            let t = |k: usize| i64_at(b, field::TRANSLATION + 8 * k);
+            ([t(0), t(1), t(2)], field::WIDE_ROTATION)
+        } else {
+            let t = |k: usize| i64::from(i32_at(b, field::TRANSLATION + 4 * k));
+            ([t(0), t(1), t(2)], field::ROTATION)
+        };
+        b.get(field::TRANSLATION..rotation + 16)?;
+        let q = |k: usize| i32_at(b, rotation + 4 * k);
         Some(WirePose {
-            translation: [t(0), t(1), t(2)],
+            translation,
             rotation: [q(0), q(1), q(2), q(3)],
         })
     }

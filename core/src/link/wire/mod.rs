@@ -13,10 +13,11 @@
 //! | 2..6             | sequence number, u32, +1 per frame (wraps)                      |
 //! | 6..8             | point count n, u16, 0..=[`MAX_POINTS`] (0 in a pose frame)      |
 //! | 8                | unit exponent e, i8, [`MIN_UNIT_EXPONENT`]..=[`MAX_UNIT_EXPONENT`]: a length is `value * 10^e` metres |
-//! | 9                | kind, u8: 0 = points, 1 = pose                                  |
+//! | 9                | kind, u8: 0 = points, 1 = pose, 2 = wide pose                   |
 //! | 10..14           | pose number, u32: a points frame's pose; a pose frame's own number (not 0) |
 //! | 14..14+12n       | points frame: x, y, z as i32 each, in the sensor frame          |
 //! | 14..42           | pose frame: translation x, y, z as i32 (`10^e` m), then the rotation's unit quaternion x, y, z, w as i32 in units of 2^-30 |
+//! | 14..54           | wide pose frame: translation x, y, z as i64 (`10^e` m), then the quaternion as in a pose frame |
 //! | last 4           | CRC-32 (IEEE, as zip/PNG) of every byte before it               |
 //!
 //! A pose is sensor to world: `x_world = R(q) x_sensor + t`. It applies to the points frames
@@ -31,6 +32,10 @@
 //!
 //! Why integers: a rangefinder measures to about a millimetre, i32 millimetres cover +-2,147 km
 //! exactly, and an integer cannot be NaN, so a frame that passes its CRC holds finite points.
+//! A point is measured in the sensor frame, well within that; a pose is given in the robot's
+//! world frame, which may be the globe's (UTM northings to 10,000 km, ECEF to 6,400 km): a
+//! sender writes a pose whose translation is past i32 in its unit as a wide pose, with i64
+//! translations, and every other pose as before, so older captures are the same bytes.
 //!
 //! [`Frame::new_checked`] validates a raw frame once (length, version, kind, count, unit, CRC,
 //! the pose's quaternion); after it, no accessor can fail. [`FrameRepr::emit`] and
@@ -61,6 +66,10 @@ pub const POINT_LEN: usize = 12;
 pub const POSE_LEN: usize = 28;
 /// The whole raw pose frame.
 pub const POSE_FRAME_LEN: usize = HEADER_LEN + POSE_LEN + CRC_LEN;
+/// A wide pose: translation (3 x i64) and quaternion (4 x i32).
+pub const WIDE_POSE_LEN: usize = 40;
+/// The whole raw wide pose frame.
+pub const WIDE_POSE_FRAME_LEN: usize = HEADER_LEN + WIDE_POSE_LEN + CRC_LEN;
 /// Flag bit 0: the sender has nothing more to send.
 pub const FLAG_END_OF_STREAM: u8 = 1;
 /// Flag bit 1 (version 2): the sender (re)starts; the receiver begins a new session.
@@ -110,6 +119,8 @@ pub(crate) mod field {
     /// A pose frame's body, after the version 2 header.
     pub const TRANSLATION: usize = 14;
     pub const ROTATION: usize = 26;
+    /// A wide pose frame's quaternion, after its three i64.
+    pub const WIDE_ROTATION: usize = 38;
 }
 
 #[cfg(test)]

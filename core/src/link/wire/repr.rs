@@ -4,14 +4,16 @@
 use super::frame::points_len;
 use super::{
     CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
-    POINT_LEN, POSE_FRAME_LEN, VERSION, VERSION_1, field,
+    POINT_LEN, POSE_FRAME_LEN, VERSION, VERSION_1, WIDE_POSE_FRAME_LEN, field,
 };
+use super::frame::KIND_WIDE_POSE;
 
 /// A sensor pose as the wire carries it: sensor to world, `x_world = R(q) x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct WirePose {
-    /// In units of `10^e` metres, `e` the frame's unit exponent.
-    pub translation: [i32; 3],
+    /// In units of `10^e` metres, `e` the frame's unit exponent. Past i32 it goes as a wide
+    /// pose frame.
+    pub translation: [i64; 3],
     /// The unit quaternion `x, y, z, w` (scalar last) in units of 2^-30
     /// ([`super::QUATERNION_ONE`]).
     pub rotation: [i32; 4],
@@ -23,6 +25,15 @@ impl WirePose {
         translation: [0; 3],
         rotation: [0, 0, 0, super::QUATERNION_ONE],
     };
+
+    /// Whether the translation needs a wide pose frame: past i32 on some axis.
+    pub const fn is_wide(&self) -> bool {
+        const fn fits(v: i64) -> bool {
+            v >= i32::MIN as i64 && v <= i32::MAX as i64
+        }
+        let [x, y, z] = self.translation;
+        !(fits(x) && fits(y) && fits(z))
+    }
 }
 
 /// The content of a valid version 1 frame, for emitting.
@@ -133,6 +144,7 @@ impl FrameReprV2<'_> {
     pub const fn buffer_len(&self) -> usize {
         match self.content {
             Content::Points { points, .. } => points_len(VERSION, points.len()),
+            Content::Pose { pose, .. } if pose.is_wide() => WIDE_POSE_FRAME_LEN,
             Content::Pose { .. } => POSE_FRAME_LEN,
         }
     }
@@ -155,11 +167,18 @@ impl FrameReprV2<'_> {
                 (0, pose, points.len())
             }
             Content::Pose { number, pose } => {
-                let values = pose.translation.iter().chain(pose.rotation.iter());
-                for (slot, v) in rest.chunks_exact_mut(4).zip(values) {
-                    slot.copy_from_slice(&v.to_le_bytes());
+                let wide = pose.is_wide();
+                let width = if wide { 8 } else { 4 };
+                // Narrow: each value fits i32 (`is_wide`), whose bytes are i64's first four.
+                let translation = pose
+                    .translation
+                    .into_iter()
+                    .flat_map(|v| v.to_le_bytes().into_iter().take(width));
+                let rotation = pose.rotation.into_iter().flat_map(i32::to_le_bytes);
+                for (slot, b) in rest.iter_mut().zip(translation.chain(rotation)) {
+                    *slot = b;
                 }
-                (1, number, 0)
+                (if wide { KIND_WIDE_POSE } else { 1 }, number, 0)
             }
         };
         emit_common(

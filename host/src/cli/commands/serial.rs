@@ -1,7 +1,7 @@
 //! `mema stream` and `replay`: the link from wire to map file (`record` and `scanner-sim`, the
 //! capture's two ends, are in [`super::capture`]).
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use serde::Serialize;
 use std::path::Path;
 use std::sync::Arc;
@@ -327,6 +327,12 @@ fn conclude(
         ),
         json,
     )?;
+    if let Some(why) = nothing_mapped(&link) {
+        bail!(
+            "nothing was mapped: {why}; the empty map is in {}",
+            output.display()
+        );
+    }
     let lost = format!(
         "{end_text}; the map of what arrived is in {}",
         output.display()
@@ -336,6 +342,40 @@ fn conclude(
         (Some(Stop::Idle(_)), _) => Err(LinkIdle(lost).into()),
         _ => Err(LinkLost(lost).into()),
     }
+}
+
+/// Why a stream that brought frames mapped no point, if it did not: every frame refused, every
+/// pose out of reach, ... A stream that only ended (no points sent) is not refused.
+fn nothing_mapped(link: &Link) -> Option<String> {
+    if link.mapper.stats().points > 0 {
+        return None;
+    }
+    let (s, r) = (link.stats(), link.receiver_stats());
+    let mut reasons = Vec::new();
+    if s.rejected > 0 {
+        reasons.push(format!(
+            "{} frames rejected{}",
+            s.rejected,
+            Rejections::of(s).text()
+        ));
+    }
+    if r.poses_out_of_reach > 0 {
+        reasons.push(format!(
+            "{} poses out of reach (refused; past {} km from the world frame's 0, or farther than the reach from the first)",
+            r.poses_out_of_reach,
+            mema_core::link::receiver::WORLD_LIMIT_NM / 1_000_000_000_000
+        ));
+    }
+    if r.no_pose > 0 {
+        reasons.push(format!(
+            "{} points frames without their pose",
+            r.no_pose
+        ));
+    }
+    if r.points_out_of_reach > 0 {
+        reasons.push(format!("{} points out of reach", r.points_out_of_reach));
+    }
+    (!reasons.is_empty()).then(|| reasons.join(", "))
 }
 
 pub fn stream(args: &StreamArgs) -> Result<()> {

@@ -93,7 +93,7 @@ fn whole_offsets_are_exact_in_units_and_others_are_not_whole() {
         Pose::of_wire(
             1,
             &WirePose {
-                translation: t,
+                translation: t.map(i64::from),
                 rotation: [0, 0, 0, crate::link::wire::QUATERNION_ONE],
             },
             exponent,
@@ -135,7 +135,7 @@ fn a_scene_moved_anywhere_places_its_points_with_the_same_bits() {
         let pose = Pose::of_wire(
             1,
             &WirePose {
-                translation: [500 + shift_mm[0], -20 + shift_mm[1], 7 + shift_mm[2]],
+                translation: [500 + shift_mm[0], -20 + shift_mm[1], 7 + shift_mm[2]].map(i64::from),
                 rotation,
             },
             -3,
