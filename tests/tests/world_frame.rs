@@ -281,7 +281,13 @@ fn the_board_maps_the_bunny_in_earth_centred_coordinates() {
     );
     let layout = ["--working", working.as_str()];
     let home = moved_capture(&dir, [0.0; 3], "home");
-    let (code, json, _) = replay(&dir, "home", &std::fs::read(home).expect("capture"), &k, &layout);
+    let (code, json, _) = replay(
+        &dir,
+        "home",
+        &std::fs::read(home).expect("capture"),
+        &k,
+        &layout,
+    );
     assert_eq!(code, 0, "{json}");
     let at_home = chamfer_moved_back(&dir, "home.mema", [0.0; 3]);
     let shift = WORLD_SHIFTS[4];
@@ -300,7 +306,10 @@ fn the_board_maps_the_bunny_in_earth_centred_coordinates() {
     let (ok, summary, stderr) = crate::board_sessions::session(&pty, &capture, &out, None);
     assert!(ok, "{stderr}");
     let board = std::fs::read(&out).expect("the board's map");
-    assert!(board == replayed, "the board's map is not replay's: {summary}");
+    assert!(
+        board == replayed,
+        "the board's map is not replay's: {summary}"
+    );
     let far = chamfer_moved_back(&dir, "board.mema", shift);
     assert!(
         far <= 1.02 * at_home,

@@ -12,9 +12,9 @@
 //! - **The end.** Frames after the end-of-stream frame are counted and never mapped, so the map
 //!   does not depend on how many of them arrived in the same chunk as the end.
 //! - **The map's frame.** The mapper works in f32, which near 2,000 km resolves only 0.25 m. The
-//!   receiver therefore keeps an origin, the first point within the world's range exactly (in
-//!   whole nanometres, where every wire unit is whole), and hands the mapper points relative
-//!   to it, worked out in integers: the same bits wherever the world frame puts the scene, so
+//!   receiver therefore keeps an origin, a point of the first frame (not a glitch among them)
+//!   within the world's range, exactly (in whole nanometres, where every wire unit is whole),
+//!   and hands the mapper points relative to it, worked out in integers: the same bits wherever the world frame puts the scene, so
 //!   the map does not depend on the world frame's origin. (Rounded to 1,024 m, as it was, a
 //!   scene half a cell from its origin had f32 steps of 30 um where one at 0 had 15 nm, and
 //!   mapped 3.6x worse.)

@@ -170,7 +170,7 @@ pub fn wire_pose(translation: [f64; 3], rotation: [f64; 4], unit_exponent: i8) -
     for (slot, v) in t.iter_mut().zip(translation) {
         let units = (v / scale).round();
         // i64 units reach 9.2 million km even in nanometres: past that is no world frame.
-        if !(units.abs() < 9.0e18) {
+        if units.is_nan() || units.abs() >= 9.0e18 {
             bail!(
                 "translation {translation:?} m does not fit the wire's i64 units of 10^{unit_exponent} m"
             );

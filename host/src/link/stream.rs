@@ -315,7 +315,7 @@ pub fn map_sent_directly_with(cloud: &LocalCloud, params: StreamParams) -> Resul
             scan.pose.rotation[..3] == [0, 0, 0],
             "a cloud is sent unturned"
         );
-        let t = scan.pose.translation.map(|v| i64::from(v) * per_pose_unit);
+        let t = scan.pose.translation.map(|v| v * per_pose_unit);
         for p in &scan.points {
             let w = [0, 1, 2].map(|j| i64::from(p[j]) * per_unit + t[j]);
             let o = *origin.get_or_insert(w);

@@ -1,12 +1,12 @@
 //! The content of valid frames, for emitting: version 1 points ([`FrameRepr`]) and version 2
 //! points or poses ([`FrameReprV2`]).
 
+use super::frame::KIND_WIDE_POSE;
 use super::frame::points_len;
 use super::{
     CRC_LEN, FLAG_END_OF_STREAM, FLAG_SESSION_START, HEADER_LEN, HEADER_LEN_V1, MAX_POINTS,
     POINT_LEN, POSE_FRAME_LEN, VERSION, VERSION_1, WIDE_POSE_FRAME_LEN, field,
 };
-use super::frame::KIND_WIDE_POSE;
 
 /// A sensor pose as the wire carries it: sensor to world, `x_world = R(q) x_sensor + t`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

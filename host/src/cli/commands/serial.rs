@@ -367,10 +367,7 @@ fn nothing_mapped(link: &Link) -> Option<String> {
         ));
     }
     if r.no_pose > 0 {
-        reasons.push(format!(
-            "{} points frames without their pose",
-            r.no_pose
-        ));
+        reasons.push(format!("{} points frames without their pose", r.no_pose));
     }
     if r.points_out_of_reach > 0 {
         reasons.push(format!("{} points out of reach", r.points_out_of_reach));

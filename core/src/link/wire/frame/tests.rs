@@ -218,6 +218,74 @@ fn protocol_example_v2() -> TestResult {
     Ok(())
 }
 
+/// PROTOCOL.md's wide pose example, computed with Python's `struct` and `zlib.crc32`: pose 2 at
+/// ECEF-like (4,198,000.4, 612,000.9, 4,762,000.2) m in millimetres, past i32, unturned.
+#[test]
+fn protocol_example_wide_pose() -> TestResult {
+    let translation = [4_198_000_400, 612_000_900, 4_762_000_200];
+    let pose = FrameReprV2 {
+        sequence: 10,
+        end_of_stream: false,
+        session_start: false,
+        unit_exponent: -3,
+        content: Content::Pose {
+            number: 2,
+            pose: WirePose {
+                translation,
+                rotation: [0, 0, 0, QUATERNION_ONE],
+            },
+        },
+    };
+    let mut raw = [0u8; 64];
+    let n = pose.emit(&mut raw).or_fail("fits")?;
+    let want_raw: [u8; 58] = [
+        0x02, 0x00, 0x0a, 0x00, 0x00, 0x00, 0x00, 0x00, 0xfd, 0x02, 0x02, 0x00, 0x00, 0x00, 0x10,
+        0x67, 0x38, 0xfa, 0x00, 0x00, 0x00, 0x00, 0x84, 0x64, 0x7a, 0x24, 0x00, 0x00, 0x00, 0x00,
+        0x48, 0x5b, 0xd6, 0x1b, 0x01, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+        0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x40, 0x76, 0xda, 0x7f, 0x60,
+    ];
+    assert_eq!(raw.get(..n).or_fail("raw")?, &want_raw);
+    let mut wire = [0u8; 64];
+    let m =
+        crate::link::cobs::cobs_encode(raw.get(..n).or_fail("raw")?, &mut wire).or_fail("fits")?;
+    let want_wire: [u8; 59] = [
+        0x02, 0x02, 0x02, 0x0a, 0x01, 0x01, 0x01, 0x01, 0x04, 0xfd, 0x02, 0x02, 0x01, 0x01, 0x05,
+        0x10, 0x67, 0x38, 0xfa, 0x01, 0x01, 0x01, 0x05, 0x84, 0x64, 0x7a, 0x24, 0x01, 0x01, 0x01,
+        0x06, 0x48, 0x5b, 0xd6, 0x1b, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01,
+        0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x01, 0x06, 0x40, 0x76, 0xda, 0x7f, 0x60,
+    ];
+    assert_eq!(wire.get(..m).or_fail("wire")?, &want_wire);
+    let frame = Frame::new_checked(raw.get(..n).or_fail("raw")?).or_fail("valid")?;
+    assert!(frame.wide_pose());
+    assert_eq!(frame.kind(), Some(FrameKind::Pose));
+    assert_eq!(frame.pose().map(|p| p.translation), Some(translation));
+    // The same pose within i32 goes as an ordinary pose frame, 12 bytes shorter.
+    let near = FrameReprV2 {
+        content: Content::Pose {
+            number: 2,
+            pose: WirePose {
+                translation: [4_198_000, 612_000, 4_762_000],
+                rotation: [0, 0, 0, QUATERNION_ONE],
+            },
+        },
+        ..pose
+    };
+    let n = near.emit(&mut raw).or_fail("fits")?;
+    let frame = Frame::new_checked(raw.get(..n).or_fail("raw")?).or_fail("valid")?;
+    assert_eq!((n, frame.wide_pose()), (46, false));
+    // A wide pose's bytes under kind 1 are refused: the kind sets the length.
+    let mut short = want_raw;
+    short[9] = 1;
+    assert!(matches!(
+        Frame::new_checked(&short[..]),
+        Err(FrameError::LengthMismatch {
+            expected: 46,
+            got: 58
+        })
+    ));
+    Ok(())
+}
+
 /// Version 2's own rules, one each: kind, flags, a pose's number, count, length and quaternion.
 #[test]
 fn one_test_per_v2_rejection_rule() -> TestResult {
