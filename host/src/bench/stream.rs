@@ -138,8 +138,13 @@ pub fn run(
     let start = Instant::now();
     let mut stream_map = link.finish();
     let finish_seconds = start.elapsed().as_secs_f64();
-    // The stream's points are the cloud's local points (to the millimetre): same frame.
-    stream_map.origin = cloud.origin;
+    // The stream carried the cloud's local points (to the millimetre): the map's origin is in
+    // the local frame, and the local frame sits at the cloud's origin in the world. (Setting
+    // it to the cloud's origin dropped the receiver's own origin, the first point, and scored
+    // a map moved by that much.)
+    for (o, c) in stream_map.origin.iter_mut().zip(cloud.origin) {
+        *o += c;
+    }
 
     // With a tolerance, as many entities as the stream made: it stops well short of its
     // capacity -k there (car6 at T = 0.1: 142 of 400), and a batch map of k entities would win
