@@ -353,7 +353,11 @@ fn one_session(
 }
 
 /// Asks for `missing` (sorted entity indices) again, in runs of at most [`MAX_RESEND`].
-fn ask_for(port: &mut impl Write, to: Address, missing: &[u32]) -> Result<(), DeviceError> {
+pub(super) fn ask_for(
+    port: &mut impl Write,
+    to: Address,
+    missing: &[u32],
+) -> Result<(), DeviceError> {
     let mut out = [0u8; MAX_UP_FRAME_LEN];
     let mut i = 0;
     while let Some(&first) = missing.get(i) {
