@@ -51,6 +51,14 @@ impl<const K: usize, const G: usize, const F: usize> Device<'_, K, G, F> {
         self.backlog = !self.line.is_empty() || self.firmware.busy();
         let firmware = &mut *self.firmware;
         clock.other(|| firmware.send_downlink(&mut *to_listener));
+        if firmware.stats().end_of_stream {
+            // With the map, what map it is: a listener may have missed every earlier saying.
+            let about = DownFrame::Session {
+                status: SessionStatus::Booted,
+                layout: self.layout,
+            };
+            firmware.send_frame(&about, &mut *to_listener);
+        }
         self.finish_if_ended(clock, to_listener);
     }
 
