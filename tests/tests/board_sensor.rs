@@ -8,6 +8,7 @@
 
 use std::path::Path;
 use std::process::{Command, Stdio};
+use std::time::Duration;
 
 use mema::link::session::stream_counts;
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
@@ -16,20 +17,21 @@ use crate::board_link::{Killed, board_image, open, relay, start_board};
 use crate::board_sessions::finished;
 use crate::device::{capture_and_replay, replay};
 use crate::stream::PtyPair;
-use crate::util::{Dir, mema_bin, shared};
+use crate::util::{Dir, MemaCommand, mema_bin, shared};
 
 /// The board's layout, K = 700: 150 working clusters and 550 frozen entities.
 const LAYOUT: (usize, usize) = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
 
 /// `mema device --listen` on `listen` (asking `queries` of the map after it), while `mema
-/// scanner-sim` plays `cloud` (`demo`: the demo drive) into `sensor`: the listener's exit
-/// status, summary and stderr.
+/// scanner-sim` plays `cloud` (`demo`: the demo drive) into `sensor`, the board reset through
+/// QEMU's monitor after a while if `reset` says so: the listener's exit status, summary and
+/// stderr.
 fn listen_to(
     listen: &Path,
     sensor: &Path,
     cloud: &str,
     out: &Path,
-    queries: u32,
+    (queries, reset): (u32, Option<(&Path, Duration)>),
 ) -> (bool, serde_json::Value, String) {
     let listener = Command::new(mema_bin())
         .arg("device")
@@ -48,12 +50,11 @@ fn listen_to(
     if cloud != "demo" {
         sim.arg(shared(cloud));
     }
-    let sent = sim
-        .stderr(Stdio::null())
-        .status()
-        .expect("scanner-sim runs");
+    let mut sim = Killed(sim.stderr(Stdio::null()).spawn().expect("scanner-sim runs"));
+    let heard = finished(listener, reset);
+    let sent = sim.0.wait().expect("scanner-sim's status");
     assert!(sent.success(), "{cloud}: scanner-sim failed");
-    finished(listener, None)
+    heard
 }
 
 /// What every listener's summary must say: the board's layout and model, its map as many
@@ -108,7 +109,7 @@ fn a_sensor_on_usart1_gives_the_listener_on_usart2_the_replay_map() {
             let out = dir.join(&format!("listened-{cloud}-{model}.mema"));
             // Queries on one run: the board answers them on the listener's line too.
             let queries = if name == "car6.pcd, shells" { 8 } else { 0 };
-            let (ok, summary, stderr) = listen_to(&ptys[1], &ptys[0], cloud, &out, queries);
+            let (ok, summary, stderr) = listen_to(&ptys[1], &ptys[0], cloud, &out, (queries, None));
             assert!(ok, "{name}: {stderr}");
             let map = std::fs::read(&out).expect("the listener's map");
             assert!(map == replayed, "{name}: not replay's map: {summary}");
@@ -160,7 +161,7 @@ fn faulty_lines_to_and_from_the_board_cost_frames_never_a_wrong_map() {
         );
         let up = relay(near, usart2, seed.wrapping_add(2), 2_000);
         let out = dir.join(&format!("listened-{seed}.mema"));
-        let (ok, summary, stderr) = listen_to(&listener.b, &sensor.b, cloud, &out, 0);
+        let (ok, summary, stderr) = listen_to(&listener.b, &sensor.b, cloud, &out, (0, None));
         assert!(ok, "{name}: {stderr}");
         drop((sensor, listener, qemu));
         let (faults, received) = sensor_line.join().expect("the sensor's relay");
@@ -188,4 +189,35 @@ fn faulty_lines_to_and_from_the_board_cost_frames_never_a_wrong_map() {
         asked_again += count("asked_again") + count("ends_asked");
     }
     assert!(asked_again > 0, "nothing was asked again");
+}
+
+/// A board reset while the sensor streams loses what it had mapped: the listener says so and
+/// writes no map, never one pieced together from two boots. And the map's line takes no host's
+/// session: `mema device` there is told the board maps a sensor wired to it.
+#[test]
+fn a_listener_takes_no_map_across_a_reset_and_a_host_no_session_on_its_line() {
+    let dir = Dir::new("board-sensor-reset");
+    let (capture, _, _) = capture_and_replay(&dir, "car6.pcd", LAYOUT, "shells");
+    let monitor = dir.join("monitor.sock");
+    let (_qemu, ptys) = start_board(&dir, &board_image("shells"), Some(&monitor), 2);
+    let _held = open(&ptys[0]);
+    let out = dir.join("reset.mema");
+    // A second into the stream (of about three): the board has mapped part of it.
+    let reset = Some((monitor.as_path(), Duration::from_secs(1)));
+    let (ok, summary, stderr) = listen_to(&ptys[1], &ptys[0], "car6.pcd", &out, (0, reset));
+    assert!(!ok, "a map across a reset: {summary}");
+    assert!(stderr.contains("restarted"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "one line: {stderr}");
+    assert!(!out.exists(), "a map was written");
+    let host = dir.join("host.mema");
+    MemaCommand::new(&dir)
+        .args(["device", "--port"])
+        .arg(&ptys[1])
+        .arg(&capture)
+        .arg("-o")
+        .arg(&host)
+        .args(["--idle-timeout", "10", "--json"])
+        .run()
+        .assert_error(1, "it maps a sensor wired to it");
+    assert!(!host.exists(), "a map was written");
 }
