@@ -12,7 +12,7 @@ use mema_core::link::uplink::{self, MAX_UP_FRAME_LEN, Request, UpFrame};
 
 use super::device::{DeviceError, MapFrames};
 use super::port::{ReadOutcome, read_some};
-use super::session::{MAX_ASKS, RETRY, ask_for};
+use super::session::{RETRY, whole_or_ask};
 
 /// Receives a map on `port` into `frames` (made by [`MapFrames::listening`]) until it is whole
 /// and checked, asking again for what was lost; `report` is called as frames arrive. After
@@ -45,20 +45,8 @@ pub fn listen(
             ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
         }
         if frames.ended() {
-            let missing = frames.missing();
-            if missing.is_empty() {
-                return frames.map_file().unwrap_or(Err(DeviceError::Missing {
-                    missing: Vec::new(),
-                }));
-            }
-            if asked.is_none_or(|t| t.elapsed() > RETRY) {
-                if asks == MAX_ASKS {
-                    return Err(DeviceError::StillMissing { missing, asks });
-                }
-                ask_for(port, frames.address(), &missing)?;
-                frames.counts.asked_again += missing.len() as u64;
-                asks += 1;
-                asked = Some(Instant::now());
+            if let Some(done) = whole_or_ask(port, frames, &mut asked, &mut asks) {
+                return done;
             }
         } else if heard.elapsed() > 2 * RETRY && asked.is_none_or(|t| t.elapsed() > 2 * RETRY) {
             // Quiet and no end: the stream may have ended with its end lost, or before this
