@@ -80,44 +80,53 @@ fi
 # The board (issue 22): the STM32F405 image under QEMU's netduinoplus2, fed over its USART by
 # `mema device` on a pty, sends its map back as downlink frames; the map `mema device` rebuilds
 # from them must be `mema replay`'s at the board's layout (the k and working its summary line
-# names: BOARD_WORKING + BOARD_FROZEN), byte for byte.
+# names: BOARD_WORKING + BOARD_FROZEN), byte for byte. And (issue 30) the same capture from a
+# sensor wired to USART1, its map to `mema device --listen` on USART2 (board.sh --sensor).
 for cloud in car6.pcd demo; do
   for model in paper shells; do
-    m="$work/$cloud/$model"
-    # On car6 the board also answers 32 queries of its map (checked against the host's).
-    queries=0; [ "$cloud" = car6.pcd ] && queries=32
-    MEMA=target/release/mema firmware-sim/board.sh "$m/capture.bin" "$m/board.mema" --model "$model" --queries "$queries" > "$m/board.txt" 2>&1 \
-      || { echo "firmware: board.sh failed on $cloud, $model:"; cat "$m/board.txt"; status=1; continue; }
-    k=$(tail -1 "$m/board.txt" | grep -o '"k":[0-9]*' | head -1 | cut -d: -f2)
-    working=$(tail -1 "$m/board.txt" | grep -o '"working":[0-9]*' | head -1 | cut -d: -f2)
-    target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
-    if cmp -s "$m/board-replay.mema" "$m/board.mema"; then
-      echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
-      # Instructions a point (QEMU -icount; the receive interrupt and the downlink included)
-      # and the longest tick, from the board's own timing frame.
-      per_point=$(tail -1 "$m/board.txt" | grep -o '"per_point":[0-9.]*' | cut -d: -f2)
-      longest=$(tail -1 "$m/board.txt" | grep -o '"longest_tick":[0-9.]*' | cut -d: -f2)
-      printf '   %s, %s: %.0f instructions a point on the board, longest tick %.0f\n' "$cloud" "$model" "$per_point" "$longest"
-      if [ "$queries" -gt 0 ]; then
-        q=$(tail -1 "$m/board.txt" | grep -o '"queries":{[^}]*}')
-        echo "   $cloud, $model: queries on the board, each answer the host's: $q"
-      fi
-      if ! awk -v p="$per_point" 'BEGIN { exit !(p > 0 && p < 10000) }'; then
-        echo "firmware: $cloud, $model: $per_point instructions a point on the board, not under 10,000"
+    for link in host sensor; do
+      m="$work/$cloud/$model"
+      # On car6 the board also answers 32 queries of its map (checked against the host's).
+      queries=0; [ "$cloud" = car6.pcd ] && [ "$link" = host ] && queries=32
+      flags=(--model "$model" --queries "$queries")
+      [ "$link" = sensor ] && flags+=(--sensor)
+      MEMA=target/release/mema firmware-sim/board.sh "$m/capture.bin" "$m/$link.mema" "${flags[@]}" > "$m/$link.txt" 2>&1 \
+        || { echo "firmware: board.sh failed on $cloud, $model, $link:"; cat "$m/$link.txt"; status=1; continue; }
+      k=$(tail -1 "$m/$link.txt" | grep -o '"k":[0-9]*' | head -1 | cut -d: -f2)
+      working=$(tail -1 "$m/$link.txt" | grep -o '"working":[0-9]*' | head -1 | cut -d: -f2)
+      target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
+      if cmp -s "$m/board-replay.mema" "$m/$link.mema"; then
+        if [ "$link" = host ]; then
+          echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"
+        else
+          echo "   $cloud, $model: a sensor on USART1, the board's map on USART2 = mema replay"
+        fi
+        # Instructions a point (QEMU -icount; the receive interrupt and the downlink included)
+        # and the longest tick, from the board's own timing frame.
+        per_point=$(tail -1 "$m/$link.txt" | grep -o '"per_point":[0-9.]*' | cut -d: -f2)
+        longest=$(tail -1 "$m/$link.txt" | grep -o '"longest_tick":[0-9.]*' | cut -d: -f2)
+        printf '   %s, %s, %s: %.0f instructions a point on the board, longest tick %.0f\n' "$cloud" "$model" "$link" "$per_point" "$longest"
+        if [ "$queries" -gt 0 ]; then
+          q=$(tail -1 "$m/$link.txt" | grep -o '"queries":{[^}]*}')
+          echo "   $cloud, $model: queries on the board, each answer the host's: $q"
+        fi
+        if ! awk -v p="$per_point" 'BEGIN { exit !(p > 0 && p < 10000) }'; then
+          echo "firmware: $cloud, $model, $link: $per_point instructions a point on the board, not under 10,000"
+          status=1
+        fi
+      else
+        echo "firmware: $cloud, $model, $link: the board's map differs from mema replay:"
+        cmp "$m/board-replay.mema" "$m/$link.mema" || true
+        tail -1 "$m/$link.txt"
         status=1
       fi
-    else
-      echo "firmware: $cloud, $model: the board's map differs from mema replay:"
-      cmp "$m/board-replay.mema" "$m/board.mema" || true
-      tail -1 "$m/board.txt"
-      status=1
-    fi
+    done
   done
 done
 for model in paper shells; do
   echo "== firmware budget (image mapping car6, K = 400: 150 working + 250 frozen; the board, K = 700: 150 + 550; model $model)"
   target/release/mema-firmware-sim budget --image "$image" --qemu-report "$work/car6.pcd/$model/qemu.txt" \
     --board "firmware-sim/boards/stm32f405/target/$model/thumbv7em-none-eabihf/release/mema-board-stm32f405" \
-    --board-run "$work/car6.pcd/$model/board.txt"
+    --board-run "$work/car6.pcd/$model/host.txt"
 done
 exit $status

@@ -165,7 +165,9 @@ pub fn distance_to_surface(semi_axes: [f64; 3], offset: [f64; 3]) -> f64 {
             count += 1;
         }
     }
-    let axes = &mut axes[..count];
+    // `get_mut`, not `&mut axes[..count]`: where LLVM does not carry `count <= 3` this far (the
+    // board's image, inlined into its queries) a slice index left a panicking branch.
+    let axes = axes.get_mut(..count).unwrap_or(&mut []);
     crate::num::insertion_sort_by(axes, |a, b| a.0 > b.0);
     match *axes {
         [(e0, y0), (e1, y1), (e2, y2)] => ellipsoid_distance([e0, e1, e2], [y0, y1, y2]),

@@ -20,7 +20,7 @@ use mema_core::link::uplink::{self, MAX_CARRIED, MAX_UP_FRAME_LEN, UpFrame};
 use mema_core::link::wire::{FrameRepr, MAX_FRAME_LEN, MAX_RAW_LEN};
 use mema_core::map::Layout;
 
-use mema_firmware::device::{Boot, Device, NoClock, Poll};
+use mema_firmware::device::{Boot, Device, NoClock, Out, Poll};
 use mema_firmware::{
     Carrier, Firmware, IMAGE_REACH, RX_CAPACITY, Request, Ring, SHELLS, model_params,
 };
@@ -290,7 +290,7 @@ fn run_boot(boot: Boot, phases: &[&[u8]], downlink: &mut Vec<u8>) -> Option<(u32
     };
     let mut device = Device::new(&mut firmware, (&line, &map), boot, layout, &mut entities);
     let mut delimiters = 0u32;
-    let mut send = |b: &[u8]| downlink.extend_from_slice(b);
+    let mut send = |_: Out, b: &[u8]| downlink.extend_from_slice(b);
     for phase in phases {
         let mut rest = *phase;
         loop {

@@ -41,6 +41,9 @@ pub struct Carrier {
     reported: u32,
     /// After the end of the stream: carried bytes are acknowledged and dropped.
     closed: bool,
+    /// A listener's line (the map of a wired sensor goes out on it): requests of no session,
+    /// never carry frames.
+    listening: bool,
 }
 
 impl Carrier {
@@ -57,7 +60,36 @@ impl Carrier {
             alert: false,
             reported: 0,
             closed: false,
+            listening: false,
         }
+    }
+
+    /// The receiver of a listener's requests on a second line, for a device in boot `boot`
+    /// mapping a sensor wired to its first: requests of no session (session `0`), addressed to
+    /// this boot or to boot `0` (a listener that has heard no frame yet, asking for the end);
+    /// carry frames are refused, the map comes from the sensor. A start request is handed on
+    /// for the device to refuse.
+    pub const fn listening(boot: u32) -> Self {
+        let mut carrier = Self::new(Address { session: 0, boot }, 0);
+        carrier.listening = true;
+        carrier
+    }
+
+    /// In no session, with a sensor's stream possibly on the line: looks through `bytes`, which
+    /// go to the mapper as they are, for a host's start request only (every other block is the
+    /// sensor's, or noise, and is the mapper's business). Returns the first with its session.
+    pub fn watch(&mut self, bytes: &[u8]) -> Option<(Request, u32)> {
+        let mut rest = bytes;
+        while let Some(end) = self.blocks.accumulate(rest) {
+            rest = rest.get(end + 1..).unwrap_or(&[]);
+            if let Block::Raw(raw) = self.blocks.end_block()
+                && let Ok((from, UpFrame::Request(start @ Request::Start { .. }))) =
+                    uplink::decode(raw)
+            {
+                return Some((start, from.session));
+            }
+        }
+        None
     }
 
     /// Whether stream bytes wait for room in the firmware's ring.
@@ -138,6 +170,16 @@ impl Carrier {
         };
         if let UpFrame::Request(start @ Request::Start { .. }) = frame {
             return Some((start, from.session));
+        }
+        if self.listening {
+            let to_us = from.session == 0 && (from.boot == self.address.boot || from.boot == 0);
+            return match frame {
+                UpFrame::Request(request) if to_us => Some((request, 0)),
+                _ => {
+                    self.refuse();
+                    None
+                }
+            };
         }
         // Another session's frame, or one for another boot: never this map's.
         if from != self.address || self.address.session == 0 {

@@ -7,6 +7,13 @@
 //! and its end, and answers requests and queries. A start request for a session other than the
 //! one the device is in asks the caller to reset the device into it ([`Poll::Reset`]): the new
 //! session's map then starts from a fresh boot, with nothing of the last one in RAM.
+//!
+//! A device with a second line ([`Device::wired`]) also maps a sensor wired to the first one:
+//! booted in no session, it passes the line's bytes to the mapper as they come (a sensor's
+//! points and pose frames, PROTOCOL.md) while its carrier watches them for a host's start
+//! request; once the mapper has taken a sensor's frame, the line is the sensor's alone
+//! ([`Feed`]). The map then goes out on the second line ([`Out::Listener`]), whose receive
+//! side carries a listener's requests (entities or the end again, queries).
 
 use core::borrow::Borrow;
 
@@ -16,6 +23,33 @@ use mema_core::link::frame::Address;
 use mema_core::query::brute_force;
 
 use super::{Carrier, Firmware, RX_CAPACITY, Request, Ring};
+
+mod wired;
+
+/// The second line's receive ring: a listener's requests only (a request is at most 47 bytes on
+/// the wire; asking again for 550 entities takes nine of 26).
+pub const LISTENER_RING: usize = 512;
+
+/// Where a frame goes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Out {
+    /// The first line's transmitter: to the host whose session the device is in.
+    Host,
+    /// The second line's: to a listener, the map of a sensor wired to the first line.
+    Listener,
+}
+
+/// What the first line's bytes are.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Feed {
+    /// A host's session: its carry frames, taken in turn.
+    Carried,
+    /// No session, a second line wired: passed to the mapper as they come, and watched for a
+    /// host's start request until the mapper takes a sensor's frame.
+    Open,
+    /// A sensor's frames: passed to the mapper, nothing else looked for.
+    Sensor,
+}
 
 /// How far a ray is followed, metres (the host's `RAY_REACH`).
 pub const RAY_REACH: f64 = 1_000.0;
@@ -88,6 +122,12 @@ pub struct Device<'a, const K: usize, const G: usize, const F: usize> {
     /// The finished map's entities, for queries, and the timing frame sent with the end.
     entities: &'a mut [Entity],
     finished: Option<(DownFrame, usize)>,
+    feed: Feed,
+    /// A sensor-fed pass stopped after a frame with bytes left: the next pass is due without a
+    /// new delimiter.
+    backlog: bool,
+    /// The second line's receive ring and its requests' receiver, if one is wired.
+    listener: Option<(&'a Ring<LISTENER_RING>, Carrier)>,
 }
 
 impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
@@ -112,29 +152,53 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
             announce: true,
             entities,
             finished: None,
+            feed: Feed::Carried,
+            backlog: false,
+            listener: None,
         }
     }
 
+    /// The device with a second line, whose receiver pushes into `listener`: booted in no
+    /// session, it maps a sensor wired to the first line and sends the map on the second
+    /// ([`Feed::Open`]); in a host's session the second line is not used.
+    pub fn wired(mut self, listener: &'a Ring<LISTENER_RING>) -> Self {
+        let address = self.carrier.address();
+        if address.session == 0 {
+            self.feed = Feed::Open;
+        }
+        self.listener = Some((listener, Carrier::listening(address.boot)));
+        self
+    }
+
+    /// What the first line's bytes are taken for now.
+    pub fn feed(&self) -> Feed {
+        self.feed
+    }
+
     /// Whether a pass has work without new bytes: mapping under way, carried bytes waiting, a
-    /// frame to announce.
+    /// frame to announce, or the line's ring full (its receiver waits for room, and a full
+    /// ring of noise holds no delimiter to wake the loop).
     pub fn awake(&self, delimiters: u32) -> bool {
         delimiters != self.delimiters
             || self.announce
             || self.firmware.mapping()
             || self.carrier.holding()
+            || self.backlog
+            || self.line.len() == RX_CAPACITY
     }
 
     pub fn firmware(&self) -> &Firmware<K, G, F, &'a Ring<RX_CAPACITY>> {
         self.firmware
     }
 
-    /// One pass of the main loop; `delimiters` is the count of `0x00` bytes the line has
-    /// received (a frame can be whole only after one), `send` puts bytes on the downlink.
+    /// One pass of the main loop; `delimiters` is the count of `0x00` bytes the lines have
+    /// received (a frame can be whole only after one), `send` puts bytes on a line's
+    /// transmitter.
     pub fn poll(
         &mut self,
         delimiters: u32,
         clock: &mut impl Clock,
-        send: &mut impl FnMut(&[u8]),
+        send: &mut impl FnMut(Out, &[u8]),
     ) -> Poll {
         if core::mem::take(&mut self.announce) {
             let status = if self.carrier.address().session == 0 {
@@ -146,13 +210,35 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
                 status,
                 layout: self.layout,
             };
-            self.firmware.send_frame(&frame, &mut *send);
+            // At boot a wired device does not know yet whether a host or a sensor is coming:
+            // both lines hear it.
+            let feed = self.feed;
+            self.firmware.send_frame(&frame, |b| {
+                if feed != Feed::Sensor {
+                    send(Out::Host, b);
+                }
+                if feed != Feed::Carried {
+                    send(Out::Listener, b);
+                }
+            });
         }
         if !self.awake(delimiters) {
             return Poll::Idle;
         }
         self.delimiters = delimiters;
         let mut start: Option<(u32, u32)> = None;
+        if self.feed != Feed::Carried {
+            self.map_sensor(clock, send, &mut start);
+            return match start {
+                Some((session, first)) => Poll::Reset { session, first },
+                None => Poll::Idle,
+            };
+        }
+        if let Some((line, _)) = &self.listener {
+            // In a host's session a listener's line has nothing to say.
+            line.clear();
+        }
+        let send = &mut |b: &[u8]| send(Out::Host, b);
         if self.finished.is_some() {
             // Finished: only after a delimiter (every byte's interrupt wakes the loop, and a
             // pass over part of a frame would send a progress frame for each byte).
@@ -221,21 +307,28 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
         }
         let firmware = &mut *self.firmware;
         clock.other(|| firmware.send_frozen(&mut *send));
-        if firmware.stats().end_of_stream && self.finished.is_none() {
-            firmware.finish();
-            self.carrier.close();
-            // What the stream cost, then the rest of the map entity by entity: the device
-            // holds no copy of the file.
-            let timing = DownFrame::Timing(clock.timing());
-            firmware.send_frame(&timing, &mut *send);
-            let _ = firmware.send_end(&mut *send);
-            let mut n = 0;
-            for (slot, e) in self.entities.iter_mut().zip(firmware.mapper().entities()) {
-                *slot = e.entity;
-                n += 1;
-            }
-            self.finished = Some((timing, n));
+        self.finish_if_ended(clock, send);
+    }
+
+    /// Once the stream's end has been mapped: the map finished, what the stream cost, then the
+    /// rest of the map entity by entity (the device holds no copy of the file), and the
+    /// entities kept for queries.
+    fn finish_if_ended(&mut self, clock: &mut impl Clock, send: &mut impl FnMut(&[u8])) {
+        let firmware = &mut *self.firmware;
+        if !firmware.stats().end_of_stream || self.finished.is_some() {
+            return;
         }
+        firmware.finish();
+        self.carrier.close();
+        let timing = DownFrame::Timing(clock.timing());
+        firmware.send_frame(&timing, &mut *send);
+        let _ = firmware.send_end(&mut *send);
+        let mut n = 0;
+        for (slot, e) in self.entities.iter_mut().zip(firmware.mapper().entities()) {
+            *slot = e.entity;
+            n += 1;
+        }
+        self.finished = Some((timing, n));
     }
 }
 

@@ -108,6 +108,15 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.down.send(frame, &mut sink);
     }
 
+    /// One frame addressed to a session other than the device's (a refusal of a host's start
+    /// request names the session it refuses), in the downlink's sequence.
+    pub fn send_frame_to(&mut self, session: u32, frame: &DownFrame, mut sink: impl FnMut(&[u8])) {
+        let own = self.down.address;
+        self.down.address.session = session;
+        self.down.send(frame, &mut sink);
+        self.down.address = own;
+    }
+
     /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
     /// end frame. Returns the file's length.
     pub fn send_end(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {

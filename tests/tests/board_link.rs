@@ -27,29 +27,46 @@ impl Drop for Killed {
     }
 }
 
-/// The board image (shells), built as `firmware-sim/board.sh` builds it.
-pub(crate) fn board_image() -> PathBuf {
+/// The board image in `model` (shells or paper), built as `firmware-sim/board.sh` builds it:
+/// one target directory per model.
+pub(crate) fn board_image(model: &str) -> PathBuf {
     let board = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware-sim/boards/stm32f405");
+    let target = format!("target/{model}");
+    let features: &[&str] = if model == "paper" {
+        &["--features", "paper"]
+    } else {
+        &[]
+    };
     let status = Command::new("cargo")
-        .args(["build", "-q", "--release", "--target-dir", "target/shells"])
+        .args(["build", "-q", "--release", "--target-dir", &target])
+        .args(features)
         .current_dir(&board)
         .env_remove("CARGO_TARGET_DIR")
         .status()
         .expect("cargo runs");
     assert!(status.success(), "the board image builds");
-    board.join("target/shells/thumbv7em-none-eabihf/release/mema-board-stm32f405")
+    board.join(format!(
+        "{target}/thumbv7em-none-eabihf/release/mema-board-stm32f405"
+    ))
 }
 
-/// The board under QEMU, its USART on a pty: the process and the pty's path. `monitor`: a
-/// Unix socket for QEMU's monitor (to reset the board mid-session).
-pub(crate) fn start_board(dir: &Dir, image: &Path, monitor: Option<&Path>) -> (Killed, PathBuf) {
+/// The board under QEMU, its first `ports` USARTs on ptys (QEMU's netduinoplus2 takes its
+/// serial ports in order: USART1, USART2): the process and the ptys' paths. `monitor`: a Unix
+/// socket for QEMU's monitor (to reset the board mid-session).
+pub(crate) fn start_board(
+    dir: &Dir,
+    image: &Path,
+    monitor: Option<&Path>,
+    ports: usize,
+) -> (Killed, Vec<PathBuf>) {
     let log = dir.join("qemu.txt");
     let child = Command::new("qemu-system-arm")
         .args(["-machine", "netduinoplus2", "-nographic", "-monitor"])
         .arg(monitor.map_or("none".to_string(), |m| {
             format!("unix:{},server,nowait", m.display())
         }))
-        .args(["-serial", "pty", "-icount", "shift=0", "-kernel"])
+        .args((0..ports).flat_map(|_| ["-serial", "pty"]))
+        .args(["-icount", "shift=0", "-kernel"])
         .arg(image)
         .stdout(File::create(&log).expect("log"))
         .stderr(Stdio::null())
@@ -59,12 +76,18 @@ pub(crate) fn start_board(dir: &Dir, image: &Path, monitor: Option<&Path>) -> (K
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
         let text = std::fs::read_to_string(&log).unwrap_or_default();
-        if let Some(at) = text.find("/dev/pts/") {
-            let path: String = text[at..]
-                .chars()
-                .take_while(|c| !c.is_whitespace())
-                .collect();
-            return (qemu, PathBuf::from(path));
+        let ptys: Vec<PathBuf> = text
+            .match_indices("/dev/pts/")
+            .map(|(at, _)| {
+                let path: String = text[at..]
+                    .chars()
+                    .take_while(|c| !c.is_whitespace())
+                    .collect();
+                PathBuf::from(path)
+            })
+            .collect();
+        if ptys.len() >= ports {
+            return (qemu, ptys);
         }
         assert!(Instant::now() < deadline, "QEMU gave no pty: {text}");
         std::thread::sleep(Duration::from_millis(50));
@@ -72,22 +95,27 @@ pub(crate) fn start_board(dir: &Dir, image: &Path, monitor: Option<&Path>) -> (K
 }
 
 /// Copies `from` to `to` until either end goes, dropping, flipping or duplicating a byte at
-/// a time at `one_in` bytes (seeded); returns the faults made.
-fn relay(mut from: File, mut to: File, seed: u64, one_in: u32) -> std::thread::JoinHandle<u64> {
+/// a time at `one_in` bytes (seeded); returns the faults made and the bytes it passed on.
+pub(crate) fn relay(
+    mut from: File,
+    mut to: File,
+    seed: u64,
+    one_in: u32,
+) -> std::thread::JoinHandle<(u64, Vec<u8>)> {
     std::thread::spawn(move || {
         let mut line = LineFaults::new(seed, one_in);
-        let (mut buf, mut out) = ([0u8; 512], Vec::with_capacity(1024));
+        let (mut buf, mut passed) = ([0u8; 512], Vec::new());
         while let Ok(n) = from.read(&mut buf) {
             if n == 0 {
                 break;
             }
-            out.clear();
-            line.carry(&buf[..n], |b| out.push(b));
-            if to.write_all(&out).is_err() {
+            let at = passed.len();
+            line.carry(&buf[..n], |b| passed.push(b));
+            if to.write_all(&passed[at..]).is_err() {
                 break;
             }
         }
-        line.faults
+        (line.faults, passed)
     })
 }
 
@@ -104,12 +132,13 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
     let dir = Dir::new("board-link");
     let layout = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
     let (capture, _, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
-    let image = board_image();
+    let image = board_image("shells");
     let mut asked_again = 0;
     for seed in [3u64, 11] {
-        let (qemu, board_pty) = start_board(&dir, &image, None);
+        let (qemu, ptys) = start_board(&dir, &image, None, 1);
+        let board_pty = &ptys[0];
         let pair = PtyPair::new(&dir);
-        let board = open(&board_pty);
+        let board = open(board_pty);
         let near = open(&pair.a);
         // Down (board to host) one byte in 2,000, up one in 4,000: tens of faults each way.
         let down = relay(
@@ -142,7 +171,9 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
         asked_again += count("asked_again") + count("ends_asked");
         drop(pair);
         drop(qemu);
-        let (up, down) = (up.join().unwrap_or(0), down.join().unwrap_or(0));
+        let faults =
+            |relay: std::thread::JoinHandle<(u64, Vec<u8>)>| relay.join().map_or(0, |r| r.0);
+        let (up, down) = (faults(up), faults(down));
         assert!(
             up > 0 && down > 0,
             "seed {seed}: {up} faults up, {down} down"

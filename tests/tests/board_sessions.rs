@@ -36,7 +36,15 @@ pub(crate) fn session(
         .stderr(Stdio::piped())
         .spawn()
         .expect("mema runs");
-    let mut device = Killed(child);
+    finished(Killed(child), reset)
+}
+
+/// Waits for a `mema device --json` run (at most 300 s), asking QEMU's monitor for a
+/// `system_reset` after `reset_after` if given; its exit status, summary and stderr.
+pub(crate) fn finished(
+    mut device: Killed,
+    reset: Option<(&Path, Duration)>,
+) -> (bool, serde_json::Value, String) {
     let started = Instant::now();
     let mut reset = reset;
     let deadline = started + Duration::from_secs(300);
@@ -96,9 +104,10 @@ fn sessions_in_a_row_and_a_reset_each_give_their_own_captures_map() {
     let (car6, _, car6_map) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
     let (lamppost, _, lamppost_map) = capture_and_replay(&dir, "lamppost.pcd", layout, "shells");
     assert_ne!(car6_map, lamppost_map);
-    let image = board_image();
+    let image = board_image("shells");
     let monitor = dir.join("monitor.sock");
-    let (_qemu, port) = start_board(&dir, &image, Some(&monitor));
+    let (_qemu, ptys) = start_board(&dir, &image, Some(&monitor), 1);
+    let port = &ptys[0];
     let runs = [
         ("car6", &car6, &car6_map, None),
         ("lamppost", &lamppost, &lamppost_map, None),
@@ -115,7 +124,7 @@ fn sessions_in_a_row_and_a_reset_each_give_their_own_captures_map() {
     for (i, (name, capture, replayed, reset_after)) in runs.into_iter().enumerate() {
         let out = dir.join(&format!("session-{i}.mema"));
         let reset = reset_after.map(|after| (monitor.as_path(), after));
-        let (ok, summary, stderr) = session(&port, capture, &out, reset);
+        let (ok, summary, stderr) = session(port, capture, &out, reset);
         eprintln!("{name}: {summary}\n{stderr}");
         assert!(ok, "{name}: {stderr}");
         let map = std::fs::read(&out).expect("a map");

@@ -3,7 +3,7 @@
 //! downlink dropped, flipped or duplicated (seeded), the host never writes a wrong map: it
 //! either has the device's map to the bit or says which entities it lacks.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use mema::link::device::{DeviceError, MapFrames};
 use mema_core::link::downlink::{self, DeviceLayout, DownFrame, MAX_DOWN_FRAME_LEN, SessionStatus};
@@ -19,34 +19,53 @@ use mema_firmware_sim::fault::LineFaults;
 
 type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
 
-/// The capture `mema scanner-sim` writes for `cloud` (its path and bytes), and `mema replay`'s
-/// map of it at `k` ellipsoids, `working` of them in working memory, in `model`.
+/// The capture `mema scanner-sim` writes for `cloud` (its path and bytes; `demo`: the demo
+/// drive, scanner-sim's default), and `mema replay`'s map of it at `k` ellipsoids, `working`
+/// of them in working memory, in `model`.
 pub(crate) fn capture_and_replay(
     dir: &Dir,
     cloud: &str,
-    (k, working): (usize, usize),
+    layout: (usize, usize),
     model: &str,
 ) -> (PathBuf, Vec<u8>, Vec<u8>) {
     let capture = dir.join(&format!("{cloud}.bin"));
     if !capture.exists() {
-        MemaCommand::new(dir)
+        let sim = MemaCommand::new(dir)
             .args(["scanner-sim", "--port"])
-            .arg(&capture)
-            .arg(shared(cloud))
-            .run()
-            .assert_ok();
+            .arg(&capture);
+        let sim = if cloud == "demo" {
+            sim
+        } else {
+            sim.arg(shared(cloud))
+        };
+        sim.run().assert_ok();
     }
-    let map = dir.join(&format!("{cloud}-{k}-{model}.mema"));
+    let map = replay(dir, &capture, layout, model);
+    let bytes = std::fs::read(&capture).expect("capture");
+    (capture, bytes, map)
+}
+
+/// `mema replay`'s map of `capture` at `k` ellipsoids, `working` of them in working memory, in
+/// `model`.
+pub(crate) fn replay(
+    dir: &Dir,
+    capture: &Path,
+    (k, working): (usize, usize),
+    model: &str,
+) -> Vec<u8> {
+    let name = capture
+        .file_stem()
+        .map_or("capture".into(), |s| s.to_string_lossy());
+    let map = dir.join(&format!("{name}-{k}-{model}.mema"));
     let (k, working) = (k.to_string(), working.to_string());
     MemaCommand::new(dir)
         .arg("replay")
-        .arg(&capture)
+        .arg(capture)
         .args(["-k", &k, "--working", &working, "--model", model, "-o"])
         .arg(&map)
         .run()
         .assert_ok();
-    let bytes = std::fs::read(&capture).expect("capture");
-    (capture, bytes, std::fs::read(&map).expect("map"))
+    std::fs::read(&map).expect("map")
 }
 
 /// The session these tests' device is in, and its boot.

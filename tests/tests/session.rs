@@ -16,7 +16,7 @@ use mema::link::session::{SILENCE, SessionLimits, send_and_receive};
 use mema_core::geometry::{Entity, Point3};
 use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
 use mema_core::link::frame::Address;
-use mema_firmware::device::{Boot, Device, NoClock, Poll};
+use mema_firmware::device::{Boot, Device, NoClock, Out, Poll};
 use mema_firmware::{
     Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
     model_params,
@@ -138,7 +138,7 @@ fn run_device(
             }
             let mut poll = Poll::Idle;
             while poll == Poll::Idle && device.awake(delimiters) {
-                poll = device.poll(delimiters, &mut NoClock, &mut |b: &[u8]| {
+                poll = device.poll(delimiters, &mut NoClock, &mut |_: Out, b: &[u8]| {
                     sent.extend_from_slice(b)
                 });
             }

@@ -21,7 +21,12 @@ pub(crate) struct PtyPair {
 
 impl PtyPair {
     pub(crate) fn new(dir: &Dir) -> Self {
-        let (a, b) = (dir.join("ttyA"), dir.join("ttyB"));
+        Self::named(dir, "tty")
+    }
+
+    /// A pair linked at `{name}A` and `{name}B` in `dir` (two pairs in one directory).
+    pub(crate) fn named(dir: &Dir, name: &str) -> Self {
+        let (a, b) = (dir.join(&format!("{name}A")), dir.join(&format!("{name}B")));
         let child = Command::new("socat")
             .arg(format!("pty,raw,echo=0,link={}", a.display()))
             .arg(format!("pty,raw,echo=0,link={}", b.display()))

@@ -42,6 +42,14 @@ pub enum DeviceError {
         total: usize,
     },
     #[error(
+        "nothing from the device for {seconds} s ({frames} frames heard, {entities} entities, no end): no sensor streams to it, or this is not its map's line"
+    )]
+    Quiet {
+        seconds: f64,
+        frames: u64,
+        entities: usize,
+    },
+    #[error(
         "the device restarted mid-session (boot {from} -> {to}): its map lost what it had mapped"
     )]
     Rebooted { from: u32, to: u32 },
@@ -152,6 +160,8 @@ pub struct MapFrames {
     blocks: Box<Deframer<MAX_DOWN_FRAME_LEN>>,
     /// The host's session (`0`: none).
     session: u32,
+    /// A listener's: the frames of no session, of the first boot heard ([`MapFrames::listening`]).
+    listening: bool,
     /// The device's boot that began the session, and what it said of itself.
     boot: Option<u32>,
     device: Option<DeviceLayout>,
@@ -185,6 +195,17 @@ impl MapFrames {
     pub fn for_session(session: u32) -> Self {
         Self {
             session,
+            ..Self::default()
+        }
+    }
+
+    /// A listener's frames (`mema device --listen`): the map of a sensor wired to the device,
+    /// sent in no session. The first intact frame of no session names the boot whose map this
+    /// is; a frame from another boot after it says the device restarted, and its map lost
+    /// what it had mapped.
+    pub fn listening() -> Self {
+        Self {
+            listening: true,
             ..Self::default()
         }
     }
@@ -275,6 +296,16 @@ impl MapFrames {
             }
             return from.session == self.session;
         }
+        if self.listening {
+            if from.session != 0 {
+                return false;
+            }
+            self.boot = Some(from.boot);
+            if let DownFrame::Session { layout, .. } = frame {
+                self.device = Some(*layout);
+            }
+            return true;
+        }
         if from.session != self.session || self.session == 0 {
             return false;
         }
@@ -332,7 +363,12 @@ impl MapFrames {
                 self.counts.device_frames = frames;
             }
             DownFrame::Timing(t) => self.timing = Some(t),
-            DownFrame::Session { .. } => {}
+            // A listener hears what map it is getting whenever the device says it.
+            DownFrame::Session { layout, .. } => {
+                if self.listening {
+                    self.device = Some(layout);
+                }
+            }
             DownFrame::Answer {
                 query,
                 entity,

@@ -77,3 +77,31 @@ pub fn read_some(port: &mut dyn Read, buf: &mut [u8]) -> ReadOutcome {
         Err(e) => ReadOutcome::Gone(e.to_string()),
     }
 }
+
+/// How long a write may make no progress before the port is given up on.
+pub const WRITE_STALL: Duration = Duration::from_secs(30);
+
+/// Writes all of `bytes`, waiting while the port takes none: a port's write times out after
+/// [`READ_TIMEOUT`] when its reader holds the line (a board under QEMU takes a byte only once
+/// its UART's data register is free, and holds it while its ring is full), which is a pause,
+/// not a failure, until nothing has gone for [`WRITE_STALL`].
+pub fn write_waiting(port: &mut dyn Write, bytes: &[u8]) -> std::io::Result<()> {
+    let mut rest = bytes;
+    let mut moved = std::time::Instant::now();
+    while !rest.is_empty() {
+        match port.write(rest) {
+            Ok(0) => return Err(ErrorKind::WriteZero.into()),
+            Ok(n) => {
+                rest = rest.get(n..).unwrap_or(&[]);
+                moved = std::time::Instant::now();
+            }
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted
+                ) && moved.elapsed() < WRITE_STALL => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}

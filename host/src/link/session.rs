@@ -311,20 +311,8 @@ fn one_session(
             ReadOutcome::Gone(why) => return Err(DeviceError::Gone(why)),
         }
         if frames.ended() {
-            let missing = frames.missing();
-            if missing.is_empty() {
-                return frames.map_file().unwrap_or(Err(DeviceError::Missing {
-                    missing: Vec::new(),
-                }));
-            }
-            if asked.is_none_or(|t| t.elapsed() > RETRY) {
-                if asks == MAX_ASKS {
-                    return Err(DeviceError::StillMissing { missing, asks });
-                }
-                ask_for(port, to, &missing)?;
-                frames.counts.asked_again += missing.len() as u64;
-                asks += 1;
-                asked = Some(Instant::now());
+            if let Some(done) = whole_or_ask(port, frames, &mut asked, &mut asks) {
+                return done;
             }
         } else if acked == total && asked.is_none_or(|t| t.elapsed() > 2 * RETRY) {
             // Everything taken and no end yet: it may be finishing, or its end was lost.
@@ -352,8 +340,43 @@ fn one_session(
     }
 }
 
+/// Once the device's end has come: the map, if it is whole and checked, or the entities that
+/// did not arrive intact asked for again (once each [`RETRY`], `asked` the last time, `asks`
+/// the times so far), given up after [`MAX_ASKS`]. `None`: asked, the answers to come.
+pub(super) fn whole_or_ask(
+    port: &mut impl Write,
+    frames: &mut MapFrames,
+    asked: &mut Option<Instant>,
+    asks: &mut u32,
+) -> Option<Result<Vec<u8>, DeviceError>> {
+    let missing = frames.missing();
+    if missing.is_empty() {
+        return Some(frames.map_file().unwrap_or(Err(DeviceError::Missing {
+            missing: Vec::new(),
+        })));
+    }
+    if asked.is_some_and(|t| t.elapsed() <= RETRY) {
+        return None;
+    }
+    if *asks == MAX_ASKS {
+        let asks = *asks;
+        return Some(Err(DeviceError::StillMissing { missing, asks }));
+    }
+    if let Err(e) = ask_for(port, frames.address(), &missing) {
+        return Some(Err(e));
+    }
+    frames.counts.asked_again += missing.len() as u64;
+    *asks += 1;
+    *asked = Some(Instant::now());
+    None
+}
+
 /// Asks for `missing` (sorted entity indices) again, in runs of at most [`MAX_RESEND`].
-fn ask_for(port: &mut impl Write, to: Address, missing: &[u32]) -> Result<(), DeviceError> {
+pub(super) fn ask_for(
+    port: &mut impl Write,
+    to: Address,
+    missing: &[u32],
+) -> Result<(), DeviceError> {
     let mut out = [0u8; MAX_UP_FRAME_LEN];
     let mut i = 0;
     while let Some(&first) = missing.get(i) {

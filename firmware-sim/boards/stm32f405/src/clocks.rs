@@ -12,6 +12,8 @@ const READY_POLLS: u32 = 10_000;
 /// The clocks the part ended up with.
 #[derive(Clone, Copy)]
 pub struct Clocks {
+    /// APB1's clock, USART2's.
+    pub pclk1: u32,
     /// APB2's clock, USART1's.
     pub pclk2: u32,
 }
@@ -20,7 +22,10 @@ pub struct Clocks {
 /// at 42 MHz, with 5 flash wait states; falls back to the internal oscillator for everything if
 /// the PLL does not report lock or the switch does not take.
 pub fn setup(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
-    let hsi = Clocks { pclk2: HSI_HZ };
+    let hsi = Clocks {
+        pclk1: HSI_HZ,
+        pclk2: HSI_HZ,
+    };
     // SAFETY: RM0090 6.3.2: PLLM = 16, PLLN = 336, PLLP = /2 (field 0), PLLSRC = HSI (0),
     // PLLQ = 7; reserved bits kept as at reset (bit 29 set).
     rcc.pllcfgr()
@@ -51,7 +56,10 @@ pub fn setup(rcc: &pac::RCC, flash: &pac::FLASH) -> Clocks {
         rcc.cfgr().write(|w| unsafe { w.bits(0) });
         return hsi;
     }
-    Clocks { pclk2: 84_000_000 }
+    Clocks {
+        pclk1: 42_000_000,
+        pclk2: 84_000_000,
+    }
 }
 
 /// Whether `ready` came true within [`READY_POLLS`] polls.

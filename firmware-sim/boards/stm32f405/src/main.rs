@@ -1,5 +1,6 @@
 //! The firmware on an STM32F405: `mema_firmware::Firmware` fed by USART1's receive
-//! interrupt, the map sent back on USART1's transmitter.
+//! interrupt, the map sent back on USART1's transmitter to a host, or on USART2's to a
+//! listener when a sensor is wired to USART1.
 //!
 //! The interrupt takes each byte from the data register and pushes it into the line's ring
 //! (`LINE`, single-producer single-consumer). The host sends the points stream in carry frames
@@ -10,7 +11,17 @@
 //! freeze, progress with the carry frame expected next: "Device to host"), and sleeps (`wfi`)
 //! while there is nothing to do. When the sender's end-of-stream frame has been mapped, the map
 //! is finished with the host's seed, its remaining entities and end frame go out, and the
-//! device goes on answering requests. No semihosting: this image talks only through the USART.
+//! device goes on answering requests. No semihosting: this image talks only through the USARTs.
+//!
+//! A sensor wired to USART1 sends its points and pose frames as they are (PROTOCOL.md), no
+//! carry frames: booted in no session, the device passes USART1's bytes to the firmware as
+//! they come, watching them for a host's start request until the firmware takes a sensor's
+//! frame, and sends the map on USART2, whose receive side brings a listener's requests
+//! (`mema device --listen`; `mema_firmware::device::Feed`). A sensor cannot be told to wait:
+//! when the line's ring is full the USART1 interrupt leaves the byte in the data register and
+//! masks itself until the main loop has made room. Under QEMU, which hands over the next byte
+//! only once the register is read, that holds the line as flow control would; on silicon the
+//! bytes that come meanwhile are lost and counted as the USART's overruns.
 //! The entity model is shells, the host's default, or the paper's with the `paper` feature.
 //!
 //! Clocks: the PLL is set for 168 MHz from the 16 MHz internal oscillator, waiting a bounded
@@ -26,7 +37,7 @@ mod timing;
 mod usart;
 mod watchdog;
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
 use mema_core::geometry::Entity;
@@ -34,7 +45,7 @@ use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
 use mema_core::link::frame::Address;
 use mema_core::stream::StreamModel;
 use mema_firmware::cortex_m::{stack, systick};
-use mema_firmware::device::{Boot, Clock, Device, Poll};
+use mema_firmware::device::{Boot, Clock, Device, LISTENER_RING, Out, Poll};
 use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS,
     model_params,
@@ -54,6 +65,10 @@ const BAUD: u32 = 921_600;
 
 /// The line's ring: the interrupt pushes, the main loop's carrier consumes.
 static LINE: Ring<RX_CAPACITY> = Ring::new();
+/// USART1's interrupt is masked, its byte left in the data register: the line's ring was full.
+static HELD: AtomicBool = AtomicBool::new(false);
+/// USART2's receive ring: a listener's requests.
+static LISTENER: Ring<LISTENER_RING> = Ring::new();
 /// The points stream taken from the carry frames: the carrier pushes, the firmware's ticks
 /// consume.
 static MAP: Ring<RX_CAPACITY> = Ring::new();
@@ -103,25 +118,46 @@ fn query_storage() -> &'static mut [Entity] {
 #[interrupt]
 fn USART1() {
     let _timed = timing::InInterrupt::start();
-    match usart::receive() {
-        usart::Received::Byte(byte) => {
-            if byte == 0 {
-                DELIMITERS.fetch_add(1, Ordering::Relaxed);
-            }
-            if !LINE.push_byte(byte) {
-                RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-            }
-        }
+    if LINE.len() == RX_CAPACITY {
+        // No room: the byte waits in the data register until the main loop has made room.
+        cortex_m::peripheral::NVIC::mask(pac::Interrupt::USART1);
+        HELD.store(true, Ordering::Release);
+        return;
+    }
+    take(usart::receive(usart::Port::Usart1), &LINE);
+}
+
+#[interrupt]
+fn USART2() {
+    let _timed = timing::InInterrupt::start();
+    take(usart::receive(usart::Port::Usart2), &LISTENER);
+}
+
+/// A receive interrupt's byte into its ring, delimiters and overruns counted.
+#[inline(always)]
+fn take<const N: usize>(received: usart::Received, ring: &Ring<N>) {
+    let byte = match received {
+        usart::Received::Byte(byte) => byte,
         usart::Received::Overrun(byte) => {
             LINE_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-            if byte == 0 {
-                DELIMITERS.fetch_add(1, Ordering::Relaxed);
-            }
-            if !LINE.push_byte(byte) {
-                RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
-            }
+            byte
         }
-        usart::Received::Nothing => {}
+        usart::Received::Nothing => return,
+    };
+    if byte == 0 {
+        DELIMITERS.fetch_add(1, Ordering::Relaxed);
+    }
+    if !ring.push_byte(byte) {
+        RING_OVERRUNS.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+/// After a pass: USART1's interrupt unmasked once its ring has room again.
+fn release_line() {
+    if HELD.load(Ordering::Acquire) && LINE.len() < RX_CAPACITY {
+        HELD.store(false, Ordering::Relaxed);
+        // SAFETY: the handler it unmasks only pushes into `LINE`, as at boot.
+        unsafe { cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1) };
     }
 }
 
@@ -172,7 +208,7 @@ fn main() -> ! {
     let calibration = systick::start(&mut cp.SYST);
     // Cycles as silicon counts them, beside the ticks (QEMU models no DWT: the count stays 0).
     timing::start_cycles(&mut cp.DCB, &mut cp.DWT);
-    usart::setup(&dp.RCC, &dp.GPIOA, dp.USART1, clocks.pclk2, BAUD);
+    usart::setup(&dp.RCC, &dp.GPIOA, clocks, BAUD);
     let model = if cfg!(feature = "paper") {
         StreamModel::Paper
     } else {
@@ -184,12 +220,14 @@ fn main() -> ! {
         }
     };
     let firmware = boot(slot, model);
-    // SAFETY: the interrupt's handler only pushes into `LINE`, which is built for a producer in
-    // an interrupt; nothing else it touches is shared.
+    // SAFETY: the interrupts' handlers only push into `LINE` and `LISTENER`, which are built
+    // for a producer in an interrupt; nothing else they touch is shared.
     unsafe {
-        // Below SysTick's 0, so the timer's wraps are counted while the handler is timed.
-        cp.NVIC.set_priority(pac::Interrupt::USART1, 0x10);
-        cortex_m::peripheral::NVIC::unmask(pac::Interrupt::USART1);
+        // Below SysTick's 0, so the timer's wraps are counted while a handler is timed.
+        for usart in [pac::Interrupt::USART1, pac::Interrupt::USART2] {
+            cp.NVIC.set_priority(usart, 0x10);
+            cortex_m::peripheral::NVIC::unmask(usart);
+        }
     }
     stack::paint();
     watchdog::start(&dp.IWDG);
@@ -206,22 +244,28 @@ fn main() -> ! {
         first_carry,
         first_sequence: 0,
     };
-    let mut device = Device::new(firmware, (&LINE, &MAP), boot, layout, query_storage());
+    let mut device =
+        Device::new(firmware, (&LINE, &MAP), boot, layout, query_storage()).wired(&LISTENER);
     let mut clock = BoardClock {
         work: timing::Work::default(),
         calibration,
     };
     loop {
         watchdog::feed();
-        match device.poll(
+        let poll = device.poll(
             DELIMITERS.load(Ordering::Relaxed),
             &mut clock,
-            &mut usart::send,
-        ) {
+            &mut |out, bytes| match out {
+                Out::Host => usart::send(usart::Port::Usart1, bytes),
+                Out::Listener => usart::send(usart::Port::Usart2, bytes),
+            },
+        );
+        release_line();
+        match poll {
             Poll::Idle => sleep_unless(|| device.awake(DELIMITERS.load(Ordering::Relaxed))),
             Poll::Reset { session, first } => {
                 // A new session's map starts from a fresh boot: nothing of the last in RAM.
-                usart::flush();
+                usart::flush(usart::Port::Usart1);
                 retained::reset_into(session, first)
             }
         }

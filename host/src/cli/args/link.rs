@@ -159,15 +159,20 @@ pub struct StreamBenchArgs {
 #[derive(Args, Debug)]
 pub struct DeviceArgs {
     /// The device's serial port or pty (a board, or the board image under QEMU).
-    #[arg(long)]
-    pub port: PathBuf,
+    #[arg(long, required_unless_present = "listen")]
+    pub port: Option<PathBuf>,
+    /// Receive the map of a sensor wired to the device, on its map's own line (the board's
+    /// USART2), sending no stream: only requests for what was lost on the way.
+    #[arg(long, value_name = "PORT", conflicts_with_all = ["port", "input"])]
+    pub listen: Option<PathBuf>,
     /// Line speed in bits per second (a pty ignores it).
     #[arg(long, default_value_t = 921_600)]
     pub baud: u32,
     /// What to send: a capture (`mema record`, `scanner-sim` to a file; it starts with the
     /// protocol's 0x00), or a cloud, a ROS 2 bag (--topic, --frame) or a registration file
     /// (.conf), encoded as `mema scanner-sim` encodes them.
-    pub input: PathBuf,
+    #[arg(required_unless_present = "listen")]
+    pub input: Option<PathBuf>,
     /// The map the device sends back, written atomically once it is whole and checked.
     #[arg(short, long)]
     pub output: PathBuf,
@@ -178,8 +183,8 @@ pub struct DeviceArgs {
     /// one costs the device.
     #[arg(long, default_value_t = 0)]
     pub queries: u32,
-    /// Give up when the device has said nothing new (an acknowledgement, an entity, its end)
-    /// for this many seconds: exit status 1, no map written.
+    /// Give up when the device has said nothing new (an acknowledgement, an entity, its end;
+    /// with --listen, any frame) for this many seconds: exit status 1, no map written.
     #[arg(long, value_name = "SECONDS", default_value_t = 30.0)]
     pub idle_timeout: f64,
     /// Print the summary as JSON on stdout.

@@ -95,7 +95,8 @@ pub enum Command {
     /// Play a cloud (or the built-in scene) as a rangefinder would, to a port or a capture file.
     ScannerSim(ScannerSimArgs),
     /// Send points to a mapping device (a board running mema's firmware) and write the map it
-    /// sends back, entity by entity, once it is whole and its CRC-32 agrees.
+    /// sends back, entity by entity, once it is whole and its CRC-32 agrees; or, with
+    /// --listen, receive the map of a sensor wired to the device.
     Device(DeviceArgs),
     /// Ask a map: signed distance and occupancy at a point, first hit along a ray.
     Query(QueryArgs),

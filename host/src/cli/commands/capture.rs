@@ -13,7 +13,7 @@ use mema::io::output::check_output_dir;
 use mema::io::scene::Scene;
 use mema::link::capture::CaptureWriter;
 use mema::link::port::{
-    ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some,
+    ReadOutcome, is_terminal_device, open_for_reading, open_for_writing, read_some, write_waiting,
 };
 use mema::link::scanner::{SensorScan, scans_of, scans_of_input, send_scans, unit_name};
 
@@ -130,7 +130,7 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
         if stop.load(Ordering::SeqCst) {
             break;
         }
-        port.write_all(chunk)
+        write_waiting(&mut port, chunk)
             .with_context(|| format!("{}: write failed", args.port.display()))?;
         sent += chunk.len();
         if let Some(rate) = args.rate {

@@ -1,4 +1,6 @@
-//! `mema device`: points out to a mapping device, its map back (`mema::link::device`).
+//! `mema device`: points out to a mapping device, its map back (`mema::link::device`); with
+//! `--listen`, the map of a sensor wired to the device, on the map's own line
+//! (`mema::link::listen`).
 
 use std::time::Duration;
 
@@ -9,6 +11,7 @@ use mema::io::atomic::write_file_atomically;
 use mema::io::kind::InputKind;
 use mema::io::output::check_map_output;
 use mema::link::device::{DownlinkCounts, MapFrames};
+use mema::link::listen::listen;
 use mema::link::port::open_duplex;
 use mema::link::queries::{QueryReport, ask};
 use mema::link::scanner::{scans_of_input, send_scans};
@@ -35,8 +38,9 @@ struct DeviceSummary {
     output: String,
     #[serde(skip_serializing_if = "Option::is_none")]
     layout: Option<DeviceSays>,
-    /// Bytes sent to the device.
-    sent: usize,
+    /// Bytes of the stream sent to the device (none when listening).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    sent: Option<usize>,
     map_bytes: usize,
     #[serde(flatten)]
     downlink: DownlinkCounts,
@@ -53,58 +57,30 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
         ))
         .into());
     }
-    super::check_bag_args(&args.input, &args.bag)?;
-    let name = args.input.display().to_string();
-    let stream = match InputKind::of(&args.input) {
-        InputKind::Bag | InputKind::Registration => encode(args)?,
-        _ => {
-            let bytes = mema::io::input::read_bounded(&args.input, CAPTURE_LIMIT, "input")?;
-            // A capture starts with the protocol's delimiter; anything else is a cloud.
-            if bytes.first() == Some(&0) {
-                bytes
-            } else {
-                encode(args)?
-            }
-        }
-    };
-    let mut port = open_duplex(&args.port, args.baud)?;
+    let silence = Duration::from_secs_f64(t);
     let quiet = args.json;
-    let total = stream.len();
-    // The device's ring holds RING_BYTES: never more than that is in flight.
-    let mut frames = MapFrames::default();
-    let limits = SessionLimits {
-        window: RING_BYTES,
-        silence: Duration::from_secs_f64(t),
-        first_carry: 0,
+    let (port_path, got) = match (&args.listen, &args.port, &args.input) {
+        (Some(path), ..) => (path, receive(args, path, silence)?),
+        (None, Some(path), Some(input)) => (path, send(args, path, input, silence)?),
+        _ => return Err(UsageError("name --port and what to send, or --listen".into()).into()),
     };
-    let map = send_and_receive(
-        &mut port,
-        &stream,
-        limits,
-        &mut frames,
-        |event| match event {
-            SessionEvent::Progress { done, taken } if !quiet => eprint!(
-                "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
-            ),
-            SessionEvent::Progress { .. } => {}
-            // Said even with --json: the map written is then the whole stream's, from the start.
-            SessionEvent::Restart(why) => {
-                eprintln!("\nmema device: {why}; starting the session again")
-            }
-        },
-    )
-    .with_context(|| format!("{} at {} baud: {name}", args.port.display(), args.baud))?;
+    let Got {
+        mut port,
+        map,
+        mut frames,
+        sent,
+    } = got;
     if !quiet {
         eprintln!();
     }
     write_file_atomically(&args.output, &map, "map")?;
     let queries = if args.queries > 0 {
         let report = ask(&mut port, &mut frames, args.queries, 0)
-            .with_context(|| format!("{}: queries", args.port.display()))?;
+            .with_context(|| format!("{}: queries", port_path.display()))?;
         if report.agreed != report.asked {
             anyhow::bail!(
                 "{}: the device answered {} of {} queries unlike the host",
-                args.port.display(),
+                port_path.display(),
                 report.asked - report.agreed,
                 report.asked
             );
@@ -122,7 +98,7 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     let summary = DeviceSummary {
         output: args.output.display().to_string(),
         layout,
-        sent: total,
+        sent,
         map_bytes: map.len(),
         downlink: frames.counts.clone(),
         queries,
@@ -146,9 +122,104 @@ pub fn device(args: &DeviceArgs) -> Result<()> {
     Ok(())
 }
 
+/// What a run got from the device: the port (queries are asked on it), the map, its frames,
+/// and the bytes of the stream sent (none when listening).
+struct Got {
+    port: Box<dyn serialport::SerialPort>,
+    map: Vec<u8>,
+    frames: MapFrames,
+    sent: Option<usize>,
+}
+
+/// A listener's run: the map of a sensor wired to the device, on `path`.
+fn receive(args: &DeviceArgs, path: &std::path::Path, silence: Duration) -> Result<Got> {
+    if args.bag.given() {
+        return Err(UsageError(
+            "--topic and --frame choose a ROS 2 bag's messages to send; a listener sends none"
+                .into(),
+        )
+        .into());
+    }
+    let mut port = open_duplex(path, args.baud)?;
+    let mut frames = MapFrames::listening();
+    let quiet = args.json;
+    let map = listen(&mut port, &mut frames, silence, |f| {
+        if !quiet {
+            eprint!(
+                "\rmema device: {} entities, {} bytes taken by the device",
+                f.counts.entities,
+                f.taken()
+            );
+        }
+    })
+    .with_context(|| format!("{} at {} baud: listening", path.display(), args.baud))?;
+    Ok(Got {
+        port,
+        map,
+        frames,
+        sent: None,
+    })
+}
+
+/// A host's session: `input` sent to the device on `path` in carry frames, its map back. The
+/// port, the map, the frames and the bytes of the stream sent.
+fn send(
+    args: &DeviceArgs,
+    path: &std::path::Path,
+    input: &std::path::Path,
+    silence: Duration,
+) -> Result<Got> {
+    super::check_bag_args(input, &args.bag)?;
+    let name = input.display().to_string();
+    let stream = match InputKind::of(input) {
+        InputKind::Bag | InputKind::Registration => encode(args, input)?,
+        _ => {
+            let bytes = mema::io::input::read_bounded(input, CAPTURE_LIMIT, "input")?;
+            // A capture starts with the protocol's delimiter; anything else is a cloud.
+            if bytes.first() == Some(&0) {
+                bytes
+            } else {
+                encode(args, input)?
+            }
+        }
+    };
+    let mut port = open_duplex(path, args.baud)?;
+    let quiet = args.json;
+    // The device's ring holds RING_BYTES: never more than that is in flight.
+    let mut frames = MapFrames::default();
+    let limits = SessionLimits {
+        window: RING_BYTES,
+        silence,
+        first_carry: 0,
+    };
+    let map = send_and_receive(
+        &mut port,
+        &stream,
+        limits,
+        &mut frames,
+        |event| match event {
+            SessionEvent::Progress { done, taken } if !quiet => eprint!(
+                "\rmema device: {done} bytes of carry frames taken, {taken} bytes read off the line"
+            ),
+            SessionEvent::Progress { .. } => {}
+            // Said even with --json: the map written is then the whole stream's, from the start.
+            SessionEvent::Restart(why) => {
+                eprintln!("\nmema device: {why}; starting the session again")
+            }
+        },
+    )
+    .with_context(|| format!("{} at {} baud: {name}", path.display(), args.baud))?;
+    Ok(Got {
+        port,
+        map,
+        frames,
+        sent: Some(stream.len()),
+    })
+}
+
 /// A cloud, bag or registration file encoded as `mema scanner-sim` sends it.
-fn encode(args: &DeviceArgs) -> Result<Vec<u8>> {
-    let scans = scans_of_input(&args.input, None, &args.bag.options())
-        .with_context(|| args.input.display().to_string())?;
+fn encode(args: &DeviceArgs, input: &std::path::Path) -> Result<Vec<u8>> {
+    let scans = scans_of_input(input, None, &args.bag.options())
+        .with_context(|| input.display().to_string())?;
     Ok(send_scans(&scans)?.bytes)
 }
