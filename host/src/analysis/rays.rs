@@ -72,13 +72,18 @@ pub fn held_out_rays(cloud: &LocalCloud) -> Vec<Ray> {
         .sensors
         .runs()
         .flat_map(|(range, origin)| {
-            cloud.points.get(range).unwrap_or_default().iter().map(move |p| {
-                let q = p.to_f64();
-                Ray {
-                    origin,
-                    end: [o[0] + q[0], o[1] + q[1], o[2] + q[2]],
-                }
-            })
+            cloud
+                .points
+                .get(range)
+                .unwrap_or_default()
+                .iter()
+                .map(move |p| {
+                    let q = p.to_f64();
+                    Ray {
+                        origin,
+                        end: [o[0] + q[0], o[1] + q[1], o[2] + q[2]],
+                    }
+                })
         })
         .filter(|r| r.range() > 0.0)
         .collect()

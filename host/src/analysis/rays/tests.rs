@@ -54,7 +54,12 @@ fn auc_and_accuracy_agree_with_their_definitions() {
                 }
             }
         }
-        assert!((o.auc - wins / pairs).abs() < 1e-12, "{} {}", o.auc, wins / pairs);
+        assert!(
+            (o.auc - wins / pairs).abs() < 1e-12,
+            "{} {}",
+            o.auc,
+            wins / pairs
+        );
         let right: f64 = samples
             .iter()
             .zip(&said)
@@ -179,7 +184,10 @@ fn counts_agree_with_a_brute_force_trace() {
             Outcome::RunOn => run_on += 1,
         }
     }
-    assert_eq!((scores.agree, scores.early, scores.run_on), (agree, early, run_on));
+    assert_eq!(
+        (scores.agree, scores.early, scores.run_on),
+        (agree, early, run_on)
+    );
     assert!(agree > 20 && early > 20 && run_on > 20, "{scores:?}");
     let sum = scores.agree_fraction + scores.early_fraction + scores.run_on_fraction;
     assert!((sum - 1.0).abs() < 1e-12);
@@ -190,7 +198,11 @@ fn counts_agree_with_a_brute_force_trace() {
         .iter()
         .filter(|s| {
             let p = local(&map, s.point);
-            brute_force::nearest(&plain, p).unwrap().signed_distance.abs() <= tol
+            brute_force::nearest(&plain, p)
+                .unwrap()
+                .signed_distance
+                .abs()
+                <= tol
         })
         .count();
     assert_eq!(scores.occupancy.said_occupied, occupied);
