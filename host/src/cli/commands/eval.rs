@@ -134,7 +134,7 @@ fn eval_rays(args: &EvalArgs, cloud: &LocalCloud, map: &HostMap) -> Result<()> {
 
 fn print_rays(s: &RayScores, cloud: &LocalCloud) {
     println!(
-        "rays: {} held out from {} sensor origins ({} no-returns at their origin left out), tolerance {} m",
+        "rays: {} held out from {} sensor origin(s) ({} no-returns at their origin left out), tolerance {} m",
         s.rays,
         cloud.sensors.origins.len(),
         cloud.no_returns,
