@@ -9,7 +9,7 @@ venv="${MEMA_BENCH_VENV:-target/bench-venv}"
 if [ ! -x "$venv/bin/python" ]; then
   python3 -m venv "$venv"
 fi
-"$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy scikit-learn
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy scikit-learn pyoctomap==1.2.2
 
 cargo build --release -p mema
 ./target/release/mema bench --data ../shared/data --python "$venv/bin/python" "$@"

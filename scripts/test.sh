@@ -45,7 +45,7 @@ if ! python3 -c 'import venv, ensurepip' >/dev/null 2>&1; then
   $sudo_ apt-get update -qq && $sudo_ apt-get install -y -qq python3-venv
 fi
 [ -x target/py-venv/bin/python ] || python3 -m venv target/py-venv
-target/py-venv/bin/python -m pip install --quiet rosbags==0.11.9 numpy "laspy[lazrs]==2.7.0"
+target/py-venv/bin/python -m pip install --quiet rosbags==0.11.9 numpy "laspy[lazrs]==2.7.0" pyoctomap==1.2.2
 # The Python package goes in before the tests: the guides' commands (tests/tests/docs.rs) run
 # `python -m mema.tiles` from this environment. Its own workspace, built into the main target/.
 echo "== the Python package: pip install into the virtual environment"

@@ -49,8 +49,33 @@ pub struct MapReport {
     /// Points read, then left by `--crop` and `--voxel` (null when not asked for).
     pub filter: FilterCounts,
     /// The input's slots: `filter.read` and every point the read left out (NaN or infinite,
-    /// by class, isolated), over every scan of a registration file or message of a bag.
+    /// by class, isolated, no-return), over every scan of a registration file or message of
+    /// a bag.
     pub slots: usize,
+    /// Points left out as no-returns: at their sensor origin (`--min-range`).
+    pub no_returns: usize,
+    /// Where the mapped points were seen from; null where the input does not say, and then
+    /// no free space is recorded.
+    pub rays: Option<RaysSeen>,
+}
+
+/// The rays a map's points are the ends of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct RaysSeen {
+    /// Points with a sensor origin.
+    pub points: usize,
+    /// Distinct scans (sensor positions) they were seen from.
+    pub origins: usize,
+}
+
+impl RaysSeen {
+    /// What `cloud` says of its rays; `None` if it has no sensor origins.
+    pub fn of(cloud: &LocalCloud) -> Option<Self> {
+        (!cloud.sensors.is_empty()).then(|| Self {
+            points: cloud.sensors.points(),
+            origins: cloud.sensors.origins.len(),
+        })
+    }
 }
 
 impl MapReport {
@@ -58,6 +83,7 @@ impl MapReport {
     /// read's drops make.
     pub fn set_filter(&mut self, filter: FilterCounts) {
         self.slots = filter.read
+            + self.no_returns
             + self.dropped_non_finite
             + self.dropped_by_class.total()
             + self.outliers.dropped;
@@ -257,6 +283,8 @@ fn paper_map(
         output: String::new(),
         filter: FilterCounts::default(),
         slots: 0,
+        no_returns: cloud.no_returns,
+        rays: RaysSeen::of(cloud),
     };
     report.set_filter(FilterCounts {
         read: cloud.points.len(),
@@ -338,6 +366,8 @@ fn shells_map(
         output: String::new(),
         filter: FilterCounts::default(),
         slots: 0,
+        no_returns: cloud.no_returns,
+        rays: RaysSeen::of(cloud),
     };
     report.set_filter(FilterCounts {
         read: cloud.points.len(),

@@ -108,3 +108,5 @@ mod lidar_pictures;
 mod world_frame;
 // Issue 23: LAS/LAZ classes, noise and withheld points.
 mod las_classes;
+// Issue 29: sensor origins, no-returns, held-out rays (`mema eval --rays`).
+mod rays;

@@ -96,6 +96,8 @@ impl Input {
                 dropped_by_class: Default::default(),
                 outliers: Default::default(),
                 unit: None,
+                sensors: Default::default(),
+                no_returns: 0,
             };
             return Ok((cloud, Some(frame.unit.clone())));
         }

@@ -69,7 +69,11 @@ fn _read_cloud<'py>(
             .map_err(|e: String| errors::bad_value("outliers", &e))?,
         None => mema::io::read::Outliers::DEFAULT,
     };
-    let screening = mema::io::read::Screening { classes, outliers };
+    let screening = mema::io::read::Screening {
+        classes,
+        outliers,
+        ..mema::io::read::Screening::DEFAULT
+    };
     let bag = mema::io::bag::BagOptions { topic, frame };
     if (bag.topic.is_some() || bag.frame.is_some())
         && mema::io::kind::InputKind::of(&path) != mema::io::kind::InputKind::Bag

@@ -4,4 +4,5 @@
 //! Built on [`crate::io`] and the pipeline's eq. 13 ([`crate::mapping::pipeline`]).
 pub mod eval;
 pub mod fidelity;
+pub mod rays;
 pub mod stats;

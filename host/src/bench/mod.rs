@@ -12,6 +12,7 @@ pub mod ablation;
 pub mod fidelity;
 mod fidelity_report;
 mod fitness_case;
+pub mod free_space;
 pub mod gmm;
 mod memory;
 mod pipeline_case;
@@ -44,6 +45,8 @@ pub enum Which {
     Python,
     /// The default, the paper's and a Gaussian mixture's maps at equal bytes, scored two ways.
     Fidelity,
+    /// Held-out rays of the shared Ouster sweeps at mema's maps and OctoMap's at equal bytes.
+    FreeSpace,
 }
 
 /// What a `mema bench` run does.
@@ -120,7 +123,7 @@ pub fn run(args: &BenchOptions) -> Result<()> {
             which.push(Which::Python);
         }
     }
-    if !which.contains(&Which::Fidelity) {
+    if !which.contains(&Which::Fidelity) && !which.contains(&Which::FreeSpace) {
         let known =
             |c: &String| c == "office1.pcd" || PIPELINE_CASES.iter().any(|(name, _)| name == c);
         if let Some(unknown) = args.clouds.iter().find(|c| !known(c)) {
@@ -147,6 +150,7 @@ pub fn run(args: &BenchOptions) -> Result<()> {
             Which::Pipeline => pipeline(args)?,
             Which::Python => python(args)?,
             Which::Fidelity => fidelity_bench(args)?,
+            Which::FreeSpace => free_space::free_space(args)?,
         }
     }
     Ok(())

@@ -10,6 +10,7 @@ use super::kind::InputKind;
 use super::read::{
     ClassDrops, Cloud, OutlierDrops, Screening, read_cloud, read_cloud_in_metres_keeping,
 };
+use super::sensors::{Sensors, drop_no_returns};
 use super::units::{FileUnit, LengthUnit, Units, resolve};
 
 /// A cloud in its local frame, ready for the core.
@@ -31,6 +32,12 @@ pub struct LocalCloud {
     /// The unit the file says `origin` and `points` are in (`None`: it says nothing); see
     /// [`LocalCloud::to_metres`].
     pub unit: Option<FileUnit>,
+    /// Where each point was seen from (empty: the input does not say, and no free space is
+    /// recorded).
+    pub sensors: Sensors,
+    /// Points left out as no-returns: at (within the screening's `min_range` of) their
+    /// sensor origin, where lidar drivers put a beam that came back empty.
+    pub no_returns: usize,
 }
 
 /// Why world coordinates make no cloud ([`LocalCloud::from_world_checked`]).
@@ -162,6 +169,8 @@ impl LocalCloud {
             dropped_by_class: ClassDrops::default(),
             outliers: OutlierDrops::default(),
             unit: None,
+            sensors: Sensors::default(),
+            no_returns: 0,
         }
     }
 
@@ -190,6 +199,9 @@ impl LocalCloud {
         let scale = units.unit.metres;
         if !units.unit.is_metre() {
             self.origin = self.origin.map(|c| c * scale);
+            for o in &mut self.sensors.origins {
+                *o = o.map(|c| c * scale);
+            }
             for p in &mut self.points {
                 let q = p.to_f64();
                 *p = Point3::new(
@@ -226,7 +238,13 @@ pub fn load_cloud(path: &Path) -> Result<LocalCloud> {
 }
 
 fn local(cloud: Cloud) -> LocalCloud {
+    let n = cloud.points.len();
     LocalCloud {
+        sensors: cloud
+            .sensor
+            .map(|s| Sensors::single(s, n))
+            .unwrap_or_default(),
+        no_returns: cloud.no_returns,
         origin: cloud.origin,
         points: cloud.points.into_iter().map(Point3::from).collect(),
         dropped_non_finite: cloud.dropped_non_finite,
@@ -316,6 +334,9 @@ pub fn load_cloud_file_keeping(
 pub struct ScanInMetres {
     pub scan: RegisteredScan,
     pub points: Vec<[f64; 3]>,
+    /// Where the sensor was in the scan's frame: the file's own (a PCD's VIEWPOINT), else the
+    /// frame's origin, which the pose's translation puts in the world.
+    pub sensor: [f64; 3],
 }
 
 /// What the reads of a registration file's scans left out, summed over its scans, so that the
@@ -327,6 +348,8 @@ pub struct ScanDrops {
     pub by_class: ClassDrops,
     /// Isolated points; the worst is placed in the common frame.
     pub outliers: OutlierDrops,
+    /// No-returns: points at their scan's sensor origin.
+    pub no_returns: usize,
 }
 
 /// Every scan of registration file `path`, read in metres (scaled by `given`, else by the unit
@@ -367,7 +390,17 @@ pub fn read_scans_keeping(
         let (cloud, units) = load_cloud_file_keeping(&scan.path, given, screening)
             .with_context(|| format!("{}: scan {}", path.display(), scan.path.display()))?;
         let scale = units.unit.metres;
-        let points = cloud.world_points();
+        let mut points = cloud.world_points();
+        // A file that says where its sensor was has had its no-returns left out by the read;
+        // any other scan was taken from its frame's origin, the pose's translation.
+        let sensor = match cloud.sensors.origins.first() {
+            Some(&s) => s,
+            None => {
+                drops.no_returns += drop_no_returns(&mut points, [0.0; 3], screening.min_range);
+                [0.0; 3]
+            }
+        };
+        drops.no_returns += cloud.no_returns;
         let scan = RegisteredScan {
             translation: scan.translation.map(|v| v * scale),
             ..scan
@@ -375,7 +408,11 @@ pub fn read_scans_keeping(
         drops.non_finite += cloud.dropped_non_finite;
         drops.by_class.add(cloud.dropped_by_class);
         drops.outliers.add(cloud.outliers, |p| scan.to_world(p));
-        out.push(ScanInMetres { scan, points });
+        out.push(ScanInMetres {
+            scan,
+            points,
+            sensor,
+        });
         first_units.get_or_insert(units);
     }
     Ok((out, first_units.unwrap_or_else(Units::assumed), drops))
@@ -402,6 +439,12 @@ pub fn load_registered_keeping(
         .flat_map(|s| s.points.iter().map(|p| s.scan.to_world(*p)))
         .collect();
     let mut cloud = LocalCloud::from_world(&world);
+    for s in &scans {
+        cloud
+            .sensors
+            .push_run(s.scan.to_world(s.sensor), s.points.len());
+    }
+    cloud.no_returns = drops.no_returns;
     cloud.dropped_non_finite = drops.non_finite;
     cloud.dropped_by_class = drops.by_class;
     cloud.outliers = drops.outliers;
@@ -444,6 +487,11 @@ pub fn load_bag_keeping(
     let bag = read_bag_keeping(path, options, given, screening)?;
     let world: Vec<[f64; 3]> = bag.scans.iter().flat_map(|s| s.world_points()).collect();
     let mut cloud = LocalCloud::from_world(&world);
+    for s in &bag.scans {
+        // Each message is in its sensor's frame: the pose takes that frame's origin to the world.
+        cloud.sensors.push_run(s.pose.translation, s.points.len());
+    }
+    cloud.no_returns = usize::try_from(bag.no_returns).unwrap_or(usize::MAX);
     cloud.dropped_non_finite = usize::try_from(bag.dropped_non_finite).unwrap_or(usize::MAX);
     cloud.outliers = bag.outliers;
     cloud.unit = Some(FileUnit::Length {

@@ -13,6 +13,7 @@ pub mod mapfile;
 pub mod output;
 pub mod read;
 pub mod scene;
+pub mod sensors;
 pub mod units;
 pub mod write_cloud;
 

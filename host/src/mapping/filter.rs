@@ -114,7 +114,9 @@ pub fn apply(
         [0, 1, 2].map(|j| origin[j] + q[j])
     };
     let mut points: Vec<[f64; 3]> = cloud.points.iter().map(world).collect();
+    let mut sensors = cloud.sensors.clone();
     if let Some(b) = crop {
+        sensors = sensors.retain(|i| points.get(i).is_some_and(|p| b.contains(*p)));
         points.retain(|p| b.contains(*p));
         counts.cropped = Some(points.len());
         if points.is_empty() {
@@ -141,12 +143,17 @@ pub fn apply(
         }
         points = voxel_centroids(&points, size);
         counts.voxelized = Some(points.len());
+        // A voxel's centroid mixes the points of several rays, often of several scans: it is
+        // no one ray's end, so no free space is recorded from it.
+        sensors = Default::default();
     }
     let mut out = LocalCloud::from_world(&points);
     out.dropped_non_finite = cloud.dropped_non_finite;
     out.dropped_by_class = cloud.dropped_by_class;
     out.outliers = cloud.outliers;
     out.unit = cloud.unit;
+    out.sensors = sensors;
+    out.no_returns = cloud.no_returns;
     Ok((out, counts))
 }
 

@@ -63,6 +63,8 @@ impl Ball {
         }
         Ok(LocalCloud {
             points,
+            // A picture's ball of points, not rays.
+            sensors: Default::default(),
             ..cloud.clone()
         })
     }

@@ -156,6 +156,16 @@ pub struct EvalArgs {
     /// Seed of the surface samples.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Cast the cloud's points as held-out rays from their sensor origins (a .conf of frames
+    /// with their poses, a frame that says where its sensor was) at the map instead: the
+    /// fraction whose first hit agrees with the measured range, stops early or runs on, and
+    /// the occupancy score of points sampled along them (docs/queries.md).
+    #[arg(long)]
+    pub rays: bool,
+    /// With --rays: how far (metres) a first hit may fall from the measured range and agree,
+    /// and how near map surface a sample is occupied.
+    #[arg(long, value_name = "METRES", default_value_t = mema::analysis::rays::DEFAULT_TOLERANCE, requires = "rays")]
+    pub ray_tolerance: f64,
     #[command(flatten)]
     pub units: UnitsArg,
     #[command(flatten)]

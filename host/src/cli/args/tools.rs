@@ -227,6 +227,9 @@ pub enum WhichArg {
     Python,
     /// Map fidelity at fixed byte budgets against a Gaussian mixture (about an hour).
     Fidelity,
+    /// Held-out rays of the shared Ouster sweeps at mema's maps and OctoMap's at equal bytes
+    /// (pyoctomap in --python).
+    FreeSpace,
 }
 
 impl From<WhichArg> for Which {
@@ -237,6 +240,7 @@ impl From<WhichArg> for Which {
             WhichArg::Pipeline => Which::Pipeline,
             WhichArg::Python => Which::Python,
             WhichArg::Fidelity => Which::Fidelity,
+            WhichArg::FreeSpace => Which::FreeSpace,
         }
     }
 }

@@ -18,6 +18,19 @@ pub struct UnitsArg {
     /// left out). Other formats carry no classes and keep every point.
     #[arg(long, value_name = "CLASSES", default_value = "not-noise", value_parser = parse_classes)]
     pub classes: mema::io::read::Classes,
+    /// Points closer than this to their sensor origin are no-returns, never surface (metres;
+    /// default 0.01): lidar drivers write a beam that came back empty as the sensor's own
+    /// position. Applies where the input says where its sensor was (a .conf's poses, a PCD's
+    /// VIEWPOINT or organized frame, a KITTI scan, a bag's frames).
+    #[arg(long, value_name = "METRES", value_parser = parse_min_range)]
+    pub min_range: Option<f64>,
+}
+
+fn parse_min_range(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(r) if r >= 0.0 && r.is_finite() => Ok(r),
+        _ => Err(format!("'{s}' is not a length of at least 0 (metres)")),
+    }
 }
 
 fn parse_classes(s: &str) -> Result<mema::io::read::Classes, String> {

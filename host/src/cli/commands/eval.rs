@@ -6,6 +6,7 @@ use mema::analysis::eval::{
     EvalDocument, EvalReport, FileBytes, MAX_SAMPLES, WorldBox, evaluate, points_in_map_frame,
 };
 use mema::analysis::fidelity::{self, FidelityScore};
+use mema::analysis::rays::{MapRays, RayScores, held_out_rays};
 use mema::analysis::stats::{self, MemoryRow};
 use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::HostMap;
@@ -28,6 +29,9 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     let map = HostMap::read(&args.map)?;
     if map.entities.is_empty() {
         anyhow::bail!("{}: the map has no entities", args.map.display());
+    }
+    if args.rays {
+        return eval_rays(args, &cloud, &map);
     }
     let bytes = FileBytes::of(&args.map, &map)?;
     let eq13 = stage("evaluating", || evaluate(&cloud, &map));
@@ -93,6 +97,71 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         bytes.file_bytes, bytes.bytes_per_entity, bytes.header_bytes
     );
     Ok(())
+}
+
+/// `mema eval --rays`: the cloud's points cast as held-out rays at the map.
+fn eval_rays(args: &EvalArgs, cloud: &LocalCloud, map: &HostMap) -> Result<()> {
+    let tolerance = args.ray_tolerance;
+    if !(tolerance > 0.0 && tolerance.is_finite()) {
+        return Err(UsageError(format!(
+            "--ray-tolerance {tolerance} must be a positive length (metres)"
+        ))
+        .into());
+    }
+    if cloud.sensors.is_empty() {
+        return Err(UsageError(format!(
+            "{}: --rays needs points with their sensor origins, and this input says nowhere where its sensor was (give a .conf of frames with their poses, a PCD with VIEWPOINT, a KITTI scan or a bag with --frame)",
+            input_name(&args.input)
+        ))
+        .into());
+    }
+    let rays = held_out_rays(cloud);
+    let scores = stage("casting", || {
+        MapRays::new(map, tolerance).map(|model| model.score(&rays))
+    })?;
+    if args.json {
+        let doc = serde_json::json!({
+            "rays": scores,
+            "no_returns": cloud.no_returns,
+            "dropped_non_finite": cloud.dropped_non_finite,
+        });
+        println!("{}", serde_json::to_string(&doc)?);
+        return Ok(());
+    }
+    print_rays(&scores, cloud);
+    Ok(())
+}
+
+fn print_rays(s: &RayScores, cloud: &LocalCloud) {
+    println!(
+        "rays: {} held out from {} sensor origin(s) ({} no-returns at their origin left out), tolerance {} m",
+        s.rays,
+        cloud.sensors.origins.len(),
+        cloud.no_returns,
+        s.tolerance
+    );
+    let pct = |f: f64| 100.0 * f;
+    println!(
+        "agree {:.1}% ({}), stop early {:.1}% ({}, map surface where the sensor saw through), run on {:.1}% ({}, no map surface by the measured range)",
+        pct(s.agree_fraction),
+        s.agree,
+        pct(s.early_fraction),
+        s.early,
+        pct(s.run_on_fraction),
+        s.run_on
+    );
+    let o = &s.occupancy;
+    println!(
+        "occupancy of {} points along the rays ({} ends, occupied; the rest free): accuracy {:.3}, ROC AUC {:.3} (unknown counts 0.5); the map said {} occupied, {} free, {} unknown; {} free points said occupied",
+        o.samples,
+        o.occupied_samples,
+        o.accuracy,
+        o.auc,
+        o.said_occupied,
+        o.said_free,
+        o.said_unknown,
+        o.free_said_occupied
+    );
 }
 
 /// One warning line each when the map and the cloud do not look like each other's: their

@@ -3,7 +3,7 @@
 
 use anyhow::{Context, Result};
 use mema::analysis::stats;
-use mema::batch::{MapReport, ToleranceOptions, map_cloud_with, map_to_tolerance};
+use mema::batch::{MapReport, RaysSeen, ToleranceOptions, map_cloud_with, map_to_tolerance};
 use mema::io::Units;
 use mema::io::output::{check_map_output, check_output_file, write_labels};
 use mema::io::read::{ClassDrops, input_name};
@@ -223,9 +223,11 @@ fn tolerance(args: &MapArgs, tolerance: f64, model: Model, shell: ShellParams) -
             &counts,
             cloud.dropped_non_finite,
             &cloud.dropped_by_class,
-            cloud.outliers.dropped
+            cloud.outliers.dropped,
+            cloud.no_returns
         )
     );
+    println!("{}", rays_line(RaysSeen::of(&cloud)));
     println!(
         "tolerance {tolerance} m: k = {} ({} splits, {} merges{})",
         report.k,
@@ -275,9 +277,11 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
             &r.filter,
             r.dropped_non_finite,
             &r.dropped_by_class,
-            r.outliers.dropped
+            r.outliers.dropped,
+            r.no_returns
         )
     );
+    println!("{}", rays_line(r.rays));
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
@@ -327,6 +331,7 @@ fn points_line(
     dropped: usize,
     by_class: &ClassDrops,
     isolated: usize,
+    no_returns: usize,
 ) -> String {
     let mut line = format!(
         "points: {} read, {dropped} more dropped for a NaN or infinite coordinate",
@@ -341,8 +346,13 @@ fn points_line(
     if isolated > 0 {
         line.push_str(&format!(", {isolated} as isolated (--outliers)"));
     }
+    if no_returns > 0 {
+        line.push_str(&format!(
+            ", {no_returns} at their sensor origin (no return, --min-range)"
+        ));
+    }
     // As `MapReport::set_filter` counts them (the tolerance mode's report has no drops).
-    let slots = counts.read + dropped + by_class.total() + isolated;
+    let slots = counts.read + dropped + by_class.total() + isolated + no_returns;
     line.push_str(&format!(": {slots} in the input"));
     let mut after = "; ";
     if let Some(n) = counts.cropped {
@@ -353,4 +363,18 @@ fn points_line(
         line.push_str(&format!("{after}{n} after --voxel"));
     }
     line
+}
+
+/// Whether the points were rays: where they were seen from, or that no free space was recorded.
+fn rays_line(rays: Option<RaysSeen>) -> String {
+    match rays {
+        Some(r) => format!(
+            "rays: {} points seen from {} sensor origin{}",
+            r.points,
+            r.origins,
+            if r.origins == 1 { "" } else { "s" }
+        ),
+        None => "rays: none (the input says nowhere where its sensor was): no free space recorded"
+            .to_owned(),
+    }
 }

@@ -56,6 +56,7 @@ pub fn read_input(
     let screening = Screening {
         classes: units.classes,
         outliers,
+        min_range: units.min_range.unwrap_or(mema::io::read::NO_RETURN_RANGE),
     };
     let (cloud, units) = stage("reading", || {
         load_input_keeping(path, units.units.as_ref(), &bag.options(), screening)

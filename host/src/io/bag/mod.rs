@@ -110,6 +110,9 @@ pub struct BagScans {
     pub slots: u64,
     /// Points skipped for a NaN or infinite coordinate.
     pub dropped_non_finite: u64,
+    /// Points left out as no-returns: at (within the screening's `min_range` of) the sensor,
+    /// the origin of the message's own frame.
+    pub no_returns: u64,
     /// Isolated points left out, each message screened on its own as a file is
     /// ([`read_bag_keeping`]); the worst is placed in the chosen frame.
     pub outliers: OutlierDrops,
@@ -410,6 +413,7 @@ pub fn read_bag_keeping(
         empty_messages: 0,
         slots: 0,
         dropped_non_finite: 0,
+        no_returns: 0,
         outliers: OutlierDrops::default(),
         units: Units::assumed(),
     };
@@ -440,6 +444,9 @@ pub fn read_bag_keeping(
         for p in cloud.points(layout) {
             points.push(p);
         }
+        // A PointCloud2 is in its sensor's frame (`header.frame_id`): each point a ray from
+        // that frame's origin, which the pose below puts in the chosen frame.
+        points.set_sensor([0.0; 3]);
         let read: Cloud = match points.finish_in(ctx, Format::RosBag, Some(rep103.clone())) {
             Ok(read) => read,
             Err(ReadError::NoFinitePoints { slots, .. }) => {
@@ -450,6 +457,7 @@ pub fn read_bag_keeping(
             Err(e) => return Err(BagError::Points(e)),
         };
         out.dropped_non_finite += read.dropped_non_finite as u64;
+        out.no_returns += read.no_returns as u64;
         let units = read.units.clone().unwrap_or_else(Units::assumed);
         let scale = units.unit.metres;
         out.units = units;

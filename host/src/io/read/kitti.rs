@@ -35,6 +35,8 @@ pub fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     if input.records(RECORD, records, |record| points.push(point(record)))? < records {
         return Err(input.ended(&format!("KITTI record {}", input.pos() / RECORD as u64)));
     }
+    // A velodyne scan is in the sensor's own frame.
+    points.set_sensor([0.0; 3]);
     points.finish(ctx, Format::KittiBin)
 }
 

@@ -71,6 +71,12 @@ pub struct Cloud {
     /// The unit the coordinates were scaled from to metres ([`read_cloud_in_metres`]); `None`
     /// where they are the file's own ([`read_cloud`]).
     pub units: Option<Units>,
+    /// Where the sensor was, in the same coordinates as `origin` (a PCD's `VIEWPOINT`, or the
+    /// frame's origin for an organized PCD without one and for a KITTI scan); `None` where the
+    /// file does not say, and then the points are not rays.
+    pub sensor: Option<[f64; 3]>,
+    /// Points left out as no-returns: within the screening's `min_range` of `sensor`.
+    pub no_returns: usize,
 }
 
 /// The file formats and encodings the readers understand.
@@ -236,7 +242,14 @@ pub struct Screening {
     pub classes: Classes,
     /// What is done about isolated points.
     pub outliers: Outliers,
+    /// Points this close to their sensor origin (metres) are no-returns, never surface.
+    pub min_range: f64,
 }
+
+/// The default no-return range: lidar drivers write a beam that came back empty as exactly
+/// the sensor's position, and no lidar or depth camera measures a surface 1 cm away, so this
+/// catches those slots (and their f32 rounding after a pose) and never a real return.
+pub const NO_RETURN_RANGE: f64 = 0.01;
 
 impl Default for Screening {
     fn default() -> Self {
@@ -249,6 +262,7 @@ impl Screening {
     pub const DEFAULT: Self = Self {
         classes: Classes::NotNoise,
         outliers: Outliers::Unchecked,
+        min_range: NO_RETURN_RANGE,
     };
 
     /// The command line's and the Python package's reads: noise classes and isolated points
@@ -256,6 +270,7 @@ impl Screening {
     pub const MAPPING: Self = Self {
         classes: Classes::NotNoise,
         outliers: Outliers::DEFAULT,
+        min_range: NO_RETURN_RANGE,
     };
 }
 

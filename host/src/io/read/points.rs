@@ -118,6 +118,9 @@ pub(crate) struct Points {
     slots: usize,
     dropped: usize,
     by_class: super::ClassDrops,
+    /// Where the sensor was, in the file's coordinates, if the file says (PCD `VIEWPOINT`, a
+    /// KITTI scan): points at it are no-returns ([`Self::set_sensor`]).
+    sensor: Option<[f64; 3]>,
 }
 
 /// Reserves room for exactly `n` more items: a refusal is an error naming what was wanted, not
@@ -138,6 +141,47 @@ impl Points {
             slots: 0,
             dropped: 0,
             by_class: super::ClassDrops::default(),
+            sensor: None,
+        }
+    }
+
+    /// Says where the sensor was (in the file's coordinates): [`Self::finish`] then drops the
+    /// points within the screening's `min_range` of it as no-returns, since lidar drivers write
+    /// a beam that came back empty as the sensor's own position (0, 0, 0), and keeps the sensor
+    /// in the cloud, so every point is a ray from it.
+    pub fn set_sensor(&mut self, sensor: [f64; 3]) {
+        self.sensor = Some(sensor);
+    }
+
+    /// Drops the points within `min_range` (metres; `scale` takes the file's unit to metres)
+    /// of the sensor, and bounds the rest again; returns how many went.
+    fn drop_no_returns(&mut self, min_range: f64, scale: f64) -> usize {
+        let Some(sensor) = self.sensor else { return 0 };
+        let returned = |p: [f64; 3]| {
+            let d2: f64 = (0..3)
+                .map(|j| (p[j] - sensor[j]) * (p[j] - sensor[j]))
+                .sum();
+            d2.sqrt() * scale > min_range
+        };
+        let before = self.narrow.len() + self.wide.len();
+        self.narrow.retain(|p| returned(p.map(f64::from)));
+        self.wide.retain(|w| returned(w.get()));
+        let gone = before - self.narrow.len() - self.wide.len();
+        if gone > 0 {
+            self.rebound();
+        }
+        gone
+    }
+
+    /// The bounds of the points kept, after some were left out.
+    fn rebound(&mut self) {
+        (self.lo, self.hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+        let wide = self.wide.iter().map(|w| w.get());
+        for p in self.narrow.iter().map(|p| p.map(f64::from)).chain(wide) {
+            for ((lo, hi), c) in self.lo.iter_mut().zip(&mut self.hi).zip(p) {
+                *lo = lo.min(c);
+                *hi = hi.max(c);
+            }
         }
     }
 
@@ -306,14 +350,7 @@ impl Points {
                 index += 1;
                 verdict.keeps(index - 1)
             });
-            (self.lo, self.hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-            let wide = self.wide.iter().map(|w| w.get());
-            for p in self.narrow.iter().map(|p| p.map(f64::from)).chain(wide) {
-                for ((lo, hi), c) in self.lo.iter_mut().zip(&mut self.hi).zip(p) {
-                    *lo = lo.min(c);
-                    *hi = hi.max(c);
-                }
-            }
+            self.rebound();
         }
         Ok(verdict.drops)
     }
@@ -330,14 +367,17 @@ impl Points {
         format: Format,
         unit: Option<FileUnit>,
     ) -> Result<Cloud, ReadError> {
-        if self.wide.is_empty() && self.narrow.is_empty() {
-            let (name, slots) = (ctx.name(), self.slots);
-            return Err(ReadError::NoFinitePoints { name, slots });
-        }
         let units = ctx.units(unit.as_ref())?;
         // A scale of 1 is skipped, not multiplied by, so metres read bit for bit as before.
         let scale = units.as_ref().map(|u| u.unit.metres).filter(|&s| s != 1.0);
         let scaled = |c: f64| scale.map_or(c, |s| c * s);
+        // Before the outlier screening: a sphere of no-returns is not isolated, and would
+        // stand in its neighbours' statistics.
+        let no_returns = self.drop_no_returns(ctx.screening().min_range, scale.unwrap_or(1.0));
+        if self.wide.is_empty() && self.narrow.is_empty() {
+            let (name, slots) = (ctx.name(), self.slots);
+            return Err(ReadError::NoFinitePoints { name, slots });
+        }
         let outliers = self.screen(ctx, scale.unwrap_or(1.0))?;
         // Positive scales keep the order, so the scaled bounds are the bounds scaled.
         let (lo, hi) = (self.lo.map(scaled), self.hi.map(scaled));
@@ -375,6 +415,8 @@ impl Points {
             format,
             unit,
             units,
+            sensor: self.sensor.map(|s| s.map(scaled)),
+            no_returns,
         })
     }
 }

@@ -224,13 +224,39 @@ pub(super) fn read(input: &mut Input) -> Result<Cloud, ReadError> {
     let slots = slots(ctx, one(b"WIDTH")?, one(b"HEIGHT")?, one(b"POINTS")?)?;
     let [x, y, z] = ["x", "y", "z"].map(|axis| coord(ctx, &fields, axis));
     let coords = [x?, y?, z?];
-    let points = match format {
+    let organized = one(b"HEIGHT")?.is_some_and(|h| h > 1);
+    let sensor = viewpoint(find(b"VIEWPOINT"), organized);
+    let mut points = match format {
         _ if slots == 0 => Points::new(),
         Format::PcdAscii => body::ascii(input, &fields, slots, coords)?,
         Format::PcdBinary => body::binary(input, &fields, slots, coords)?,
         _ => body::compressed(input, &fields, slots, coords)?,
     };
+    if let Some(sensor) = sensor {
+        points.set_sensor(sensor);
+    }
     points.finish(ctx, format)
+}
+
+/// Where the sensor was: the translation of the `VIEWPOINT` line (PCL writes one in every
+/// file, the sensor's pose in the cloud's frame), else the frame's origin for an organized
+/// cloud (a range image is taken from its own origin); `None` for an unorganized cloud without
+/// one. A VIEWPOINT whose first three values are not finite numbers says nothing.
+fn viewpoint(entry: Option<&Entry>, organized: bool) -> Option<[f64; 3]> {
+    let Some(e) = entry else {
+        return organized.then_some([0.0; 3]);
+    };
+    let mut values = e.values().map(|v| {
+        std::str::from_utf8(v)
+            .ok()
+            .and_then(|t| t.parse::<f64>().ok())
+            .filter(|c| c.is_finite())
+    });
+    let mut sensor = [0.0; 3];
+    for c in &mut sensor {
+        *c = values.next().flatten()?;
+    }
+    Some(sensor)
 }
 
 /// One value per field from a SIZE, TYPE or COUNT line, or `default` for each if it is absent.
