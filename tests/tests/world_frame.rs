@@ -300,10 +300,10 @@ fn the_board_maps_the_bunny_in_earth_centred_coordinates() {
         &layout,
     );
     assert_eq!(code, 0, "{json}");
-    let image = crate::board_link::board_image();
-    let (_qemu, pty) = crate::board_link::start_board(&dir, &image, None);
+    let image = crate::board_link::board_image("shells");
+    let (_qemu, ptys) = crate::board_link::start_board(&dir, &image, None, 1);
     let out = dir.join("board.mema");
-    let (ok, summary, stderr) = crate::board_sessions::session(&pty, &capture, &out, None);
+    let (ok, summary, stderr) = crate::board_sessions::session(&ptys[0], &capture, &out, None);
     assert!(ok, "{stderr}");
     let board = std::fs::read(&out).expect("the board's map");
     assert!(
