@@ -4,5 +4,4 @@
 //! Built on [`crate::io`] and the pipeline's eq. 13 ([`crate::mapping::pipeline`]).
 pub mod eval;
 pub mod fidelity;
-pub mod rays;
 pub mod stats;

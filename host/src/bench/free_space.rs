@@ -1,6 +1,6 @@
 //! `mema bench --only free-space` (issue 29): mema's maps and OctoMap at equal bytes on the
 //! shared Ouster sweeps, in one run. Sweeps 0 and 2 are mapped with their poses, sweep 1's rays
-//! are cast again at each map and scored by one function ([`crate::analysis::rays::score`]):
+//! are cast again at each map and scored by one function ([`crate::query::held_out::score`]):
 //! agree, stop early, run on, and the occupancy score. OctoMap (pyoctomap, through
 //! `scripts/octomap_rays.py`) inserts the same points with their sensor origins
 //! (`insertPointCloud` casts every ray) at the finest resolution whose binary tree fits the
@@ -13,13 +13,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use super::BenchOptions;
-use crate::analysis::rays::{
-    DEFAULT_TOLERANCE, MapRays, Ray, State, held_out_rays, samples, score,
-};
 use crate::batch::build_map;
 use crate::io::cloud::{LocalCloud, load_input_keeping};
 use crate::io::read::Screening;
 use crate::mapping::{EntityChoice, FitOptions, Model, ShellModel, most_entities};
+use crate::query::held_out::{
+    DEFAULT_TOLERANCE, MapRays, Ray, State, held_out_rays, samples, score,
+};
 
 /// The budgets measured: the issue's two.
 pub const BUDGETS: [usize; 2] = [9_600, 38_400];
@@ -186,7 +186,7 @@ pub fn free_space(args: &BenchOptions) -> Result<()> {
     Ok(())
 }
 
-fn row(name: &str, bytes: u64, s: &crate::analysis::rays::RayScores, rate: f64) {
+fn row(name: &str, bytes: u64, s: &crate::query::held_out::RayScores, rate: f64) {
     let o = &s.occupancy;
     println!(
         "| {name} | {bytes} | {:.1}% | {:.1}% | {:.1}% | {:.3} | {:.3} | {} | {:.0} |",

@@ -24,6 +24,7 @@
 //! # Ok::<(), anyhow::Error>(())
 //! ```
 
+pub mod held_out;
 pub mod recast;
 
 use anyhow::{Context, Result};

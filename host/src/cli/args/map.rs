@@ -164,7 +164,7 @@ pub struct EvalArgs {
     pub rays: bool,
     /// With --rays: how far (metres) a first hit may fall from the measured range and agree,
     /// and how near map surface a sample is occupied.
-    #[arg(long, value_name = "METRES", default_value_t = mema::analysis::rays::DEFAULT_TOLERANCE, requires = "rays")]
+    #[arg(long, value_name = "METRES", default_value_t = mema::query::held_out::DEFAULT_TOLERANCE, requires = "rays")]
     pub ray_tolerance: f64,
     #[command(flatten)]
     pub units: UnitsArg,

@@ -6,12 +6,12 @@ use mema::analysis::eval::{
     EvalDocument, EvalReport, FileBytes, MAX_SAMPLES, WorldBox, evaluate, points_in_map_frame,
 };
 use mema::analysis::fidelity::{self, FidelityScore};
-use mema::analysis::rays::{MapRays, RayScores, held_out_rays};
 use mema::analysis::stats::{self, MemoryRow};
 use mema::io::cloud::LocalCloud;
 use mema::io::mapfile::HostMap;
 use mema::io::read::{Outliers, input_name};
 use mema::progress::stage;
+use mema::query::held_out::{MapRays, RayScores, held_out_rays};
 
 use super::read_input;
 use crate::cli::args::EvalArgs;

@@ -19,7 +19,7 @@ pub enum Violation {
     /// A cloud came back with no points (that is an error: `NoFinitePoints`).
     EmptyCloud,
     /// The counts disagree: kept points plus dropped ones (not finite, left out by class,
-    /// isolated) are not the slots read.
+    /// isolated, no-returns at their sensor) are not the slots read.
     Counts {
         points: usize,
         slots: usize,
@@ -74,8 +74,10 @@ pub fn check_cloud(cloud: &Cloud) -> Result<(), Violation> {
     }
     // Slots hold every record read: kept, not finite, left out by its ASPRS class or isolated.
     let (points, slots) = (cloud.points.len(), cloud.slots);
-    let dropped =
-        cloud.dropped_non_finite + cloud.dropped_by_class.total() + cloud.outliers.dropped;
+    let dropped = cloud.dropped_non_finite
+        + cloud.dropped_by_class.total()
+        + cloud.outliers.dropped
+        + cloud.no_returns;
     if points + dropped != slots {
         return Err(Violation::Counts {
             points,
