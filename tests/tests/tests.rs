@@ -60,6 +60,8 @@ mod device;
 mod outliers;
 // The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).
 mod docs;
+// PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
+mod protocol_doc;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;
