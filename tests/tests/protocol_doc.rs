@@ -11,7 +11,7 @@ use mema_core::link::framing::{decode_block, frame_raw};
 use mema_core::link::wire::{Content, Frame, FrameKind, FrameRepr, FrameReprV2};
 use mema_core::link::{downlink, uplink};
 
-/// One example: its name (the script's `#` line; `None` in the document), raw and wire bytes.
+/// One example: its raw frame and its bytes on the wire.
 #[derive(Debug, PartialEq)]
 struct Example {
     raw: Vec<u8>,
@@ -54,7 +54,11 @@ fn script_examples() -> (Vec<String>, Vec<Example>) {
         .current_dir(repository())
         .output()
         .expect("python3 runs");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).expect("text");
     let names = text
         .lines()
@@ -80,7 +84,10 @@ fn protocol_md_shows_exactly_the_scripts_examples() {
         "PROTOCOL.md and scripts/protocol_examples.py differ in their number of examples"
     );
     for ((name, doc), computed) in names.iter().zip(&document).zip(&script) {
-        assert_eq!(doc, computed, "example `{name}`: PROTOCOL.md against the script");
+        assert_eq!(
+            doc, computed,
+            "example `{name}`: PROTOCOL.md against the script"
+        );
     }
 }
 
