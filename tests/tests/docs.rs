@@ -217,9 +217,12 @@ fn run_file(relative: &str) -> Vec<String> {
     let name = relative.replace('/', "-");
     let checkout = scratch_checkout(&name);
     let bin_dir = mema_bin().parent().expect("target/release").to_path_buf();
+    // Beside the checkout, spelled without `..`: cargo compares the install root's `bin` with
+    // the PATH's entries as written, and warns when it finds it on none (a user's is on it).
+    let cargo_home = checkout.parent().expect("scratch base").join("cargo-home");
     let path = format!(
         "{}:{}:{}:{}",
-        checkout.join("../cargo-home/bin").display(),
+        cargo_home.join("bin").display(),
         bin_dir.display(),
         root.join("target/py-venv/bin").display(),
         std::env::var("PATH").unwrap_or_default()
@@ -243,7 +246,7 @@ fn run_file(relative: &str) -> Vec<String> {
                 .current_dir(&checkout)
                 .env("PATH", &path)
                 .env("CARGO_TARGET_DIR", root.join("target/docs-cargo"))
-                .env("CARGO_INSTALL_ROOT", checkout.join("../cargo-home"))
+                .env("CARGO_INSTALL_ROOT", &cargo_home)
                 .env("MEMA_PY", root.join("target/py-venv/bin/python"))
                 .env_remove("RUST_BACKTRACE")
                 .stdin(std::process::Stdio::null())
