@@ -168,6 +168,68 @@ fn every_cloud_quoted_with_its_points_has_the_results_files_count() {
     assert!(checked >= 3, "{checked} quotes of a cloud's points checked");
 }
 
+/// The figures quoted in prose, each from a cell of a results block: the file, the block, the
+/// row whose first cells are these, the column (from 1), and the text around it (`{}`).
+const QUOTED: &[(&str, &str, &[&str], usize, &str)] = &[
+    (
+        "README.md",
+        "firmware-image",
+        &["paper"],
+        5,
+        "400 ellipsoids in {} of RAM",
+    ),
+    (
+        "README.md",
+        "firmware-image",
+        &["paper"],
+        2,
+        " and {} of flash; on car6,",
+    ),
+    (
+        "README.md",
+        "firmware-cost",
+        &["car6 (10,031 points)", "paper"],
+        5,
+        "on car6, {} instructions a point with the paper's model",
+    ),
+    (
+        "README.md",
+        "firmware-cost",
+        &["car6 (10,031 points)", "shells"],
+        5,
+        "and {} with shells (`firmware-sim/check.sh`)",
+    ),
+    (
+        "docs/firmware.md",
+        "firmware-memory",
+        &["700"],
+        7,
+        "firmware state of {}; with its two rings",
+    ),
+];
+
+#[test]
+fn the_figures_quoted_in_prose_are_the_results_files() {
+    let results = results();
+    let documents: BTreeMap<String, String> = documents().into_iter().collect();
+    for (file, block, row, column, context) in QUOTED {
+        let cells: Vec<&str> = results[*block]
+            .lines()
+            .map(|l| l.split('|').map(str::trim).collect::<Vec<_>>())
+            .find(|cells| cells.get(1..=row.len()) == Some(row))
+            .unwrap_or_else(|| panic!("{RESULTS}: no row {row:?} in `{block}`"))
+            .into_iter()
+            .map(|c| c.trim_matches('`'))
+            .collect();
+        let quote = context.replace("{}", cells[*column]);
+        let text = documents[*file].replace('\n', " ");
+        assert!(
+            text.contains(&quote),
+            "{file}: `{quote}` ({RESULTS}, `{block}`) is not what it says"
+        );
+    }
+}
+
 /// car6's rows of the results file, computed again: Tables 2 and 4 of `mema map --paper`, and
 /// the cloud's counts and default map at 2,400 bytes.
 #[test]
