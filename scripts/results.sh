@@ -104,18 +104,21 @@ block("paper-table-4", rows)
 print("## The shared clouds as `mema map` reads them, and their default maps at 2,400 bytes")
 print()
 print("`mema map ../shared/data/<cloud> --bytes 2400 -o m.mema --json`, then `mema info m.mema`:")
-print("the input's slots, the points dropped for a NaN or infinite coordinate, by class (LAS noise")
-print("and withheld) and as isolated (`--outliers`), the points mapped, and the map's entities and")
+print("the input's slots, the points dropped for a NaN or infinite coordinate and by class (LAS")
+print("noise and withheld), the finite points left (what `eval`, `draw` and `mema bench` read),")
+print("those `map` drops as isolated (`--outliers`), the points mapped, and the map's entities and")
 print("bytes in the file.")
 print()
-rows = ["| cloud | slots | NaN or infinite | by class | isolated | mapped | entities | file bytes |",
-        "|---|---|---|---|---|---|---|---|"]
+rows = ["| cloud | slots | NaN or infinite | by class | finite | isolated | mapped | entities | file bytes |",
+        "|---|---|---|---|---|---|---|---|---|"]
 for r in clouds:
     j, info = r["report"], r["info"]
     by_class = sum(j["dropped_by_class"].values())
+    finite = j["slots"] - j["dropped_non_finite"] - by_class
     rows.append(f"| `{r['cloud']}` | {n(j['slots'])} | {n(j['dropped_non_finite'])} | "
-                f"{n(by_class)} | {n(j['outliers']['dropped'])} | {n(j['memory']['points'])} | "
-                f"{n(j['memory']['entities'])} | {n(info['file_bytes'])} |")
+                f"{n(by_class)} | {n(finite)} | {n(j['outliers']['dropped'])} | "
+                f"{n(j['memory']['points'])} | {n(j['memory']['entities'])} | "
+                f"{n(info['file_bytes'])} |")
 block("clouds", rows)
 
 check = open(sys.argv[3]).read().splitlines()
