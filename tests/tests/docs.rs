@@ -2,9 +2,14 @@
 //! PROTOCOL.md and docs/*.md. A `$ ` line is a command (a trailing `\` continues it), an optional
 //! `? N` line under it the exit status it documents (0 when absent), and the lines after it the
 //! output it documents, stdout and stderr together as a terminal shows them. In that output a
-//! line `...` stands for any number of lines and `[..]` for any text within a line; a command
-//! shown without output is held to its exit status alone. Commands belong in console blocks:
-//! a ```sh, ```bash or ```shell block is refused, so a command cannot be shown untested.
+//! line `...` stands for any number of lines and `[..]` for any text within a line (the
+//! conventions of trycmd and snapbox), kept for what truly varies: times, rates, paths, the
+//! lines of a long report around the ones that matter. A command shown without output must
+//! print nothing (`cmp`, a command whose output goes to a file); a command whose output is
+//! shown as `...` alone would be held to its exit status only, and
+//! `no_command_is_held_to_its_exit_status_alone` refuses it. A file with no command is not
+//! tested, and says so: it is in `NO_COMMANDS`, not in the tests below. Commands belong in console blocks: a ```sh, ```bash or ```shell block is
+//! refused, so a command cannot be shown untested.
 //!
 //! Each file runs in a fresh scratch checkout (`target/docs-run/<file>/checkout`): symlinks to
 //! the repository's top-level entries and `../shared`, so commands run from the root as a user's
@@ -212,9 +217,12 @@ fn run_file(relative: &str) -> Vec<String> {
     let name = relative.replace('/', "-");
     let checkout = scratch_checkout(&name);
     let bin_dir = mema_bin().parent().expect("target/release").to_path_buf();
+    // Beside the checkout, spelled without `..`: cargo compares the install root's `bin` with
+    // the PATH's entries as written, and warns when it finds it on none (a user's is on it).
+    let cargo_home = checkout.parent().expect("scratch base").join("cargo-home");
     let path = format!(
         "{}:{}:{}:{}",
-        checkout.join("../cargo-home/bin").display(),
+        cargo_home.join("bin").display(),
         bin_dir.display(),
         root.join("target/py-venv/bin").display(),
         std::env::var("PATH").unwrap_or_default()
@@ -238,7 +246,7 @@ fn run_file(relative: &str) -> Vec<String> {
                 .current_dir(&checkout)
                 .env("PATH", &path)
                 .env("CARGO_TARGET_DIR", root.join("target/docs-cargo"))
-                .env("CARGO_INSTALL_ROOT", checkout.join("../cargo-home"))
+                .env("CARGO_INSTALL_ROOT", &cargo_home)
                 .env("MEMA_PY", root.join("target/py-venv/bin/python"))
                 .env_remove("RUST_BACKTRACE")
                 .stdin(std::process::Stdio::null())
@@ -265,7 +273,7 @@ fn run_file(relative: &str) -> Vec<String> {
             "{relative}:{}\n$ {}\n? {status}\n{output}\n",
             step.line, step.command
         ));
-        let output_ok = step.output.is_empty() || output_matches(&step.output, &lines);
+        let output_ok = output_matches(&step.output, &lines);
         if status != step.status || !output_ok {
             failures.push(format!(
                 "{relative}:{}: `{}` (run as `{run}`)\n  documented: status {}{}\n  came: status {status}, output:\n{output}",
@@ -273,7 +281,7 @@ fn run_file(relative: &str) -> Vec<String> {
                 step.command,
                 step.status,
                 if step.output.is_empty() {
-                    String::new()
+                    ", no output".to_string()
                 } else {
                     format!(", output:\n{}", step.output.join("\n"))
                 },
@@ -300,6 +308,84 @@ fn check(relative: &str) {
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
 }
 
+/// Whether a step's documented output is `...` alone: held to its exit status, nothing compared.
+fn is_bare(step: &Step) -> bool {
+    !step.output.is_empty() && step.output.iter().all(|l| l.trim() == "...")
+}
+
+/// The steps of every documented file.
+fn all_steps() -> Vec<(String, Vec<Step>)> {
+    let root = repository();
+    let mut files = vec!["README.md".to_string(), "PROTOCOL.md".to_string()];
+    files.extend(GUIDES.iter().map(|g| format!("docs/{g}")));
+    files
+        .into_iter()
+        .map(|f| {
+            let text = std::fs::read_to_string(root.join(&f)).expect("documentation file");
+            let steps = steps_of(&text, &f).expect("console blocks");
+            (f, steps)
+        })
+        .collect()
+}
+
+/// The files with no command: nothing in them is run, so no test claims them.
+const NO_COMMANDS: &[&str] = &[
+    "PROTOCOL.md",
+    "docs/README.md",
+    "docs/library.md",
+    "docs/map-format.md",
+    "docs/results.md",
+    "docs/testing.md",
+    "docs/tolerance.md",
+];
+
+#[test]
+fn files_without_commands_are_not_counted_as_tested() {
+    let tested: Vec<&str> = TESTED.to_vec();
+    for (file, steps) in all_steps() {
+        let listed = NO_COMMANDS.contains(&file.as_str());
+        assert_eq!(
+            steps.is_empty(),
+            listed,
+            "{file}: {} commands, but {} NO_COMMANDS",
+            steps.len(),
+            if listed { "in" } else { "not in" }
+        );
+        assert_eq!(
+            tested.contains(&file.as_str()),
+            !listed,
+            "{file}: a file is tested below exactly when it has commands"
+        );
+        if !steps.is_empty() {
+            assert!(
+                steps.iter().any(|s| !is_bare(s)),
+                "{file}: every command's output is `...`; show what one prints"
+            );
+        }
+    }
+}
+
+/// Even a benchmark's lines name what it measured, and its deterministic figures (counts,
+/// iterations, `same`) can be compared while its times are `[..]`.
+#[test]
+fn no_command_is_held_to_its_exit_status_alone() {
+    let bare: Vec<String> = all_steps()
+        .iter()
+        .flat_map(|(file, steps)| {
+            steps
+                .iter()
+                .filter(|s| is_bare(s))
+                .map(move |s| format!("{file}:{}: {}", s.line, s.command))
+        })
+        .collect();
+    assert!(
+        bare.is_empty(),
+        "{} commands show `...` alone: show the lines that matter\n{}",
+        bare.len(),
+        bare.join("\n")
+    );
+}
+
 #[test]
 fn every_guide_is_in_the_list_below() {
     let mut guides: Vec<String> = std::fs::read_dir(repository().join("docs"))
@@ -314,7 +400,8 @@ fn every_guide_is_in_the_list_below() {
     );
 }
 
-/// The guides, each a test of its own below.
+/// The files of docs/: the guides, each a test of its own below where it has commands, and the
+/// results file the guides quote (tests/tests/results.rs).
 const GUIDES: &[&str] = &[
     "README.md",
     "command-line.md",
@@ -327,6 +414,7 @@ const GUIDES: &[&str] = &[
     "pictures-meshes.md",
     "python.md",
     "queries.md",
+    "results.md",
     "ros2-bags.md",
     "streaming.md",
     "testing.md",
@@ -335,6 +423,8 @@ const GUIDES: &[&str] = &[
 
 macro_rules! doc_tests {
     ($($test:ident => $file:expr),* $(,)?) => {
+        /// The files whose commands the tests below run.
+        const TESTED: &[&str] = &[$($file),*];
         $(#[test]
         fn $test() {
             check($file);
@@ -344,22 +434,16 @@ macro_rules! doc_tests {
 
 doc_tests! {
     readme_commands_run_as_documented => "README.md",
-    protocol_commands_run_as_documented => "PROTOCOL.md",
-    docs_index_commands_run_as_documented => "docs/README.md",
     command_line_guide_runs_as_documented => "docs/command-line.md",
     design_guide_runs_as_documented => "docs/design.md",
     fidelity_guide_runs_as_documented => "docs/fidelity.md",
     firmware_guide_runs_as_documented => "docs/firmware.md",
-    library_guide_runs_as_documented => "docs/library.md",
-    map_format_guide_runs_as_documented => "docs/map-format.md",
     performance_guide_runs_as_documented => "docs/performance.md",
     pictures_guide_runs_as_documented => "docs/pictures-meshes.md",
     python_guide_runs_as_documented => "docs/python.md",
     queries_guide_runs_as_documented => "docs/queries.md",
     ros2_bags_guide_runs_as_documented => "docs/ros2-bags.md",
     streaming_guide_runs_as_documented => "docs/streaming.md",
-    testing_guide_runs_as_documented => "docs/testing.md",
-    tolerance_guide_runs_as_documented => "docs/tolerance.md",
 }
 
 #[test]
@@ -375,6 +459,15 @@ fn the_matcher_holds_to_what_is_documented() {
     ));
     assert!(!line_matches("took [..] s", "took 1.2 ms"));
     assert!(!line_matches("k = 150", "k = 151"));
+    // A command shown without output must print nothing; `...` alone takes anything.
+    assert!(output_matches(&[], &[]));
+    assert!(!output_matches(&[], &["car.mema"]));
+    assert!(output_matches(&doc("..."), &["car.mema"]));
+    assert!(line_matches(
+        "[..]Installed package `mema v[..]`",
+        "   Installed package `mema v0.1.0`"
+    ));
+    assert!(!line_matches("[..] s, 10031 points", "0.1 s, 10032 points"));
     let steps = steps_of(
         "x\n```console\n$ mema a \\\n  --b\n? 2\nerr [..]\n$ mema c\n```\n",
         "t.md",
@@ -384,4 +477,7 @@ fn the_matcher_holds_to_what_is_documented() {
     assert_eq!(steps[0].command, "mema a \\\n  --b");
     assert_eq!((steps[0].status, steps[0].output.len()), (2, 1));
     assert!(steps_of("```sh\nmema x\n```\n", "t.md").is_err());
+    assert!(steps[1].output.is_empty() && !is_bare(&steps[1]));
+    let bare = steps_of("```console\n$ mema x\n...\n```\n", "t.md").expect("steps");
+    assert!(is_bare(&bare[0]));
 }

@@ -62,6 +62,10 @@ mod device;
 mod outliers;
 // The documentation's commands, run as documented (README.md, PROTOCOL.md, docs/).
 mod docs;
+// PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
+mod protocol_doc;
+// The figures the guides quote: copies of docs/results.md, and its car6 rows computed again.
+mod results;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;

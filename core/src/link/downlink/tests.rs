@@ -248,7 +248,7 @@ fn protocol_examples() -> TestResult {
         interrupt_ticks: 150_000,
         longest_tick: 90_000,
         calib_ticks: 1_000,
-        calib_insns: 1_000,
+        calib_insns: 2_500,
         stack_bytes: 5_400,
         busy_cycles: 3_000_000,
         ring_overruns: 0,
@@ -309,8 +309,8 @@ fn protocol_examples() -> TestResult {
             5,
             timing,
             "08 83 03 11 10 55 5e 07 01 01 02 05 01 01 04 80 84 1e 01 01 01 01 04 f0 49 02 01 01 \
-             01 01 04 90 5f 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 18 \
-             15 01 01 01 01 01 04 c0 c6 2d 01 01 01 01 01 01 01 01 02 02 01 01 05 bc ad 49 e4 00",
+             01 01 04 90 5f 01 01 01 01 01 03 e8 03 01 01 01 01 01 03 c4 09 01 01 01 01 01 03 18 \
+             15 01 01 01 01 01 04 c0 c6 2d 01 01 01 01 01 01 01 01 02 02 01 01 05 3a c9 95 26 00",
         ),
         (
             FROM,

@@ -1,0 +1,340 @@
+//! The figures the guides quote (issue 32). `scripts/results.sh` writes them, from one run, into
+//! docs/results.md, each table in a block between `<!-- result NAME -->` and `<!-- /result -->`;
+//! a guide quotes a table by copying its block. These tests hold every copy to the results file
+//! (one digit changed in a guide fails), every `<cloud> (N points` in a guide to the points the
+//! results file says are read of it (its finite points, what `eval` and the benchmarks read, or
+//! those `map` maps once it has left out the isolated ones), and the results file to the code: car6's rows are
+//! computed again here, with the binary under test, so the file cannot drift from what the code
+//! makes. Regenerating the whole file is the script's job; this stays fast (car6 maps in tens of
+//! milliseconds).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use crate::util::{Dir, MemaCommand, shared};
+
+fn repository() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+const RESULTS: &str = "docs/results.md";
+
+/// The blocks of a text, by name, each with the line it starts on.
+fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
+    let mut out = Vec::new();
+    let mut lines = text.lines().enumerate();
+    while let Some((n, line)) = lines.next() {
+        let Some(name) = line
+            .trim()
+            .strip_prefix("<!-- result ")
+            .and_then(|l| l.strip_suffix("-->"))
+        else {
+            continue;
+        };
+        let mut body = Vec::new();
+        let mut closed = false;
+        for (_, inner) in lines.by_ref() {
+            if inner.trim() == "<!-- /result -->" {
+                closed = true;
+                break;
+            }
+            body.push(inner);
+        }
+        assert!(closed, "{file}:{}: a result block never closed", n + 1);
+        out.push((name.trim().to_string(), n + 1, body.join("\n")));
+    }
+    out
+}
+
+fn results() -> BTreeMap<String, String> {
+    let text = std::fs::read_to_string(repository().join(RESULTS)).expect("docs/results.md");
+    let mut map = BTreeMap::new();
+    for (name, line, body) in blocks(&text, RESULTS) {
+        assert!(
+            map.insert(name.clone(), body).is_none(),
+            "{RESULTS}:{line}: a second block `{name}`"
+        );
+    }
+    map
+}
+
+/// README.md, PROTOCOL.md and the guides, the results file aside.
+fn documents() -> Vec<(String, String)> {
+    let root = repository();
+    let mut files = vec!["README.md".to_string(), "PROTOCOL.md".to_string()];
+    let mut guides: Vec<String> = std::fs::read_dir(root.join("docs"))
+        .expect("docs/")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .filter(|f| f.ends_with(".md") && format!("docs/{f}") != RESULTS)
+        .map(|f| format!("docs/{f}"))
+        .collect();
+    guides.sort();
+    files.extend(guides);
+    files
+        .into_iter()
+        .map(|f| {
+            let text = std::fs::read_to_string(root.join(&f)).expect("document");
+            (f, text)
+        })
+        .collect()
+}
+
+/// A figure as the script prints it: thousands separated by commas.
+fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// The rows of a results block whose first cell is `` `cloud` ``, and the rows that follow it
+/// with an empty first cell.
+fn rows_of<'a>(block: &'a str, cloud: &str) -> Vec<&'a str> {
+    let head = format!("| `{cloud}` |");
+    let mut rows = Vec::new();
+    let mut inside = false;
+    for line in block.lines() {
+        if line.starts_with(&head) {
+            inside = true;
+        } else if !line.starts_with("| |") {
+            inside = false;
+        }
+        if inside {
+            rows.push(line);
+        }
+    }
+    rows
+}
+
+#[test]
+fn the_guides_copy_the_results_file() {
+    let results = results();
+    let mut copies = 0;
+    for (file, text) in documents() {
+        for (name, line, body) in blocks(&text, &file) {
+            let want = results
+                .get(&name)
+                .unwrap_or_else(|| panic!("{file}:{line}: no block `{name}` in {RESULTS}"));
+            assert!(
+                body == *want,
+                "{file}:{line}: the block `{name}` differs from {RESULTS}'s; copy it again:\n{want}"
+            );
+            copies += 1;
+        }
+    }
+    // The tables fidelity.md quotes from the results file (Tables 2 and 4, the clouds).
+    assert!(copies >= 3, "{copies} result blocks in the guides");
+}
+
+#[test]
+fn every_cloud_quoted_with_its_points_has_the_results_files_count() {
+    let results = results();
+    let clouds = results.get("clouds").expect("the block `clouds`");
+    let mut checked = 0;
+    for row in clouds.lines().skip(2) {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        let (cloud, finite, mapped) = (cells[1].trim_matches('`'), cells[5], cells[7]);
+        let stem = cloud.rsplit_once('.').map_or(cloud, |(s, _)| s);
+        for (file, text) in documents() {
+            for name in [cloud, stem] {
+                for quote in [format!("{name}` ("), format!("{name} (")] {
+                    for (at, _) in text.match_indices(&quote) {
+                        let rest = &text[at + quote.len()..];
+                        let figure: String = rest
+                            .chars()
+                            .take_while(|c| c.is_ascii_digit() || *c == ',')
+                            .collect();
+                        let after = &rest[figure.len()..];
+                        if figure.is_empty() || !after.starts_with(" points") {
+                            continue;
+                        }
+                        // A command's output writes the count bare, prose with separators.
+                        let bare = |f: &str| f.replace(',', "");
+                        assert!(
+                            bare(&figure) == bare(finite) || bare(&figure) == bare(mapped),
+                            "{file}: `{quote}{figure} points`, but {cloud} has {finite} finite \
+                             points, of which `mema map` maps {mapped} ({RESULTS})"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked >= 3, "{checked} quotes of a cloud's points checked");
+}
+
+/// The figures quoted in prose, each from a cell of a results block: the file, the block, the
+/// row whose first cells are these, the column (from 1), and the text around it (`{}`).
+const QUOTED: &[(&str, &str, &[&str], usize, &str)] = &[
+    (
+        "README.md",
+        "firmware-image",
+        &["paper"],
+        5,
+        "400 ellipsoids in {} of RAM",
+    ),
+    (
+        "README.md",
+        "firmware-image",
+        &["paper"],
+        2,
+        " and {} of flash; on car6,",
+    ),
+    (
+        "README.md",
+        "firmware-cost",
+        &["car6 (10,031 points)", "paper"],
+        5,
+        "on car6, {} instructions a point with the paper's model",
+    ),
+    (
+        "README.md",
+        "firmware-cost",
+        &["car6 (10,031 points)", "shells"],
+        5,
+        "and {} with shells (`firmware-sim/check.sh`)",
+    ),
+    (
+        "docs/firmware.md",
+        "firmware-memory",
+        &["700"],
+        7,
+        "firmware state of {}; with its two rings",
+    ),
+];
+
+#[test]
+fn the_figures_quoted_in_prose_are_the_results_files() {
+    let results = results();
+    let documents: BTreeMap<String, String> = documents().into_iter().collect();
+    for (file, block, row, column, context) in QUOTED {
+        let cells: Vec<&str> = results[*block]
+            .lines()
+            .map(|l| l.split('|').map(str::trim).collect::<Vec<_>>())
+            .find(|cells| cells.get(1..=row.len()) == Some(row))
+            .unwrap_or_else(|| panic!("{RESULTS}: no row {row:?} in `{block}`"))
+            .into_iter()
+            .map(|c| c.trim_matches('`'))
+            .collect();
+        let quote = context.replace("{}", cells[*column]);
+        let text = documents[*file].replace('\n', " ");
+        assert!(
+            text.contains(&quote),
+            "{file}: `{quote}` ({RESULTS}, `{block}`) is not what it says"
+        );
+    }
+}
+
+/// car6's rows of the results file, computed again: Tables 2 and 4 of `mema map --paper`, and
+/// the cloud's counts and default map at 2,400 bytes.
+#[test]
+fn the_results_file_is_what_the_code_makes_of_car6() {
+    let results = results();
+    let dir = Dir::new("results-car6");
+    let car6 = shared("car6.pcd");
+    let paper = MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car6)
+        .args(["-k", "150", "--paper", "-o", "paper.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    let m = &paper["memory"];
+    let u = |v: &serde_json::Value| v.as_u64().expect("a count");
+    let table_2 = format!(
+        "| `car6.pcd` | 150 | {} | {} | {} | {} | {:.4}% |",
+        thousands(u(&m["points"])),
+        thousands(u(&m["cloud_bytes"])),
+        thousands(u(&m["entities"])),
+        thousands(u(&m["map_bytes"])),
+        m["percent"].as_f64().expect("percent")
+    );
+    assert_eq!(
+        rows_of(&results["paper-table-2"], "car6.pcd"),
+        [table_2.as_str()],
+        "{RESULTS}: Table 2's car6 row against `mema map --paper`"
+    );
+    let table_4: Vec<String> = ["ellipsoidal", "spherical"]
+        .iter()
+        .enumerate()
+        .map(|(i, fit)| {
+            let e = &paper[*fit];
+            let f = |k: &str| e[k].as_f64().expect("an error");
+            format!(
+                "{} {fit} | {:.6} | {:.6} | {:.6} | {:.6} | {:.6} |",
+                if i == 0 {
+                    "| `car6.pcd` | 150 |"
+                } else {
+                    "| | |"
+                },
+                f("mean"),
+                f("std"),
+                f("max"),
+                f("min"),
+                f("total")
+            )
+        })
+        .collect();
+    assert_eq!(
+        rows_of(&results["paper-table-4"], "car6.pcd"),
+        table_4,
+        "{RESULTS}: Table 4's car6 rows against `mema map --paper`"
+    );
+
+    let map = MemaCommand::new(&dir)
+        .arg("map")
+        .arg(&car6)
+        .args(["--bytes", "2400", "-o", "bytes.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    let info = MemaCommand::new(&dir)
+        .args(["info", "bytes.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    let by_class: u64 = map["dropped_by_class"]
+        .as_object()
+        .expect("classes")
+        .values()
+        .map(u)
+        .sum();
+    let finite = u(&map["slots"]) - u(&map["dropped_non_finite"]) - by_class;
+    let row = format!(
+        "| `car6.pcd` | {} | {} | {} | {} | {} | {} | {} | {} |",
+        thousands(u(&map["slots"])),
+        thousands(u(&map["dropped_non_finite"])),
+        thousands(by_class),
+        thousands(finite),
+        thousands(u(&map["outliers"]["dropped"])),
+        thousands(u(&map["memory"]["points"])),
+        thousands(u(&map["memory"]["entities"])),
+        thousands(u(&info["file_bytes"]))
+    );
+    assert_eq!(
+        rows_of(&results["clouds"], "car6.pcd"),
+        [row.as_str()],
+        "{RESULTS}: car6's counts and 2,400-byte map against `mema map` and `mema info`"
+    );
+    // The file's size is what the format gives 171 shells: 52 bytes of header and 14 a record.
+    let file = std::fs::metadata(dir.join("bytes.mema"))
+        .expect("map")
+        .len();
+    assert_eq!(file, 52 + 14 * u(&map["memory"]["entities"]));
+    assert_eq!(thousands(file), thousands(u(&info["file_bytes"])));
+}
+
+#[test]
+fn thousands_are_separated_as_the_script_separates_them() {
+    assert_eq!(thousands(0), "0");
+    assert_eq!(thousands(999), "999");
+    assert_eq!(thousands(1_000), "1,000");
+    assert_eq!(thousands(239_064), "239,064");
+    assert_eq!(thousands(1_320_000), "1,320,000");
+}
