@@ -205,7 +205,7 @@ const QUOTED: &[(&str, &str, &[&str], usize, &str)] = &[
         "firmware-memory",
         &["700"],
         7,
-        "firmware state of {}; with its two rings",
+        "firmware state of {}; with its rings",
     ),
 ];
 
