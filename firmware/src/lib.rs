@@ -135,6 +135,10 @@ pub const fn model_params(
         tolerance: 0.0,
         model,
         pacing: Pacing::DEVICE,
+        reorder: 0,
+        follow: false,
+        final_clusters: 0,
+        planar_gamma: None,
     }
 }
 

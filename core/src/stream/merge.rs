@@ -14,6 +14,20 @@ fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
     ward_of(count32(a), count32(b), d2)
 }
 
+/// The growth of the summed squared distances to each cluster's best plane (its covariance's
+/// least eigenvalue times its count), plus `gamma` times Ward's cost.
+fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32, gamma: f32) -> f32 {
+    let spread = |m: &FixedMoments| {
+        m.covariance().map_or(0.0, |(_, c)| {
+            let (values, _) = crate::shell::symmetric_eigen(c);
+            values[2].max(0.0) * m.count() as f64
+        })
+    };
+    let mut merged = *a;
+    merged.merge(b);
+    (spread(&merged) - spread(a) - spread(b)) as f32 + gamma * ward(a, b, d2)
+}
+
 /// [`ward`] from the clusters' counts (as f32), the same in either order.
 fn ward_of(na: f32, nb: f32, d2: f32) -> f32 {
     na * nb / (na + nb) * d2
@@ -46,10 +60,17 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 // the same either way round.
                 let d = ca.center.distance_squared(cb.center);
                 // Only pairs closer than a cell are all seen by the neighbour queries.
-                if d < cell2 {
-                    closest.offer(a.min(b), a.max(b), ward_of(na, count32(&cb.moments), d));
+                if d < cell2 && d <= self.reduce_limit2 {
+                    let cost = match self.planar_gamma {
+                        Some(g) => planar(&ca.moments, &cb.moments, d, g),
+                        None => ward_of(na, count32(&cb.moments), d),
+                    };
+                    closest.offer(a.min(b), a.max(b), cost);
                 }
             });
+        }
+        if closest.len == 0 && self.reduce_limit2 < f32::INFINITY {
+            return closest;
         }
         if closest.len == 0 {
             // Centres sparser than the grid: the exhaustive search, rare by construction.
@@ -117,6 +138,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if let Some(ca) = self.clusters.get_mut(a) {
                 ca.moments.merge(&moments);
                 ca.center = center_of(&ca.moments);
+                // Computed afresh from the merged moments at the cluster's next point.
+                ca.gaussian = super::Gaussian::NONE;
                 ca.stale = u32::MAX;
                 ca.last_point = last_point;
             }
@@ -159,6 +182,30 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub(super) fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
         let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
         self.merge_pairs(&pairs, true, observer);
+    }
+
+    /// Merges the cheapest pairs until at most `n` clusters remain: the working set's
+    /// summary reduced to the map's size.
+    pub(super) fn reduce_to(&mut self, n: usize, observer: &mut impl Observer) {
+        self.planar_gamma = self.params.planar_gamma;
+        let mut reach = 2.0 * self.radius;
+        self.reduce_limit2 = reach * reach;
+        while self.clusters.len() > n.max(1) {
+            let pairs = self.candidate_pairs((self.clusters.len() - n).min(MAX_MERGE_BATCH));
+            if pairs.len == 0 {
+                if !(reach > 0.0 && reach < f32::MAX) {
+                    self.reduce_limit2 = f32::INFINITY;
+                } else {
+                    reach *= 1.25;
+                    self.reduce_limit2 = reach * reach;
+                }
+                continue;
+            }
+            if self.merge_pairs(&pairs, true, observer) == 0 {
+                break;
+            }
+        }
+        self.reduce_limit2 = f32::INFINITY;
     }
 
     /// Tolerance mode's last step: neighbours keep merging while the merged estimate stays

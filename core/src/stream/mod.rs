@@ -24,14 +24,18 @@ use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
 pub mod freeze;
+pub mod follow;
 mod merge;
 mod observe;
 pub mod pacing;
 mod pairs;
+pub mod reorder;
 pub mod shells;
+pub use follow::Gaussian;
 pub use freeze::FrozenEntity;
 pub use observe::Observer;
 pub use pacing::Pacing;
+pub use reorder::{REORDER_CAPACITY, Reorder};
 
 /// How a cluster becomes its entity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -76,6 +80,15 @@ pub struct StreamParams {
     pub model: StreamModel,
     /// What freezes and merge passes cost in points of credit ([`pacing`]).
     pub pacing: Pacing,
+    /// Points held in the seeded reservoir that shuffles the arrival order ([`reorder`]), at
+    /// most [`REORDER_CAPACITY`]; 0: points are clustered in the order they arrive.
+    pub reorder: usize,
+    /// A point joins the cluster within the join radius whose Gaussian explains it best
+    /// ([`follow`]), not the nearest centre.
+    pub follow: bool,
+    /// At the end, merge down to this many clusters (0: keep them all).
+    pub final_clusters: usize,
+    pub planar_gamma: Option<f32>,
 }
 
 /// One cluster: its moments, running centre and latest fit.
@@ -90,6 +103,8 @@ pub struct StreamCluster {
     pub stale: u32,
     /// The stream's point count (mod 2^32) when the cluster last received a point.
     pub last_point: u32,
+    /// The Gaussian points choose their cluster by ([`follow`]).
+    pub gaussian: Gaussian,
 }
 
 /// Counters a caller reports.
@@ -123,6 +138,9 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     recent: usize,
     /// Pacing credit saved, in points.
     credit: u32,
+    reorder: Reorder,
+    planar_gamma: Option<f32>,
+    reduce_limit2: f32,
     params: StreamParams,
     stats: StreamStats,
 }
@@ -158,6 +176,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             radius: 0.0,
             recent: 0,
             credit: 0,
+            reorder: Reorder::new(params.reorder, params.seed),
+            planar_gamma: None,
+            reduce_limit2: f32::INFINITY,
             params,
             stats: StreamStats {
                 points: 0,
@@ -210,10 +231,23 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             self.stats.non_finite += 1;
             return false;
         }
+        match self.reorder.push(p) {
+            Some(p) => self.cluster_point(p, observer),
+            None => false,
+        }
+    }
+
+    /// Points taken but still in the reservoir, not yet clustered ([`reorder`]).
+    pub fn held(&self) -> usize {
+        self.reorder.len()
+    }
+
+    /// Clusters `p`, as it leaves the reservoir; returns whether a refit is due.
+    fn cluster_point(&mut self, p: Point3, observer: &mut impl Observer) -> bool {
         self.stats.points += 1;
         self.credit = self.params.pacing.earn(self.credit);
         let full = self.clusters.len() >= self.limit();
-        let join = match self.nearest_within_radius(p) {
+        let join = match self.best_within_radius(p) {
             Some(i) => Some(i),
             None if full && !self.make_room(observer) => {
                 self.stats.paced_joins += 1;
@@ -264,6 +298,38 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         false
     }
 
+    /// The cluster `p` joins, if one is within the join radius: the nearest, or with surface
+    /// following the one among them whose Gaussian explains `p` best (ties: the lowest index).
+    /// A nearest cluster too young for a Gaussian takes the point: it needs points to have one.
+    fn best_within_radius(&self, p: Point3) -> Option<usize> {
+        let nearest = self.nearest_within_radius(p)?;
+        let r2 = self.radius * self.radius;
+        if !self.params.follow || r2 == 0.0 {
+            return Some(nearest);
+        }
+        let cost = |c: &StreamCluster| {
+            let (q, o) = (p, c.center);
+            c.gaussian.cost([q.x - o.x, q.y - o.y, q.z - o.z])
+        };
+        let mut best = match self.clusters.get(nearest) {
+            Some(c) if c.gaussian.is_some() => (nearest, cost(c)),
+            _ => return Some(nearest),
+        };
+        self.grid.for_each_within_half_cell(p, r2, |i| {
+            if let Some(c) = self.clusters.get(i)
+                && c.gaussian.is_some()
+                && p.distance_squared(c.center) <= r2
+            {
+                let e = cost(c);
+                if e < best.1 || (e == best.1 && i < best.0) {
+                    best = (i, e);
+                }
+            }
+            r2
+        });
+        Some(best.0)
+    }
+
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
         self.nearest_within(p, self.radius * self.radius)
     }
@@ -309,6 +375,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         if let Some(c) = self.clusters.get_mut(i) {
             c.moments.add(p);
             c.center = center_of(&c.moments);
+            if self.params.follow && c.gaussian.due(&c.moments) {
+                c.gaussian = Gaussian::of(&c.moments);
+            }
             c.stale = c.stale.saturating_add(1);
             c.last_point = self.stats.points as u32;
             let center = c.center;
@@ -326,6 +395,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             entity: AxisEntity::of_axis_aligned(&Entity::sphere(p, 0.0)),
             stale: u32::MAX,
             last_point: self.stats.points as u32,
+            gaussian: Gaussian::NONE,
         };
         let index = self.clusters.len();
         if self.clusters.push(cluster).is_ok() {
@@ -422,7 +492,15 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// [`StreamMapper::finish`], telling `observer` of the tolerance mode's last merges.
     pub fn finish_observed(&mut self, observer: &mut impl Observer) {
+        while let Some(p) = self.reorder.pop() {
+            if self.cluster_point(p, observer) {
+                self.refit_stalest();
+            }
+        }
         self.consolidate(observer);
+        if self.params.final_clusters > 0 {
+            self.reduce_to(self.params.final_clusters, observer);
+        }
         if self.is_shells() {
             return;
         }

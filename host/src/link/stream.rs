@@ -102,6 +102,10 @@ pub fn stream_params(
         } else {
             Pacing::DEVICE
         },
+        reorder: std::env::var("MEMA_REORDER").ok().and_then(|v| v.parse().ok()).unwrap_or(0),
+        follow: std::env::var("MEMA_FOLLOW").is_ok(),
+        final_clusters: std::env::var("MEMA_FINAL").ok().and_then(|v| v.parse().ok()).unwrap_or(0),
+        planar_gamma: std::env::var("MEMA_PLANAR").ok().and_then(|v| v.parse().ok()),
     }
 }
 
