@@ -13,15 +13,19 @@ use mema_firmware_sim::harness::{RunConfig, RunReport, run};
 
 /// The simulator's capacity: `-k` may be at most this (the budget's largest K).
 pub const SIM_K: usize = 1000;
-/// Centre-hash buckets: about twice the capacity.
-pub const SIM_G: usize = 2048;
+/// Working clusters: with none frozen, the stream keeps a finer summary until its end
+/// (`mema_core::stream::summary_layout`), which this holds whole up to k = 512, as the host's
+/// `replay` does.
+pub const SIM_WORKING: usize = 4096;
+/// Centre-hash buckets: about twice the working clusters.
+pub const SIM_G: usize = 8192;
 
 /// The firmware's state and its snapshot, in statics as on the device. The mutex is the board's
 /// ownership check: a second owner gets `WouldBlock`, never a second reference.
 /// Frozen entities share the capacity: `-k` counts working and frozen together.
-static FIRMWARE: Mutex<Firmware<SIM_K, SIM_G, SIM_K>> =
+static FIRMWARE: Mutex<Firmware<SIM_WORKING, SIM_G, SIM_K>> =
     Mutex::new(Firmware::new(stream_params(0, 150, 0)));
-static SNAPSHOT: Mutex<Snapshot<SIM_K, SIM_G, SIM_K>> =
+static SNAPSHOT: Mutex<Snapshot<SIM_WORKING, SIM_G, SIM_K>> =
     Mutex::new(Snapshot::new(stream_params(0, 150, 0)));
 
 /// What can go wrong, by kind: usage (exit 2) or a failed run or check (exit 1).
@@ -259,8 +263,8 @@ fn run_command(args: &Args) -> Result<(), CliError> {
         stack_bytes: 64 * 1024,
     });
     board
-        .declare::<Firmware<SIM_K, SIM_G, SIM_K>>("FIRMWARE")
-        .and_then(|()| board.declare::<Snapshot<SIM_K, SIM_G, SIM_K>>("SNAPSHOT"))
+        .declare::<Firmware<SIM_WORKING, SIM_G, SIM_K>>("FIRMWARE")
+        .and_then(|()| board.declare::<Snapshot<SIM_WORKING, SIM_G, SIM_K>>("SNAPSHOT"))
         .map_err(|e| failed(format!("board: {e}")))?;
     let mut firmware = FIRMWARE
         .try_lock()

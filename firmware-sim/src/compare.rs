@@ -204,10 +204,7 @@ pub fn compare_points(name: &str, points: &[Point3], setup: &Setup) -> CloudComp
             // The fits are compared here, not the device's timing: every cluster as k-means
             // would make it, never a paced join.
             pacing: mema_core::stream::Pacing::NONE,
-            reorder: 0,
-            follow: false,
             final_clusters: 0,
-            planar_gamma: None,
         }));
     mapper.add_all(points);
     mapper.finish();

@@ -40,7 +40,9 @@ use mema_core::geometry::Degeneration;
 use mema_core::link::receiver::{Received, Receiver, ReceiverStats};
 use mema_core::link::wire::DecoderStats;
 use mema_core::map::EncodeError;
-use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams, StreamStats};
+use mema_core::stream::{
+    Pacing, StreamMapper, StreamModel, StreamParams, StreamStats, summary_layout,
+};
 
 mod carrier;
 #[cfg(feature = "cortex-m")]
@@ -129,16 +131,13 @@ pub const fn model_params(
             },
         },
         seed,
-        max_clusters,
+        max_clusters: summary_layout(max_clusters + max_frozen, max_frozen).0,
         max_frozen,
         refit_interval: REFIT_INTERVAL,
         tolerance: 0.0,
         model,
         pacing: Pacing::DEVICE,
-        reorder: 0,
-        follow: false,
-        final_clusters: 0,
-        planar_gamma: None,
+        final_clusters: summary_layout(max_clusters + max_frozen, max_frozen).1,
     }
 }
 

@@ -17,8 +17,8 @@ use mema_firmware_sim::harness::{RunConfig, RunReport, frames_of, map_of_frames,
 
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
 
-const K: usize = 256;
-const G: usize = 512;
+const K: usize = 2048;
+const G: usize = 4096;
 /// Room for frozen entities; a run uses it only when its shape asks (`stream_params`).
 const F: usize = 256;
 

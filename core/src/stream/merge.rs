@@ -14,9 +14,18 @@ fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
     ward_of(count32(a), count32(b), d2)
 }
 
-/// The growth of the summed squared distances to each cluster's best plane (its covariance's
-/// least eigenvalue times its count), plus `gamma` times Ward's cost.
-fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32, gamma: f32) -> f32 {
+/// Ward's share in the final reduction's cost ([`planar`]): enough to keep two far, coplanar
+/// patches apart, small enough that the planes decide (tuned on the shared clouds at k = 400:
+/// 0 lets coplanar ground patches of a lidar sweep merge across gaps, 0.1 and more lose most of
+/// what the planes gain on office1 and the bunny; docs/design.md).
+const PLANAR_WARD: f32 = 0.01;
+
+/// The final reduction's merge cost: the growth of the summed squared distances from the points
+/// to their cluster's best plane (a cluster's least covariance eigenvalue times its count),
+/// which a shell's error follows, plus a little of Ward's cost. Merging two patches of one
+/// surface costs nothing but Ward's share, so the clusters the map keeps follow the surfaces
+/// as the batch map's surface rounds make them.
+fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
     let spread = |m: &FixedMoments| {
         m.covariance().map_or(0.0, |(_, c)| {
             let (values, _) = crate::shell::symmetric_eigen(c);
@@ -25,7 +34,7 @@ fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32, gamma: f32) -> f32 {
     };
     let mut merged = *a;
     merged.merge(b);
-    (spread(&merged) - spread(a) - spread(b)) as f32 + gamma * ward(a, b, d2)
+    (spread(&merged) - spread(a) - spread(b)) as f32 + PLANAR_WARD * ward(a, b, d2)
 }
 
 /// [`ward`] from the clusters' counts (as f32), the same in either order.
@@ -61,27 +70,36 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 let d = ca.center.distance_squared(cb.center);
                 // Only pairs closer than a cell are all seen by the neighbour queries.
                 if d < cell2 && d <= self.reduce_limit2 {
-                    let cost = match self.planar_gamma {
-                        Some(g) => planar(&ca.moments, &cb.moments, d, g),
-                        None => ward_of(na, count32(&cb.moments), d),
+                    let cost = if self.reducing() {
+                        planar(&ca.moments, &cb.moments, d)
+                    } else {
+                        ward_of(na, count32(&cb.moments), d)
                     };
                     closest.offer(a.min(b), a.max(b), cost);
                 }
             });
         }
-        if closest.len == 0 && self.reduce_limit2 < f32::INFINITY {
-            return closest;
-        }
-        if closest.len == 0 {
+        // While reducing within a reach, an empty answer widens the reach (`reduce_to`).
+        if closest.len == 0 && !(self.reducing() && self.reduce_limit2 < f32::MAX) {
             // Centres sparser than the grid: the exhaustive search, rare by construction.
             for (a, ca) in self.clusters.iter().enumerate() {
                 for (b, cb) in self.clusters.iter().enumerate().skip(a + 1) {
                     let d = ca.center.distance_squared(cb.center);
-                    closest.offer(a, b, ward(&ca.moments, &cb.moments, d));
+                    let cost = if self.reducing() {
+                        planar(&ca.moments, &cb.moments, d)
+                    } else {
+                        ward(&ca.moments, &cb.moments, d)
+                    };
+                    closest.offer(a, b, cost);
                 }
             }
         }
         closest
+    }
+
+    /// Whether the final reduction is running ([`StreamMapper::reduce_to`]).
+    fn reducing(&self) -> bool {
+        self.reduce_limit2 < f32::INFINITY
     }
 
     /// Whether merging clusters `a` and `b` respects the tolerance (always, without one).
@@ -138,8 +156,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if let Some(ca) = self.clusters.get_mut(a) {
                 ca.moments.merge(&moments);
                 ca.center = center_of(&ca.moments);
-                // Computed afresh from the merged moments at the cluster's next point.
-                ca.gaussian = super::Gaussian::NONE;
                 ca.stale = u32::MAX;
                 ca.last_point = last_point;
             }
@@ -184,21 +200,30 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.merge_pairs(&pairs, true, observer);
     }
 
-    /// Merges the cheapest pairs until at most `n` clusters remain: the working set's
-    /// summary reduced to the map's size.
+    /// The final reduction: merges the cheapest pairs by [`planar`] cost until at most `n`
+    /// clusters remain. Pairs are taken within twice the join radius, as the stream's own merges
+    /// are, and the reach widens by a quarter only when no pair is left within it: a cost that
+    /// favours coplanar pairs would otherwise join patches of a ground plane far apart.
     pub(super) fn reduce_to(&mut self, n: usize, observer: &mut impl Observer) {
-        self.planar_gamma = self.params.planar_gamma;
         let mut reach = 2.0 * self.radius;
-        self.reduce_limit2 = reach * reach;
+        self.reduce_limit2 = if reach > 0.0 && (reach * reach).is_finite() {
+            reach * reach
+        } else {
+            f32::MAX
+        };
         while self.clusters.len() > n.max(1) {
             let pairs = self.candidate_pairs((self.clusters.len() - n).min(MAX_MERGE_BATCH));
             if pairs.len == 0 {
-                if !(reach > 0.0 && reach < f32::MAX) {
-                    self.reduce_limit2 = f32::INFINITY;
-                } else {
-                    reach *= 1.25;
-                    self.reduce_limit2 = reach * reach;
+                // Past f32, or before any merge (radius 0): every pair is a candidate.
+                if self.reduce_limit2 == f32::MAX {
+                    break;
                 }
+                reach *= 1.25;
+                self.reduce_limit2 = if reach > 0.0 && (reach * reach).is_finite() {
+                    reach * reach
+                } else {
+                    f32::MAX
+                };
                 continue;
             }
             if self.merge_pairs(&pairs, true, observer) == 0 {

@@ -11,10 +11,7 @@ fn params(max_clusters: usize) -> StreamParams {
         tolerance: 0.0,
         model: StreamModel::Paper,
         pacing: Pacing::NONE,
-        reorder: 0,
-        follow: false,
         final_clusters: 0,
-        planar_gamma: None,
     }
 }
 

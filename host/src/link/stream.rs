@@ -4,7 +4,9 @@ use anyhow::Result;
 use mema_core::fit::FitParams;
 use mema_core::link::receiver::{Receiver, ReceiverStats};
 use mema_core::link::wire::DecoderStats;
-use mema_core::stream::{Pacing, StreamMapper, StreamModel, StreamParams};
+use mema_core::stream::{
+    MAX_SUMMARY, Pacing, StreamMapper, StreamModel, StreamParams, summary_layout,
+};
 
 use super::frames::{dequantise, quantise};
 use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
@@ -20,8 +22,14 @@ pub const GRID_BUCKETS: usize = 4096;
 /// One cluster refit (about 600 fitness evaluations, ~0.1 ms) per this many points.
 pub const REFIT_INTERVAL: u32 = 1024;
 
-/// Working clusters and frozen entities share the host's bound: k <= `MAX_CLUSTERS` in all.
-pub type HostStreamMapper = StreamMapper<MAX_CLUSTERS, GRID_BUCKETS, MAX_CLUSTERS>;
+/// Working clusters: with every entity in working memory the stream keeps a finer summary
+/// until its end ([`summary_layout`]); 2.4 MB of clusters, built on a thread of its own
+/// ([`new_mapper_with`]).
+pub const MAX_WORKING: usize = MAX_SUMMARY;
+
+/// Working clusters and frozen entities share the host's bound: k <= `MAX_CLUSTERS` in all; the
+/// working set may hold up to [`MAX_WORKING`] clusters until the end merges them down to k.
+pub type HostStreamMapper = StreamMapper<MAX_WORKING, { 2 * MAX_WORKING }, MAX_CLUSTERS>;
 
 /// How a stream holds its k ellipsoids: all in working memory (merging when full), or `working`
 /// of them there and the rest frozen once the scan has left them (`--working`), as a small
@@ -87,11 +95,21 @@ pub fn stream_params(
     tolerance: f64,
     model: StreamModel,
 ) -> StreamParams {
+    // Every entity in working memory, and no tolerance to merge by: the finer summary, merged
+    // down to k at the end, as the firmware's parameters have it. The tolerance mode merges by
+    // its own rule.
+    let frozen = capacity.k.saturating_sub(capacity.working);
+    let (max_clusters, final_clusters) = if tolerance > 0.0 {
+        (capacity.working, 0)
+    } else {
+        summary_layout(capacity.k, frozen)
+    };
     StreamParams {
         fit,
         seed,
-        max_clusters: capacity.working,
-        max_frozen: capacity.k.saturating_sub(capacity.working),
+        max_clusters,
+        max_frozen: frozen,
+        final_clusters,
         refit_interval: REFIT_INTERVAL,
         tolerance,
         model,
@@ -102,10 +120,6 @@ pub fn stream_params(
         } else {
             Pacing::DEVICE
         },
-        reorder: std::env::var("MEMA_REORDER").ok().and_then(|v| v.parse().ok()).unwrap_or(0),
-        follow: std::env::var("MEMA_FOLLOW").is_ok(),
-        final_clusters: std::env::var("MEMA_FINAL").ok().and_then(|v| v.parse().ok()).unwrap_or(0),
-        planar_gamma: std::env::var("MEMA_PLANAR").ok().and_then(|v| v.parse().ok()),
     }
 }
 

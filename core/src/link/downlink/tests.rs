@@ -39,10 +39,7 @@ fn params(model: StreamModel) -> StreamParams {
         tolerance: 0.0,
         model,
         pacing: Pacing::NONE,
-        reorder: 0,
-        follow: false,
         final_clusters: 0,
-        planar_gamma: None,
     }
 }
 
