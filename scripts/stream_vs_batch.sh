@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# The streamed map against the batch map at the same k, two-way Chamfer, on every shared cloud
+# and registration set (issue 31): each input sent as `mema scanner-sim` sends it, mapped by
+# `mema replay -k K` (the default model, every entity in working memory), and by `mema map -k K`;
+# both scored by `mema eval`. Prints a markdown table.
+#
+#   scripts/stream_vs_batch.sh K [MEMA]
+set -euo pipefail
+k=${1:?usage: scripts/stream_vs_batch.sh K [MEMA]}
+cd "$(dirname "$0")/.."
+mema=${2:-target/release/mema}
+[ -x "$mema" ] || cargo build -q --release -p mema
+data=../shared/data
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+chamfer() { "$mema" eval "$1" "$2" --json 2>/dev/null | python3 -c 'import sys,json; print(json.load(sys.stdin)["chamfer"])'; }
+echo "| input | streamed Chamfer | batch Chamfer | streamed / batch |"
+echo "|---|---|---|---|"
+for input in car6.pcd cturtle.pcd five_people.pcd lamppost.pcd milk.pcd office1.pcd rops_cloud.pcd \
+    autzen_trim.laz simple.las vegetation_1_3.las bun_zipper.ply bun.conf ouster_os1.conf; do
+  case $input in
+    *.conf) "$mema" scanner-sim --conf "$data/$input" --port "$work/capture.bin" >/dev/null 2>&1 ;;
+    *) "$mema" scanner-sim "$data/$input" --port "$work/capture.bin" >/dev/null 2>&1 ;;
+  esac
+  "$mema" replay "$work/capture.bin" -k "$k" -o "$work/stream.mema" >/dev/null 2>&1
+  "$mema" map "$data/$input" -k "$k" -o "$work/batch.mema" >/dev/null 2>&1
+  s=$(chamfer "$data/$input" "$work/stream.mema")
+  b=$(chamfer "$data/$input" "$work/batch.mema")
+  python3 -c "print(f'| \`$input\` | {float(\"$s\"):.4g} | {float(\"$b\"):.4g} | {float(\"$s\")/float(\"$b\"):.2f} |')"
+done
