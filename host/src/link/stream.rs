@@ -167,13 +167,21 @@ pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
 
 /// A boxed mapper with every parameter chosen by the caller (tolerance mode, say).
 pub fn new_mapper_with(params: StreamParams) -> Box<HostStreamMapper> {
-    // Built on a thread with a large stack, then moved into the box by pointer.
+    // Built on a thread with a large stack, then moved into the box by pointer: the mapper is
+    // 2.6 MB, more than a test's or a worker's thread has. Neither the building nor the
+    // fallback is inlined here, or this frame would reserve the mapper's size on the caller's
+    // stack even when the thread builds it.
     std::thread::Builder::new()
         .stack_size(64 << 20)
-        .spawn(move || Box::new(HostStreamMapper::new(params)))
+        .spawn(move || build_mapper(params))
         .ok()
         .and_then(|h| h.join().ok())
-        .unwrap_or_else(|| Box::new(HostStreamMapper::new(params)))
+        .unwrap_or_else(|| build_mapper(params))
+}
+
+#[inline(never)]
+fn build_mapper(params: StreamParams) -> Box<HostStreamMapper> {
+    Box::new(HostStreamMapper::new(params))
 }
 
 /// Receiver + mapper, fed with whatever chunks of bytes arrive.
