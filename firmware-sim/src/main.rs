@@ -15,11 +15,21 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    match cli::dispatch(&args) {
-        Ok(()) => ExitCode::SUCCESS,
+    // On a thread with a large stack: the firmware's state holds 4,096 working clusters (1.2
+    // MB), and an unoptimised build moves copies of its parts through the stack.
+    let run = std::thread::Builder::new()
+        .stack_size(256 << 20)
+        .spawn(move || cli::dispatch(&args).map_err(|e| (e.to_string(), e.exit_code())));
+    match run.map(|h| h.join()) {
+        Ok(Ok(Ok(()))) => ExitCode::SUCCESS,
+        Ok(Ok(Err((message, code)))) => {
+            eprintln!("mema-firmware-sim: {message}");
+            ExitCode::from(code)
+        }
+        Ok(Err(_)) => ExitCode::from(1),
         Err(e) => {
-            eprintln!("mema-firmware-sim: {e}");
-            ExitCode::from(e.exit_code())
+            eprintln!("mema-firmware-sim: cannot start the simulator's thread: {e}");
+            ExitCode::from(1)
         }
     }
 }
