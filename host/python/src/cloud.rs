@@ -25,6 +25,9 @@ pub struct Frame {
     pub dropped_non_finite: usize,
     /// `mema eval --json`'s `unit` of the read.
     pub unit: serde_json::Value,
+    /// Where the read's points were seen from, and the no-returns it left out.
+    pub sensors: mema::io::sensors::Sensors,
+    pub no_returns: usize,
 }
 
 /// Points given to `map` or `eval`: their rows, and the reader's frame if they came from
@@ -69,6 +72,16 @@ pub fn input(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Input> {
         local,
         dropped_non_finite: obj.getattr("dropped_non_finite")?.extract()?,
         unit: serde_json::from_str(&unit).map_err(|e| bad_value(&format!("{what}.unit"), e))?,
+        sensors: match obj.getattr("sensors")? {
+            s if s.is_none() => Default::default(),
+            s => {
+                let (origins, ends): (Vec<[f64; 3]>, Vec<usize>) = s
+                    .extract()
+                    .map_err(|e| bad_value(&format!("{what}.sensors"), e))?;
+                mema::io::sensors::Sensors { origins, ends }
+            }
+        },
+        no_returns: obj.getattr("no_returns")?.extract().unwrap_or(0),
     };
     Ok(Input {
         rows,
@@ -96,8 +109,8 @@ impl Input {
                 dropped_by_class: Default::default(),
                 outliers: Default::default(),
                 unit: None,
-                sensors: Default::default(),
-                no_returns: 0,
+                sensors: frame.sensors.clone(),
+                no_returns: frame.no_returns,
             };
             return Ok((cloud, Some(frame.unit.clone())));
         }

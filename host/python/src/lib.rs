@@ -46,7 +46,8 @@ pub(crate) fn parse_units(given: &str) -> PyResult<LengthUnit> {
 /// and the points the read left out: by `classes` (as `--classes`) noise, withheld, other
 /// classes, and by `outliers` (as `mema map --outliers`, whose default it shares) isolated ones.
 #[pyfunction]
-#[pyo3(signature = (path, units = None, topic = None, frame = None, classes = None, outliers = None))]
+#[pyo3(signature = (path, units = None, topic = None, frame = None, classes = None, outliers = None, min_range = None))]
+#[allow(clippy::too_many_arguments)]
 fn _read_cloud<'py>(
     py: Python<'py>,
     path: PathBuf,
@@ -55,6 +56,7 @@ fn _read_cloud<'py>(
     frame: Option<String>,
     classes: Option<&str>,
     outliers: Option<&str>,
+    min_range: Option<f64>,
 ) -> PyResult<ReadCloud<'py>> {
     let given = units.map(parse_units).transpose()?;
     let classes: mema::io::read::Classes = match classes {
@@ -69,10 +71,18 @@ fn _read_cloud<'py>(
             .map_err(|e: String| errors::bad_value("outliers", &e))?,
         None => mema::io::read::Outliers::DEFAULT,
     };
+    if let Some(r) = min_range
+        && !(r >= 0.0 && r.is_finite())
+    {
+        return Err(errors::bad_value(
+            "min_range",
+            "must be a finite number of metres, 0 or more",
+        ));
+    }
     let screening = mema::io::read::Screening {
         classes,
         outliers,
-        ..mema::io::read::Screening::DEFAULT
+        min_range: min_range.unwrap_or(mema::io::read::Screening::DEFAULT.min_range),
     };
     let bag = mema::io::bag::BagOptions { topic, frame };
     if (bag.topic.is_some() || bag.frame.is_some())
@@ -106,6 +116,8 @@ fn _read_cloud<'py>(
                 cloud.outliers.dropped,
             )
         },
+        (cloud.sensors.origins.clone(), cloud.sensors.ends.clone()),
+        cloud.no_returns,
     ))
 }
 
@@ -117,6 +129,8 @@ type ReadCloud<'py> = (
     String,
     usize,
     (usize, usize, usize, usize),
+    (Vec<[f64; 3]>, Vec<usize>),
+    usize,
 );
 
 /// Maps an `(N, 3)` array of points in metres (float32 or float64; rows with a NaN or infinite

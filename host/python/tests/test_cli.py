@@ -147,7 +147,7 @@ def test_every_map_option_is_a_keyword_with_the_clis_default(cli):
     # Files and printing are the package's own: the points, Map.save, Map.labels, Map.report,
     # and read_cloud(units=).
     # How the input is read is `read_cloud`'s keywords; the rest is what the command line writes.
-    reading = {"units", "topic", "frame", "classes", "outliers"}
+    reading = {"units", "topic", "frame", "classes", "outliers", "min_range"}
     not_keywords = {"output", "labels", "json", "help", "version"}
     signature = inspect.signature(mema.map)
     read_signature = inspect.signature(mema.read_cloud)

@@ -24,7 +24,8 @@ class Cloud(np.ndarray):
     """
 
     def __new__(
-        cls, points, origin=None, local=None, unit=None, dropped_non_finite=0, left_out=None
+        cls, points, origin=None, local=None, unit=None, dropped_non_finite=0, left_out=None,
+        sensors=None, no_returns=0,
     ):
         cloud = np.asarray(points, dtype=np.float64).view(cls)
         cloud.origin = origin
@@ -32,6 +33,8 @@ class Cloud(np.ndarray):
         cloud.unit = unit
         cloud.dropped_non_finite = dropped_non_finite
         cloud.left_out = left_out
+        cloud.sensors = sensors
+        cloud.no_returns = no_returns
         return cloud
 
     def __array_finalize__(self, obj):
@@ -41,17 +44,28 @@ class Cloud(np.ndarray):
         self.unit = getattr(obj, "unit", None)
         self.dropped_non_finite = getattr(obj, "dropped_non_finite", 0)
         self.left_out = getattr(obj, "left_out", None)
+        self.sensors = getattr(obj, "sensors", None)
+        self.no_returns = getattr(obj, "no_returns", 0)
 
     def __reduce__(self):
-        state = (self.origin, self.local, self.unit, self.dropped_non_finite, self.left_out)
+        state = (
+            self.origin, self.local, self.unit, self.dropped_non_finite, self.left_out,
+            self.sensors, self.no_returns,
+        )
         return (_rebuild, (np.asarray(self), *state))
 
 
-def _rebuild(points, origin, local, unit, dropped_non_finite, left_out=None):
-    return Cloud(points, origin, local, unit, dropped_non_finite, left_out)
+def _rebuild(
+    points, origin, local, unit, dropped_non_finite, left_out=None, sensors=None, no_returns=0
+):
+    return Cloud(
+        points, origin, local, unit, dropped_non_finite, left_out, sensors, no_returns
+    )
 
 
-def read_cloud(path, units=None, topic=None, frame=None, classes=None, outliers=None):
+def read_cloud(
+    path, units=None, topic=None, frame=None, classes=None, outliers=None, min_range=None
+):
     """Reads a point cloud file (PLY, PCD, LAS/LAZ, XYZ/CSV, KITTI ``.bin``: whatever ``mema
     map`` reads) as a ``Cloud``: an ``(N, 3)`` float64 array of its finite points in world
     coordinates, in metres. ``units`` (``m``, ``mm``, ``cm``, ``km``, ``in``, ``ft``,
@@ -65,11 +79,17 @@ def read_cloud(path, units=None, topic=None, frame=None, classes=None, outliers=
     --outliers`` does, with its default (``"20,30"``: a point whose mean distance to its 20
     nearest neighbours is over 30 times that distance's median); ``"off"`` keeps them, and
     either refuses a cloud too wide for float32 at its point spacing. ``Cloud.left_out``
-    counts the points the read left out."""
+    counts the points the read left out.
+    ``min_range`` (metres, default 1 cm, as ``--min-range``): points that close to the sensor
+    origin they were seen from are no-returns, left out and counted in ``no_returns``; the
+    cloud's ``sensors`` are the runs of points seen from each origin, ``(origins, ends)``.
+"""
     import json
 
-    world, local, origin, unit, dropped, left = _mema._read_cloud(
-        path, units, topic, frame, classes, outliers
+    world, local, origin, unit, dropped, left, sensors, no_returns = _mema._read_cloud(
+        path, units, topic, frame, classes, outliers, min_range
     )
     left_out = dict(zip(("noise", "withheld", "other_classes", "outliers"), left))
-    return Cloud(world, origin, local, json.loads(unit), dropped, left_out)
+    return Cloud(
+        world, origin, local, json.loads(unit), dropped, left_out, sensors, no_returns
+    )
