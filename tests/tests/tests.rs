@@ -65,6 +65,7 @@ mod docs;
 // PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
 mod protocol_doc;
 // The figures the guides quote: copies of docs/results.md, and its car6 rows computed again.
+mod refused;
 mod results;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
