@@ -12,4 +12,4 @@ fi
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check numpy scikit-learn pyoctomap==1.2.2
 
 cargo build --release -p mema
-./target/release/mema bench --data ../shared/data --python "$venv/bin/python" "$@"
+"${CARGO_TARGET_DIR:-target}/release/mema" bench --data ../shared/data --python "$venv/bin/python" "$@"

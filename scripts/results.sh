@@ -5,206 +5,236 @@
 #
 # Each figure sits in a block between `<!-- result NAME -->` and `<!-- /result -->`. A guide
 # quotes a table by copying its block, markers and all; tests/tests/results.rs checks that every
-# copy equals this file's block, and recomputes the cheap rows (car6's) from the code, so neither
-# a guide nor this file can drift unnoticed. Figures that vary by machine (wall time, resident
-# memory) are kept apart, in the `times` block, with the machine they were measured on: the
-# guides state them once in prose and no test asserts them.
+# copy equals this file's block, that the figures quoted in prose are the blocks' cells, and
+# recomputes the cheap rows (car6's, the pacing model's) from the code, so neither a guide nor
+# the results file can drift unnoticed. Figures that vary by machine (times, rates, memory) are
+# kept apart, in blocks named `times-*` that say which machine and load they were measured
+# under: the guides copy them like any block, and no test asserts them.
 #
-# The benchmarks that take minutes to hours write their own tables: `mema bench` (performance.md),
-# `scripts/bench.sh --only fidelity` (fidelity.md), `firmware-sim/check.sh` (firmware.md) and
-# `scripts/board-fidelity.sh` (firmware.md).
+# Every benchmark writes a log; scripts/results/render.py turns the logs into the file. The
+# slow ones: firmware-sim/check.sh (QEMU, minutes), `scripts/bench.sh --only python` (about a
+# quarter of an hour) and `--only fidelity` (hours of Gaussian-mixture EM on two cores, unless
+# its fit cache, target/gmm-cache, already holds the fits). Environment:
+#
+#   MEMA_RESULTS_LOGS=DIR   keep every log in DIR and reuse a log already there instead of
+#                           running its benchmark again (delete DIR/NAME.log to rerun one); each
+#                           log's commit, time and load are in DIR/NAME.meta, and results.md
+#                           names the commit every section came from
+#   MEMA_RESULTS_KEEP=A,B   copy these sections (paper, clouds, firmware, pacing, streaming,
+#                           board-fidelity, tolerance, queries, ablation, bench, python,
+#                           draw, fidelity, free-space) from the current OUT instead of running
+#                           them; the copied section keeps the commit it names
+#   MEMA_CHECK_LOG=FILE     the output of a firmware-sim/check.sh run of this checkout
+#   MEMA_GMM_CACHE=DIR      the fidelity benchmark's fit cache (default target/gmm-cache)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:-docs/results.md}
-cargo build --release -q -p mema
-mema=$PWD/target/release/mema
+target=${CARGO_TARGET_DIR:-$PWD/target}
+cargo build --release -q -p mema -p mema-firmware-sim
+mema=$target/release/mema
 data=../shared/data
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+logs=${MEMA_RESULTS_LOGS:-$tmp/logs}
+mkdir -p "$logs"
+logs=$(cd "$logs" && pwd)
+keep=",${MEMA_RESULTS_KEEP:-},"
+export MEMA="$mema"
+
+commit=$(git rev-parse --short HEAD)
+git diff --quiet HEAD -- . ':!docs' 2>/dev/null || commit="$commit+changes"
+
+# run NAME COMMAND...: COMMAND's stdout to $logs/NAME.log (stderr to NAME.err), with its
+# commit, wall time and load in NAME.meta; a log already there is reused, a kept section skipped.
+run() {
+  local name=$1 section=$2
+  shift 2
+  if [[ $keep == *",$section,"* ]]; then
+    return
+  fi
+  if [ -e "$logs/$name.log" ]; then
+    echo "results: $name: reusing $logs/$name.log ($(tr -d '\n' < "$logs/$name.meta"))" >&2
+    return
+  fi
+  echo "results: $name: $*" >&2
+  local start load
+  start=$(date +%s.%N)
+  load=$(cut -d' ' -f1 /proc/loadavg)
+  if ! "$@" > "$logs/$name.part" 2> "$logs/$name.err"; then
+    echo "results: $name failed; its output is in $logs/$name.part and $name.err" >&2
+    exit 1
+  fi
+  mv "$logs/$name.part" "$logs/$name.log"
+  python3 - "$name" "$*" "$commit" "$start" "$load" > "$logs/$name.meta" <<'EOF'
+import json, os, platform, sys, time
+name, command, commit, start, load = sys.argv[1:]
+model = platform.machine()
+for line in open("/proc/cpuinfo"):
+    if line.startswith("model name"):
+        model = line.split(":", 1)[1].strip()
+        break
+print(json.dumps({"command": command, "commit": commit, "date": time.strftime("%Y-%m-%d"),
+                  "seconds": round(time.time() - float(start), 1),
+                  "machine": f"{model}, {os.cpu_count()} cores",
+                  "load": [float(load), os.getloadavg()[0]]}))
+EOF
+}
 
 # The paper's Tables 2 and 4 (`mema map --paper`), and each run's time, as JSON lines.
-runs=("car6.pcd 150" "bun_zipper.ply 100" "bun_zipper.ply 350" "five_people.pcd 350")
-for run in "${runs[@]}"; do
-  set -- $run
-  /usr/bin/time -f '{"wall": %e, "rss_kb": %M}' -o "$tmp/time" \
-    "$mema" map "$data/$1" -k "$2" --paper -o "$tmp/m.mema" --json 2>/dev/null > "$tmp/map.json"
-  python3 - "$1" "$2" "$tmp/map.json" "$tmp/time" >> "$tmp/paper.jsonl" <<'EOF'
+paper() {
+  for run in "car6.pcd 150" "bun_zipper.ply 100" "bun_zipper.ply 350" "five_people.pcd 350"; do
+    set -- $run
+    /usr/bin/time -f '{"wall": %e, "rss_kb": %M}' -o "$tmp/time" \
+      "$mema" map "$data/$1" -k "$2" --paper -o "$tmp/m.mema" --json 2>/dev/null > "$tmp/map.json"
+    jq_line cloud "$1" k "$2" report "@$tmp/map.json" time "@$tmp/time"
+  done
+}
+
+# One JSON line of KEY VALUE pairs; a value `@FILE` is that file's JSON, a number stays one.
+jq_line() {
+  python3 - "$@" <<'EOF'
 import json, sys
-cloud, k, report, time = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
-print(json.dumps({"cloud": cloud, "k": k, "report": json.load(open(report)),
-                  "time": json.load(open(time))}))
+args, line = sys.argv[1:], {}
+for key, value in zip(args[::2], args[1::2]):
+    if value.startswith("@"):
+        line[key] = json.load(open(value[1:]))
+    else:
+        try:
+            line[key] = json.loads(value)
+        except ValueError:
+            line[key] = value
+print(json.dumps(line))
 EOF
-done
+}
 
 # Every shared cloud read as `mema map` reads it: its slots, what was dropped, what was mapped;
 # and the default map at 2,400 bytes (entities and file bytes).
-for path in "$data"/*.{ply,pcd,las,laz}; do
-  cloud=$(basename "$path")
-  "$mema" map "$path" --bytes 2400 -o "$tmp/b.mema" --json 2>/dev/null > "$tmp/b.json"
-  "$mema" info "$tmp/b.mema" --json > "$tmp/info.json"
-  python3 - "$cloud" "$tmp/b.json" "$tmp/info.json" >> "$tmp/clouds.jsonl" <<'EOF'
-import json, sys
-print(json.dumps({"cloud": sys.argv[1], "report": json.load(open(sys.argv[2])),
-                  "info": json.load(open(sys.argv[3]))}))
-EOF
-done
+clouds() {
+  for path in "$data"/*.{ply,pcd,las,laz}; do
+    "$mema" map "$path" --bytes 2400 -o "$tmp/b.mema" --json 2>/dev/null > "$tmp/b.json"
+    "$mema" info "$tmp/b.mema" --json > "$tmp/info.json"
+    jq_line cloud "$(basename "$path")" report "@$tmp/b.json" info "@$tmp/info.json"
+  done
+}
 
 # The firmware's figures: firmware-sim/check.sh builds the 64 KiB image and the STM32F405 board,
 # runs both under QEMU (-icount shift=0: instructions, not time) and prints their memory and
-# instructions. MEMA_CHECK_LOG names the output of a check.sh run of this same checkout to use
-# instead of running it again (it takes minutes).
-if [ -n "${MEMA_CHECK_LOG:-}" ]; then
-  cp "$MEMA_CHECK_LOG" "$tmp/check.txt"
-else
-  firmware-sim/check.sh > "$tmp/check.txt" 2>&1
-fi
+# instructions.
+check() {
+  if [ -n "${MEMA_CHECK_LOG:-}" ]; then
+    cat "$MEMA_CHECK_LOG"
+  else
+    firmware-sim/check.sh 2>&1
+  fi
+}
 
-python3 - "$tmp/paper.jsonl" "$tmp/clouds.jsonl" "$tmp/check.txt" > "$out" <<'EOF'
-import json, platform, os, sys
+# The link model's pacing table: the test that checks it prints it (tests/tests/pacing.rs).
+pacing() {
+  MEMA_RESULTS_REGENERATING=1 cargo test -q --release -p mema-tests --test integration -- \
+    --exact pacing::the_ring_keeps_up_with_the_link_on_a_168_mhz_part --nocapture 2>&1
+}
 
-paper = [json.loads(l) for l in open(sys.argv[1])]
-clouds = [json.loads(l) for l in open(sys.argv[2])]
+# Streamed maps: the bunny's registered scans streamed with their poses against the batch map of
+# as many entities, and the demo drive re-cast at its streamed map.
+streaming() {
+  "$mema" map "$data/bun.conf" --stream -k 400 -o "$tmp/s.mema" 2>/dev/null > /dev/null
+  "$mema" info "$tmp/s.mema" --json > "$tmp/s.json"
+  local k
+  k=$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["entities"])' "$tmp/s.json")
+  "$mema" map "$data/bun.conf" -k "$k" -o "$tmp/b.mema" 2>/dev/null > /dev/null
+  "$mema" eval "$data/bun_zipper.ply" "$tmp/s.mema" --json 2>/dev/null > "$tmp/se.json"
+  "$mema" eval "$data/bun_zipper.ply" "$tmp/b.mema" --json 2>/dev/null > "$tmp/be.json"
+  jq_line run multiview k "$k" stream "@$tmp/se.json" batch "@$tmp/be.json"
+  "$mema" demo --moving --out-dir "$tmp/drive" --json 2>/dev/null > "$tmp/drive.json"
+  jq_line run drive demo "@$tmp/drive.json"
+  "$mema" query-bench --json 2>/dev/null > "$tmp/static.json"
+  jq_line run static bench "@$tmp/static.json"
+}
 
-def n(v):
-    return f"{v:,}"
+stream_vs_batch() {
+  scripts/stream_vs_batch.sh "$1" "$mema"
+}
 
-def block(name, lines):
-    print(f"<!-- result {name} -->")
-    print("\n".join(lines))
-    print("<!-- /result -->")
-    print()
+# Automatic k (docs/tolerance.md): T is the largest per-cluster error of the paper's map at
+# the cloud's fixed k; then the tolerance maps in both models, eval of each, the paper's with
+# four Voronoi rounds, and the streaming mapper with the same T.
+tolerance() {
+  for run in "car6.pcd 150" "bun_zipper.ply 350" "five_people.pcd 350" "cturtle.pcd 400"; do
+    set -- $run
+    local cloud=$data/$1 t
+    "$mema" map "$cloud" -k "$2" --paper -o "$tmp/f.mema" --json 2>/dev/null > "$tmp/f.json"
+    t=$(python3 -c 'import json, sys; print("%.6f" % json.load(open(sys.argv[1]))["ellipsoidal"]["max"])' "$tmp/f.json")
+    for model in paper shells voronoi; do
+      local flags=(--model shells)
+      [ "$model" = shells ] || flags=(--paper)
+      [ "$model" = voronoi ] && flags+=(--voronoi-rounds 4)
+      /usr/bin/time -f '{"wall": %e}' -o "$tmp/time" \
+        "$mema" map "$cloud" --tolerance "$t" "${flags[@]}" --json -o "$tmp/t.mema" 2>/dev/null > "$tmp/t.json"
+      "$mema" eval "$cloud" "$tmp/t.mema" --json 2>/dev/null > "$tmp/e.json"
+      jq_line cloud "$1" k "$2" tolerance "$t" model "$model" map "@$tmp/t.json" eval "@$tmp/e.json" time "@$tmp/time"
+    done
+    "$mema" stream-bench "$cloud" -k 2048 --tolerance "$t" --model paper --json 2>/dev/null > "$tmp/s.json"
+    jq_line cloud "$1" k "$2" tolerance "$t" model stream bench "@$tmp/s.json"
+  done
+}
 
-print("# Results")
-print()
-print("Written by `scripts/results.sh` from one run; regenerate it rather than edit it. The guides")
-print("copy its blocks, and `tests/tests/results.rs` checks every copy against this file.")
-print()
-print("## The paper's Tables 2 and 4")
-print()
-print("`mema map ../shared/data/<cloud> -k <k> --paper -o m.mema` (seed 0, alpha 0.8, threshold 4,")
-print("DE with F 1.2, CR 0.7, population 10 and 50 generations).")
-print()
-rows = ["| cloud | k | points | cloud bytes | entities | map bytes | percent |",
-        "|---|---|---|---|---|---|---|"]
-for r in paper:
-    m = r["report"]["memory"]
-    rows.append(f"| `{r['cloud']}` | {r['k']} | {n(m['points'])} | {n(m['cloud_bytes'])} | "
-                f"{n(m['entities'])} | {n(m['map_bytes'])} | {m['percent']:.4f}% |")
-block("paper-table-2", rows)
-rows = ["| cloud | k | map | mean | std | max | min | total |",
-        "|---|---|---|---|---|---|---|---|"]
-for r in paper:
-    for i, fit in enumerate(["ellipsoidal", "spherical"]):
-        e = r["report"][fit]
-        head = f"| `{r['cloud']}` | {r['k']} |" if i == 0 else "| | |"
-        rows.append(f"{head} {fit} | {e['mean']:.6f} | {e['std']:.6f} | {e['max']:.6f} | "
-                    f"{e['min']:.6f} | {e['total']:.6f} |")
-block("paper-table-4", rows)
+# Queries (docs/queries.md): the index against the brute-force scan on three maps, then the demo
+# scene's map with its scan re-cast against it.
+queries() {
+  for run in "car6.pcd 150" "five_people.pcd 350" "cturtle.pcd 2000"; do
+    set -- $run
+    "$mema" map "$data/$1" -k "$2" -o "$tmp/q.mema" 2>/dev/null > /dev/null
+    "$mema" query-bench "$tmp/q.mema" --json 2>/dev/null > "$tmp/q.json"
+    jq_line cloud "$1" k "$2" bench "@$tmp/q.json"
+  done
+  "$mema" query-bench --json 2>/dev/null > "$tmp/q.json"
+  jq_line cloud demo k 250 bench "@$tmp/q.json"
+}
 
-print("## The shared clouds as `mema map` reads them, and their default maps at 2,400 bytes")
-print()
-print("`mema map ../shared/data/<cloud> --bytes 2400 -o m.mema --json`, then `mema info m.mema`:")
-print("the input's slots, the points dropped for a NaN or infinite coordinate and by class (LAS")
-print("noise and withheld), the finite points left (what `eval`, `draw` and `mema bench` read),")
-print("those `map` drops as isolated (`--outliers`), the points mapped, and the map's entities and")
-print("bytes in the file.")
-print()
-rows = ["| cloud | slots | NaN or infinite | by class | finite | isolated | mapped | entities | file bytes |",
-        "|---|---|---|---|---|---|---|---|---|"]
-for r in clouds:
-    j, info = r["report"], r["info"]
-    by_class = sum(j["dropped_by_class"].values())
-    finite = j["slots"] - j["dropped_non_finite"] - by_class
-    rows.append(f"| `{r['cloud']}` | {n(j['slots'])} | {n(j['dropped_non_finite'])} | "
-                f"{n(by_class)} | {n(finite)} | {n(j['outliers']['dropped'])} | "
-                f"{n(j['memory']['points'])} | {n(j['memory']['entities'])} | "
-                f"{n(info['file_bytes'])} |")
-block("clouds", rows)
+# The choices the paper leaves open (docs/design.md), on six clouds.
+ablation() {
+  for run in "car6.pcd 150" "bun_zipper.ply 100" "bun_zipper.ply 350" "five_people.pcd 350" \
+      "cturtle.pcd 400" "milk.pcd 150"; do
+    set -- $run
+    "$mema" ablation "$data/$1" -k "$2" --json 2>/dev/null > "$tmp/a.json"
+    jq_line cloud "$1" k "$2" ablation "@$tmp/a.json"
+  done
+}
 
-check = open(sys.argv[3]).read().splitlines()
+# Pictures and meshes (docs/performance.md): draw office1 and its maps, export the bunny's.
+draw() {
+  "$mema" map "$data/office1.pcd" -k 16384 -o "$tmp/o16k.mema" > /dev/null 2>&1
+  "$mema" map "$data/office1.pcd" -k 500 -o "$tmp/o500.mema" > /dev/null 2>&1
+  "$mema" map "$data/bun_zipper.ply" -k 4000 -o "$tmp/b4k.mema" > /dev/null 2>&1
+  for map in o16k o500; do
+    /usr/bin/time -f '{"wall": %e, "user": %U, "rss_kb": %M}' -o "$tmp/time" \
+      "$mema" draw "$data/office1.pcd" "$tmp/$map.mema" -o "$tmp/$map.png" --json 2>/dev/null > "$tmp/d.json"
+    jq_line run "draw $map" report "@$tmp/d.json" time "@$tmp/time"
+  done
+  /usr/bin/time -f '{"wall": %e, "user": %U, "rss_kb": %M}' -o "$tmp/time" \
+    "$mema" export "$tmp/b4k.mema" -o "$tmp/b4k.glb" --json 2>/dev/null > "$tmp/x.json"
+  jq_line run "export b4k" report "@$tmp/x.json" time "@$tmp/time"
+}
 
-def after(line, key):
-    """The number after `key` in `line`."""
-    rest = line.split(key, 1)[1].strip()
-    return rest.split()[0].rstrip(",;:)")
+run paper paper paper
+run clouds clouds clouds
+run streaming streaming streaming
+run stream-vs-batch-400 streaming stream_vs_batch 400
+run stream-vs-batch-150 streaming stream_vs_batch 150
+run board-fidelity board-fidelity scripts/board-fidelity.sh
+run tolerance tolerance tolerance
+run queries queries queries
+run ablation ablation ablation
+run draw draw draw
+run bench bench "$mema" bench --data "$data"
+run pacing pacing pacing
+run check firmware check
+run python python scripts/bench.sh --only python
+run free-space free-space scripts/bench.sh --only free-space
+run fidelity fidelity scripts/bench.sh --only fidelity --gmm-cache "${MEMA_GMM_CACHE:-target/gmm-cache}" --json
 
-print("## The firmware (`firmware-sim/check.sh`)")
-print()
-print("The 64 KiB image (K = 400: 150 working + 250 frozen) under `qemu-system-arm -machine")
-print("mps2-an386 -icount shift=0` on `mema scanner-sim`'s capture of car6 (10,031 points), and the")
-print("STM32F405 board (K = 700: 150 working + 550 frozen) under QEMU's `netduinoplus2` behind")
-print("`mema device`, on car6 and the demo drive. Instructions are counted by QEMU, not timed.")
-print()
-sections = {}
-model = None
-for line in check:
-    if line.startswith("== firmware budget"):
-        model = line.split("model ")[-1].rstrip(")")
-        sections[model] = []
-    elif model:
-        sections[model].append(line)
-paper_budget = sections["paper"]
-rows = ["| K | working | frozen | mapper | decoder | ring | firmware state | under 64 KiB | and an 8 KiB stack |",
-        "|---|---|---|---|---|---|---|---|---|"]
-for line in paper_budget:
-    cells = line.split()
-    if len(cells) >= 13 and cells[0].isdigit() and "KiB" in line:
-        k, working, frozen = cells[0], cells[1], cells[2]
-        kib = [c for c in cells if c.replace(".", "").isdigit() and "." in c]
-        fits, with_stack = cells[-2], cells[-1].strip("()")
-        rows.append(f"| {k} | {working} | {frozen} | {kib[0]} KiB | {kib[1]} KiB | {kib[2]} KiB | "
-                    f"{kib[3]} KiB | {fits} | {with_stack} |")
-block("firmware-memory", rows)
-
-rows = ["| model | flash: text | static RAM: data + bss | stack high-water: boot, ingest, finish | RAM in use |",
-        "|---|---|---|---|---|"]
-cost = ["| capture | model | ingest | finish | whole run |", "|---|---|---|---|---|"]
-for model in ["paper", "shells"]:
-    lines = sections[model]
-    image = next(l for l in lines if l.startswith("image ("))
-    ram = next(l for i, l in enumerate(lines) if l.strip().startswith("RAM in use") and lines[i - 1].startswith("image ("))
-    stack = next(l for l in lines if "stack high-water: boot" in l)
-    points = int(after(next(l for l in lines if l.startswith("QEMU mps2-an386")), f"model {model}:"))
-    text = int(after(image, "(text"))
-    bss = int(after(image, "(data + bss"))
-    rows.append(f"| {model} | {n(text)} bytes | {n(bss)} bytes | {n(int(after(stack, 'boot')))}, "
-                f"{n(int(after(stack, 'ingest ticks')))}, {n(int(after(stack, 'finish')))} B | "
-                f"{after(ram, '=')} KiB |")
-    per = next(l for l in lines if "instructions per ingested point:" in l)
-    ingest = int(after(per, "point:"))
-    finish = float(after(per, "encode):"))
-    cost.append(f"| car6 ({n(points)} points) | {model} | {n(ingest)} | {finish:.2e}".replace("e+0", "e")
-                + f" "
-                f"({n(round(finish / points))} a point) | {n(round(ingest + finish / points))} |")
-block("firmware-image", rows)
-block("firmware-cost", cost)
-
-rows = ["| capture | model | instructions a point | longest tick |", "|---|---|---|---|"]
-queries = ["| model | nearest surface | ray cast |", "|---|---|---|"]
-for line in check:
-    if "instructions a point on the board" in line:
-        capture, model = line.strip().split(":")[0].split(", ")
-        name = "car6" if capture == "car6.pcd" else "demo drive"
-        rows.append(f"| {name} | {model} | {n(int(after(line, ':')))} | {n(int(after(line, 'longest tick')))} |")
-    if "queries on the board" in line:
-        model = line.strip().split(":")[0].split(", ")[1]
-        q = json.loads("{" + line.split("answer the host's: ", 1)[1] + "}")["queries"]
-        queries.append(f"| {model} | {q['nearest_instructions'] / 1e6:.3g} million | "
-                       f"{q['ray_instructions'] / 1e6:.3g} million |")
-block("board-cost", rows)
-block("board-queries", queries)
-
-print("## Times")
-print()
-print("Wall time and peak resident memory of each Table 2 run (`/usr/bin/time`), on the machine")
-print("below; they vary with the machine and its load, and no test asserts them.")
-print()
-rows = [f"Machine: {platform.machine()}, {os.cpu_count()} cores, load average "
-        f"{os.getloadavg()[0]:.1f} at the end of the run.", "",
-        "| cloud | k | wall | peak RSS |", "|---|---|---|---|"]
-for r in paper:
-    t = r["time"]
-    rows.append(f"| `{r['cloud']}` | {r['k']} | {t['wall']:.2f} s | {t['rss_kb'] / 1000:.1f} MB |")
-block("times", rows)
-EOF
+previous=$tmp/previous.md
+if [ -e "$out" ]; then cp "$out" "$previous"; else : > "$previous"; fi
+python3 scripts/results/render.py "$logs" "$previous" "${MEMA_RESULTS_KEEP:-}" > "$tmp/results.md"
+mv "$tmp/results.md" "$out"
 echo "wrote $out" >&2

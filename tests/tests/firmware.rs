@@ -26,57 +26,18 @@ const F: usize = 256;
 /// `(150, 250)` is the image's K = 400 layout.
 pub(crate) type Shape = (usize, usize);
 
-fn capture_of(cloud: &str) -> Vec<u8> {
+pub(crate) fn capture_of(cloud: &str) -> Vec<u8> {
     encode_stream(&wire_points_of(cloud)).expect("encodes")
 }
 
 /// `cloud`'s points as the wire carries them (i32 millimetres, in the cloud's local frame).
-fn wire_points_of(cloud: &str) -> Vec<[i32; 3]> {
+pub(crate) fn wire_points_of(cloud: &str) -> Vec<[i32; 3]> {
     let cloud = mema::io::load_cloud(&shared(cloud)).expect("cloud reads");
     cloud
         .points
         .iter()
         .map(|p| quantise(*p).expect("fits"))
         .collect()
-}
-
-/// `cloud`'s capture with its points in a fixed pseudo-random order (Fisher-Yates on a 64-bit
-/// LCG): a scan without its sweep, so almost every point is far from the one before.
-fn shuffled_capture_of(cloud: &str) -> Vec<u8> {
-    let mut wire = wire_points_of(cloud);
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    for i in (1..wire.len()).rev() {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        wire.swap(i, ((state >> 33) % (i as u64 + 1)) as usize);
-    }
-    encode_stream(&wire).expect("encodes")
-}
-
-/// Points in `capture`, as the firmware maps them.
-fn unpaced_points(capture: &[u8]) -> u64 {
-    frames_of(capture, None)
-        .values()
-        .map(|points| points.len() as u64)
-        .sum()
-}
-
-/// New ground at every point: a line whose spacing grows 0.07% a point (1 cm to 11 m over
-/// 10,000 points, 15.7 km in all), with a small zigzag across it, so no point lies within the
-/// join radius the earlier merges gave and every one asks for room: the most a capture can
-/// ask of the pacing's credit.
-fn receding_capture() -> Vec<u8> {
-    let (mut x, mut step) = (0.0f64, 0.01f64);
-    let wire: Vec<[i32; 3]> = (0..10_000)
-        .map(|i| {
-            x += step;
-            step *= 1.0007;
-            let p = Point3::new(x as f32, 0.05 * (i % 7) as f32, 0.02 * (i % 3) as f32);
-            quantise(p).expect("fits")
-        })
-        .collect();
-    encode_stream(&wire).expect("encodes")
 }
 
 fn play(capture: &[u8], k: usize, config: &RunConfig) -> RunReport {
@@ -459,108 +420,4 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
         wide.text()
     );
     assert!(compare_clouds(&lamppost, &Setup::new(150, 0)).passed());
-}
-
-/// Issue 13: the receive ring against the link's clock. Each capture is played back to back at
-/// 921,600 baud (the most the link can deliver) into the image's layout (K = 400: 150 working +
-/// 250 frozen, paper model), every tick taking what its work costs on the target: its points,
-/// and its fit (freeze or refit) or merge pass, at the prices the image measured under QEMU
-/// (`mema-firmware-sim budget` on each capture, rounded up). Four captures: car6 and the demo
-/// drive as scanned, car6's points in a shuffled order (no point near the last: the worst
-/// order for the join search), and a receding line, new ground at every point (room wanted
-/// at 9 points in 10: the pacing's credit all spent, and a scan of every centre for each
-/// point it could not pay for).
-///
-/// A 168 MHz Cortex-M4F at 1.5 cycles an instruction (112 M instructions/s) loses no byte on
-/// any of them, the map is the unpaced one, and the longest tick is under a third of the
-/// ring's fill time. The pacing's credit ([`mema_core::stream::Pacing`]) is what makes that
-/// hold by construction: a fit or merge pass is paid for by the points before it. The slowest
-/// processor that keeps up is found by bisection and printed (README's Firmware section).
-#[test]
-fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
-    use mema_firmware::{IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING};
-    use mema_firmware_sim::pacing::{LINK_BYTES_PER_S, Link, PacedReport, TickCost, run_paced};
-    type Image = Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN>;
-    let dir = Dir::new("fw-paced");
-    MemaCommand::new(&dir)
-        .args(["scanner-sim", "--port", "demo.bin"])
-        .run()
-        .assert_ok();
-    let demo = std::fs::read(dir.join("demo.bin")).expect("demo capture");
-    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, StreamModel::Paper);
-    let cost = |per_point, per_fit, per_merge_pass| TickCost {
-        per_point,
-        per_fit,
-        per_merge_pass,
-    };
-    for (name, capture, cost) in [
-        (
-            "car6",
-            capture_of("car6.pcd"),
-            cost(4_200.0, 117_000.0, 400_000.0),
-        ),
-        ("demo", demo, cost(4_600.0, 149_000.0, 450_000.0)),
-        (
-            "car6 shuffled",
-            shuffled_capture_of("car6.pcd"),
-            cost(4_000.0, 115_000.0, 460_000.0),
-        ),
-        (
-            "receding line",
-            receding_capture(),
-            cost(6_800.0, 107_000.0, 320_000.0),
-        ),
-    ] {
-        let play = |instructions_per_s: f64| -> PacedReport {
-            let link = Link {
-                bytes_per_s: LINK_BYTES_PER_S,
-                instructions_per_s,
-                cost,
-            };
-            let mut firmware: Box<Image> = Box::new(Firmware::new(params));
-            run_paced(&mut firmware, &capture, &link).expect("encodes")
-        };
-        let unpaced = play(1e15);
-        assert_eq!(unpaced.overruns, 0);
-        let m4f = play(168e6 / 1.5);
-        assert_eq!(m4f.overruns, 0, "{name}: a 168 MHz part loses bytes");
-        assert_eq!(m4f.map, unpaced.map, "{name}: pacing changed the map");
-        assert!(m4f.longest_tick_s * 3.0 < m4f.ring_fill_s, "{name}");
-        // The construction's bound: a point's own work, plus at most the dearest instructions a
-        // credit buys (each point earns one), plus its share of the periodic refit.
-        let pacing = params.pacing;
-        let per_credit = (cost.per_fit / f64::from(pacing.freeze))
-            .max(cost.per_merge_pass / f64::from(pacing.merge_pass));
-        let per_point_bound =
-            cost.per_point + per_credit + cost.per_fit / f64::from(mema_firmware::REFIT_INTERVAL);
-        let points = unpaced_points(&capture);
-        let bound = per_point_bound * points as f64 / m4f.link_s;
-        // Bisection on the rate, in M instructions per second, for the README.
-        let (mut slow, mut fast) = (10.0f64, 112.0f64);
-        while fast - slow > 1.0 {
-            let mid = 0.5 * (slow + fast);
-            if play(mid * 1e6).overruns == 0 {
-                fast = mid;
-            } else {
-                slow = mid;
-            }
-        }
-        assert!(
-            fast * 1e6 <= bound,
-            "{name}: needs {fast} M/s, over the bound {bound}"
-        );
-        eprintln!(
-            "{name}: {} bytes over {:.2} s; keeps up from {fast:.0} M instructions/s \
-             ({:.2} cycles per instruction at 168 MHz; the pacing's bound {:.0} M/s); at 112 M/s: \
-             {} ticks, longest {:.1} ms (ring fills in {:.1} ms), ring peak {} bytes",
-            capture.len(),
-            m4f.link_s,
-            168.0 / fast,
-            bound / 1e6,
-            m4f.ticks,
-            m4f.longest_tick_s * 1e3,
-            m4f.ring_fill_s * 1e3,
-            m4f.ring_peak
-        );
-    }
 }

@@ -46,6 +46,19 @@ fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
     out
 }
 
+/// Set by scripts/results.sh while it runs the tests that print a block (tests/tests/pacing.rs):
+/// they print it instead of holding it to docs/results.md.
+pub(crate) fn regenerating() -> bool {
+    std::env::var_os("MEMA_RESULTS_REGENERATING").is_some()
+}
+
+/// The body of docs/results.md's block `name`.
+pub(crate) fn result_block(name: &str) -> String {
+    results()
+        .remove(name)
+        .unwrap_or_else(|| panic!("{RESULTS}: no block `{name}`"))
+}
+
 fn results() -> BTreeMap<String, String> {
     let text = std::fs::read_to_string(repository().join(RESULTS)).expect("docs/results.md");
     let mut map = BTreeMap::new();
@@ -80,7 +93,7 @@ fn documents() -> Vec<(String, String)> {
 }
 
 /// A figure as the script prints it: thousands separated by commas.
-fn thousands(n: u64) -> String {
+pub(crate) fn thousands(n: u64) -> String {
     let digits = n.to_string();
     let mut out = String::new();
     for (i, c) in digits.chars().enumerate() {

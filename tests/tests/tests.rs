@@ -21,6 +21,8 @@ mod core_contract;
 mod layering;
 // The core as firmware runs it: chunking, faults, resets, replay, the f64 reference, fuzzing.
 mod firmware;
+// The receive ring against the link's clock: pacing keeps a 168 MHz part up with the link.
+mod pacing;
 // The fidelity benchmark's GMM baseline: a component becomes its 2-sigma oriented shell.
 mod gmm_shell;
 // The fuzz targets' properties on mutated maps of every layout and mutated captures.
@@ -64,8 +66,8 @@ mod outliers;
 mod docs;
 // PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
 mod protocol_doc;
-// The figures the guides quote: copies of docs/results.md, and its car6 rows computed again.
-mod refused;
+// The figures the guides quote: copies of docs/results.md, the figures quoted in prose, and its
+// car6 rows computed again.
 mod results;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
@@ -111,6 +113,8 @@ mod one_figure;
 mod lidar_pictures;
 // Issue 23: the world frame, reach, far frames and poses.
 mod world_frame;
+// What the receiver refuses: far frames and poses, a first-point glitch, a stream refused whole.
+mod refused;
 // Issue 23: LAS/LAZ classes, noise and withheld points.
 mod las_classes;
 // Issue 29: sensor origins, no-returns, held-out rays (`mema eval --rays`).
