@@ -20,9 +20,10 @@
 #                           running its benchmark again (delete DIR/NAME.log to rerun one); each
 #                           log's commit, time and load are in DIR/NAME.meta, and results.md
 #                           names the commit every section came from
-#   MEMA_RESULTS_KEEP=A,B   copy these sections (paper, clouds, firmware, pacing, streaming,
-#                           board-fidelity, tolerance, queries, ablation, bench, python,
-#                           draw, fidelity, free-space) from the current OUT instead of running
+#   MEMA_RESULTS_KEEP=A,B   copy these sections (paper, clouds, fidelity, surface, tolerance,
+#                           ablation, queries, free-space, streaming, board-fidelity, firmware,
+#                           pacing, reference, python, bench, draw) from the current OUT instead
+#                           of running
 #                           them; the copied section keeps the commit it names
 #   MEMA_CHECK_LOG=FILE     the output of a firmware-sim/check.sh run of this checkout
 #   MEMA_GMM_CACHE=DIR      the fidelity benchmark's fit cache (default target/gmm-cache)
@@ -88,6 +89,11 @@ paper() {
       "$mema" map "$data/$1" -k "$2" --paper -o "$tmp/m.mema" --json 2>/dev/null > "$tmp/map.json"
     jq_line cloud "$1" k "$2" report "@$tmp/map.json" time "@$tmp/time"
   done
+  # One figure per name (docs/command-line.md): the bunny's default map at k = 150.
+  "$mema" map "$data/bun_zipper.ply" -k 150 -o "$tmp/b.mema" --json 2>/dev/null > "$tmp/map.json"
+  "$mema" eval "$data/bun_zipper.ply" "$tmp/b.mema" --json 2>/dev/null > "$tmp/eval.json"
+  "$mema" info "$tmp/b.mema" --json > "$tmp/info.json"
+  jq_line names bun_zipper.ply k 150 report "@$tmp/map.json" eval "@$tmp/eval.json" info "@$tmp/info.json"
 }
 
 # One JSON line of KEY VALUE pairs; a value `@FILE` is that file's JSON, a number stays one.
@@ -126,6 +132,18 @@ check() {
   else
     firmware-sim/check.sh 2>&1
   fi
+}
+
+# The core against the independent f64 reference (docs/firmware.md): every shared input at
+# k = 150, the image's K = 400 (all working, and 150 working + 250 frozen), and the moment sums
+# rounded to fewer bits. A run over tolerance exits 1: that is what it measures.
+reference() {
+  local sim=$target/release/mema-firmware-sim
+  for args in "" "-k 400" "-k 400 --working 150" "--sum-bits 24" "--sum-bits 32" \
+      "--sum-bits 40" "--sum-bits 48" "--sum-bits 52" "--sum-bits 53"; do
+    echo "== reference $args"
+    "$sim" reference $args 2>&1 || true
+  done
 }
 
 # The link model's pacing table: the test that checks it prints it (tests/tests/pacing.rs).
@@ -178,6 +196,18 @@ tolerance() {
   done
 }
 
+# Surface following (docs/fidelity.md): the default map at 9,600 bytes with and without it.
+surface() {
+  for cloud in car6.pcd bun_zipper.ply five_people.pcd office1.pcd; do
+    for rounds in 30 0; do
+      /usr/bin/time -f '{"wall": %e, "rss_kb": %M}' -o "$tmp/time" \
+        "$mema" map "$data/$cloud" --bytes 9600 --surface-rounds "$rounds" -o "$tmp/s.mema" 2>/dev/null > /dev/null
+      "$mema" eval "$data/$cloud" "$tmp/s.mema" --json 2>/dev/null > "$tmp/e.json"
+      jq_line cloud "$cloud" rounds "$rounds" eval "@$tmp/e.json" time "@$tmp/time"
+    done
+  done
+}
+
 # Queries (docs/queries.md): the index against the brute-force scan on three maps, then the demo
 # scene's map with its scan re-cast against it.
 queries() {
@@ -223,11 +253,13 @@ run stream-vs-batch-400 streaming stream_vs_batch 400
 run stream-vs-batch-150 streaming stream_vs_batch 150
 run board-fidelity board-fidelity scripts/board-fidelity.sh
 run tolerance tolerance tolerance
+run surface surface surface
 run queries queries queries
 run ablation ablation ablation
 run draw draw draw
 run bench bench "$mema" bench --data "$data"
 run pacing pacing pacing
+run reference reference reference
 run check firmware check
 run python python scripts/bench.sh --only python
 run free-space free-space scripts/bench.sh --only free-space

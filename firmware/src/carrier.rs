@@ -221,9 +221,8 @@ impl Carrier {
     /// hear of at once, after [`PROGRESS_EVERY`] bytes, or, once the stream has ended, when the
     /// line has gone quiet with bytes taken since the last (the host's last frames are
     /// acknowledged without waiting). Mid-stream a sender whose window is the ring's size
-    /// always has the next [`PROGRESS_EVERY`] bytes on their way; a report at every pause of
-    /// the line there cost about 600 instructions a point under a loaded QEMU, which paces the
-    /// bytes unevenly.
+    /// always has the next [`PROGRESS_EVERY`] bytes on their way, so a report at every pause of
+    /// the line there (QEMU paces the bytes unevenly) would only cost instructions.
     pub fn report_due<const N: usize>(&mut self, line: &Ring<N>) -> Option<LineReport> {
         let taken = line.taken() as u32;
         let since = taken.wrapping_sub(self.reported);

@@ -65,12 +65,10 @@ pub const RX_CAPACITY: usize = mema_core::link::downlink::RING_BYTES;
 pub const IMAGE_WORKING: usize = 150;
 pub const IMAGE_FROZEN: usize = 250;
 /// The STM32F405 board's layout (`boards/stm32f405`): the same 150 working clusters and 550
-/// frozen entities, K = 700. The part's time binds before its RAM: K = 2,048, the streaming
-/// mapper's capacity, fits in 105 KiB of its 128 KiB SRAM, but every entity frozen costs a
-/// fit (130,000 to 160,000 instructions), and the demo drive, which freezes 1,374, then took
-/// 11,711 (shells) and 13,096 (paper) instructions a point under QEMU; at K = 700 it stays
-/// under the 10,000 the board is held to (check.sh). The map's fidelity at K = 700 against
-/// K = 400 and the host's batch map: docs/firmware.md.
+/// frozen entities, K = 700. The part's time binds before its RAM: every entity frozen costs a
+/// fit, and `firmware-sim/check.sh` holds the board under 10,000 instructions a point on car6
+/// and the demo drive in both models. The map's fidelity at K = 700 against K = 400 and the
+/// host's batch map: docs/firmware.md ("The board's layout").
 pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
 

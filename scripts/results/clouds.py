@@ -4,7 +4,8 @@ from common import block, n, table
 
 
 def paper(logs):
-    runs = logs.jsonl("paper")
+    runs = [r for r in logs.jsonl("paper") if "cloud" in r]
+    names = next(r for r in logs.jsonl("paper") if "names" in r)
     out = ["## The paper's Tables 2 and 4", "",
            "`mema map ../shared/data/<cloud> -k <k> --paper -o m.mema` (seed 0, alpha 0.8, "
            "threshold 4, DE with F 1.2, CR 0.7, population 10 and 50 generations). "
@@ -31,6 +32,16 @@ def paper(logs):
     out += block("paper-table-4-summary", [
         f"The ellipsoidal total error is below the spherical one on {sum(x > 0 for x in lower)} "
         f"of {len(runs)} runs, by {100 * min(lower):.0f}-{100 * max(lower):.0f}%."])
+    r, e, i = names["report"], names["eval"], names["info"]
+    out += ["Two figures bear eq. 13's name, and two count bytes (`docs/command-line.md`, "
+            "\"One name per figure\"): `mema map ../shared/data/bun_zipper.ply -k 150`, then "
+            "`mema eval` and `mema info` of its map.", ""]
+    out += block("one-figure", table(["figure", "bun_zipper.ply, k = 150"], [
+        ["eq. 13 as fitted (`map`)", f"{r['ellipsoidal']['mean']:.6f} m"],
+        ["eq. 13 by nearest centre (`eval`)", f"{e['mean']:.6f} m"],
+        ["bytes in the file", n(i["file_bytes"])],
+        ["map bytes", n(i["map_bytes"])],
+        ["paper bytes", n(i["paper_bytes"])]]))
     out += ["Wall time and peak resident memory of each run (`/usr/bin/time`); they vary with "
             "the machine and its load, and no test asserts them.", ""]
     rows = [[f"`{r['cloud']}`", r["k"], f"{r['time']['wall']:.2f} s",

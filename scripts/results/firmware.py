@@ -49,9 +49,14 @@ def firmware(logs):
             kib = [c for c in cells if c.replace(".", "").isdigit() and "." in c]
             rows.append([k, working, frozen, *[f"{x} KiB" for x in kib[:4]], cells[-2],
                          cells[-1].strip("()")])
+    fits = next(l for l in sections["paper"] if "K that fits 64 KiB" in l).strip()
+    fits = fits.replace(" at this layout:", " with every cluster working:")
+    sums = next(l for l in sections["paper"] if "the moment sums alone of" in l)
+    sums = sums.split(";")[0].strip()
     out += block("firmware-memory", table(
         ["K", "working", "frozen", "mapper", "decoder", "ring", "firmware state",
-         "under 64 KiB", "and an 8 KiB stack"], rows))
+         "under 64 KiB", "and an 8 KiB stack"], rows)
+        + ["", f"{fits}; {sums}."])
 
     rows, cost = [], []
     for model in ["paper", "shells"]:
@@ -161,4 +166,77 @@ def board_fidelity(logs):
     out += block("board-fidelity", table(
         ["cloud", "board K = 400", "board K = 700", "entities at 700", "bytes at 700",
          "batch map, same bytes", "board / batch", "K = 700 / 400"], rows))
+    return out
+
+
+def reference_runs(lines):
+    """`mema-firmware-sim reference` runs by their arguments: per-cloud rows, worst, tolerances."""
+    runs, args = {}, None
+    for line in lines:
+        if line.startswith("== reference"):
+            args = line[len("== reference"):].strip()
+            runs[args] = {"clouds": [], "worst": [], "tolerances": ""}
+            continue
+        c = line.split()
+        r = runs.get(args)
+        if r is None or not c:
+            continue
+        if len(c) >= 11 and c[1].isdigit():
+            over = int(c[10]) if len(c) > 11 and c[11] == "over;" else 0
+            r["clouds"].append({"cloud": c[0], "points": int(c[1]), "k": int(c[2]),
+                                "small": int(c[3]), "flat": int(c[4]), "over": over,
+                                "values": c[5:10]})
+        elif line.startswith("tolerances (relative):"):
+            r["tolerances"] = dict(x.strip().split(" ") for x in
+                                   line.split(":", 1)[1].strip(" ;").split(";"))
+        elif line.startswith("  ") and len(c) == 5 and c[2].startswith("("):
+            r["worst"].append([c[0], c[1], c[2].strip("(,"), c[4].rstrip(")")])
+    return runs
+
+
+QUANTITIES = {
+    "fitness_at_core_axes": "eq. 12 at the same semi-axes (moments vs direct sum)",
+    "fitness_optimum": "eq. 12 at each side's DE optimum",
+    "semi_axes": "semi-axes",
+    "surface_error": "eq. 13 per cluster (own fit, own solver)",
+    "surface_error_same_entity": "eq. 13, Eberly vs Newton on the same entity",
+}
+
+
+def reference(logs):
+    runs = reference_runs(logs.lines("reference"))
+    out = ["## The core against the f64 reference", "",
+           "`mema-firmware-sim reference [-k K] [--working W] [--sum-bits N]`: every shared "
+           "input the readers read, clustered by the streaming mapper (every point given to its "
+           "nearest centre), each quantity against the independent f64 reference (nalgebra). "
+           + logs.source("reference"), ""]
+    base = runs[""]
+    out += block("reference", table(
+        ["cloud", "points", "clusters", "under 10 points", "flat optima", "over tolerance"],
+        [[c["cloud"], n(c["points"]), c["k"], c["small"], c["flat"], c["over"]]
+         for c in base["clouds"]]))
+    out += block("reference-worst", table(
+        ["quantity", "tolerance", "worst at k = 150", "where"],
+        [[QUANTITIES.get(q, q), base["tolerances"].get(q, ""), v, f"{cloud.split('.')[0]}"]
+         for q, v, cloud, _ in base["worst"]]))
+
+    def over(r):
+        bad = [c for c in r["clouds"] if c["over"]]
+        return bad, sum(c["over"] for c in bad)
+
+    rows = []
+    for args in ["-k 400", "-k 400 --working 150"]:
+        bad, entities = over(runs[args])
+        rows.append([f"`reference {args}`", entities, len(bad),
+                     ", ".join(f"{c['cloud'].split('.')[0]} {c['over']}" for c in bad) or "-"])
+    out += block("reference-k400", table(
+        ["run", "entities over tolerance", "clouds", "where"], rows))
+    rows = []
+    names = {24: "f32", 32: "a 40-bit float", 40: "a 48-bit float", 53: "f64, the core"}
+    for bits in [24, 32, 40, 48, 52, 53]:
+        bad, entities = over(runs[f"--sum-bits {bits}"])
+        where = f" ({bad[0]['cloud'].split('.')[0]})" if len(bad) == 1 else ""
+        rows.append([bits, names.get(bits, ""), f"{len(bad)}{where}", entities])
+    out += block("reference-sum-bits", table(
+        ["significant bits kept", "as in", "clouds over tolerance", "entities over"], rows))
     return out

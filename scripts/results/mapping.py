@@ -178,3 +178,26 @@ def ablation(logs):
         f"- Seeded, the ellipsoid's eq. 12 is worse than the sphere's on "
         f"{span(seeded_worse)}% of clusters."])
     return out
+
+
+def surface(logs):
+    runs = logs.jsonl("surface")
+    out = ["## Surface following", "",
+           "`mema map CLOUD --bytes 9600 -o m.mema` with its default 30 rounds of surface "
+           "following and with `--surface-rounds 0` (the k-means cells), each scored by `mema "
+           "eval CLOUD m.mema --json` and timed by `/usr/bin/time`. " + logs.source("surface"), ""]
+    by = {(r["cloud"], r["rounds"]): r for r in runs}
+    clouds = list(dict.fromkeys(r["cloud"] for r in runs))
+    rows, times = [], []
+    for c in clouds:
+        on, off = by[(c, 30)], by[(c, 0)]
+        a, b = on["eval"]["chamfer"], off["eval"]["chamfer"]
+        rows.append([f"`{c}`", n(on["eval"]["points"]), f"{a:.3g}", f"{b:.3g}",
+                     f"{100 * (1 - a / b):.0f}%"])
+        times.append([f"`{c}`", f"{on['time']['wall']:.2f} s", f"{off['time']['wall']:.2f} s",
+                      f"{on['time']['rss_kb'] / 1000:.0f} MB"])
+    out += block("surface-following", table(
+        ["cloud", "points", "Chamfer (m)", "`--surface-rounds 0`", "lower by"], rows))
+    out += block("times-surface-following", [logs.machine("surface"), ""] + table(
+        ["cloud", "`mema map --bytes 9600`", "`--surface-rounds 0`", "peak resident"], times))
+    return out

@@ -33,10 +33,11 @@ def main():
 
     sections = [
         ("paper", clouds.paper), ("clouds", clouds.clouds), ("fidelity", fidelity.fidelity),
-        ("tolerance", mapping.tolerance), ("ablation", mapping.ablation),
+        ("surface", mapping.surface), ("tolerance", mapping.tolerance), ("ablation", mapping.ablation),
         ("queries", mapping.queries), ("free-space", fidelity.free_space),
         ("streaming", streaming.streaming), ("board-fidelity", firmware.board_fidelity),
         ("firmware", firmware.firmware), ("pacing", firmware.pacing),
+        ("reference", firmware.reference),
         ("python", bench.python), ("bench", bench.bench), ("draw", bench.draw),
     ]
     body = []

@@ -17,9 +17,10 @@ fn repository() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-const RESULTS: &str = "docs/results.md";
+pub(crate) const RESULTS: &str = "docs/results.md";
 
-/// The blocks of a text, by name, each with the line it starts on.
+/// The blocks of a text, by name, each with the line it starts on. A block indented in a list
+/// item has its lines indented alike; the body is given without that indentation.
 fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
     let mut out = Vec::new();
     let mut lines = text.lines().enumerate();
@@ -31,6 +32,7 @@ fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
         else {
             continue;
         };
+        let indent = &line[..line.len() - line.trim_start().len()];
         let mut body = Vec::new();
         let mut closed = false;
         for (_, inner) in lines.by_ref() {
@@ -38,7 +40,7 @@ fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
                 closed = true;
                 break;
             }
-            body.push(inner);
+            body.push(inner.strip_prefix(indent).unwrap_or(inner));
         }
         assert!(closed, "{file}:{}: a result block never closed", n + 1);
         out.push((name.trim().to_string(), n + 1, body.join("\n")));
@@ -59,7 +61,7 @@ pub(crate) fn result_block(name: &str) -> String {
         .unwrap_or_else(|| panic!("{RESULTS}: no block `{name}`"))
 }
 
-fn results() -> BTreeMap<String, String> {
+pub(crate) fn results() -> BTreeMap<String, String> {
     let text = std::fs::read_to_string(repository().join(RESULTS)).expect("docs/results.md");
     let mut map = BTreeMap::new();
     for (name, line, body) in blocks(&text, RESULTS) {
@@ -72,7 +74,7 @@ fn results() -> BTreeMap<String, String> {
 }
 
 /// README.md, PROTOCOL.md and the guides, the results file aside.
-fn documents() -> Vec<(String, String)> {
+pub(crate) fn documents() -> Vec<(String, String)> {
     let root = repository();
     let mut files = vec!["README.md".to_string(), "PROTOCOL.md".to_string()];
     let mut guides: Vec<String> = std::fs::read_dir(root.join("docs"))
@@ -180,68 +182,6 @@ fn every_cloud_quoted_with_its_points_has_the_results_files_count() {
         }
     }
     assert!(checked >= 3, "{checked} quotes of a cloud's points checked");
-}
-
-/// The figures quoted in prose, each from a cell of a results block: the file, the block, the
-/// row whose first cells are these, the column (from 1), and the text around it (`{}`).
-const QUOTED: &[(&str, &str, &[&str], usize, &str)] = &[
-    (
-        "README.md",
-        "firmware-image",
-        &["paper"],
-        5,
-        "400 ellipsoids in {} of RAM",
-    ),
-    (
-        "README.md",
-        "firmware-image",
-        &["paper"],
-        2,
-        " and {} of flash; on car6,",
-    ),
-    (
-        "README.md",
-        "firmware-cost",
-        &["car6 (10,031 points)", "paper"],
-        5,
-        "on car6, {} instructions a point with the paper's model",
-    ),
-    (
-        "README.md",
-        "firmware-cost",
-        &["car6 (10,031 points)", "shells"],
-        5,
-        "and {} with shells (`firmware-sim/check.sh`)",
-    ),
-    (
-        "docs/firmware.md",
-        "firmware-memory",
-        &["700"],
-        7,
-        "firmware state of {}; with its rings",
-    ),
-];
-
-#[test]
-fn the_figures_quoted_in_prose_are_the_results_files() {
-    let results = results();
-    let documents: BTreeMap<String, String> = documents().into_iter().collect();
-    for (file, block, row, column, context) in QUOTED {
-        let cells: Vec<&str> = results[*block]
-            .lines()
-            .map(|l| l.split('|').map(str::trim).collect::<Vec<_>>())
-            .find(|cells| cells.get(1..=row.len()) == Some(row))
-            .unwrap_or_else(|| panic!("{RESULTS}: no row {row:?} in `{block}`"))
-            .into_iter()
-            .map(|c| c.trim_matches('`'))
-            .collect();
-        let quote = context.replace("{}", cells[*column]);
-        let text = documents[*file].replace('\n', " ");
-        assert!(
-            text.contains(&quote),
-            "{file}: `{quote}` ({RESULTS}, `{block}`) is not what it says"
-        );
-    }
 }
 
 /// car6's rows of the results file, computed again: Tables 2 and 4 of `mema map --paper`, and

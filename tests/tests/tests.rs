@@ -69,6 +69,8 @@ mod protocol_doc;
 // The figures the guides quote: copies of docs/results.md, the figures quoted in prose, and its
 // car6 rows computed again.
 mod results;
+// The figures the guides quote in prose, each held to its cell of docs/results.md.
+mod quoted;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;

@@ -168,8 +168,8 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
 /// ([`FixedMoments::mean32`]); the map's entities take theirs from the f64 fit.
 /// A cluster's count as f32, the same value as `count as f32`: through u32 when it fits, which the
 /// FPU converts in one instruction where u64 takes a software routine. The compiler sees that
-/// both arms agree and folds them back into the routine (216 instructions a point on the
-/// firmware): `black_box` hides the u32 from it.
+/// both arms agree and folds them back into the routine (a software conversion every point on
+/// the firmware): `black_box` hides the u32 from it.
 #[inline]
 fn count32(m: &FixedMoments) -> f32 {
     match u32::try_from(m.count()) {

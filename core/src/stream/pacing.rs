@@ -35,11 +35,10 @@ impl Pacing {
     };
 
     /// The firmware's (and the host's stream, so a replay is the device's map): prices in
-    /// proportion to what each step costs the Cortex-M4F (a fit 106,000-149,000 instructions,
-    /// a merge pass 320,000-460,000 on the ring test's four captures), at most about 6,200
-    /// instructions a credit, so a point never costs more than its own work and 6,200 on
-    /// average (README, "Firmware"). The burst is five freezes, about 7 ms of the receive
-    /// ring's 34 at 168 MHz.
+    /// proportion to what each step costs the Cortex-M4F (the prices of the pacing test,
+    /// `tests/tests/pacing.rs`, on its four captures), so a point costs on average its own work
+    /// and at most a credit's worth of a fit or merge pass (docs/firmware.md, "Longest tick, the
+    /// link and pacing"). The burst is five freezes.
     pub const DEVICE: Self = Self {
         freeze: 24,
         merge_pass: 80,

@@ -1,0 +1,153 @@
+//! The figures the guides quote in prose (issue 32): each is written in a template here, with
+//! the cell of docs/results.md it comes from, and the guide must say exactly what the template
+//! makes of today's results file. A figure changed in a guide, or a results file regenerated with
+//! a new one, fails here until the two agree again.
+//!
+//! A placeholder is `{block|row|column}`: the block, the row whose first cell is `row`
+//! (backticks aside), and the column counted from 1; `row` may be `a+b+c`, the sum of those
+//! rows' counts, and a fourth field `|n` takes the n-th (from 1) of a cell's comma-separated
+//! parts, or `|bare` the count without separators, as a command prints it. Text is compared with every run of white space made one space, so a template does not
+//! care where the guide breaks its lines.
+
+use std::collections::BTreeMap;
+
+use crate::results::{RESULTS, documents, results, thousands};
+
+/// (guide, template)
+const QUOTED: &[(&str, &str)] = &[
+    (
+        "docs/firmware.md",
+        "K = 700, a firmware state of {firmware-memory|700|7};",
+    ),
+    (
+        "docs/fidelity.md",
+        "on bun000 at 9,600 bytes, {fidelity-9600|bun000.ply|4|4} of their area lies farther than \
+         tau from any point, against {fidelity-9600|bun000.ply|3|4} for the default",
+    ),
+    (
+        "docs/performance.md",
+        "so five_people is its {clouds|five_people.pcd|5} finite points here, of which `map` maps \
+         {clouds|five_people.pcd|7}",
+    ),
+    (
+        "docs/performance.md",
+        "(five_people's {clouds|five_people.pcd|2} slots hold {clouds|five_people.pcd|5} points)",
+    ),
+    (
+        "docs/command-line.md",
+        "an organized scan's empty returns: {clouds|five_people.pcd|3} of `five_people.pcd`'s \
+         {clouds|five_people.pcd|2}; {clouds|ouster_os1_0.pcd+ouster_os1_1.pcd+ouster_os1_2.pcd|3} \
+         of the three Ouster sweeps' {clouds|ouster_os1_0.pcd+ouster_os1_1.pcd+ouster_os1_2.pcd|2} \
+         in `ouster_os1.conf`",
+    ),
+    (
+        "docs/command-line.md",
+        "`points: {clouds|five_people.pcd|7|bare} read, {clouds|five_people.pcd|3|bare} more \
+         dropped for a NaN or infinite coordinate, {clouds|five_people.pcd|6|bare} as isolated \
+         (--outliers): {clouds|five_people.pcd|2|bare} in the input`",
+    ),
+    (
+        "docs/command-line.md",
+        "`ouster_os1.conf` drops {clouds|ouster_os1_0.pcd|6} + {clouds|ouster_os1_1.pcd|6} + \
+         {clouds|ouster_os1_2.pcd|6} = {clouds|ouster_os1_0.pcd+ouster_os1_1.pcd+ouster_os1_2.pcd|6}",
+    ),
+];
+
+/// The cells of a block's table rows (header and rule aside), backticks trimmed.
+fn rows(block: &str) -> Vec<Vec<String>> {
+    block
+        .lines()
+        .filter(|l| l.starts_with('|'))
+        .skip(2)
+        .map(|l| {
+            l.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().trim_matches('`').to_string())
+                .collect()
+        })
+        .collect()
+}
+
+fn count(cell: &str) -> u64 {
+    cell.replace(',', "")
+        .parse()
+        .unwrap_or_else(|_| panic!("`{cell}` is not a count"))
+}
+
+/// What a placeholder `block|row|column[|part]` stands for in today's results file.
+fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
+    let fields: Vec<&str> = placeholder.split('|').collect();
+    let (block, row, column) = (fields[0], fields[1], fields[2]);
+    let column: usize = column.parse().expect("a column");
+    let body = results
+        .get(block)
+        .unwrap_or_else(|| panic!("{RESULTS}: no block `{block}`"));
+    let table = rows(body);
+    let cell = |name: &str| -> String {
+        let cells = table
+            .iter()
+            .find(|cells| cells[0] == name)
+            .unwrap_or_else(|| panic!("{RESULTS}: no row `{name}` in `{block}`"));
+        let cell = cells[column - 1].clone();
+        match fields.get(3) {
+            Some(&"bare") => cell.replace(',', ""),
+            Some(part) => {
+                let part: usize = part.parse().expect("a part");
+                cell.split(", ").nth(part - 1).expect("the part").to_string()
+            }
+            None => cell,
+        }
+    };
+    if row.contains('+') {
+        thousands(row.split('+').map(|r| count(&cell(r))).sum())
+    } else {
+        cell(row)
+    }
+}
+
+/// The template with every placeholder replaced by its value.
+fn expand(results: &BTreeMap<String, String>, template: &str) -> String {
+    let mut out = String::new();
+    let mut rest = template;
+    while let Some(start) = rest.find('{') {
+        out.push_str(&rest[..start]);
+        let end = rest[start..].find('}').expect("a closing brace") + start;
+        out.push_str(&value(results, &rest[start + 1..end]));
+        rest = &rest[end + 1..];
+    }
+    out.push_str(rest);
+    out
+}
+
+fn one_space(text: &str) -> String {
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+#[test]
+fn the_figures_quoted_in_prose_are_the_results_files() {
+    let results = results();
+    let documents: BTreeMap<String, String> = documents()
+        .into_iter()
+        .map(|(f, t)| (f, one_space(&t)))
+        .collect();
+    for (file, template) in QUOTED {
+        let quote = one_space(&expand(&results, template));
+        assert!(
+            documents[*file].contains(&quote),
+            "{file} does not say `{quote}` ({RESULTS}: `{template}`)"
+        );
+    }
+}
+
+#[test]
+fn a_template_reads_cells_parts_and_sums() {
+    let mut results = BTreeMap::new();
+    results.insert(
+        "b".to_string(),
+        "| a | b | c |\n|---|---|---|\n| `x.pcd` | 1,500 | 7, 9 |\n| y | 2,500 | 8, 10 |"
+            .to_string(),
+    );
+    assert_eq!(expand(&results, "{b|x.pcd|2} and {b|y|3|2}"), "1,500 and 10");
+    assert_eq!(expand(&results, "{b|x.pcd+y|2}"), "4,000");
+    assert_eq!(expand(&results, "{b|y|2|bare}"), "2500");
+}
