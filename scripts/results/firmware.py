@@ -41,6 +41,10 @@ def firmware(logs):
             maps.append([capture, m[2], n(int(m[3]))])
     out += block("firmware-maps", table(["capture", "model", "map bytes"], maps))
     sections = budgets(check)
+    sizes = next(l for l in sections["paper"] if l.startswith("static RAM of the firmware state"))
+    m = re.search(r"a working cluster is (\d+) bytes.*a frozen entity (\d+) bytes", sizes)
+    out += block("firmware-sizes", table(["part (`size_of`)", "bytes"], [
+        ["a working cluster", n(int(m[1]))], ["a frozen entity", n(int(m[2]))]]))
     rows = []
     for line in sections["paper"]:
         cells = line.split()

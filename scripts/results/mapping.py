@@ -83,8 +83,8 @@ def queries(logs):
         if r["cloud"] == "demo":
             name = "the demo scene, k = 250"
         rows.append([name, n(b["entities"]), n(b["queries"]), b["disagreements"]])
-        times.append([name, n(round(b["index_queries_per_s"], -2)),
-                      n(round(b["brute_force_queries_per_s"], -2)), f"{b['speedup']:.1f}x"])
+        times.append([name, n(int(round(b["index_queries_per_s"], -2))),
+                      n(int(round(b["brute_force_queries_per_s"], -2))), f"{b['speedup']:.1f}x"])
     out += block("queries", table(["map", "entities", "queries", "disagreements"], rows))
     out += block("times-queries", [logs.machine("queries"), ""] + table(
         ["map", "index queries/s", "brute force queries/s", "ratio"], times))
@@ -156,23 +156,27 @@ def ablation(logs):
          for (r, a), (_, b) in zip(random, resample)]))
 
     def span(values, digits=1):
-        return f"{min(values):.{digits}f}-{max(values):.{digits}f}"
+        low, high = f"{min(values):.{digits}f}", f"{max(values):.{digits}f}"
+        return low if low == high else f"{low}-{high}"
+
+    def signed(values):
+        low, high = f"{min(values):+.1f}%", f"{max(values):+.1f}%"
+        return low if low == high else f"{low} to {high}"
 
     repair = [abs(x) for name in names[1:5] for _, x in col(name, "change_percent")]
     change_random = [x for _, x in col("init random (paper)", "change_percent")]
     upper = [x for _, x in col(names[0], "on_upper_bound_percent")]
     degenerate = [x for _, x in col(names[1], "degenerated_percent")]
-    threshold = [-x for _, x in col(names[1], "change_percent")]
+    threshold = [x for _, x in col(names[1], "change_percent")]
     spread_share = [x for _, x in col("volume spread-relative", "volume_share")]
     spread_change = [-x for _, x in col("volume spread-relative", "change_percent")]
     seeded_worse = [x for _, x in col(names[0], "ellipsoid_worse_than_sphere_percent")]
     out += block("ablation-summary", [
         f"- With the seeded start, the box and the repair rule move the mean eq. 13 error by at "
-        f"most {max(repair):.1f}%; random starts move it by {min(change_random):+.1f}% to "
-        f"{max(change_random):+.1f}%.",
+        f"most {max(repair):.1f}%; random starts move it by {signed(change_random)}.",
         f"- With the default box, the thinnest axis ends on the upper bound in "
         f"{span(upper, 0)}% of clusters; the threshold box lets {span(degenerate, 0)}% of "
-        f"clusters degenerate, for {span(threshold)}% less error.",
+        f"clusters degenerate, and changes the error by {signed(threshold)}.",
         f"- The spread-relative volume term is {span(spread_share, 2)} of the fitness and "
         f"lowers the mean eq. 13 error by {span(spread_change, 0)}%.",
         f"- Seeded, the ellipsoid's eq. 12 is worse than the sphere's on "

@@ -7,7 +7,6 @@
 use std::process::Command;
 
 use mema::link::frames::{encode_stream, quantise};
-use mema_core::Point3;
 use mema_core::stream::StreamModel;
 use mema_firmware::{Firmware, SHELLS, Snapshot, model_params, stream_params};
 use mema_firmware_sim::board::{Board, BoardSpec};

@@ -51,6 +51,25 @@ const QUOTED: &[(&str, &str)] = &[
         "`ouster_os1.conf` drops {clouds|ouster_os1_0.pcd|6} + {clouds|ouster_os1_1.pcd|6} + \
          {clouds|ouster_os1_2.pcd|6} = {clouds|ouster_os1_0.pcd+ouster_os1_1.pcd+ouster_os1_2.pcd|6}",
     ),
+    (
+        "docs/firmware.md",
+        "a frozen entity is {firmware-sizes|a frozen entity|2} bytes (the paper's 24 and a 4-byte \
+         rotation code)",
+    ),
+    (
+        "docs/streaming.md",
+        "A working cluster costs {firmware-sizes|a working cluster|2} bytes",
+    ),
+    (
+        "docs/streaming.md",
+        "up to K - W *frozen* entities of {firmware-sizes|a frozen entity|2} bytes each",
+    ),
+    (
+        "docs/performance.md",
+        "`five_people.pcd`, `lamppost.pcd`, `milk.pcd`, `office1.pcd`, `rops_cloud.pcd`, in that \
+         order, their finite points, {clouds|bun000.ply+bun_zipper.ply+car6.pcd+cturtle.pcd+\
+         five_people.pcd+lamppost.pcd+milk.pcd+office1.pcd+rops_cloud.pcd|5} in all.",
+    ),
 ];
 
 /// The cells of a block's table rows (header and rule aside), backticks trimmed.
@@ -93,7 +112,10 @@ fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
             Some(&"bare") => cell.replace(',', ""),
             Some(part) => {
                 let part: usize = part.parse().expect("a part");
-                cell.split(", ").nth(part - 1).expect("the part").to_string()
+                cell.split(", ")
+                    .nth(part - 1)
+                    .expect("the part")
+                    .to_string()
             }
             None => cell,
         }
@@ -147,7 +169,41 @@ fn a_template_reads_cells_parts_and_sums() {
         "| a | b | c |\n|---|---|---|\n| `x.pcd` | 1,500 | 7, 9 |\n| y | 2,500 | 8, 10 |"
             .to_string(),
     );
-    assert_eq!(expand(&results, "{b|x.pcd|2} and {b|y|3|2}"), "1,500 and 10");
+    assert_eq!(
+        expand(&results, "{b|x.pcd|2} and {b|y|3|2}"),
+        "1,500 and 10"
+    );
     assert_eq!(expand(&results, "{b|x.pcd+y|2}"), "4,000");
     assert_eq!(expand(&results, "{b|y|2|bare}"), "2500");
+}
+
+/// The README's first claim, "in under 3% of the cloud's memory", against Table 2's maps.
+#[test]
+fn the_readme_memory_claim_is_table_2s() {
+    let results = results();
+    let readme = documents()
+        .into_iter()
+        .find(|(f, _)| f == "README.md")
+        .expect("README")
+        .1;
+    assert!(
+        one_space(&readme).contains("in under 3% of the cloud's memory (the paper's Table 2)"),
+        "README.md: the claim changed; change this test with it"
+    );
+    let table = rows(&results["paper-table-2"]);
+    assert!(
+        table.len() >= 4,
+        "{RESULTS}: Table 2 has {} rows",
+        table.len()
+    );
+    for cells in table {
+        let percent: f64 = cells[6]
+            .trim_end_matches('%')
+            .parse()
+            .expect("a percentage");
+        assert!(
+            percent < 3.0,
+            "{RESULTS}: Table 2's {cells:?} is not under 3%"
+        );
+    }
 }

@@ -71,6 +71,8 @@ mod protocol_doc;
 mod results;
 // The figures the guides quote in prose, each held to its cell of docs/results.md.
 mod quoted;
+// The constants the guides state (frame sizes, layouts, pacing), each held to the code's.
+mod doc_constants;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;
