@@ -42,32 +42,28 @@ def readme(text):
     out = ["## The README's results", "",
            "README.md's table of results, computed from the blocks below (the speed row is a "
            "time ratio: it varies with the machine).", ""]
-    out += block("readme", table(["", "result", "guide"], [
+    out += block("readme", [line.replace("|  |", "| |", 1) for line in table(["", "result"], [
         [f"fidelity per byte, 9,600-byte maps of {len(fid)} real clouds",
          f"Chamfer distance {span(gmm)}x a converged Gaussian mixture's, {span(paper)}x the "
-         "paper's", "[fidelity](docs/fidelity.md)"],
+         "paper's"],
         ["speed, read + k-means + fit",
          f"{ratios[low]:.0f}x ({name(low)}) to {ratios[high]:.0f}x ({sizes[high][0]} points, "
-         f"k = {sizes[high][1]}) faster than numpy + scikit-learn, on two cores",
-         "[performance](docs/performance.md)"],
+         f"k = {sizes[high][1]}) faster than numpy + scikit-learn, on two cores"],
         ["a 64 KiB microcontroller (Cortex-M4F under QEMU)",
          f"400 ellipsoids in {image['paper'][4]} of RAM and {image['paper'][1]} of flash; on "
          f"car6, {cost['paper'][4]} instructions a point with the paper's model and "
-         f"{cost['shells'][4]} with shells (`firmware-sim/check.sh`); bit for bit the host's map",
-         "[firmware](docs/firmware.md)"],
+         f"{cost['shells'][4]} with shells (`firmware-sim/check.sh`); bit for bit the host's map"],
         ["an STM32F405 over its UART (QEMU `netduinoplus2`)",
          f"700 ellipsoids, {board_ram} KiB of its 128 KiB in use, the map sent back as it "
          "freezes, to the host driving it or to a listener on a second UART when a sensor is "
          "wired to the first; through a line that drops, flips and duplicates bytes both ways, "
          "still the host's map byte for byte; each session its own map, a reset mid-session "
-         "noticed and the session started again (tested under QEMU)",
-         "[firmware](docs/firmware.md)"],
+         "noticed and the session started again (tested under QEMU)"],
         ["streaming from a rangefinder",
          "fixed memory, poses on the link, the same map for any chunking or timing, and wherever "
          "the world frame puts it (UTM or ECEF coordinates up to 9,000 km out: within 1.02x the "
-         "Chamfer at 0); a corrupt frame or pose 10^12 m out costs nothing",
-         "[streaming](docs/streaming.md)"],
-    ]))
+         "Chamfer at 0); a corrupt frame or pose 10^12 m out costs nothing"],
+    ])])
     return out
 
 

@@ -50,7 +50,7 @@ def main():
             made = make(logs)
             lines = made[0] if isinstance(made, tuple) else made
             text = "\n".join(lines).rstrip("\n") + "\n\n"
-        body.append(f"<!-- section {name} -->\n{text}<!-- /section -->\n")
+        body.append(f"<!-- section {name} -->\n{text}<!-- /section -->\n\n")
     text = "".join(body)
     head = ["# Results", "",
             "Written by `scripts/results.sh` from the logs of one run; regenerate it rather than "
@@ -62,11 +62,12 @@ def main():
     print("<!-- section readme -->")
     print("\n".join(readme.readme(text)))
     print("<!-- /section -->")
+    print()
     print("<!-- section targets -->")
     print("\n".join(readme.targets(text)))
     print("<!-- /section -->")
     print()
-    print(text, end="")
+    print(text.rstrip("\n"))
 
 
 main()

@@ -126,6 +126,11 @@ const STATED: &[(&str, &str)] = &[
         "the ring's fill time ({RING_FILL_MS} ms;",
     ),
     (
+        "docs/firmware.md",
+        "copied once into {BOARD_QUERY_COPY_KB} KB of RAM (the core's index over {BOARD_K} \
+         entities would take {BOARD_INDEX_KB} KB)",
+    ),
+    (
         "PROTOCOL.md",
         "At 921,600 baud, 8N1 moves {LINK_BYTES_PER_S} bytes/s",
     ),
@@ -170,6 +175,15 @@ fn value(name: &str) -> String {
         "REFIT_INTERVAL" => count(REFIT_INTERVAL as usize),
         "SUMMARY_FACTOR" => count(SUMMARY_FACTOR),
         "MAX_SUMMARY" => count(MAX_SUMMARY),
+        "BOARD_QUERY_COPY_KB" => {
+            let k = BOARD_WORKING + BOARD_FROZEN;
+            format!("{:.0}", (k * size_of::<mema_core::Entity>()) as f64 / 1000.0)
+        }
+        "BOARD_INDEX_KB" => format!(
+            "{:.0}",
+            size_of::<mema_core::query::MapIndex<{ BOARD_WORKING + BOARD_FROZEN }>>() as f64
+                / 1000.0
+        ),
         "RING_FILL_MS" => format!("{:.1}", RING_BYTES as f64 / LINK_BYTES_PER_S * 1e3),
         "LINK_BYTES_PER_S" => count(LINK_BYTES_PER_S as usize),
         "MAP_COUNT_START" => count(MAP_HEADER_LEN - 4),
