@@ -177,7 +177,10 @@ fn value(name: &str) -> String {
         "MAX_SUMMARY" => count(MAX_SUMMARY),
         "BOARD_QUERY_COPY_KB" => {
             let k = BOARD_WORKING + BOARD_FROZEN;
-            format!("{:.0}", (k * size_of::<mema_core::Entity>()) as f64 / 1000.0)
+            format!(
+                "{:.0}",
+                (k * size_of::<mema_core::Entity>()) as f64 / 1000.0
+            )
         }
         "BOARD_INDEX_KB" => format!(
             "{:.0}",

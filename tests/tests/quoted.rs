@@ -70,6 +70,19 @@ const QUOTED: &[(&str, &str)] = &[
          order, their finite points, {clouds|bun000.ply+bun_zipper.ply+car6.pcd+cturtle.pcd+\
          five_people.pcd+lamppost.pcd+milk.pcd+office1.pcd+rops_cloud.pcd|5} in all.",
     ),
+    (
+        "docs/fidelity.md",
+        "a 640 x 480 depth frame of {clouds|office1.pcd|2} points, of which \
+         {clouds|office1.pcd|5} are finite",
+    ),
+    (
+        "docs/performance.md",
+        "(car6's {bench-pipeline|car6.pcd|2} points are {bench-pipeline|car6.pcd|4})",
+    ),
+    (
+        "docs/performance.md",
+        "about the same at 500 entities as at {draw-office1|office1, k = 16,384|2}.",
+    ),
 ];
 
 /// The cells of a block's table rows (header and rule aside), backticks trimmed.
