@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The board's map against the host's batch map at the same bytes (issue 22, docs/firmware.md,
+# The board's map against the host's batch map at the same bytes (issue 22, docs/board.md,
 # "The board's layout"): each shared cloud encoded as `mema scanner-sim` sends it, mapped as the
 # board maps it (`mema replay -k K --working 150`, which the board equals byte for byte) at each
 # K given, then `mema map --bytes` of the same cloud at that map's size; both scored by

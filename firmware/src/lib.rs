@@ -68,7 +68,7 @@ pub const IMAGE_FROZEN: usize = 250;
 /// frozen entities, K = 700. The part's time binds before its RAM: every entity frozen costs a
 /// fit, and `firmware-sim/check.sh` holds the board under 10,000 instructions a point on car6
 /// and the demo drive in both models. The map's fidelity at K = 700 against K = 400 and the
-/// host's batch map: docs/firmware.md ("The board's layout").
+/// host's batch map: docs/board.md ("The board's layout").
 pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
 

@@ -67,7 +67,7 @@ const STATED: &[(&str, &str)] = &[
          {IMAGE_BUCKETS} buckets (`IMAGE_BUCKETS`",
     ),
     (
-        "docs/firmware.md",
+        "docs/board.md",
         "has room for {BOARD_FROZEN} frozen entities: K = {BOARD_K},",
     ),
     (
@@ -121,12 +121,9 @@ const STATED: &[(&str, &str)] = &[
         "docs/queries.md",
         "as a version-2 `.mema` ({ORIENTED_LEN} bytes an entity, f32)",
     ),
+    ("docs/board.md", "the ring's fill time ({RING_FILL_MS} ms;"),
     (
-        "docs/firmware.md",
-        "the ring's fill time ({RING_FILL_MS} ms;",
-    ),
-    (
-        "docs/firmware.md",
+        "docs/board.md",
         "copied once into {BOARD_QUERY_COPY_KB} KB of RAM (the core's index over {BOARD_K} \
          entities would take {BOARD_INDEX_KB} KB)",
     ),

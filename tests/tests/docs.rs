@@ -404,6 +404,7 @@ fn every_guide_is_in_the_list_below() {
 /// results file the guides quote (tests/tests/results.rs).
 const GUIDES: &[&str] = &[
     "README.md",
+    "board.md",
     "command-line.md",
     "design.md",
     "fidelity.md",
@@ -434,6 +435,7 @@ macro_rules! doc_tests {
 
 doc_tests! {
     readme_commands_run_as_documented => "README.md",
+    board_guide_runs_as_documented => "docs/board.md",
     command_line_guide_runs_as_documented => "docs/command-line.md",
     design_guide_runs_as_documented => "docs/design.md",
     fidelity_guide_runs_as_documented => "docs/fidelity.md",

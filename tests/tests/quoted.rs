@@ -16,7 +16,7 @@ use crate::results::{RESULTS, documents, results, thousands};
 /// (guide, template)
 const QUOTED: &[(&str, &str)] = &[
     (
-        "docs/firmware.md",
+        "docs/board.md",
         "K = 700, a firmware state of {firmware-memory|700|7};",
     ),
     (
