@@ -72,7 +72,7 @@ def bench(logs):
     out = ["## Benchmarks 1-3 (`mema bench`)", "",
            "`mema bench --data ../shared/data`, release build; each timing the fastest of 3 runs. "
            "The benchmarks read each cloud's finite points, as `eval` does (`map`'s `--outliers` "
-           "filter is not in them); the environment is every shared PLY and PCD cloud side by "
+           "filter is not in them); the environment is nine of the shared PLY and PCD clouds side by "
            "side. " + logs.source("bench"), ""]
     fit = fitness(lines)
     out += block("bench-fitness", table(

@@ -86,7 +86,7 @@ def free_space(logs):
             header = cells
         elif header and len(cells) == len(header) and not cells[0].startswith("---"):
             rows.append(cells[:-1])
-            times.append([cells[0], n(round(float(cells[-1]), -3))])
+            times.append([cells[0], n(int(round(float(cells[-1]), -3)))])
     mapped, no_returns, rays = map(int, re.search(
         r"\((\d+) points, (\d+) no-returns left out\), sweep 1's (\d+) rays", about).groups())
     out += block("free-space", [

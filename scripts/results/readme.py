@@ -32,9 +32,8 @@ def readme(text):
     sizes = {r[0]: (r[1], r[2]) for r in rows(b["bench-python"])}
     image = {r[0]: r for r in rows(b["firmware-image"])}
     cost = {r[1]: r for r in rows(b["firmware-cost"])}
-    board = {r[0]: r for r in rows(b["board-image"])}
-    board_ram = sorted(board[m][3].split()[0] for m in board)
-    board_ram = board_ram[0] if board_ram[0] == board_ram[-1] else f"{board_ram[0]}-{board_ram[-1]}"
+    board = [int(r[2].split()[0].replace(",", "")) for r in rows(b["board-image"])]
+    board_ram = f"{max(board) / 1024:.1f}"
 
     def name(cloud):
         return cloud.strip("`").split(".")[0]
@@ -54,7 +53,7 @@ def readme(text):
          f"car6, {cost['paper'][4]} instructions a point with the paper's model and "
          f"{cost['shells'][4]} with shells (`firmware-sim/check.sh`); bit for bit the host's map"],
         ["an STM32F405 over its UART (QEMU `netduinoplus2`)",
-         f"700 ellipsoids, {board_ram} KiB of its 128 KiB in use, the map sent back as it "
+         f"700 ellipsoids in {board_ram} KiB of static RAM of its 128 KiB, the map sent back as it "
          "freezes, to the host driving it or to a listener on a second UART when a sensor is "
          "wired to the first; through a line that drops, flips and duplicates bytes both ways, "
          "still the host's map byte for byte; each session its own map, a reset mid-session "
