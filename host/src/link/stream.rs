@@ -244,12 +244,17 @@ impl Link {
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
-        let mapper = &mut self.mapper;
-        self.receiver.feed_all(chunk, |frame, placement| {
-            for p in placement.points(&frame) {
-                mapper.add(p);
-            }
-        });
+        let mapper = std::cell::RefCell::new(&mut self.mapper);
+        self.receiver.feed_all(
+            chunk,
+            |frame, placement| {
+                let mut mapper = mapper.borrow_mut();
+                for p in placement.points(&frame) {
+                    mapper.add(p);
+                }
+            },
+            || mapper.borrow_mut().restart(),
+        );
     }
 
     /// Whether the end-of-stream frame has arrived.
