@@ -286,7 +286,8 @@ fn a_glitch_as_the_very_first_pose_costs_two_scans_not_the_map() {
         ("second", pose_moved(&frames, 1, 1_500_000), vec![1], 0),
     ];
     for (name, glitched, lost, restarts) in cases {
-        let (code, json, map) = replay(&dir, name, &rewritten(&glitched, [0; 3], false), "150", &[]);
+        let (code, json, map) =
+            replay(&dir, name, &rewritten(&glitched, [0; 3], false), "150", &[]);
         assert_eq!(code, 0, "{name}: {json}");
         assert_eq!(json["origin_restarts"], restarts, "{name}: {json}");
         assert_eq!(json["poses_out_of_reach"], 1, "{name}: {json}");
@@ -306,5 +307,9 @@ fn a_glitch_as_the_very_first_pose_costs_two_scans_not_the_map() {
         .args(["replay", "first.bin", "-k", "150", "-o", "again.mema"])
         .run()
         .assert_ok();
-    assert!(ran.stderr().contains("started again 1 time"), "{}", ran.stderr());
+    assert!(
+        ran.stderr().contains("started again 1 time"),
+        "{}",
+        ran.stderr()
+    );
 }

@@ -342,10 +342,7 @@ impl Receiver {
         let Some(t) = pose.translation_nm else {
             return false;
         };
-        if self.origin.is_none()
-            || self.settled()
-            || t.iter().any(|v| v.abs() > WORLD_LIMIT_NM)
-        {
+        if self.origin.is_none() || self.settled() || t.iter().any(|v| v.abs() > WORLD_LIMIT_NM) {
             return false;
         }
         let rival = match self.rival {
