@@ -41,42 +41,43 @@ pub fn range_of(c: u8) -> f32 {
     MIN_RANGE * libm::exp2f(f32::from(c) / CODES_PER_OCTAVE)
 }
 
-/// One sweep's range image: `H` rows of elevation between `elevation[0]` and `elevation[1]`
-/// (radians), `W` columns of azimuth over the whole turn, around `origin` (the map's frame).
-#[derive(Clone, Debug, PartialEq)]
-pub struct RangeImage<const H: usize, const W: usize> {
-    origin: Point3,
-    elevation: [f32; 2],
-    cells: [[u8; W]; H],
+/// Where a sweep's range image looks: `rows` of elevation between `elevation[0]` and
+/// `elevation[1]` (radians), `columns` of azimuth from `azimuth[0]` over `azimuth[1]` radians
+/// (at most a whole turn), around `origin` (the map's frame). Pixels are stored row by row,
+/// lowest elevation first.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Geometry {
+    pub origin: Point3,
+    pub elevation: [f32; 2],
+    pub azimuth: [f32; 2],
+    pub rows: u16,
+    pub columns: u16,
 }
 
-impl<const H: usize, const W: usize> RangeImage<H, W> {
-    /// An image with no returns yet. `elevation` spans the sensor's beams (lowest, highest);
-    /// directions outside it are never free.
-    pub const fn new(origin: Point3, elevation: [f32; 2]) -> Self {
-        Self {
-            origin,
-            elevation,
-            cells: [[NO_RETURN; W]; H],
-        }
+impl Geometry {
+    /// Pixels in the image.
+    pub const fn pixels(&self) -> usize {
+        self.rows as usize * self.columns as usize
     }
 
-    pub fn origin(&self) -> Point3 {
-        self.origin
-    }
-
-    pub fn elevation(&self) -> [f32; 2] {
-        self.elevation
-    }
-
-    /// The codes, row by row (lowest elevation first, azimuth from -pi).
-    pub fn cells(&self) -> &[[u8; W]; H] {
-        &self.cells
+    /// Whether every field is finite and the spans are not empty: what a decoder checks.
+    pub fn is_valid(&self) -> bool {
+        let [low, high] = self.elevation;
+        let [_, width] = self.azimuth;
+        self.origin.is_finite()
+            && self.azimuth[0].is_finite()
+            && low.is_finite()
+            && high.is_finite()
+            && low < high
+            && width > 0.0
+            && width <= core::f32::consts::TAU
+            && self.rows > 0
+            && self.columns > 0
     }
 
     /// The pixel of `p` and its range from the origin: `None` for a point at the origin, a
-    /// non-finite one, or one outside the elevation span.
-    fn pixel(&self, p: Point3) -> Option<(usize, usize, f32)> {
+    /// non-finite one, or one outside the spans.
+    pub fn pixel(&self, p: Point3) -> Option<(usize, f32)> {
         let d = [
             p.x - self.origin.x,
             p.y - self.origin.y,
@@ -91,36 +92,81 @@ impl<const H: usize, const W: usize> RangeImage<H, W> {
         if !(elevation >= low && elevation <= high && high > low) {
             return None;
         }
-        // The top edge belongs to the last row.
-        let row = (((elevation - low) / (high - low)) * H as f32) as usize;
-        let azimuth = libm::atan2f(d[1], d[0]);
-        let turn = (azimuth + core::f32::consts::PI) / core::f32::consts::TAU;
-        let column = (turn * W as f32) as usize;
-        Some((row.min(H.saturating_sub(1)), column % W.max(1), r))
+        let [start, width] = self.azimuth;
+        let from_start = libm::atan2f(d[1], d[0]) - start;
+        let wrapped = libm::fmodf(from_start, core::f32::consts::TAU);
+        let turned = if wrapped < 0.0 {
+            wrapped + core::f32::consts::TAU
+        } else {
+            wrapped
+        };
+        if !(turned <= width && width > 0.0) {
+            return None;
+        }
+        let rows = usize::from(self.rows);
+        let columns = usize::from(self.columns);
+        // The top and far edges belong to the last row and column.
+        let row = ((((elevation - low) / (high - low)) * rows as f32) as usize)
+            .min(rows.saturating_sub(1));
+        let column = (((turned / width) * columns as f32) as usize).min(columns.saturating_sub(1));
+        Some((row * columns + column, r))
+    }
+}
+
+/// Notes a return at `p` in the image `cells` of `geometry`: its pixel's least range is now at
+/// most its range.
+pub fn add_return(geometry: &Geometry, cells: &mut [u8], p: Point3) {
+    if let Some((index, r)) = geometry.pixel(p)
+        && let Some(cell) = cells.get_mut(index)
+    {
+        *cell = (*cell).min(code(r));
+    }
+}
+
+/// Whether the sweep whose image is `cells` saw through `p`: a return in its pixel lies farther
+/// than `p`'s range by more than `margin` metres.
+pub fn sees_free(geometry: &Geometry, cells: &[u8], p: Point3, margin: f32) -> bool {
+    let Some((index, r)) = geometry.pixel(p) else {
+        return false;
+    };
+    let c = cells.get(index).copied().unwrap_or(NO_RETURN);
+    c != NO_RETURN && r < range_of(c) - margin
+}
+
+/// A sweep's range image in fixed memory: `N` pixels at most.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RangeImage<const N: usize> {
+    geometry: Geometry,
+    cells: [u8; N],
+}
+
+impl<const N: usize> RangeImage<N> {
+    /// An image with no returns yet; `None` if `geometry` has more pixels than `N`.
+    pub fn new(geometry: Geometry) -> Option<Self> {
+        (geometry.pixels() <= N).then_some(Self {
+            geometry,
+            cells: [NO_RETURN; N],
+        })
     }
 
-    /// Notes a return at `p`: its pixel's least range is now at most its range.
+    pub fn geometry(&self) -> &Geometry {
+        &self.geometry
+    }
+
+    /// The codes, row by row.
+    pub fn cells(&self) -> &[u8] {
+        self.cells.get(..self.geometry.pixels()).unwrap_or(&[])
+    }
+
     pub fn add_return(&mut self, p: Point3) {
-        if let Some((row, column, r)) = self.pixel(p)
-            && let Some(cell) = self.cells.get_mut(row).and_then(|c| c.get_mut(column))
-        {
-            *cell = (*cell).min(code(r));
+        let n = self.geometry.pixels();
+        if let Some(cells) = self.cells.get_mut(..n) {
+            add_return(&self.geometry, cells, p);
         }
     }
 
-    /// Whether the sweep saw through `p`: a return in its pixel lies farther than `p`'s range
-    /// by more than `margin` metres.
     pub fn sees_free(&self, p: Point3, margin: f32) -> bool {
-        let Some((row, column, r)) = self.pixel(p) else {
-            return false;
-        };
-        let c = self
-            .cells
-            .get(row)
-            .and_then(|c| c.get(column))
-            .copied()
-            .unwrap_or(NO_RETURN);
-        c != NO_RETURN && r < range_of(c) - margin
+        sees_free(&self.geometry, self.cells(), p, margin)
     }
 }
 

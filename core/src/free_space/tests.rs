@@ -25,7 +25,14 @@ fn a_code_never_claims_past_its_range() {
 /// points behind it and points in directions no return came from are not.
 #[test]
 fn a_wall_leaves_free_before_it_and_unknown_behind() {
-    let mut image = RangeImage::<16, 128>::new(Point3::new(0.0, 0.0, 0.0), [-0.4, 0.4]);
+    let mut image = RangeImage::<2048>::new(Geometry {
+        origin: Point3::new(0.0, 0.0, 0.0),
+        elevation: [-0.4, 0.4],
+        azimuth: [-core::f32::consts::PI, core::f32::consts::TAU],
+        rows: 16,
+        columns: 128,
+    })
+    .expect("fits");
     for i in -40..=40 {
         for j in -40..=40 {
             image.add_return(Point3::new(10.0, i as f32 * 0.1, j as f32 * 0.1));
@@ -46,11 +53,16 @@ fn a_wall_leaves_free_before_it_and_unknown_behind() {
 /// each query by scanning every return (no image).
 #[test]
 fn free_is_nearer_than_every_return_of_its_pixel() {
-    const H: usize = 8;
-    const W: usize = 32;
     let origin = Point3::new(1.0, -2.0, 0.5);
-    let elevation = [-0.5f32, 0.3];
-    let mut image = RangeImage::<H, W>::new(origin, elevation);
+    // A sector of a turn that starts past +pi/2 and wraps through -pi.
+    let geometry = Geometry {
+        origin,
+        elevation: [-0.5, 0.3],
+        azimuth: [2.0, 4.0],
+        rows: 8,
+        columns: 32,
+    };
+    let mut image = RangeImage::<256>::new(geometry).expect("fits");
     let mut rng = stream_rng(7, 0);
     let mut unit = || uniform(&mut rng) as f32;
     let mut returns = [Point3::new(0.0, 0.0, 0.0); 400];
@@ -70,21 +82,34 @@ fn free_is_nearer_than_every_return_of_its_pixel() {
             origin.y + 50.0 * unit() - 25.0,
             origin.z + 16.0 * unit() - 9.0,
         );
-        let Some((row, column, r)) = image.pixel(q) else {
+        let Some((pixel, r)) = geometry.pixel(q) else {
             assert!(!image.sees_free(q, margin));
             continue;
         };
         let nearest = returns
             .iter()
-            .filter_map(|p| image.pixel(*p))
-            .filter(|(pr, pc, _)| (*pr, *pc) == (row, column))
-            .map(|(_, _, pr)| pr)
+            .filter_map(|p| geometry.pixel(*p))
+            .filter(|(other, _)| *other == pixel)
+            .map(|(_, pr)| pr)
             .fold(f32::INFINITY, f32::min);
         let expected = nearest.is_finite() && r < range_of(code(nearest)) - margin;
         assert_eq!(image.sees_free(q, margin), expected, "{q:?}");
         queried += 1;
         free += usize::from(expected);
     }
+    // The sector's own pixel arithmetic, checked on its edges: azimuth 2.0 is column 0, 6.0
+    // (2.0 + 4.0, past +pi) the last; 1.9 and 6.1 are outside.
+    let at = |azimuth: f32| {
+        geometry.pixel(Point3::new(
+            origin.x + 10.0 * libm::cosf(azimuth),
+            origin.y + 10.0 * libm::sinf(azimuth),
+            origin.z,
+        ))
+    };
+    assert_eq!(at(2.0 + 1e-4).map(|(p, _)| p % 32), Some(0));
+    assert_eq!(at(6.0 - 1e-4).map(|(p, _)| p % 32), Some(31));
+    assert_eq!(at(1.9), None);
+    assert_eq!(at(6.1), None);
     assert!(
         queried > 1000 && free > 100,
         "{queried} queried, {free} free"
