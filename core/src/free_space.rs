@@ -12,42 +12,45 @@
 
 use crate::geometry::Point3;
 
-/// The shortest range a pixel codes (metres): a return nearer than one code's step past it
-/// codes as 0, which leaves nothing along its pixel free.
-pub const MIN_RANGE: f32 = 0.25;
-
-/// Codes per doubling of the range: 254 codes from [`MIN_RANGE`] to 256 m, each 2.8 % of its
-/// range (28 cm at 10 m).
+/// Codes per doubling of the range: 254 codes over ten doublings from an image's nearest range
+/// ([`Geometry::near`]; 0.25 m to 256 m for a lidar), each 2.8 % of its range (28 cm at 10 m).
 const CODES_PER_OCTAVE: f32 = 25.4;
 
 /// A pixel no return fell in: nothing is known along it.
 pub const NO_RETURN: u8 = u8::MAX;
 
-/// The code of range `r` (metres): the largest code whose range ([`range_of`]) is at most `r`,
-/// so an image never claims free space past a return. NaN codes as [`MIN_RANGE`].
-pub fn code(r: f32) -> u8 {
-    let octaves = libm::log2f(r / MIN_RANGE);
+/// The code of range `r` in an image whose nearest range is `near`: the largest code whose
+/// range ([`range_of`]) is at most `r`, so an image never claims free space past a return. A
+/// return nearer than one code's step past `near`, or NaN, codes as 0, which leaves nothing
+/// along its pixel free.
+pub fn code(r: f32, near: f32) -> u8 {
+    let octaves = libm::log2f(r / near);
     let c = (octaves * CODES_PER_OCTAVE).clamp(0.0, f32::from(NO_RETURN - 1)) as u8;
     // The float rounding may land one code above: step back if it decodes past `r`.
-    if c > 0 && range_of(c) > r { c - 1 } else { c }
+    if c > 0 && range_of(c, near) > r {
+        c - 1
+    } else {
+        c
+    }
 }
 
 /// The range code `c` stands for (metres): the least range of the returns it was made from,
 /// rounded down (0 for code 0).
-pub fn range_of(c: u8) -> f32 {
+pub fn range_of(c: u8, near: f32) -> f32 {
     if c == 0 {
         return 0.0;
     }
-    MIN_RANGE * libm::exp2f(f32::from(c) / CODES_PER_OCTAVE)
+    near * libm::exp2f(f32::from(c) / CODES_PER_OCTAVE)
 }
 
 /// Where a sweep's range image looks: `rows` of elevation between `elevation[0]` and
 /// `elevation[1]` (radians), `columns` of azimuth from `azimuth[0]` over `azimuth[1]` radians
-/// (at most a whole turn), around `origin` (the map's frame). Pixels are stored row by row,
-/// lowest elevation first.
+/// (at most a whole turn), around `origin` (the map's frame), ranges coded from `near` (the
+/// map's unit) over ten doublings. Pixels are stored row by row, lowest elevation first.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Geometry {
     pub origin: Point3,
+    pub near: f32,
     pub elevation: [f32; 2],
     pub azimuth: [f32; 2],
     pub rows: u16,
@@ -65,6 +68,8 @@ impl Geometry {
         let [low, high] = self.elevation;
         let [_, width] = self.azimuth;
         self.origin.is_finite()
+            && self.near.is_finite()
+            && self.near > 0.0
             && self.azimuth[0].is_finite()
             && low.is_finite()
             && high.is_finite()
@@ -119,7 +124,7 @@ pub fn add_return(geometry: &Geometry, cells: &mut [u8], p: Point3) {
     if let Some((index, r)) = geometry.pixel(p)
         && let Some(cell) = cells.get_mut(index)
     {
-        *cell = (*cell).min(code(r));
+        *cell = (*cell).min(code(r, geometry.near));
     }
 }
 
@@ -130,7 +135,7 @@ pub fn sees_free(geometry: &Geometry, cells: &[u8], p: Point3, margin: f32) -> b
         return false;
     };
     let c = cells.get(index).copied().unwrap_or(NO_RETURN);
-    c != NO_RETURN && r < range_of(c) - margin
+    c != NO_RETURN && r < range_of(c, geometry.near) - margin
 }
 
 /// A sweep's range image in fixed memory: `N` pixels at most.

@@ -5,20 +5,25 @@ use crate::rng::{stream_rng, uniform};
 /// (2.8 %) of it, from the shortest range to the longest.
 #[test]
 fn a_code_never_claims_past_its_range() {
+    let near = 0.25;
     let mut r = 0.001;
     while r < 300.0 {
-        let c = code(r);
-        assert!(range_of(c) <= r, "{r} m codes as {c}, {} m", range_of(c));
-        if c < NO_RETURN - 1 && r >= MIN_RANGE {
+        let c = code(r, near);
+        assert!(
+            range_of(c, near) <= r,
+            "{r} m codes as {c}, {} m",
+            range_of(c, near)
+        );
+        if c < NO_RETURN - 1 && r >= near {
             assert!(
-                r < range_of(c + 1) * 1.0001,
+                r < range_of(c + 1, near) * 1.0001,
                 "{r} m codes as {c}: one short"
             );
         }
         r *= 1.0007;
     }
-    assert_eq!(code(f32::NAN), 0);
-    assert_eq!(code(0.0), 0);
+    assert_eq!(code(f32::NAN, near), 0);
+    assert_eq!(code(0.0, near), 0);
 }
 
 /// A wall 10 m ahead of the sensor, seen across a 40-degree cone: points before it are free,
@@ -27,6 +32,7 @@ fn a_code_never_claims_past_its_range() {
 fn a_wall_leaves_free_before_it_and_unknown_behind() {
     let mut image = RangeImage::<2048>::new(Geometry {
         origin: Point3::new(0.0, 0.0, 0.0),
+        near: 0.25,
         elevation: [-0.4, 0.4],
         azimuth: [-core::f32::consts::PI, core::f32::consts::TAU],
         rows: 16,
@@ -57,6 +63,7 @@ fn free_is_nearer_than_every_return_of_its_pixel() {
     // A sector of a turn that starts past +pi/2 and wraps through -pi.
     let geometry = Geometry {
         origin,
+        near: 0.5,
         elevation: [-0.5, 0.3],
         azimuth: [2.0, 4.0],
         rows: 8,
@@ -92,7 +99,7 @@ fn free_is_nearer_than_every_return_of_its_pixel() {
             .filter(|(other, _)| *other == pixel)
             .map(|(_, pr)| pr)
             .fold(f32::INFINITY, f32::min);
-        let expected = nearest.is_finite() && r < range_of(code(nearest)) - margin;
+        let expected = nearest.is_finite() && r < range_of(code(nearest, 0.5), 0.5) - margin;
         assert_eq!(image.sees_free(q, margin), expected, "{q:?}");
         queried += 1;
         free += usize::from(expected);

@@ -6,13 +6,13 @@
 //! |---|---|
 //! | 0..4 | the part's length L after this field, u32 |
 //! | 4..6 | image count, u16 |
-//! | then per image | origin x, y, z (f32, relative to the map's origin), elevation low and high, azimuth start and width (f32, radians), rows and columns (u16), then rows x columns range codes (u8, row by row) |
+//! | then per image | origin x, y, z (f32, relative to the map's origin), nearest range (f32, the map's unit), elevation low and high, azimuth start and width (f32, radians), rows and columns (u16), then rows x columns range codes (u8, row by row) |
 
 use crate::free_space::Geometry;
 use crate::geometry::Point3;
 
 /// A geometry's bytes in the part.
-pub const GEOMETRY_LEN: usize = 32;
+pub const GEOMETRY_LEN: usize = 36;
 
 /// The bytes of the part for `images`, its length field included; `None` if an image's codes
 /// do not fill its geometry or the part would not fit its u32 length.
@@ -46,6 +46,7 @@ pub fn write_part<'b>(
             g.origin.x,
             g.origin.y,
             g.origin.z,
+            g.near,
             g.elevation[0],
             g.elevation[1],
             g.azimuth[0],
@@ -54,8 +55,8 @@ pub fn write_part<'b>(
         for (chunk, v) in out.chunks_exact_mut(4).zip(floats) {
             chunk.copy_from_slice(&v.to_le_bytes());
         }
-        out[28..30].copy_from_slice(&g.rows.to_le_bytes());
-        out[30..32].copy_from_slice(&g.columns.to_le_bytes());
+        out[32..34].copy_from_slice(&g.rows.to_le_bytes());
+        out[34..36].copy_from_slice(&g.columns.to_le_bytes());
         sink(&out);
         sink(cells);
     }
@@ -97,10 +98,11 @@ pub fn images(body: &[u8]) -> impl Iterator<Item = Result<(Geometry, &[u8]), ()>
             let g = body.get(at..at.checked_add(GEOMETRY_LEN)?)?;
             let geometry = Geometry {
                 origin: Point3::new(f32_at(g, 0), f32_at(g, 4), f32_at(g, 8)),
-                elevation: [f32_at(g, 12), f32_at(g, 16)],
-                azimuth: [f32_at(g, 20), f32_at(g, 24)],
-                rows: u16_at(g, 28),
-                columns: u16_at(g, 30),
+                near: f32_at(g, 12),
+                elevation: [f32_at(g, 16), f32_at(g, 20)],
+                azimuth: [f32_at(g, 24), f32_at(g, 28)],
+                rows: u16_at(g, 32),
+                columns: u16_at(g, 34),
             };
             let start = at + GEOMETRY_LEN;
             let cells = body.get(start..start.checked_add(geometry.pixels())?)?;

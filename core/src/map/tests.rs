@@ -166,6 +166,7 @@ fn a_free_space_part_round_trips_and_rejects_every_corruption() -> TestResult {
     let map = sample_oriented()?;
     let geometry = |x: f32, rows: u16, columns: u16| Geometry {
         origin: Point3::new(x, -1.0, 0.5),
+        near: 0.25,
         elevation: [-0.4, 0.3],
         azimuth: [-3.0, 6.0],
         rows,
@@ -195,7 +196,7 @@ fn a_free_space_part_round_trips_and_rejects_every_corruption() -> TestResult {
         )
         .or_fail("encodes")?;
         assert_eq!(written, n);
-        assert_eq!(n, layout.encoded_len(4) + 6 + 2 * 32 + 6 + 4);
+        assert_eq!(n, layout.encoded_len(4) + 6 + 2 * 36 + 6 + 4);
         let bytes = buf.get(..n).or_fail("written")?;
         let file = MapFile::new_checked(bytes).or_fail("valid")?;
         assert!(file.free_space().eq(images.iter().copied()));
