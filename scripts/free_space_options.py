@@ -146,7 +146,7 @@ def free_by_images(points, imgs, h, w, margin=0.2):
 print()
 print("| range image | bytes (2 sweeps) | before end: occupied | free | unknown | behind, unseen: unknown |")
 print("|---|---|---|---|---|---|")
-for h, w in ((16, 128), (32, 256), (64, 512)):
+for h, w in ((8, 64), (16, 128), (32, 256)):
     imgs = images(h, w)
     def st(points):
         d, _ = m.nearest(points)

@@ -30,6 +30,10 @@ struct InfoReport {
     record_bytes: usize,
     /// Entities with a rotation other than the identity.
     oriented: usize,
+    /// Scans whose range image the map keeps as its free space (0: none recorded), and the
+    /// bytes of that part of the file.
+    free_space_images: usize,
+    free_space_bytes: usize,
 }
 
 fn layout_name(layout: &Layout) -> &'static str {
@@ -75,6 +79,8 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             .filter(|e| !e.entity.rotation.is_identity())
             .count(),
         record_bytes: map.layout().record_len(),
+        free_space_images: map.free_space.len(),
+        free_space_bytes: mema::io::free_space::part_bytes(&map.free_space),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -102,6 +108,14 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             "bytes: {} in the file; map bytes (Table 2, {} per entity) {}; {} at the paper's 24 per entity",
             r.file_bytes, r.record_bytes, r.map_bytes, r.paper_bytes
         );
+        if r.free_space_images == 0 {
+            println!("free space: none recorded");
+        } else {
+            println!(
+                "free space: range images of {} scans, {} bytes",
+                r.free_space_images, r.free_space_bytes
+            );
+        }
     }
     Ok(())
 }

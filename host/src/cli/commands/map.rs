@@ -64,6 +64,10 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let (cloud, units) = read_input(&args.input, &args.units, &args.bag, args.outliers)?;
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
+    // The budget holds the scans' free space too: its entities are what is left.
+    if let Some(bytes) = args.bytes {
+        config.k = model.entities_beside_free_space(bytes, cloud.sensors.origins.len())?;
+    }
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
     // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
     let most = most_entities(cloud.points.len());
@@ -282,6 +286,16 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
         )
     );
     println!("{}", rays_line(r.rays));
+    if let Some(f) = r.free_space {
+        println!(
+            "free space: range images of {} scan{} ({} x {} pixels each), {} bytes of the map",
+            f.images,
+            if f.images == 1 { "" } else { "s" },
+            mema::io::free_space::ROWS,
+            mema::io::free_space::COLUMNS,
+            f.bytes
+        );
+    }
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
