@@ -354,7 +354,9 @@ fn shells_map(
     let mut map = stage("fitting", || {
         shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
     });
-    map.free_space = stage("free space", || free_space::images_of(cloud, map.origin));
+    if model.free_space {
+        map.free_space = stage("free space", || free_space::images_of(cloud, map.origin));
+    }
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     let errors = stage("evaluating", || {
         pipeline::cluster_errors(&cloud.points, labels, &entities)

@@ -219,6 +219,8 @@ fn map_points<'py>(
                 ..Default::default()
             },
             surface_rounds: count("surface_rounds", surface_rounds)?,
+            // Not yet a keyword of the package (issue 29).
+            free_space: false,
         },
         fit: FitOptions {
             alpha,

@@ -214,6 +214,10 @@ pub struct ShellModel {
     /// Rounds of surface following after k-means (`mapping::surface_clusters`); 0 keeps the
     /// k-means cells.
     pub surface_rounds: usize,
+    /// Keep the free space the input's scans saw through ([`crate::io::free_space`]): each
+    /// scan's range image, within the byte budget. Off by default while its cost to the
+    /// surface at equal bytes is weighed (issue 29).
+    pub free_space: bool,
 }
 
 impl Default for ShellModel {
@@ -221,6 +225,7 @@ impl Default for ShellModel {
         Self {
             shell: ShellParams::default(),
             surface_rounds: DEFAULT_ROUNDS,
+            free_space: false,
         }
     }
 }

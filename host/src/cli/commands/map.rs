@@ -27,6 +27,7 @@ fn shell_model(args: &MapArgs) -> Result<ShellModel> {
             ..Default::default()
         },
         surface_rounds: args.surface_rounds,
+        free_space: args.free_space,
     };
     model.check()?;
     Ok(model)
@@ -65,7 +66,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
     let (cloud, counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
     // The budget holds the scans' free space too: its entities are what is left.
-    if let Some(bytes) = args.bytes {
+    if let (Some(bytes), true) = (args.bytes, shells.free_space) {
         config.k = model.entities_beside_free_space(bytes, cloud.sensors.origins.len())?;
     }
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
