@@ -184,7 +184,9 @@ impl HostMap {
             layout,
             self.origin,
             self.entities.iter().copied(),
-            self.free_space.iter().map(|i| (i.geometry, i.cells.as_slice())),
+            self.free_space
+                .iter()
+                .map(|i| (i.geometry, i.cells.as_slice())),
             |piece| out.extend_from_slice(piece),
         )
         .map_err(anyhow::Error::from)?;

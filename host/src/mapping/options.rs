@@ -72,7 +72,11 @@ impl Model {
     /// assert_eq!(Model::Paper.entities_beside_free_space(2_400, 2), Ok(96));
     /// assert!(Model::Shells.entities_beside_free_space(1_000, 2).is_err());
     /// ```
-    pub fn entities_beside_free_space(self, bytes: usize, scans: usize) -> Result<usize, ConfigError> {
+    pub fn entities_beside_free_space(
+        self,
+        bytes: usize,
+        scans: usize,
+    ) -> Result<usize, ConfigError> {
         let free = match self {
             Self::Shells => crate::io::free_space::part_bytes_for(scans),
             Self::Paper => 0,

@@ -3,19 +3,19 @@
 use anyhow::{Context, Result, bail};
 use mema::bench::query::run_bench;
 use mema::io::cloud::LocalCloud;
+use mema::io::cloud::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::io::output::check_map_output;
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::mapping::{FitOptions, pipeline};
-use mema::io::cloud::load_cloud;
 use mema::query::states::{State, StateAnswer, state_of};
 use mema::query::{HostIndex, build_index, local, rotation_degrees, transform_map, world};
-use rayon::prelude::*;
-use std::io::Write;
-use std::path::Path;
 use mema_core::query::{Nearest, RayHit};
 use mema_core::transform::RigidTransform;
+use rayon::prelude::*;
 use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
 
 use crate::cli::args::{QueryArgs, QueryBenchArgs, TransformArgs};
 use crate::cli::errors::UsageError;
@@ -114,7 +114,10 @@ pub fn query(args: &QueryArgs) -> Result<()> {
                     signed_distance.abs(),
                     kind(entity).unwrap_or("?")
                 ),
-                None => println!("point {p:?}: {}, the map is empty", state_name(answer.state)),
+                None => println!(
+                    "point {p:?}: {}, the map is empty",
+                    state_name(answer.state)
+                ),
             }
         }
     }
@@ -188,7 +191,13 @@ fn points(args: &QueryArgs, map: &HostMap, index: &HostIndex, path: &Path) -> Re
                 #[serde(flatten)]
                 answer: &'a StateAnswer,
             }
-            serde_json::to_writer(&mut out, &Line { point: *p, answer: a })?;
+            serde_json::to_writer(
+                &mut out,
+                &Line {
+                    point: *p,
+                    answer: a,
+                },
+            )?;
             writeln!(out)?;
         } else {
             let entity = a.entity.map(|e| e.to_string()).unwrap_or_default();
