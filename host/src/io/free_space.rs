@@ -97,14 +97,19 @@ pub fn images_of(cloud: &LocalCloud, map_origin: [f64; 3]) -> Vec<FreeImage> {
             image_of(
                 Point3::new(sensor[0], sensor[1], sensor[2]),
                 points.iter().map(local),
+                [ROWS, COLUMNS],
             )
         })
         .collect()
 }
 
-/// One scan's image from its sensor origin and returns (the map's frame); `None` if no return
-/// lies away from the origin.
-fn image_of(origin: Point3, returns: impl Iterator<Item = Point3> + Clone) -> Option<FreeImage> {
+/// One scan's image of `size` (rows, columns) from its sensor origin and returns (the map's
+/// frame); `None` if no return lies away from the origin.
+pub fn image_of(
+    origin: Point3,
+    returns: impl Iterator<Item = Point3> + Clone,
+    size: [u16; 2],
+) -> Option<FreeImage> {
     let mut elevation = [f32::INFINITY, f32::NEG_INFINITY];
     let mut azimuths = Vec::new();
     let mut nearest = f32::INFINITY;
@@ -128,9 +133,9 @@ fn image_of(origin: Point3, returns: impl Iterator<Item = Point3> + Clone) -> Op
         origin,
         near: nearest / 2.0,
         elevation,
-        azimuth: azimuth_span(&mut azimuths),
-        rows: ROWS,
-        columns: COLUMNS,
+        azimuth: azimuth_span(&mut azimuths, size[1]),
+        rows: size[0],
+        columns: size[1],
     };
     let mut cells = vec![NO_RETURN; geometry.pixels()];
     for p in returns {
@@ -140,8 +145,8 @@ fn image_of(origin: Point3, returns: impl Iterator<Item = Point3> + Clone) -> Op
 }
 
 /// The azimuths' span as a start and a width: the turn less its widest gap, or the whole turn
-/// when no gap is wider than two columns (a spinning sensor).
-fn azimuth_span(azimuths: &mut [f32]) -> [f32; 2] {
+/// when no gap is wider than two of `columns` (a spinning sensor).
+fn azimuth_span(azimuths: &mut [f32], columns: u16) -> [f32; 2] {
     use std::f32::consts::{PI, TAU};
     azimuths.sort_by(f32::total_cmp);
     let (Some(&first), Some(&last)) = (azimuths.first(), azimuths.last()) else {
@@ -154,7 +159,7 @@ fn azimuth_span(azimuths: &mut [f32]) -> [f32; 2] {
             widest = (pair[1] - pair[0], pair[1]);
         }
     }
-    if widest.0 <= 2.0 * TAU / f32::from(COLUMNS) {
+    if widest.0 <= 2.0 * TAU / f32::from(columns.max(1)) {
         return [-PI, TAU];
     }
     // A hair wider, so the last return's azimuth is inside after rounding.

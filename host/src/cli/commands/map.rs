@@ -63,8 +63,16 @@ pub fn map(args: &MapArgs) -> Result<()> {
         check_output_file(labels, "labels")?;
     }
     let (cloud, units) = read_input(&args.input, &args.units, &args.bag, args.outliers)?;
-    let (cloud, counts) =
+    let (cloud, mut counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
+    // A map that keeps free space agrees with it: what other scans saw through is not surface.
+    let cloud = if shells.free_space && model == Model::Shells {
+        let (carved, dropped) = mema::mapping::carve::carve(cloud);
+        counts.carved = Some(dropped);
+        carved
+    } else {
+        cloud
+    };
     // The budget holds the scans' free space too: its entities are what is left.
     if let (Some(bytes), true) = (args.bytes, shells.free_space) {
         config.k = model.entities_beside_free_space(bytes, cloud.sensors.origins.len())?;
@@ -376,6 +384,12 @@ fn points_line(
     }
     if let Some(n) = counts.voxelized {
         line.push_str(&format!("{after}{n} after --voxel"));
+        after = ", ";
+    }
+    if let Some(n) = counts.carved {
+        line.push_str(&format!(
+            "{after}{n} left out as seen through by two other scans (--free-space)"
+        ));
     }
     line
 }
