@@ -163,6 +163,8 @@ fn check_chunk_table(
     let Some(vlr) = header.vlrs().iter().find(|v| las::laz::is_laszip_vlr(v)) else {
         return Ok(());
     };
+    // Before `las` hands the items to `laz`, which panics on some.
+    guard::check_laz_items(ctx, &vlr.data, header.point_format().len())?;
     let field = |at: usize| {
         vlr.data
             .get(at..at + 4)
