@@ -386,6 +386,52 @@ mod tests {
         }
     }
 
+    /// A chunk table of no chunks for the points (variable-size chunks: "index out of bounds"
+    /// in `laz`'s sequential decompression, a campaign finding; fixed-size ones too) is refused
+    /// in one line.
+    #[test]
+    fn a_chunk_table_of_no_chunks_is_an_error() {
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format = las::point::Format::new(1).unwrap();
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        for x in [1.0, 2.0, 3.0] {
+            writer
+                .write_point(las::Point {
+                    x,
+                    gps_time: Some(x),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.close().unwrap();
+        let file = writer.into_inner().unwrap().into_inner();
+        assert_eq!(read_cloud_bytes("chunks.laz", &file).unwrap().slots, 3);
+        let data_at = u32::from_le_bytes(file[96..100].try_into().unwrap()) as usize;
+        let table_at = u64::from_le_bytes(file[data_at..data_at + 8].try_into().unwrap());
+        let vlr_at = file
+            .windows(14)
+            .position(|w| w == b"laszip encoded")
+            .unwrap()
+            - 2;
+        let chunk_size_at = (vlr_at + 54 + 12) as u64;
+        let none = with(&file, table_at + 4, &0u32.to_le_bytes());
+        for (name, bytes) in [
+            ("fixed.laz", none.clone()),
+            (
+                "variable.laz",
+                with(&none, chunk_size_at, &0u32.to_le_bytes()),
+            ),
+        ] {
+            let e = expect_err(name, &bytes, "BadValue");
+            assert!(
+                matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == table_at + 4),
+                "{name}: {e:?}"
+            );
+        }
+    }
+
     /// `las` reads no EVLR where the start or the count is 0, nor in a file before 1.4, so
     /// nothing there is checked: the same lengths read as they did.
     #[test]
