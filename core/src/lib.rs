@@ -22,6 +22,7 @@ pub mod de32;
 pub mod fit;
 pub mod fit32;
 pub mod fitness;
+pub mod free_space;
 #[cfg(feature = "fuzzing")]
 pub mod fuzz_checks;
 pub mod geometry;

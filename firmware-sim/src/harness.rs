@@ -139,11 +139,18 @@ fn drive<
                 firmware.on_receive(buf.get(..n).unwrap_or(&[]));
                 board.observe(firmware.pending(), firmware.mapper().clusters().len());
                 while firmware.busy() {
-                    board.tick(|| firmware.tick(|f| accepted.push(f.sequence)))?;
+                    board.tick(|| {
+                        firmware.tick(|f| {
+                            // A map started again keeps none of the frames before.
+                            accepted.truncate(f.place as usize);
+                            accepted.push(f.sequence);
+                        })
+                    })?;
                     board.observe(firmware.pending(), firmware.mapper().clusters().len());
                 }
-                let since = firmware.stats().frames - snapshot.frames();
-                if config.snapshot_every > 0 && since >= config.snapshot_every {
+                let since = firmware.stats().frames.saturating_sub(snapshot.frames());
+                let stale = !snapshot.is_of(firmware.stats());
+                if config.snapshot_every > 0 && (since >= config.snapshot_every || stale) {
                     firmware.save(snapshot);
                 }
                 if firmware.stats().end_of_stream {
@@ -176,14 +183,18 @@ fn drive<
 /// (through their pose, around `origin`, whole nanometres in the world; `None`: the capture's
 /// first point, as a receiver that gets every frame takes it).
 pub fn frames_of(capture: &[u8], origin: Option<[i64; 3]>) -> HashMap<u32, Vec<Point3>> {
-    let mut frames = HashMap::new();
+    // A restart (a glitched first pose outvoted) leaves the frames before it out of the map.
+    let frames = std::cell::RefCell::new(HashMap::new());
     Receiver::resuming(origin, mema_core::link::receiver::DEFAULT_REACH).feed_all(
         capture,
         |frame, placement| {
-            frames.insert(frame.sequence(), placement.points(&frame).collect());
+            frames
+                .borrow_mut()
+                .insert(frame.sequence(), placement.points(&frame).collect());
         },
+        || frames.borrow_mut().clear(),
     );
-    frames
+    frames.into_inner()
 }
 
 /// The map of an uninterrupted mapper fed exactly these frames, in this order: what a faulty or

@@ -66,8 +66,14 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         }
     }
 
-    /// The entities frozen since the last call, each as a frame.
+    /// The entities frozen since the last call, each as a frame, once the map's origin has
+    /// settled (before, a rival's poses may yet start the map again,
+    /// [`mema_core::link::receiver::Received::Restart`]; [`Firmware::send_end`] sends what
+    /// waited).
     pub fn send_frozen(&mut self, mut sink: impl FnMut(&[u8])) {
+        if !self.receiver.settled() {
+            return;
+        }
         let frozen = self.mapper.frozen().len();
         while self.down.sent_frozen < frozen {
             let index = self.down.sent_frozen;
@@ -120,7 +126,6 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
     /// end frame. Returns the file's length.
     pub fn send_end(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
-        self.send_frozen(&mut sink);
         let first = self.down.sent_frozen;
         for (index, entity) in self.mapper.entities().enumerate().skip(first) {
             self.down.send_entity(index, entity, &mut sink);
@@ -160,6 +165,9 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             for (index, entity) in entities {
                 self.down.send_entity(index, entity, &mut sink);
             }
+            return;
+        }
+        if !self.receiver.settled() {
             return;
         }
         for index in first..first.saturating_add(count).min(frozen) {

@@ -143,8 +143,12 @@ pub const fn model_params(
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FirmwareStats {
     pub ticks: u64,
-    /// Frames whose points went into the mapper since boot (or restored with a snapshot).
+    /// Frames whose points are in the map: since boot (or restored with a snapshot), or since
+    /// the map last started again ([`FirmwareStats::map_starts`]).
     pub frames: u64,
+    /// Times the map started again because later poses outvoted the first
+    /// ([`mema_core::link::receiver::Received::Restart`]).
+    pub map_starts: u64,
     /// Bytes the ring had no room for.
     pub ring_overruns: u64,
     /// Most bytes the ring held at a tick.
@@ -159,6 +163,9 @@ pub struct FirmwareStats {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AcceptedFrame {
     pub sequence: u32,
+    /// Its place among the frames whose points are in the map (0: the first since the map
+    /// started): a caller that lists them drops the ones from this place on.
+    pub place: u64,
     pub points: u16,
     pub end_of_stream: bool,
 }
@@ -186,6 +193,9 @@ pub struct Snapshot<const K: usize, const G: usize, const F: usize = 0> {
     /// The receiver's map origin: the mapper's points are relative to it.
     origin: Option<[i64; 3]>,
     frames: u64,
+    /// [`FirmwareStats::map_starts`] when saved: a snapshot of a map since started again is
+    /// stale.
+    map_starts: u64,
     saved: bool,
 }
 
@@ -196,6 +206,7 @@ impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
             mapper: StreamMapper::new(params),
             origin: None,
             frames: 0,
+            map_starts: 0,
             saved: false,
         }
     }
@@ -207,6 +218,12 @@ impl<const K: usize, const G: usize, const F: usize> Snapshot<K, G, F> {
 
     pub fn is_saved(&self) -> bool {
         self.saved
+    }
+
+    /// Whether this snapshot is of the map `stats` describes: not saved before the map last
+    /// started again.
+    pub fn is_of(&self, stats: &FirmwareStats) -> bool {
+        self.map_starts == stats.map_starts
     }
 }
 
@@ -242,6 +259,7 @@ impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
             stats: FirmwareStats {
                 ticks: 0,
                 frames: 0,
+                map_starts: 0,
                 ring_overruns: 0,
                 ring_peak: 0,
                 tick_points_peak: 0,
@@ -330,10 +348,12 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             return;
         }
         self.cursor = None;
+        let place = self.stats.frames;
         self.stats.frames += 1;
         self.stats.end_of_stream |= end_of_stream;
         on_frame(AcceptedFrame {
             sequence,
+            place,
             points: count,
             end_of_stream,
         });
@@ -341,9 +361,9 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
 
     /// Feeds the ring to the decoder until it accepts a frame (true) or the ring is empty.
     fn decode_next(&mut self) -> bool {
-        let receiver = &mut self.receiver;
         loop {
-            let (mut empty, mut accepted) = (false, false);
+            let (mut empty, mut accepted, mut restart) = (false, false, false);
+            let receiver = &mut self.receiver;
             self.rx.borrow().consume_front(|front| {
                 empty = front.is_empty();
                 if empty {
@@ -354,11 +374,18 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                     Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => {
                         (front.len() - remaining.len(), false)
                     }
+                    Received::Restart { remaining, .. } => {
+                        restart = true;
+                        (front.len() - remaining.len(), false)
+                    }
                     Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
                 };
                 accepted = points;
                 taken
             });
+            if restart {
+                self.start_map_again();
+            }
             if accepted {
                 self.cursor = Some(0);
                 return true;
@@ -367,6 +394,17 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                 return false;
             }
         }
+    }
+
+    /// The receiver gave up the map's origin for a rival's poses: the map so far was placed by a
+    /// glitch and starts again. Nothing of it has left the device (frozen entities wait for a
+    /// settled origin, [`Firmware::send_frozen`]), and the end frame's counts are the new map's.
+    fn start_map_again(&mut self) {
+        self.mapper.restart();
+        self.refit_due = false;
+        self.stats.frames = 0;
+        self.stats.map_starts += 1;
+        self.down.sent_frozen = 0;
     }
 
     /// Whether mapping work is under way: a part-mapped frame or a deferred refit (bytes in the
@@ -404,6 +442,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         snapshot.mapper.clone_from(&self.mapper);
         snapshot.origin = self.receiver.map_origin();
         snapshot.frames = self.stats.frames;
+        snapshot.map_starts = self.stats.map_starts;
         snapshot.saved = true;
     }
 
@@ -416,6 +455,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.receiver = Receiver::resuming(snapshot.origin, self.receiver.reach());
         self.mapper.clone_from(&snapshot.mapper);
         self.stats.frames = snapshot.frames;
+        self.stats.map_starts = snapshot.map_starts;
         self.stats.end_of_stream = false;
         self.stats.restarts += 1;
     }

@@ -13,6 +13,7 @@ use std::path::Path;
 use crate::analysis::stats::{ErrorStats, MemoryRow};
 use crate::error::ConfigError;
 use crate::io::cloud::LocalCloud;
+use crate::io::free_space;
 use crate::io::mapfile::{HostMap, KindCounts};
 use crate::io::output::write_labels;
 use crate::mapping::filter::FilterCounts;
@@ -57,6 +58,17 @@ pub struct MapReport {
     /// Where the mapped points were seen from; null where the input does not say, and then
     /// no free space is recorded.
     pub rays: Option<RaysSeen>,
+    /// The free space the map keeps: its scans' range images (null: none recorded).
+    pub free_space: Option<FreeSpaceKept>,
+}
+
+/// The free space a map keeps ([`crate::io::free_space`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct FreeSpaceKept {
+    /// Scans whose range image the map keeps.
+    pub images: usize,
+    /// Bytes of the map file's free-space part (within `--bytes`).
+    pub bytes: usize,
 }
 
 /// The rays a map's points are the ends of.
@@ -285,6 +297,7 @@ fn paper_map(
         slots: 0,
         no_returns: cloud.no_returns,
         rays: RaysSeen::of(cloud),
+        free_space: None,
     };
     report.set_filter(FilterCounts {
         read: cloud.points.len(),
@@ -338,9 +351,12 @@ fn shells_map(
         Some(s) => (&s.labels[..], &s.anchors[..]),
         None => (&clusters.labels[..], &centres[..]),
     };
-    let map = stage("fitting", || {
+    let mut map = stage("fitting", || {
         shells::shell_map(cloud.origin, &cloud.points, labels, anchors, &params)
     });
+    if model.free_space {
+        map.free_space = stage("free space", || free_space::images_of(cloud, map.origin));
+    }
     let entities: Vec<_> = map.entities.iter().map(|e| e.entity).collect();
     let errors = stage("evaluating", || {
         pipeline::cluster_errors(&cloud.points, labels, &entities)
@@ -368,6 +384,10 @@ fn shells_map(
         slots: 0,
         no_returns: cloud.no_returns,
         rays: RaysSeen::of(cloud),
+        free_space: (!map.free_space.is_empty()).then(|| FreeSpaceKept {
+            images: map.free_space.len(),
+            bytes: free_space::part_bytes(&map.free_space),
+        }),
     };
     report.set_filter(FilterCounts {
         read: cloud.points.len(),
@@ -474,6 +494,7 @@ pub fn map_to_tolerance(
             EntityFit::Shells { grid, .. } => Some(grid),
             EntityFit::Paper(_) => None,
         },
+        free_space: Vec::new(),
     };
     Ok(ToleranceMap {
         map,

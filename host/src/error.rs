@@ -41,6 +41,16 @@ pub enum ConfigError {
         /// Bytes one entity takes in the model asked for.
         per: usize,
     },
+    /// A byte budget that the free space of the input's scans leaves no entity of.
+    #[error(
+        "a budget of {bytes} bytes holds no entity beside the free space of {scans} scans ({free} bytes); one takes {per} bytes"
+    )]
+    BudgetTakenByFreeSpace {
+        bytes: usize,
+        scans: usize,
+        free: usize,
+        per: usize,
+    },
     /// The tolerance mode's T is not a positive length.
     #[error("the tolerance {0} must be a positive length in the cloud's units")]
     Tolerance(f64),

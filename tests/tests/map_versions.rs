@@ -161,3 +161,70 @@ fn paper_and_shell_maps_keep_within_their_bytes_in_their_versions() {
         );
     }
 }
+
+/// A streamed map of few working clusters keeps most of its shells thinner than four steps of
+/// the grid its extent would take (five_people at --working 150: single-point frozen shells), so
+/// it is written in f32; `mema info` says why, with the count, which is held here to the map's
+/// own shells and extent; a quantized map says nothing of the kind.
+#[test]
+fn info_says_why_a_streamed_map_is_not_quantized() {
+    let dir = Dir::new("not-quantized");
+    MemaCommand::new(&dir)
+        .args(["map", &shared("five_people.pcd").display().to_string()])
+        .args([
+            "-k",
+            "400",
+            "--stream",
+            "--working",
+            "150",
+            "-o",
+            "f32.mema",
+        ])
+        .run()
+        .assert_ok();
+    let info = MemaCommand::new(&dir)
+        .args(["info", "f32.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    assert_eq!(info["layout"], "version 2, oriented f32", "{info}");
+    let why = info["not_quantized"].as_str().expect("a reason");
+    let map = HostMap::read(&dir.join("f32.mema")).expect("the map");
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for e in &map.entities {
+        let c = e.entity.center.to_array();
+        for j in 0..3 {
+            lo[j] = lo[j].min(c[j]);
+            hi[j] = hi[j].max(c[j]);
+        }
+    }
+    let step = (0..3).map(|j| (hi[j] - lo[j]) / 2.0).fold(0.0f32, f32::max) / 32_767.0;
+    let thin = map
+        .entities
+        .iter()
+        .filter(|e| e.entity.semi_axes().iter().any(|r| *r < 4.0 * step))
+        .count();
+    assert!(
+        2 * thin > map.entities.len(),
+        "{thin} thin of {}",
+        map.entities.len()
+    );
+    assert!(
+        why.starts_with(&format!(
+            "{thin} of {} shells are thinner",
+            map.entities.len()
+        )),
+        "{why}"
+    );
+    MemaCommand::new(&dir)
+        .args(["map", &shared("five_people.pcd").display().to_string()])
+        .args(["-k", "400", "--stream", "-o", "quantized.mema"])
+        .run()
+        .assert_ok();
+    let info = MemaCommand::new(&dir)
+        .args(["info", "quantized.mema", "--json"])
+        .run()
+        .assert_ok()
+        .json();
+    assert!(info["not_quantized"].is_null(), "{info}");
+}

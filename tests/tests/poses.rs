@@ -173,6 +173,7 @@ fn a_moving_sensor_maps_in_one_world_frame() {
             Received::Consumed => break,
             Received::Skipped { why, .. } => panic!("a frame was skipped: {why:?}"),
             Received::Pose { remaining, .. } => window = remaining,
+            Received::Restart { number, .. } => panic!("pose {number} gave up the origin"),
             Received::Points {
                 frame,
                 placement,

@@ -239,3 +239,77 @@ fn a_glitch_as_the_very_first_point_costs_nothing() {
         chamfers[0]
     );
 }
+
+/// `frames` with the translation of their `nth` pose moved by `metres` along x.
+fn pose_moved(frames: &[Sent], nth: usize, metres: i64) -> Vec<Sent> {
+    let mut out = frames.to_vec();
+    let (exponent, pose) = out
+        .iter_mut()
+        .filter_map(|f| match f {
+            Sent::Pose { exponent, pose, .. } => Some((*exponent, pose)),
+            Sent::Points { .. } => None,
+        })
+        .nth(nth)
+        .expect("the pose");
+    pose.translation[0] += metres * 10i64.pow(u32::from((-exponent).unsigned_abs()));
+    out
+}
+
+/// `frames` without the scans of poses `drop` (each pose frame and the points frames after it).
+fn without_scans(frames: &[Sent], drop: &[usize]) -> Vec<Sent> {
+    let mut scan = None::<usize>;
+    let mut out = Vec::new();
+    for f in frames {
+        if matches!(f, Sent::Pose { .. }) {
+            scan = Some(scan.map_or(0, |s| s + 1));
+        }
+        if !scan.is_some_and(|s| drop.contains(&s)) {
+            out.push(f.clone());
+        }
+    }
+    out
+}
+
+/// A glitch as the very first pose (1,500 km off, in a UTM-like frame) set the map's origin
+/// and every later pose was refused as out of reach: a map of the glitched scan alone, exit 0.
+/// Now the next two poses, which agree with each other, outvote it: the map starts again under
+/// them and is, byte for byte, the map of the stream without the first two scans (replay and
+/// the firmware's path), and the summary says it started again. A glitch as the second pose
+/// (one pose cannot outvote one) costs only its own scan: the map is the stream's without it.
+#[test]
+fn a_glitch_as_the_very_first_pose_costs_two_scans_not_the_map() {
+    let dir = Dir::new("first-pose-glitch");
+    let capture = moved_capture(&dir, WORLD_SHIFTS[1], "utm");
+    let frames = frames_of_capture(&std::fs::read(&capture).expect("capture"));
+    let cases = [
+        ("first", pose_moved(&frames, 0, 1_500_000), vec![0, 1], 1),
+        ("second", pose_moved(&frames, 1, 1_500_000), vec![1], 0),
+    ];
+    for (name, glitched, lost, restarts) in cases {
+        let (code, json, map) =
+            replay(&dir, name, &rewritten(&glitched, [0; 3], false), "150", &[]);
+        assert_eq!(code, 0, "{name}: {json}");
+        assert_eq!(json["origin_restarts"], restarts, "{name}: {json}");
+        assert_eq!(json["poses_out_of_reach"], 1, "{name}: {json}");
+        let kept = rewritten(&without_scans(&frames, &lost), [0; 3], false);
+        let (_, kept_json, kept_map) = replay(&dir, &format!("{name}-kept"), &kept, "150", &[]);
+        assert_eq!(json["points"], kept_json["points"], "{name}: {json}");
+        assert_eq!(map, kept_map, "{name}: not the map of the scans kept");
+        let firmware = play_model(
+            &rewritten(&glitched, [0; 3], false),
+            (150, 0),
+            SHELLS,
+            &RunConfig::default(),
+        );
+        assert_eq!(firmware.map, map, "{name}: firmware vs replay");
+    }
+    let ran = MemaCommand::new(&dir)
+        .args(["replay", "first.bin", "-k", "150", "-o", "again.mema"])
+        .run()
+        .assert_ok();
+    assert!(
+        ran.stderr().contains("started again 1 time"),
+        "{}",
+        ran.stderr()
+    );
+}

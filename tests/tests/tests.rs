@@ -123,3 +123,5 @@ mod refused;
 mod las_classes;
 // Issue 29: sensor origins, no-returns, held-out rays (`mema eval --rays`).
 mod rays;
+// Issue 29: free, occupied, unknown: the map's free space and `mema query --points`.
+mod free_space;

@@ -195,6 +195,7 @@ fn the_board_maps_the_bunny_in_earth_centred_coordinates() {
 }
 
 /// A frame of a capture, as its sender meant it.
+#[derive(Clone)]
 pub(crate) enum Sent {
     Points {
         pose: u32,

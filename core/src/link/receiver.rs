@@ -21,6 +21,14 @@
 //! - **Reach.** Points farther than the reach from the origin on any axis ([`DEFAULT_REACH`],
 //!   100 km), and poses beyond it or past the world's range, are counted and never mapped: one
 //!   corrupt frame that passed its CRC, or a wrong unit, costs nothing of the map.
+//! - **A glitch as the first pose.** The origin is taken under the first pose, which may be the
+//!   glitch. Until [`SETTLED_POSES`] poses have agreed with it, poses out of its reach that agree
+//!   with each other are a rival; once the rival has more poses than the origin, the origin was
+//!   the glitch: it is given up, the caller is told to start the map again
+//!   ([`Received::Restart`]), and the next points frame sets the origin anew. One glitched first
+//!   pose then costs its own frames and those of the pose after it (two poses outvote one); a
+//!   single glitch anywhere later costs only its own, and an origin of [`SETTLED_POSES`] poses is
+//!   never given up.
 
 mod placement;
 
@@ -40,6 +48,11 @@ pub const DEFAULT_REACH: f32 = 100_000.0;
 /// the farthest frame robots are given poses in (UTM's northings reach 10,000 km, ECEF's
 /// coordinates 6,400 km). The origin is taken, and poses are held, only within it.
 pub const WORLD_LIMIT_NM: i64 = 20_000_000 * 1_000_000_000;
+
+/// Poses held around the origin after which it is never given up for a rival
+/// ([`Received::Restart`]): entities frozen around it are final from then on, and a device
+/// sends them ([`Receiver::settled`]).
+pub const SETTLED_POSES: u32 = 16;
 
 /// An origin in whole nanometres, in metres: the map file's f64 origin.
 pub fn metres_of_nm(origin: [i64; 3]) -> [f64; 3] {
@@ -73,6 +86,10 @@ pub enum Received<'r, 'i> {
     },
     /// A pose frame: pose `number` now holds.
     Pose { number: u32, remaining: &'i [u8] },
+    /// A pose frame that outvoted the origin: pose `number` now holds, the origin is given up,
+    /// and everything mapped so far was placed by a pose the stream has left. The caller starts
+    /// the map again (an empty mapper); the next points frame sets the origin.
+    Restart { number: u32, remaining: &'i [u8] },
     /// A frame that ended and is not mapped.
     Skipped { why: Skip, remaining: &'i [u8] },
 }
@@ -91,6 +108,8 @@ pub struct ReceiverStats {
     pub points_out_of_reach: u64,
     /// Pose frames refused because their pose lay out of reach.
     pub poses_out_of_reach: u64,
+    /// Origins given up for a rival's poses ([`Received::Restart`]).
+    pub restarts: u64,
 }
 
 /// What the receiver needs of a frame the decoder accepted, read before the frame's borrow of
@@ -113,6 +132,12 @@ pub struct Receiver {
     /// Metres from the origin, on each axis, past which points and poses are refused.
     reach: f32,
     pose: Pose,
+    /// Poses held that agree with the origin (the one it was taken under included), up to
+    /// [`SETTLED_POSES`]; an origin taken under no pose frame, or restored, starts settled.
+    support: u32,
+    /// Consecutive poses out of the origin's reach that agree with the first of them (its
+    /// translation, nanometres) and how many there have been.
+    rival: Option<([i64; 3], u32)>,
     /// The decoder's session count when the pose was last reset.
     session: u64,
     ended: bool,
@@ -153,6 +178,8 @@ impl Receiver {
             origin,
             reach,
             pose: Pose::START,
+            support: if origin.is_some() { SETTLED_POSES } else { 0 },
+            rival: None,
             session: 0,
             ended: false,
             placement: Placement::NONE,
@@ -162,6 +189,7 @@ impl Receiver {
                 no_pose: 0,
                 points_out_of_reach: 0,
                 poses_out_of_reach: 0,
+                restarts: 0,
             },
         }
     }
@@ -195,6 +223,9 @@ impl Receiver {
         if sessions != self.session {
             self.session = sessions;
             self.pose = Pose::START;
+            if self.origin.is_none() {
+                self.support = 0;
+            }
         }
         if self.ended {
             self.stats.after_end += 1;
@@ -208,12 +239,30 @@ impl Receiver {
             if let Some(wire) = frame.pose {
                 let pose = Pose::of_wire(frame.pose_number, &wire, frame.exponent);
                 if !self.holds(&pose) {
+                    if self.outvoted_by(&pose) {
+                        self.origin = None;
+                        self.rival = None;
+                        self.support = 1;
+                        self.pose = pose;
+                        self.stats.poses += 1;
+                        self.stats.restarts += 1;
+                        return Received::Restart {
+                            number: frame.pose_number,
+                            remaining,
+                        };
+                    }
                     self.stats.poses_out_of_reach += 1;
                     return Received::Skipped {
                         why: Skip::OutOfReach,
                         remaining,
                     };
                 }
+                // Before the origin is taken, each pose is the one it would be taken under.
+                self.support = match self.origin {
+                    Some(_) => self.support.saturating_add(1).min(SETTLED_POSES),
+                    None => 1,
+                };
+                self.rival = None;
                 self.pose = pose;
                 self.stats.poses += 1;
             }
@@ -243,6 +292,11 @@ impl Receiver {
             self.origin = anchor(&held, frame.exponent, self.reach)
                 .and_then(|raw| Placement::world_nm(raw, frame.exponent, &pose))
                 .filter(|w| w.iter().all(|v| v.abs() <= WORLD_LIMIT_NM));
+            // Taken under no pose frame (version 1, or pose 0), no pose can have been its
+            // glitch: it stays.
+            if !frame.posed || self.support == 0 {
+                self.support = SETTLED_POSES;
+            }
         }
         // A pose's offset past i64 nanometres leaves nothing a place: every point is refused.
         self.placement = Placement::new(
@@ -277,23 +331,60 @@ impl Receiver {
         let Some(t) = pose.translation_nm else {
             return false;
         };
-        let reach_nm = f64::from(self.reach) * 1e9;
         t.iter().all(|v| v.abs() <= WORLD_LIMIT_NM)
-            && self.origin.is_none_or(|o| {
-                t.iter()
-                    .zip(o.iter())
-                    .all(|(a, b)| ((a - b) as f64).abs() <= reach_nm)
-            })
+            && self.origin.is_none_or(|o| self.within_reach(o, t))
+    }
+
+    /// Whether a pose out of reach of `pose`'s would outvote the origin: counts `pose` into the
+    /// rival it agrees with (or starts one), and says whether the rival now has more poses than
+    /// the origin. Never once the origin has settled.
+    fn outvoted_by(&mut self, pose: &Pose) -> bool {
+        let Some(t) = pose.translation_nm else {
+            return false;
+        };
+        if self.origin.is_none() || self.settled() || t.iter().any(|v| v.abs() > WORLD_LIMIT_NM) {
+            return false;
+        }
+        let rival = match self.rival {
+            Some((at, poses)) if self.within_reach(at, t) => (at, poses + 1),
+            _ => (t, 1),
+        };
+        self.rival = Some(rival);
+        rival.1 > self.support
+    }
+
+    /// Whether `a` and `b` (nanometres) lie within the reach of each other on every axis.
+    fn within_reach(&self, a: [i64; 3], b: [i64; 3]) -> bool {
+        let reach_nm = f64::from(self.reach) * 1e9;
+        a.iter()
+            .zip(b.iter())
+            .all(|(a, b)| (a.abs_diff(*b) as f64) <= reach_nm)
+    }
+
+    /// Whether the origin is final: no pose can outvote it any more ([`SETTLED_POSES`]), so
+    /// entities frozen around it are the map's for good (a device holds them back until then).
+    pub fn settled(&self) -> bool {
+        self.origin.is_some() && self.support >= SETTLED_POSES
     }
 
     /// Feeds all of `input`, calling `points` with each points frame to map and where its
-    /// points go: the loop over [`Receiver::feed`] a caller that maps frames whole would write.
-    pub fn feed_all(&mut self, input: &[u8], mut points: impl FnMut(Frame<&[u8]>, &Placement)) {
+    /// points go, and `restart` when the map must start again ([`Received::Restart`]): the loop
+    /// over [`Receiver::feed`] a caller that maps frames whole would write.
+    pub fn feed_all(
+        &mut self,
+        input: &[u8],
+        mut points: impl FnMut(Frame<&[u8]>, &Placement),
+        mut restart: impl FnMut(),
+    ) {
         let mut window = input;
         loop {
             window = match self.feed(window) {
                 Received::Consumed => return,
                 Received::Skipped { remaining, .. } | Received::Pose { remaining, .. } => remaining,
+                Received::Restart { remaining, .. } => {
+                    restart();
+                    remaining
+                }
                 Received::Points {
                     frame,
                     placement,

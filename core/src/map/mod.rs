@@ -6,11 +6,12 @@
 //! |--------------|--------------------------------------------------------------|
 //! | 0..4         | magic `MEMA`                                                 |
 //! | 4..6         | version, u16: 1 (axis-aligned) or 2 (oriented)               |
-//! | 6..8         | flags, u16: version 1 none; version 2 bit 0 = quantized, others 0 |
+//! | 6..8         | flags, u16: version 1 none; version 2 bit 0 = quantized, bit 1 = a free-space part, others 0 |
 //! | 8..32        | origin x, y, z: f64 (the local frame's origin in the cloud's own coordinates) |
 //! | 32..36       | entity count n, u32                                          |
 //! | 36..48       | version 2 only: the quantization grid, f32 centre step, shortest semi-axis, ln step of semi-axes (zero when not quantized) |
 //! | then n records | see below                                                  |
+//! | then, if flag bit 1 | the free-space part ([`free_space_part`])             |
 //! | last 4       | CRC-32 (IEEE) of every byte before it                        |
 //!
 //! Records:
@@ -25,10 +26,15 @@
 //! A weight is `1 / r^2`, zero for a degenerated axis; kind codes are those of [`EntityKind`].
 //! [`MapFile::new_checked`] validates everything once; after it, no accessor can fail.
 
+mod encode;
+pub mod free_space_part;
 pub mod record;
 
+pub use encode::*;
+
+use crate::free_space::Geometry;
 use crate::geometry::{Entity, EntityKind};
-use crate::link::crc32::{Crc32, crc32};
+use crate::link::crc32::crc32;
 use record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN, Quantization};
 
 pub const MAGIC: [u8; 4] = *b"MEMA";
@@ -40,6 +46,7 @@ pub const HEADER_V2_LEN: usize = 48;
 pub const ENTITY_LEN: usize = AXIS_ALIGNED_LEN;
 pub const CRC_LEN: usize = 4;
 const QUANTIZED_FLAG: u16 = 1;
+const FREE_SPACE_FLAG: u16 = 2;
 
 /// How a map's entities are stored.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -158,163 +165,6 @@ impl<const K: usize> Map<K> {
     }
 }
 
-/// Size of the version-1 `.mema` encoding of `count` entities.
-pub const fn encoded_len(count: usize) -> usize {
-    Layout::AxisAligned.encoded_len(count)
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum EncodeError {
-    BufferTooSmall {
-        needed: usize,
-        got: usize,
-    },
-    TooManyEntities,
-    /// An oriented entity in the axis-aligned layout, which cannot hold its rotation.
-    Oriented {
-        index: usize,
-    },
-    /// A quantization grid that is not finite and positive.
-    InvalidGrid,
-}
-
-impl core::fmt::Display for EncodeError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match *self {
-            Self::BufferTooSmall { needed, got } => {
-                write!(f, "map needs {needed} bytes, buffer has {got}")
-            }
-            Self::TooManyEntities => write!(f, "more than 2^32 - 1 entities"),
-            Self::Oriented { index } => write!(
-                f,
-                "entity {index} is oriented; the axis-aligned (version 1) layout cannot hold it"
-            ),
-            Self::InvalidGrid => write!(f, "the quantization grid is not finite and positive"),
-        }
-    }
-}
-
-impl core::error::Error for EncodeError {}
-
-/// Writes the version-1 `.mema` encoding into `out`, returning the bytes used.
-pub fn encode(
-    origin: [f64; 3],
-    entities: &[MapEntity],
-    out: &mut [u8],
-) -> Result<usize, EncodeError> {
-    encode_into(origin, entities.iter().copied(), out)
-}
-
-/// [`encode`] from any iterator of entities (a mapper's, without copying them out first).
-pub fn encode_into<I>(origin: [f64; 3], entities: I, out: &mut [u8]) -> Result<usize, EncodeError>
-where
-    I: Iterator<Item = MapEntity> + Clone,
-{
-    encode_as(Layout::AxisAligned, origin, entities, out)
-}
-
-/// The encoding in `layout` into `out`, returning the bytes used.
-pub fn encode_as<I>(
-    layout: Layout,
-    origin: [f64; 3],
-    entities: I,
-    out: &mut [u8],
-) -> Result<usize, EncodeError>
-where
-    I: Iterator<Item = MapEntity> + Clone,
-{
-    let needed = layout.encoded_len(entities.clone().count());
-    let got = out.len();
-    let Some(mut out) = out.get_mut(..needed) else {
-        return Err(EncodeError::BufferTooSmall { needed, got });
-    };
-    encode_pieces_as(layout, origin, entities, |piece| {
-        // `out` holds exactly the pieces' total, checked above.
-        let rest = core::mem::take(&mut out);
-        let n = piece.len().min(rest.len());
-        let (head, tail) = rest.split_at_mut(n);
-        if let Some(piece) = piece.get(..n) {
-            head.copy_from_slice(piece);
-        }
-        out = tail;
-    })
-}
-
-/// Writes the version-1 `.mema` encoding piece by piece (header, each entity, CRC) into `sink`,
-/// returning the bytes written: the bytes of [`encode`], for a device that has no room for the
-/// whole map (400 entities are 10 KB) and sends it out as it goes.
-pub fn encode_pieces<I>(
-    origin: [f64; 3],
-    entities: I,
-    sink: impl FnMut(&[u8]),
-) -> Result<usize, EncodeError>
-where
-    I: Iterator<Item = MapEntity> + Clone,
-{
-    encode_pieces_as(Layout::AxisAligned, origin, entities, sink)
-}
-
-/// [`encode_pieces`] in any layout. Nothing reaches `sink` unless the whole map can be written.
-pub fn encode_pieces_as<I>(
-    layout: Layout,
-    origin: [f64; 3],
-    entities: I,
-    mut sink: impl FnMut(&[u8]),
-) -> Result<usize, EncodeError>
-where
-    I: Iterator<Item = MapEntity> + Clone,
-{
-    let len = entities.clone().count();
-    let count = u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?;
-    if layout == Layout::AxisAligned
-        && let Some(index) = entities
-            .clone()
-            .position(|e| !e.entity.rotation.is_identity())
-    {
-        return Err(EncodeError::Oriented { index });
-    }
-    let mut header = [0u8; HEADER_V2_LEN];
-    header[field::MAGIC].copy_from_slice(&MAGIC);
-    header[field::VERSION].copy_from_slice(&layout.version().to_le_bytes());
-    let (flags, grid) = match layout {
-        Layout::Quantized(grid) => {
-            if !grid.is_valid() {
-                return Err(EncodeError::InvalidGrid);
-            }
-            (
-                QUANTIZED_FLAG,
-                [grid.centre_step, grid.axis_min, grid.axis_log_step],
-            )
-        }
-        _ => (0, [0.0; 3]),
-    };
-    header[field::FLAGS].copy_from_slice(&flags.to_le_bytes());
-    for (chunk, v) in header[field::ORIGIN].chunks_exact_mut(8).zip(origin.iter()) {
-        chunk.copy_from_slice(&v.to_le_bytes());
-    }
-    header[field::COUNT].copy_from_slice(&count.to_le_bytes());
-    for (chunk, v) in header[field::GRID].chunks_exact_mut(4).zip(grid.iter()) {
-        chunk.copy_from_slice(&v.to_le_bytes());
-    }
-    let header = header.get(..layout.header_len()).unwrap_or(&[]);
-    let mut crc = Crc32::new();
-    crc.update(header);
-    sink(header);
-    let mut buffer = [0u8; ORIENTED_LEN];
-    let record = buffer.get_mut(..layout.record_len()).unwrap_or(&mut []);
-    for e in entities.take(len) {
-        match layout {
-            Layout::AxisAligned => record::write_axis_aligned(&e, record),
-            Layout::Oriented => record::write_oriented(&e, record),
-            Layout::Quantized(grid) => record::write_quantized(&grid, &e, record),
-        }
-        crc.update(record);
-        sink(record);
-    }
-    sink(&crc.finish().to_le_bytes());
-    Ok(layout.encoded_len(len))
-}
-
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DecodeError {
     /// Shorter than a header and checksum, or than the count says.
@@ -346,6 +196,8 @@ pub enum DecodeError {
         index: usize,
         code: u8,
     },
+    /// A free-space part whose images are not finite, run past it or leave bytes after them.
+    InvalidFreeSpace,
 }
 
 impl core::fmt::Display for DecodeError {
@@ -377,6 +229,7 @@ impl core::fmt::Display for DecodeError {
                 f,
                 "entity {index} has a non-finite centre, an invalid weight or a non-unit rotation"
             ),
+            Self::InvalidFreeSpace => write!(f, "the free-space part is not well formed"),
             Self::UnknownKind { index, code } => {
                 write!(f, "entity {index} has unknown kind code {code}")
             }
@@ -392,6 +245,8 @@ pub struct MapFile<'a> {
     header: &'a [u8; HEADER_LEN],
     layout: Layout,
     body: &'a [u8],
+    /// The free-space part after its length field (empty without one).
+    free_space: &'a [u8],
 }
 
 fn f64_at(bytes: &[u8; HEADER_LEN], at: usize) -> f64 {
@@ -410,11 +265,18 @@ fn f32_at(bytes: &[u8], at: usize) -> f32 {
     f32::from_le_bytes(b)
 }
 
-/// The layout a header declares, its grid checked.
-fn layout_of(bytes: &[u8], header: &[u8; HEADER_LEN]) -> Result<Layout, DecodeError> {
+/// The layout a header declares, its grid checked, and whether a free-space part follows the
+/// records.
+fn layout_of(bytes: &[u8], header: &[u8; HEADER_LEN]) -> Result<(Layout, bool), DecodeError> {
     let version = u16::from_le_bytes([header[4], header[5]]);
     let flags = u16::from_le_bytes([header[6], header[7]]);
-    match version {
+    let free_space = version == 2 && flags & FREE_SPACE_FLAG != 0;
+    let flags = if free_space {
+        flags & !FREE_SPACE_FLAG
+    } else {
+        flags
+    };
+    let layout = match version {
         1 if flags == 0 => Ok(Layout::AxisAligned),
         2 if flags == 0 => Ok(Layout::Oriented),
         2 if flags == QUANTIZED_FLAG => {
@@ -435,7 +297,8 @@ fn layout_of(bytes: &[u8], header: &[u8; HEADER_LEN]) -> Result<Layout, DecodeEr
         }
         1 | 2 => Err(DecodeError::ReservedFlags(flags)),
         v => Err(DecodeError::UnsupportedVersion(v)),
-    }
+    }?;
+    Ok((layout, free_space))
 }
 
 /// The entity of one record and its raw kind code; `None` if the record is invalid.
@@ -465,11 +328,28 @@ impl<'a> MapFile<'a> {
         if header[..4] != MAGIC {
             return Err(DecodeError::BadMagic);
         }
-        let layout = layout_of(bytes, header)?;
+        let (layout, has_free_space) = layout_of(bytes, header)?;
         let count = u32::from_le_bytes([header[32], header[33], header[34], header[35]]) as usize;
-        let needed = count
+        let records_end = count
             .checked_mul(layout.record_len())
-            .and_then(|b| b.checked_add(layout.header_len() + CRC_LEN))
+            .and_then(|b| b.checked_add(layout.header_len()))
+            .unwrap_or(usize::MAX);
+        // The part's length field, where it must be; a file too short for it is truncated.
+        let part = if has_free_space {
+            let mut field = [0u8; 4];
+            if let Some(src) = records_end
+                .checked_add(4)
+                .and_then(|end| bytes.get(records_end..end))
+            {
+                field.copy_from_slice(src);
+            }
+            4 + u32::from_le_bytes(field) as usize
+        } else {
+            0
+        };
+        let needed = records_end
+            .checked_add(part)
+            .and_then(|b| b.checked_add(CRC_LEN))
             .unwrap_or(usize::MAX);
         if got < needed {
             return Err(DecodeError::Truncated { needed, got });
@@ -480,7 +360,10 @@ impl<'a> MapFile<'a> {
                 got,
             });
         }
-        let body = bytes.get(layout.header_len()..got - CRC_LEN).unwrap_or(&[]);
+        let body = bytes.get(layout.header_len()..records_end).unwrap_or(&[]);
+        let free_space = bytes
+            .get(records_end + 4.min(part)..got - CRC_LEN)
+            .unwrap_or(&[]);
         let mut stored = [0u8; 4];
         stored.copy_from_slice(bytes.get(got - CRC_LEN..).unwrap_or(&[0; 4]));
         let stored = u32::from_le_bytes(stored);
@@ -488,10 +371,16 @@ impl<'a> MapFile<'a> {
         if stored != computed {
             return Err(DecodeError::BadCrc { stored, computed });
         }
+        if has_free_space
+            && (free_space.len() < 2 || free_space_part::images(free_space).any(|i| i.is_err()))
+        {
+            return Err(DecodeError::InvalidFreeSpace);
+        }
         let file = Self {
             header,
             layout,
             body,
+            free_space,
         };
         if !file.origin().iter().all(|v| v.is_finite()) {
             return Err(DecodeError::NonFiniteOrigin);
@@ -530,6 +419,13 @@ impl<'a> MapFile<'a> {
 
     pub fn is_empty(&self) -> bool {
         self.body.is_empty()
+    }
+
+    /// The range images of the free-space part (none without one), origins relative to the
+    /// map's origin.
+    pub fn free_space(&self) -> impl Iterator<Item = (Geometry, &'a [u8])> + Clone + 'a {
+        // Checked in new_checked: no image is an error.
+        free_space_part::images(self.free_space).filter_map(Result::ok)
     }
 
     pub fn entities(&self) -> impl Iterator<Item = MapEntity> + Clone + 'a {

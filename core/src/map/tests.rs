@@ -158,3 +158,97 @@ fn a_rotation_code_decodes_to_a_rotation_with_the_same_code() {
     }
     assert!(checked > 190_000);
 }
+
+/// A map with a free-space part: its images come back exactly, its entities as without one,
+/// and every cut and every flipped bit is refused; the axis-aligned layout cannot hold one.
+#[test]
+fn a_free_space_part_round_trips_and_rejects_every_corruption() -> TestResult {
+    let map = sample_oriented()?;
+    let geometry = |x: f32, rows: u16, columns: u16| Geometry {
+        origin: Point3::new(x, -1.0, 0.5),
+        near: 0.25,
+        elevation: [-0.4, 0.3],
+        azimuth: [-3.0, 6.0],
+        rows,
+        columns,
+    };
+    let cells_a: [u8; 6] = [0, 7, 254, 255, 31, 100];
+    let cells_b: [u8; 4] = [9, 255, 255, 1];
+    let images = [
+        (geometry(2.0, 2, 3), &cells_a[..]),
+        (geometry(-4.0, 1, 4), &cells_b[..]),
+    ];
+    let grid = Quantization::for_entities(map.entities().iter().copied());
+    for layout in [Layout::Oriented, Layout::Quantized(grid)] {
+        let mut buf = [0u8; 512];
+        let mut n = 0;
+        let written = encode_pieces_with(
+            layout,
+            map.origin,
+            map.entities().iter().copied(),
+            images.iter().copied(),
+            |piece| {
+                if let Some(out) = buf.get_mut(n..n + piece.len()) {
+                    out.copy_from_slice(piece);
+                }
+                n += piece.len();
+            },
+        )
+        .or_fail("encodes")?;
+        assert_eq!(written, n);
+        assert_eq!(n, layout.encoded_len(4) + 6 + 2 * 36 + 6 + 4);
+        let bytes = buf.get(..n).or_fail("written")?;
+        let file = MapFile::new_checked(bytes).or_fail("valid")?;
+        assert!(file.free_space().eq(images.iter().copied()));
+        assert_eq!(file.layout(), layout);
+        assert_eq!(file.entities().count(), 4);
+        for cut in 0..n {
+            assert!(MapFile::new_checked(&bytes[..cut]).is_err(), "cut at {cut}");
+        }
+        let mut bad = [0u8; 512];
+        for byte in 0..n {
+            for bit in 0..8 {
+                bad[..n].copy_from_slice(bytes);
+                bad[byte] ^= 1 << bit;
+                assert!(
+                    MapFile::new_checked(&bad[..n]).is_err(),
+                    "flip {byte}.{bit}"
+                );
+            }
+        }
+        // Without images, the file is the map's as before, and says it has none.
+        let mut plain = [0u8; 512];
+        let m = encode_as(
+            layout,
+            map.origin,
+            map.entities().iter().copied(),
+            &mut plain,
+        )
+        .or_fail("encodes")?;
+        let plain = MapFile::new_checked(plain.get(..m).or_fail("written")?).or_fail("valid")?;
+        assert_eq!(plain.free_space().count(), 0);
+    }
+    let mut sink = |_: &[u8]| {};
+    assert_eq!(
+        encode_pieces_with(
+            Layout::Oriented,
+            map.origin,
+            map.entities().iter().copied(),
+            [(geometry(0.0, 2, 2), &cells_a[..])].into_iter(),
+            &mut sink,
+        ),
+        Err(EncodeError::InvalidFreeSpace),
+        "six codes for four pixels"
+    );
+    assert_eq!(
+        encode_pieces_with(
+            Layout::AxisAligned,
+            map.origin,
+            core::iter::empty(),
+            images.iter().copied(),
+            &mut sink,
+        ),
+        Err(EncodeError::InvalidFreeSpace)
+    );
+    Ok(())
+}

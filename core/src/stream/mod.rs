@@ -210,6 +210,20 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
+    /// Empties the mapper in place, as [`StreamMapper::new`] with its parameters would make it
+    /// (a device has no room for a second mapper): what was mapped is gone, and the points that
+    /// follow map exactly as they would into a new mapper.
+    pub fn restart(&mut self) {
+        self.clusters.clear();
+        self.frozen.clear();
+        self.grid.rebuild(f32::MIN_POSITIVE, core::iter::empty());
+        self.radius = 0.0;
+        self.recent = 0;
+        self.credit = 0;
+        self.reduce_limit2 = f32::INFINITY;
+        self.stats = StreamStats::default();
+    }
+
     pub fn stats(&self) -> &StreamStats {
         &self.stats
     }

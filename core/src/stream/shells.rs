@@ -24,7 +24,18 @@ pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> 
 
 /// A quantized file's centre step that is fine whatever the shells' thickness: below any range
 /// sensor's noise.
-const QUANTIZED_STEP_ALWAYS: f32 = 1e-4;
+pub const QUANTIZED_STEP_ALWAYS: f32 = 1e-4;
+
+/// Centre steps a shell must be thick for the grid not to move it off its surface by more than
+/// an eighth of its thickness.
+pub const THIN_STEPS: f32 = 4.0;
+
+/// Whether a streamed map of `all` shells, `thin` of them thinner than [`THIN_STEPS`] centre
+/// steps of `step` (its half extent over 32,767), is written on the quantized grid: when the
+/// step is below any sensor's noise, or at most half of the shells are that thin.
+pub fn quantizes(step: f32, thin: usize, all: usize) -> bool {
+    step <= QUANTIZED_STEP_ALWAYS || 2 * thin <= all
+}
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub(super) fn is_shells(&self) -> bool {
@@ -91,10 +102,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 // Shells thinner than four steps (within a factor of 2, by whole exponents):
                 // the grid would move them off their surfaces by an eighth of their thickness.
                 let step = far / 32_767.0;
-                let limit = (4.0 * step).max(f32::MIN_POSITIVE);
+                let limit = (THIN_STEPS * step).max(f32::MIN_POSITIVE);
                 let thin_from = ((1.0 / (limit * limit)).to_bits() >> 23) & 0xff;
                 let thin: u32 = by_exponent.iter().skip(thin_from as usize).sum();
-                if step <= QUANTIZED_STEP_ALWAYS || 2 * thin as usize <= all {
+                if quantizes(step, thin as usize, all) {
                     Layout::Quantized(grid)
                 } else if turned {
                     Layout::Oriented

@@ -309,3 +309,25 @@ fn pacing_bounds_the_costly_steps_by_the_points() {
     assert!(joins > 100, "{joins}");
     assert_eq!(points, pts.len() as u64);
 }
+
+/// A mapper started again in place (a device's, when a glitched first pose is outvoted) maps
+/// what follows exactly as a new mapper does: nothing of the points before is left, frozen
+/// entities, pacing credit and counters included.
+#[test]
+fn a_mapper_started_again_is_a_new_mapper() {
+    for params in [frozen_params(6, 12), shells_params(6, 12)] {
+        let before = tilted_swept_shells();
+        let after = swept_shells();
+        let mut again = StreamMapper::<6, 64, 12>::new(params);
+        again.add_all(&before);
+        assert!(!again.frozen().is_empty());
+        again.restart();
+        again.add_all(&after);
+        again.finish();
+        let mut new = StreamMapper::<6, 64, 12>::new(params);
+        new.add_all(&after);
+        new.finish();
+        assert!(again.entities().eq(new.entities()));
+        assert_eq!(again.stats(), new.stats());
+    }
+}

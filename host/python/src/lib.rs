@@ -141,7 +141,9 @@ type ReadCloud<'py> = (
 /// cloud and options give the same map bytes as `mema map` on its file (as long as the array
 /// still holds what was read); another array is centred as a reader centres a file.
 /// `stream=True` maps as `mema map --stream` does: the streaming mapper, fed the bytes
-/// `mema scanner-sim` would send (`working=` as `--working`). The GIL is released while
+/// `mema scanner-sim` would send (`working=` as `--working`).
+/// `free_space=True` keeps each scan's range image as `--free-space` does, within `bytes`, for
+/// `Map.state` to tell free from unknown. The GIL is released while
 /// mapping.
 #[pyfunction(name = "map")]
 #[pyo3(signature = (
@@ -150,7 +152,8 @@ type ReadCloud<'py> = (
     tolerance = None, capacity = 16384, voronoi_rounds = 0, entity = "ellipsoid",
     alpha = 0.8, threshold = 4.0, sphere_tolerance = 0.01, bounds = "spread",
     out_of_bounds = "clamp", volume = "exact", init = "seeded", generations = 50,
-    max_iterations = 100, crop = None, voxel = None, stream = false, working = None
+    max_iterations = 100, crop = None, voxel = None, stream = false, working = None,
+    free_space = false
 ))]
 // One keyword an option, as Python callers expect (and as `mema map` has them).
 #[allow(clippy::too_many_arguments)]
@@ -182,6 +185,7 @@ fn map_points<'py>(
     voxel: Option<f64>,
     stream: bool,
     working: Option<i64>,
+    free_space: bool,
 ) -> PyResult<Map> {
     let k = k.map(|k| count::<usize>("k", k)).transpose()?;
     let bytes = bytes.map(|b| count::<usize>("bytes", b)).transpose()?;
@@ -219,6 +223,7 @@ fn map_points<'py>(
                 ..Default::default()
             },
             surface_rounds: count("surface_rounds", surface_rounds)?,
+            free_space,
         },
         fit: FitOptions {
             alpha,

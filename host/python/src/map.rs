@@ -5,6 +5,7 @@ use anyhow::Context;
 use mema::analysis::eval::EvalDocument;
 use mema::io::HostMap;
 use mema::io::mapfile::{KindCounts, MapFormat};
+use mema::query::states::{State, state_of};
 use mema::query::{HostIndex, build_index, local, transform_map, world};
 use mema_core::transform::RigidTransform;
 use numpy::PyArrayMethods;
@@ -360,6 +361,38 @@ impl Map {
             ));
         }
         Ok((array1(py, distance), array1(py, entity)))
+    }
+
+    /// What the map says of each point: `"free"` (a scan the map keeps saw through it),
+    /// `"occupied"` (within `tolerance` metres of an entity's surface, or inside one) or
+    /// `"unknown"`, as `mema query --points` says it; a `(N,)` array of str, or one str for one
+    /// `(3,)` point. A map made without `free_space=True` calls nothing free.
+    #[pyo3(signature = (points, tolerance = 0.1))]
+    fn state<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        tolerance: f64,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if !(tolerance.is_finite() && tolerance >= 0.0) {
+            return Err(bad_value("tolerance", format!("{tolerance} must be >= 0")));
+        }
+        let rows = finite_rows(points, "points", true)?;
+        let index = self.index().into_py()?;
+        let found: Vec<&'static str> = py.detach(|| {
+            rows.rows
+                .par_iter()
+                .map(|&p| match state_of(&self.map, index, p, tolerance).state {
+                    State::Free => "free",
+                    State::Occupied => "occupied",
+                    State::Unknown => "unknown",
+                })
+                .collect()
+        });
+        if rows.single {
+            return Ok(found[0].into_pyobject(py)?.into_any());
+        }
+        py.import("numpy")?.call_method1("asarray", (found,))
     }
 
     /// The entity holding each point (int64, `(N,)`, or a scalar for one `(3,)` point), -1

@@ -74,5 +74,7 @@ fn merge_maps(maps: &[&HostMap], origin: Option<[f64; 3]>) -> PyResult<HostMap> 
         origin,
         entities: entities.into_iter().map(|e| grid.quantize(e)).collect(),
         quantization: Some(grid),
+        // Tiles' free space is not merged yet (issue 29): the merged map records none.
+        free_space: Vec::new(),
     })
 }

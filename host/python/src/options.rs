@@ -207,7 +207,19 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
     let mut config = options.fit.config(k)?;
     let voxel = options.voxel.map(check_voxel).transpose()?;
     let (cloud, unit) = input.cloud().map_err(anyhow::Error::msg)?;
-    let (cloud, counts) = filter::apply(cloud, options.crop, voxel).context("points")?;
+    let (cloud, mut counts) = filter::apply(cloud, options.crop, voxel).context("points")?;
+    // What other scans saw through is not surface, as on the command line.
+    let cloud = if options.shells.free_space && model == mema::mapping::Model::Shells {
+        let (carved, dropped) = mema::mapping::carve::carve(cloud);
+        counts.carved = Some(dropped);
+        carved
+    } else {
+        cloud
+    };
+    // The budget holds the scans' free space too, as on the command line.
+    if let (Size::Bytes(bytes), true) = (size, options.shells.free_space) {
+        config.k = model.entities_beside_free_space(bytes, cloud.sensors.origins.len())?;
+    }
     let mut warnings = Vec::new();
     // A budget is an upper bound, as on the command line: past a quarter of the points,
     // clusters of one to three points have no shape to fit.

@@ -180,3 +180,32 @@ def test_a_translation_and_quarter_turns_are_exact_on_the_papers_maps(bunny):
     assert np.all(moved.entities.quaternions[:, 3] == 1.0)  # still axis-aligned
     back = moved.transform(turn.T, -turn.T @ np.array([5.0, -3.0, 2.0]))
     assert np.array_equal(back.entities.weights, paper.entities.weights)
+
+
+def test_state_is_the_clis_and_free_needs_free_space(cli, tmp_path):
+    """Map.state of points along one lidar sweep's rays and behind their ends equals
+    `mema query --points` on the same map; points before the ends are mostly free and those
+    behind mostly not; a map made without free_space calls nothing free."""
+    sweep = mema.read_cloud(cloud("ouster_os1_0.pcd"))
+    origins, ends = sweep.sensors
+    assert len(origins) == 1
+    m = mema.map(sweep, bytes=4000, free_space=True)
+    assert m.report["free_space"]["images"] == 1
+    rows = np.asarray(sweep)[::200]
+    o = np.asarray(origins)[0]
+    before, behind = o + 0.5 * (rows - o), rows + 2.0 * (rows - o) / np.linalg.norm(
+        rows - o, axis=1
+    )[:, None]
+    points = np.vstack([before, behind])
+    states = m.state(points)
+    m.save(tmp_path / "sweep.mema")
+    np.savetxt(tmp_path / "points.csv", points, delimiter=",", header="x,y,z", comments="")
+    answers = cli.run("query", tmp_path / "sweep.mema", "--points", tmp_path / "points.csv").splitlines()
+    assert answers[0] == "x,y,z,state,signed_distance,entity"
+    assert [a.split(",")[3] for a in answers[1:]] == states.tolist()
+    n = len(before)
+    assert np.mean(states[:n] == "free") > 0.8
+    assert np.mean(states[n:] == "free") < 0.1
+    assert m.state(before[0]) == states[0]
+    plain = mema.map(sweep, bytes=4000)
+    assert not np.any(plain.state(points) == "free")

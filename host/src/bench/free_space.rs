@@ -138,24 +138,41 @@ pub fn free_space(args: &BenchOptions) -> Result<()> {
     );
     println!("|---|---|---|---|---|---|---|---|---|");
     for budget in BUDGETS {
-        let k = Model::Shells
-            .entities_in(budget)?
-            .min(most_entities(mapped.points.len()));
-        let config = FitOptions::default().config(k)?;
-        let t = Instant::now();
-        let built = build_map(
-            &mapped,
-            &config,
-            Model::Shells,
-            ShellModel::default(),
-            EntityChoice::Ellipsoid,
-        )?;
-        let mema_rate = mapped.points.len() as f64 / t.elapsed().as_secs_f64();
-        let path = dir.join("map.mema");
-        built.map.write(&path)?;
-        let bytes = std::fs::metadata(&path)?.len();
-        let s = MapRays::new(&built.map, DEFAULT_TOLERANCE)?.score(&rays);
-        row(&format!("mema, k = {k}"), bytes, &s, mema_rate);
+        // The map without free space, and with it (its scans' range images within the same
+        // bytes; two scans, so nothing is carved).
+        for free_space in [false, true] {
+            let scans = if free_space {
+                mapped.sensors.origins.len()
+            } else {
+                0
+            };
+            let k = Model::Shells
+                .entities_beside_free_space(budget, scans)?
+                .min(most_entities(mapped.points.len()));
+            let config = FitOptions::default().config(k)?;
+            let shells = ShellModel {
+                free_space,
+                ..ShellModel::default()
+            };
+            let t = Instant::now();
+            let built = build_map(
+                &mapped,
+                &config,
+                Model::Shells,
+                shells,
+                EntityChoice::Ellipsoid,
+            )?;
+            let mema_rate = mapped.points.len() as f64 / t.elapsed().as_secs_f64();
+            let path = dir.join("map.mema");
+            built.map.write(&path)?;
+            let bytes = std::fs::metadata(&path)?.len();
+            let s = MapRays::new(&built.map, DEFAULT_TOLERANCE)?.score(&rays);
+            let name = match built.report.free_space {
+                Some(f) => format!("mema --free-space, k = {k} and {} B of free space", f.bytes),
+                None => format!("mema, k = {k}"),
+            };
+            row(&name, bytes, &s, mema_rate);
+        }
         let run = octomap(python, &script, &dir, budget)?;
         if run.hits.len() != rays.len() || run.states.len() != sample_points.len() {
             bail!(

@@ -143,6 +143,14 @@ fn config_message(e: &ConfigError) -> String {
         ConfigError::BudgetTooSmall { bytes, per } => {
             format!("--bytes {bytes} holds no entity; one takes {per} bytes in this model")
         }
+        ConfigError::BudgetTakenByFreeSpace {
+            bytes,
+            scans,
+            free,
+            per,
+        } => format!(
+            "--bytes {bytes} holds no entity beside the free space of the input's {scans} scans ({free} bytes); one takes {per} more"
+        ),
         ConfigError::Tolerance(t) => {
             format!("--tolerance {t} must be a positive length in metres")
         }

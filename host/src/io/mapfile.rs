@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result, bail};
 use mema_core::map::record::Quantization;
-use mema_core::map::{Layout, MapFile, encode_as};
+use mema_core::map::{Layout, MapFile, encode_pieces_with};
+
+use crate::io::free_space::{self, FreeImage};
 use mema_core::{Entity, EntityKind, MapEntity, Point3, Rotation};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -45,6 +47,9 @@ pub struct HostMap {
     /// The grid of a quantized map: its `.mema` file is written on it (14 bytes an entity).
     /// `None` writes f32 records, version 1 when every entity is axis-aligned.
     pub quantization: Option<Quantization>,
+    /// The range images of the scans the map was made from (empty: no free space recorded),
+    /// in the map file's free-space part.
+    pub free_space: Vec<FreeImage>,
 }
 
 /// The map file formats, chosen by a path's extension.
@@ -148,6 +153,7 @@ impl HostMap {
             origin,
             entities,
             quantization: None,
+            free_space: Vec::new(),
         }
     }
 
@@ -155,10 +161,12 @@ impl HostMap {
     pub fn layout(&self) -> Layout {
         match self.quantization {
             Some(grid) => Layout::Quantized(grid),
-            None if self
-                .entities
-                .iter()
-                .all(|e| e.entity.rotation.is_identity()) =>
+            // Version 1 has no free-space part.
+            None if self.free_space.is_empty()
+                && self
+                    .entities
+                    .iter()
+                    .all(|e| e.entity.rotation.is_identity()) =>
             {
                 Layout::AxisAligned
             }
@@ -169,9 +177,19 @@ impl HostMap {
     /// The `.mema` bytes of the map, in its [`layout`](Self::layout).
     pub fn to_mema(&self) -> Result<Vec<u8>> {
         let layout = self.layout();
-        let mut out = vec![0u8; layout.encoded_len(self.entities.len())];
-        encode_as(layout, self.origin, self.entities.iter().copied(), &mut out)
-            .map_err(anyhow::Error::from)?;
+        let mut out = Vec::with_capacity(
+            layout.encoded_len(self.entities.len()) + free_space::part_bytes(&self.free_space),
+        );
+        encode_pieces_with(
+            layout,
+            self.origin,
+            self.entities.iter().copied(),
+            self.free_space
+                .iter()
+                .map(|i| (i.geometry, i.cells.as_slice())),
+            |piece| out.extend_from_slice(piece),
+        )
+        .map_err(anyhow::Error::from)?;
         Ok(out)
     }
 
@@ -263,6 +281,13 @@ impl HostMap {
                 Layout::Quantized(grid) => Some(grid),
                 _ => None,
             },
+            free_space: file
+                .free_space()
+                .map(|(geometry, cells)| FreeImage {
+                    geometry,
+                    cells: cells.to_vec(),
+                })
+                .collect(),
         })
     }
 

@@ -7,6 +7,7 @@ pub mod bag;
 pub mod cloud;
 pub mod conf;
 pub mod drive;
+pub mod free_space;
 pub mod input;
 pub mod kind;
 pub mod mapfile;

@@ -55,12 +55,20 @@ pub enum SessionEvent<'a> {
 /// and of the device takes them (wrapping at 2^32, as the device's end frame counts).
 pub fn stream_counts(stream: &[u8]) -> (u32, u32) {
     let mut receiver = Receiver::reaching(DEFAULT_REACH);
-    let (mut points, mut frames) = (0u32, 0u32);
-    receiver.feed_all(stream, |frame, placement| {
-        frames = frames.wrapping_add(1);
-        points = points.wrapping_add(placement.points(&frame).count() as u32);
-    });
-    (points, frames)
+    // Both closures count into one place: a restart starts the counts again, as the device's.
+    let counts = std::cell::Cell::new((0u32, 0u32));
+    receiver.feed_all(
+        stream,
+        |frame, placement| {
+            let (points, frames) = counts.get();
+            counts.set((
+                points.wrapping_add(placement.points(&frame).count() as u32),
+                frames.wrapping_add(1),
+            ));
+        },
+        || counts.set((0, 0)),
+    );
+    counts.get()
 }
 
 /// A session identifier no earlier session of this host is likely to have had: never 0.

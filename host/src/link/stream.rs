@@ -162,6 +162,8 @@ pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
             mema_core::map::Layout::Quantized(grid) => Some(grid),
             _ => None,
         },
+        // The link's free space is not kept yet (issue 29): streamed maps record none.
+        free_space: Vec::new(),
     }
 }
 
@@ -244,12 +246,17 @@ impl Link {
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
-        let mapper = &mut self.mapper;
-        self.receiver.feed_all(chunk, |frame, placement| {
-            for p in placement.points(&frame) {
-                mapper.add(p);
-            }
-        });
+        let mapper = std::cell::RefCell::new(&mut self.mapper);
+        self.receiver.feed_all(
+            chunk,
+            |frame, placement| {
+                let mut mapper = mapper.borrow_mut();
+                for p in placement.points(&frame) {
+                    mapper.add(p);
+                }
+            },
+            || mapper.borrow_mut().restart(),
+        );
     }
 
     /// Whether the end-of-stream frame has arrived.

@@ -92,6 +92,9 @@ pub struct FilterCounts {
     pub read: usize,
     pub cropped: Option<usize>,
     pub voxelized: Option<usize>,
+    /// Points carving left out: seen through by other scans (`--free-space`,
+    /// [`crate::mapping::carve`]).
+    pub carved: Option<usize>,
 }
 
 /// Applies the crop, then the voxel grid; fails if nothing is left or the voxel is too small

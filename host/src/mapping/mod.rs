@@ -3,6 +3,7 @@
 //!
 //! Built on [`crate::io`] only; [`crate::batch`] puts these steps together the way `mema map`
 //! runs them.
+pub mod carve;
 pub mod filter;
 pub mod options;
 pub mod pipeline;

@@ -59,6 +59,40 @@ impl Model {
         }
         Ok(bytes / per)
     }
+
+    /// Entities a map file of `bytes` holds beside the free space of `scans` scans with sensor
+    /// origins (the shells' maps keep each scan's range image, [`crate::io::free_space`]; the
+    /// paper's keep none), its header and checksum aside.
+    ///
+    /// ```
+    /// use mema::mapping::Model;
+    ///
+    /// // Two scans' images take 2 x (36 + 8 x 64) + 6 bytes.
+    /// assert_eq!(Model::Shells.entities_beside_free_space(9_600, 2), Ok(607));
+    /// assert_eq!(Model::Paper.entities_beside_free_space(2_400, 2), Ok(96));
+    /// assert!(Model::Shells.entities_beside_free_space(1_000, 2).is_err());
+    /// ```
+    pub fn entities_beside_free_space(
+        self,
+        bytes: usize,
+        scans: usize,
+    ) -> Result<usize, ConfigError> {
+        let free = match self {
+            Self::Shells => crate::io::free_space::part_bytes_for(scans),
+            Self::Paper => 0,
+        };
+        let per = self.bytes_per_entity();
+        match bytes.checked_sub(free) {
+            Some(left) if left >= per => Ok(left / per),
+            _ if free == 0 => Err(ConfigError::BudgetTooSmall { bytes, per }),
+            _ => Err(ConfigError::BudgetTakenByFreeSpace {
+                bytes,
+                scans,
+                free,
+                per,
+            }),
+        }
+    }
 }
 
 /// Most entities worth fitting to `points` points (at least one): past that, clusters of one to
@@ -184,6 +218,10 @@ pub struct ShellModel {
     /// Rounds of surface following after k-means (`mapping::surface_clusters`); 0 keeps the
     /// k-means cells.
     pub surface_rounds: usize,
+    /// Keep the free space the input's scans saw through ([`crate::io::free_space`]): each
+    /// scan's range image, within the byte budget. Off by default while its cost to the
+    /// surface at equal bytes is weighed (issue 29).
+    pub free_space: bool,
 }
 
 impl Default for ShellModel {
@@ -191,6 +229,7 @@ impl Default for ShellModel {
         Self {
             shell: ShellParams::default(),
             surface_rounds: DEFAULT_ROUNDS,
+            free_space: false,
         }
     }
 }

@@ -325,6 +325,7 @@ pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap 
             })
             .collect(),
         quantization: None,
+        free_space: Vec::new(),
     }
 }
 

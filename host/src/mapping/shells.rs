@@ -82,5 +82,6 @@ pub fn shell_map(
         origin,
         entities: entities.into_iter().map(|e| grid.quantize(e)).collect(),
         quantization: Some(grid),
+        free_space: Vec::new(),
     }
 }

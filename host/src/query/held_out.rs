@@ -120,25 +120,7 @@ pub fn samples(rays: &[Ray], tolerance: f64) -> Vec<Sample> {
     out
 }
 
-/// What a map says of a point.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum State {
-    Free,
-    Occupied,
-    Unknown,
-}
-
-impl State {
-    /// The occupancy probability the score gives it: unknown counts as 0.5.
-    pub fn occupancy(self) -> f64 {
-        match self {
-            State::Free => 0.0,
-            State::Occupied => 1.0,
-            State::Unknown => 0.5,
-        }
-    }
-}
+pub use crate::query::states::State;
 
 /// Where a ray's first hit fell against its measured range.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -269,8 +251,7 @@ fn occupancy_score(samples: &[Sample], states: &[State]) -> OccupancyScore {
 }
 
 /// A map as the rays see it: its first surface along a ray through the core's index, and the
-/// state of a point. Until maps keep free space, a point within the tolerance of surface is
-/// occupied and any other unknown.
+/// state of a point ([`crate::query::states`]).
 pub struct MapRays<'m> {
     map: &'m HostMap,
     index: Box<HostIndex>,
@@ -297,10 +278,7 @@ impl<'m> MapRays<'m> {
 
     /// What the map says of `p`.
     pub fn state(&self, p: [f64; 3]) -> State {
-        match self.index.nearest(local(self.map, p)) {
-            Some(n) if n.signed_distance.abs() <= self.tolerance => State::Occupied,
-            _ => State::Unknown,
-        }
+        crate::query::states::state_of(self.map, &self.index, p, self.tolerance).state
     }
 
     /// Scores `rays` against the map.

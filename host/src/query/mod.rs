@@ -26,6 +26,7 @@
 
 pub mod held_out;
 pub mod recast;
+pub mod states;
 
 use anyhow::{Context, Result};
 use mema_core::query::MapIndex;

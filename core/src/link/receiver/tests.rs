@@ -33,15 +33,19 @@ fn receive(r: &mut Receiver, input: &[u8], chunk: usize) -> ([f64; 3], usize, us
     let mut sum = [0.0f64; 3];
     let (mut points, mut frames) = (0, 0);
     for piece in input.chunks(chunk.max(1)) {
-        r.feed_all(piece, |frame, placement| {
-            frames += 1;
-            for p in placement.points(&frame) {
-                for (s, v) in sum.iter_mut().zip(p.to_array()) {
-                    *s += v as f64;
+        r.feed_all(
+            piece,
+            |frame, placement| {
+                frames += 1;
+                for p in placement.points(&frame) {
+                    for (s, v) in sum.iter_mut().zip(p.to_array()) {
+                        *s += v as f64;
+                    }
+                    points += 1;
                 }
-                points += 1;
-            }
-        });
+            },
+            || panic!("no pose here can give up the origin"),
+        );
     }
     (sum, points, frames)
 }
@@ -164,14 +168,18 @@ fn points_frame<'a>(sequence: u32, pose: u32, points: &'a [[i32; 3]]) -> FrameRe
 fn mapped(r: &mut Receiver, input: &[u8]) -> ([[f32; 3]; 16], usize) {
     let mut out = [[0.0f32; 3]; 16];
     let mut n = 0;
-    r.feed_all(input, |frame, placement| {
-        for p in placement.points(&frame) {
-            if let Some(slot) = out.get_mut(n) {
-                *slot = p.to_array();
-                n += 1;
+    r.feed_all(
+        input,
+        |frame, placement| {
+            for p in placement.points(&frame) {
+                if let Some(slot) = out.get_mut(n) {
+                    *slot = p.to_array();
+                    n += 1;
+                }
             }
-        }
-    });
+        },
+        || panic!("no pose here gives up the origin"),
+    );
     (out, n)
 }
 

@@ -77,6 +77,11 @@ pub struct MapArgs {
     /// in a thousand moves); 0 keeps the k-means cells.
     #[arg(long, value_name = "N", default_value_t = mema::mapping::surface_clusters::DEFAULT_ROUNDS)]
     pub surface_rounds: usize,
+    /// Shells: keep the free space the input's scans saw through (inputs that say where their
+    /// sensor was: a .conf, a bag, a PCD's VIEWPOINT, an organized frame): each scan's 8 x 64
+    /// range image, within --bytes, so `mema query` tells free from unknown (docs/queries.md).
+    #[arg(long)]
+    pub free_space: bool,
     /// The paper's method exactly: axis-aligned entities fitted by Differential Evolution (DE)
     /// on eq. 12, the paper's measure of how badly an ellipsoid fits its points (F 1.2, CR
     /// 0.7, 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as

@@ -18,6 +18,14 @@ pub struct QueryArgs {
     /// ox,oy,oz,dx,dy,dz: origin (metres) and direction (any length).
     #[arg(long, allow_hyphen_values = true)]
     pub ray: Option<String>,
+    /// A cloud file (any format `mema map` reads, or x,y,z CSV) of points to ask, in the map's
+    /// world coordinates: one answer a point, its state (free, occupied, unknown) and signed
+    /// distance, as CSV lines (or JSON lines with --json).
+    #[arg(long, value_name = "FILE")]
+    pub points: Option<PathBuf>,
+    /// How near a surface (metres) a point is occupied.
+    #[arg(long, value_name = "METRES", default_value_t = 0.1)]
+    pub tolerance: f64,
     /// How far a ray looks (metres).
     #[arg(long, default_value_t = 1e6)]
     pub max_range: f64,

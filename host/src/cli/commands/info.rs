@@ -30,6 +30,13 @@ struct InfoReport {
     record_bytes: usize,
     /// Entities with a rotation other than the identity.
     oriented: usize,
+    /// Why the entities are not on the quantized grid, where the streamed maps' rule says so
+    /// (null otherwise).
+    not_quantized: Option<String>,
+    /// Scans whose range image the map keeps as its free space (0: none recorded), and the
+    /// bytes of that part of the file.
+    free_space_images: usize,
+    free_space_bytes: usize,
 }
 
 fn layout_name(layout: &Layout) -> &'static str {
@@ -38,6 +45,44 @@ fn layout_name(layout: &Layout) -> &'static str {
         Layout::Oriented => "version 2, oriented f32",
         Layout::Quantized(_) => "version 2, oriented, quantized",
     }
+}
+
+/// Why `map`'s shells are written in f32, if the rule a streamed map's layout follows
+/// ([`mema_core::stream::shells::quantizes`]) says so: most of them thinner than four steps of
+/// the grid their extent would take.
+fn not_quantized(map: &HostMap) -> Option<String> {
+    use mema_core::stream::shells::{THIN_STEPS, quantizes};
+    if map.quantization.is_some() || map.entities.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for e in &map.entities {
+        for (j, v) in e.entity.center.to_array().into_iter().enumerate() {
+            lo[j] = lo[j].min(v);
+            hi[j] = hi[j].max(v);
+        }
+    }
+    let far = (0..3).map(|j| (hi[j] - lo[j]) / 2.0).fold(0.0f32, f32::max);
+    let step = far / 32_767.0;
+    let thin = map
+        .entities
+        .iter()
+        .filter(|e| {
+            let shortest = e
+                .entity
+                .semi_axes()
+                .into_iter()
+                .fold(f32::INFINITY, f32::min);
+            shortest < THIN_STEPS * step
+        })
+        .count();
+    (!quantizes(step, thin, map.entities.len())).then(|| {
+        format!(
+            "{thin} of {} shells are thinner than {THIN_STEPS} steps of the grid this map's extent takes ({:.3e} m a step): on it they would move off their surfaces, so they are kept in f32",
+            map.entities.len(),
+            step
+        )
+    })
 }
 
 pub fn info(args: &InfoArgs) -> Result<()> {
@@ -75,6 +120,9 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             .filter(|e| !e.entity.rotation.is_identity())
             .count(),
         record_bytes: map.layout().record_len(),
+        not_quantized: not_quantized(&map),
+        free_space_images: map.free_space.len(),
+        free_space_bytes: mema::io::free_space::part_bytes(&map.free_space),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&r)?);
@@ -98,10 +146,21 @@ pub fn info(args: &InfoArgs) -> Result<()> {
             "layout: {} ({} bytes an entity), {} of {} entities oriented",
             r.layout, r.record_bytes, r.oriented, r.entities
         );
+        if let Some(why) = &r.not_quantized {
+            println!("not quantized: {why}");
+        }
         println!(
             "bytes: {} in the file; map bytes (Table 2, {} per entity) {}; {} at the paper's 24 per entity",
             r.file_bytes, r.record_bytes, r.map_bytes, r.paper_bytes
         );
+        if r.free_space_images == 0 {
+            println!("free space: none recorded");
+        } else {
+            println!(
+                "free space: range images of {} scans, {} bytes",
+                r.free_space_images, r.free_space_bytes
+            );
+        }
     }
     Ok(())
 }

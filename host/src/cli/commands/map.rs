@@ -27,6 +27,7 @@ fn shell_model(args: &MapArgs) -> Result<ShellModel> {
             ..Default::default()
         },
         surface_rounds: args.surface_rounds,
+        free_space: args.free_space,
     };
     model.check()?;
     Ok(model)
@@ -62,8 +63,20 @@ pub fn map(args: &MapArgs) -> Result<()> {
         check_output_file(labels, "labels")?;
     }
     let (cloud, units) = read_input(&args.input, &args.units, &args.bag, args.outliers)?;
-    let (cloud, counts) =
+    let (cloud, mut counts) =
         filter::apply(cloud, args.crop, voxel).with_context(|| input_name(&args.input))?;
+    // A map that keeps free space agrees with it: what other scans saw through is not surface.
+    let cloud = if shells.free_space && model == Model::Shells {
+        let (carved, dropped) = mema::mapping::carve::carve(cloud);
+        counts.carved = Some(dropped);
+        carved
+    } else {
+        cloud
+    };
+    // The budget holds the scans' free space too: its entities are what is left.
+    if let (Some(bytes), true) = (args.bytes, shells.free_space) {
+        config.k = model.entities_beside_free_space(bytes, cloud.sensors.origins.len())?;
+    }
     // A budget is an upper bound: past a quarter of the points, clusters of one to three points
     // have no shape to fit, so a small cloud gets fewer entities than the bytes could hold.
     let most = most_entities(cloud.points.len());
@@ -282,6 +295,16 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
         )
     );
     println!("{}", rays_line(r.rays));
+    if let Some(f) = r.free_space {
+        println!(
+            "free space: range images of {} scan{} ({} x {} pixels each), {} bytes of the map",
+            f.images,
+            if f.images == 1 { "" } else { "s" },
+            mema::io::free_space::ROWS,
+            mema::io::free_space::COLUMNS,
+            f.bytes
+        );
+    }
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
@@ -361,6 +384,12 @@ fn points_line(
     }
     if let Some(n) = counts.voxelized {
         line.push_str(&format!("{after}{n} after --voxel"));
+        after = ", ";
+    }
+    if let Some(n) = counts.carved {
+        line.push_str(&format!(
+            "{after}{n} left out as seen through by two other scans (--free-space)"
+        ));
     }
     line
 }

@@ -3,14 +3,19 @@
 use anyhow::{Context, Result, bail};
 use mema::bench::query::run_bench;
 use mema::io::cloud::LocalCloud;
+use mema::io::cloud::load_cloud;
 use mema::io::mapfile::HostMap;
 use mema::io::output::check_map_output;
 use mema::io::scene::{ScanConfig, Scene, scan};
 use mema::mapping::{FitOptions, pipeline};
-use mema::query::{build_index, local, rotation_degrees, transform_map, world};
+use mema::query::states::{State, StateAnswer, state_of};
+use mema::query::{HostIndex, build_index, local, rotation_degrees, transform_map, world};
 use mema_core::query::{Nearest, RayHit};
 use mema_core::transform::RigidTransform;
+use rayon::prelude::*;
 use serde::Serialize;
+use std::io::Write;
+use std::path::Path;
 
 use crate::cli::args::{QueryArgs, QueryBenchArgs, TransformArgs};
 use crate::cli::errors::UsageError;
@@ -40,6 +45,7 @@ pub fn parse_numbers<const N: usize>(text: &str, what: &str) -> Result<[f64; N],
 #[derive(Serialize)]
 struct PointAnswer {
     point: [f64; 3],
+    state: State,
     signed_distance: Option<f64>,
     nearest_entity: Option<usize>,
     nearest_kind: Option<&'static str>,
@@ -58,14 +64,24 @@ struct RayAnswer {
 }
 
 pub fn query(args: &QueryArgs) -> Result<()> {
-    if args.point.is_none() && args.ray.is_none() {
+    if args.point.is_none() && args.ray.is_none() && args.points.is_none() {
         return Err(UsageError(
-            "nothing to ask: give --point x,y,z or --ray ox,oy,oz,dx,dy,dz".into(),
+            "nothing to ask: give --point x,y,z, --points FILE or --ray ox,oy,oz,dx,dy,dz".into(),
         )
+        .into());
+    }
+    if !(args.tolerance.is_finite() && args.tolerance >= 0.0) {
+        return Err(UsageError(format!(
+            "--tolerance {} must be a length of 0 metres or more",
+            args.tolerance
+        ))
         .into());
     }
     let map = HostMap::read(&args.map)?;
     let index = build_index(&map).with_context(|| args.map.display().to_string())?;
+    if let Some(path) = &args.points {
+        points(args, &map, &index, path)?;
+    }
     let kind = |i: usize| map.entities.get(i).map(|e| e.kind.name());
     if let Some(text) = &args.point {
         let p = parse_numbers::<3>(text, "--point")?;
@@ -73,6 +89,7 @@ pub fn query(args: &QueryArgs) -> Result<()> {
         let nearest = index.nearest(q);
         let answer = PointAnswer {
             point: p,
+            state: state_of(&map, &index, p, args.tolerance).state,
             signed_distance: nearest.map(|n| n.signed_distance),
             nearest_entity: nearest.map(|n| n.entity),
             nearest_kind: nearest.and_then(|n| kind(n.entity)),
@@ -86,8 +103,9 @@ pub fn query(args: &QueryArgs) -> Result<()> {
                     signed_distance,
                     entity,
                 }) => println!(
-                    "point {:?}: {} the map; nearest surface {:.6} m away, entity {entity} ({})",
+                    "point {:?}: {}, {} the map; nearest surface {:.6} m away, entity {entity} ({})",
                     p,
+                    state_name(answer.state),
                     if signed_distance < 0.0 {
                         "inside"
                     } else {
@@ -96,7 +114,10 @@ pub fn query(args: &QueryArgs) -> Result<()> {
                     signed_distance.abs(),
                     kind(entity).unwrap_or("?")
                 ),
-                None => println!("point {p:?}: the map is empty"),
+                None => println!(
+                    "point {p:?}: {}, the map is empty",
+                    state_name(answer.state)
+                ),
             }
         }
     }
@@ -129,6 +150,81 @@ pub fn query(args: &QueryArgs) -> Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+fn state_name(state: State) -> &'static str {
+    match state {
+        State::Free => "free",
+        State::Occupied => "occupied",
+        State::Unknown => "unknown",
+    }
+}
+
+/// `--points FILE`: every point's state and signed distance, one line each (CSV, or JSON
+/// lines), and a count of each state on stderr.
+fn points(args: &QueryArgs, map: &HostMap, index: &HostIndex, path: &Path) -> Result<()> {
+    let cloud = load_cloud(path).with_context(|| path.display().to_string())?;
+    let world: Vec<[f64; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| {
+            let p = p.to_f64();
+            [0, 1, 2].map(|j| cloud.origin[j] + p[j])
+        })
+        .collect();
+    let answers: Vec<StateAnswer> = world
+        .par_iter()
+        .map(|p| state_of(map, index, *p, args.tolerance))
+        .collect();
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    if !args.json {
+        writeln!(out, "x,y,z,state,signed_distance,entity")?;
+    }
+    let mut counts = [0usize; 3];
+    for (p, a) in world.iter().zip(&answers) {
+        counts[a.state as usize] += 1;
+        if args.json {
+            #[derive(Serialize)]
+            struct Line<'a> {
+                point: [f64; 3],
+                #[serde(flatten)]
+                answer: &'a StateAnswer,
+            }
+            serde_json::to_writer(
+                &mut out,
+                &Line {
+                    point: *p,
+                    answer: a,
+                },
+            )?;
+            writeln!(out)?;
+        } else {
+            let entity = a.entity.map(|e| e.to_string()).unwrap_or_default();
+            writeln!(
+                out,
+                "{},{},{},{},{},{entity}",
+                p[0],
+                p[1],
+                p[2],
+                state_name(a.state),
+                a.signed_distance
+            )?;
+        }
+    }
+    out.flush()?;
+    eprintln!(
+        "mema: {} points: {} free, {} occupied, {} unknown{}",
+        answers.len(),
+        counts[State::Free as usize],
+        counts[State::Occupied as usize],
+        counts[State::Unknown as usize],
+        if map.free_space.is_empty() {
+            " (the map records no free space: map with --free-space to tell free from unknown)"
+        } else {
+            ""
+        }
+    );
     Ok(())
 }
 

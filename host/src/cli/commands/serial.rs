@@ -138,6 +138,9 @@ pub struct StreamSummary {
     pub points_out_of_reach: u64,
     /// Pose frames refused: their pose out of reach.
     pub poses_out_of_reach: u64,
+    /// Times the map started again because later poses outvoted the first (a glitch as the
+    /// first pose): what was mapped before is not in the map.
+    pub origin_restarts: u64,
     /// The receiver's origin (metres in the world): the first point it mapped, exactly. (A
     /// quantized map file's origin is the centre of its entities, around this.)
     pub origin: [f64; 3],
@@ -210,6 +213,7 @@ fn summary(
         frames_without_pose: link.receiver_stats().no_pose,
         points_out_of_reach: link.receiver_stats().points_out_of_reach,
         poses_out_of_reach: link.receiver_stats().poses_out_of_reach,
+        origin_restarts: link.receiver_stats().restarts,
         origin: link.receiver.origin(),
         bytes: s.bytes,
         ellipsoids,
@@ -262,6 +266,13 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(
             ", {} pose{plural} out of reach (refused)",
             s.poses_out_of_reach
+        ));
+    }
+    if s.origin_restarts > 0 {
+        extra.push_str(&format!(
+            ", started again {} time{} (the first poses were outvoted by later ones far from them; what they placed is not mapped)",
+            s.origin_restarts,
+            if s.origin_restarts == 1 { "" } else { "s" }
         ));
     }
     eprintln!(

@@ -163,6 +163,8 @@ fn check_chunk_table(
     let Some(vlr) = header.vlrs().iter().find(|v| las::laz::is_laszip_vlr(v)) else {
         return Ok(());
     };
+    // Before `las` hands the items to `laz`, which panics on some.
+    guard::check_laz_items(ctx, &vlr.data, header.point_format().len())?;
     let field = |at: usize| {
         vlr.data
             .get(at..at + 4)
@@ -188,6 +190,14 @@ fn check_chunk_table(
     let [_, _, _, _, n0, n1, n2, n3] = bytes_at::<8>(ctx, source, table_at)?;
     let chunks = u64::from(u32::from_le_bytes([n0, n1, n2, n3]));
     let points = header.number_of_points();
+    // A writer always closes a chunk, so points in no chunk are a damaged table, and `laz`
+    // 0.13 indexes past its end on them (a `cloud_readers` campaign finding).
+    if chunks == 0 && points > 0 {
+        return Err(ctx.bad_value(
+            At::Offset(table_at + 4),
+            format!("the LAZ chunk table lists no chunk for {points} points"),
+        ));
+    }
     // A chunk size of 0 or 2^32 - 1 means chunks of any size, as `LazVlr` reads it.
     let by_points = match u32::from_le_bytes(chunk_size) {
         0 | u32::MAX => points,

@@ -1,5 +1,6 @@
 //! Checks on a LAS file's header fields that `las` would trust into an allocation or an
-//! overflow, made before `las` reads them: the extended VLRs of LAS 1.4, and the point count.
+//! overflow, made before `las` reads them: the extended VLRs of LAS 1.4, and the point count;
+//! and on the LASzip VLR's items, which `laz` would trust into a panic.
 //!
 //! `las` 0.11's `raw::Vlr::read_from` sizes an EVLR's buffer from the u64 length in its header
 //! before reading a byte of it, so a length of 2^40 asks for 1 TiB and aborts the process.
@@ -141,6 +142,72 @@ pub(super) fn check_evlrs(
     Ok(())
 }
 
+/// The LASzip VLR's item count (u16), after its compressor, coder, version, options, chunk
+/// size and special EVLRs; then each item's type, size and version (u16 each).
+const LAZ_ITEMS_AT: usize = 32;
+
+/// The bytes a LASzip item of a fixed-size type decodes to, as `laz` 0.13 decodes it (its
+/// `LazItemType::size`); `None` for extra bytes (types 0 and 14), which take the size they
+/// declare, and for types `laz` does not know and reports itself.
+fn laz_item_size(item_type: u16) -> Option<u16> {
+    match item_type {
+        6 => Some(20),      // Point10
+        7 => Some(8),       // GPS time
+        8 | 11 => Some(6),  // RGB
+        9 | 13 => Some(29), // wave packet
+        10 => Some(30),     // Point14
+        12 => Some(8),      // RGB and NIR
+        _ => None,
+    }
+}
+
+/// Refuses a LASzip VLR (`vlr`, its data) whose items `laz` 0.13 would trust into a panic: no
+/// item at all (`record_decompressor_from_laz_items` expects one), an item declaring a size
+/// other than its type's (`laz` splits each record by the sizes its decoders take, and a part
+/// longer than the declared sizes left panics in `byteslice.rs`), or items that do not add up to
+/// the point record's `record_len` bytes (none would split the records into empty chunks). A
+/// sound file's items describe its record exactly. A VLR too short for its items is left to
+/// `laz`, which reports it.
+pub(super) fn check_laz_items(ctx: Ctx, vlr: &[u8], record_len: u16) -> Result<(), ReadError> {
+    let u16_at = |at: usize| Some(u16::from_le_bytes(vlr.get(at..at + 2)?.try_into().ok()?));
+    let Some(count) = u16_at(LAZ_ITEMS_AT) else {
+        return Ok(());
+    };
+    let items: Option<Vec<(u16, u16)>> = (0..usize::from(count))
+        .map(|i| {
+            let at = LAZ_ITEMS_AT + 2 + 6 * i;
+            Some((u16_at(at)?, u16_at(at + 2)?))
+        })
+        .collect();
+    let Some(items) = items else {
+        return Ok(());
+    };
+    if items.is_empty() {
+        return Err(ctx.bad_value(At::Header, "the LASzip VLR lists no items"));
+    }
+    for (i, &(item_type, size)) in items.iter().enumerate() {
+        if let Some(want) = laz_item_size(item_type)
+            && size != want
+        {
+            return Err(ctx.bad_value(
+                At::Header,
+                format!(
+                    "LASzip item {i} (type {item_type}) declares {size} bytes, its type takes \
+                     {want}"
+                ),
+            ));
+        }
+    }
+    let total: u32 = items.iter().map(|&(_, size)| u32::from(size)).sum();
+    if total != u32::from(record_len) {
+        return Err(ctx.bad_value(
+            At::Header,
+            format!("the LASzip items take {total} bytes of each point record of {record_len}"),
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::super::testkit::expect_err;
@@ -265,6 +332,103 @@ mod tests {
             let file = las_1_4_with_evlr(&[0; 70], compressed);
             let bytes = with(&file, EVLR_COUNT_AT, &2u32.to_le_bytes());
             bad_value_at("second.las", &bytes, EVLR_COUNT_AT);
+        }
+    }
+
+    /// The items of the LASzip VLR that campaigns of `cloud_readers` found `laz` 0.13 panicking
+    /// on (none: "There should be at least one LazItem" in `details.rs`; a size other than its
+    /// type's: "mid > len" in `byteslice.rs`), and items not adding up to the record, are
+    /// refused in one line; the items as written read.
+    #[test]
+    fn laz_items_laz_would_panic_on_are_an_error() {
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format = las::point::Format::new(3).unwrap();
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        for x in [1.0, 2.0, 3.0] {
+            let point = las::Point {
+                x,
+                gps_time: Some(x),
+                color: Some(las::Color::new(1, 2, 3)),
+                ..Default::default()
+            };
+            writer.write_point(point).unwrap();
+        }
+        writer.close().unwrap();
+        let file = writer.into_inner().unwrap().into_inner();
+        let vlr_at = file
+            .windows(14)
+            .position(|w| w == b"laszip encoded")
+            .unwrap()
+            - 2;
+        let count_at = (vlr_at + 54 + LAZ_ITEMS_AT) as u64;
+        let item = |i: u64, field: u64| count_at + 2 + 6 * i + 2 * field;
+        // Point10, GPS time, RGB: 20 + 8 + 6 bytes of each 34-byte record.
+        let items: Vec<u16> = (0..10)
+            .map(|k| u16::from_le_bytes(file[count_at as usize + 2 * k..][..2].try_into().unwrap()))
+            .collect();
+        assert_eq!(items, [3, 6, 20, 2, 7, 8, 2, 8, 6, 2]);
+        assert_eq!(read_cloud_bytes("items.laz", &file).unwrap().slots, 3);
+        let u16s = |v: u16| v.to_le_bytes();
+        for (name, at, value) in [
+            ("none.laz", count_at, u16s(0)),
+            ("short_point.laz", item(0, 1), u16s(10)),
+            ("long_time.laz", item(1, 1), u16s(65534)),
+            ("two_points.laz", item(1, 0), u16s(6)),
+            ("two_items.laz", count_at, u16s(2)),
+        ] {
+            let e = expect_err(name, &with(&file, at, &value), "BadValue");
+            assert!(
+                matches!(e, ReadError::BadValue { at: At::Header, .. }),
+                "{name}: {e:?}"
+            );
+        }
+    }
+
+    /// A chunk table of no chunks for the points (variable-size chunks: "index out of bounds"
+    /// in `laz`'s sequential decompression, a campaign finding; fixed-size ones too) is refused
+    /// in one line.
+    #[test]
+    fn a_chunk_table_of_no_chunks_is_an_error() {
+        let mut builder = las::Builder::from((1, 2));
+        builder.point_format = las::point::Format::new(1).unwrap();
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        for x in [1.0, 2.0, 3.0] {
+            writer
+                .write_point(las::Point {
+                    x,
+                    gps_time: Some(x),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.close().unwrap();
+        let file = writer.into_inner().unwrap().into_inner();
+        assert_eq!(read_cloud_bytes("chunks.laz", &file).unwrap().slots, 3);
+        let data_at = u32::from_le_bytes(file[96..100].try_into().unwrap()) as usize;
+        let table_at = u64::from_le_bytes(file[data_at..data_at + 8].try_into().unwrap());
+        let vlr_at = file
+            .windows(14)
+            .position(|w| w == b"laszip encoded")
+            .unwrap()
+            - 2;
+        let chunk_size_at = (vlr_at + 54 + 12) as u64;
+        let none = with(&file, table_at + 4, &0u32.to_le_bytes());
+        for (name, bytes) in [
+            ("fixed.laz", none.clone()),
+            (
+                "variable.laz",
+                with(&none, chunk_size_at, &0u32.to_le_bytes()),
+            ),
+        ] {
+            let e = expect_err(name, &bytes, "BadValue");
+            assert!(
+                matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == table_at + 4),
+                "{name}: {e:?}"
+            );
         }
     }
 
