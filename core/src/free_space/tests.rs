@@ -1,5 +1,6 @@
 use super::*;
 use crate::rng::{stream_rng, uniform};
+use crate::test_support::{OrFail, TestResult};
 
 /// Codes never stand for more than the range they code, and lose at most one code's step
 /// (2.8 %) of it, from the shortest range to the longest.
@@ -29,7 +30,7 @@ fn a_code_never_claims_past_its_range() {
 /// A wall 10 m ahead of the sensor, seen across a 40-degree cone: points before it are free,
 /// points behind it and points in directions no return came from are not.
 #[test]
-fn a_wall_leaves_free_before_it_and_unknown_behind() {
+fn a_wall_leaves_free_before_it_and_unknown_behind() -> TestResult {
     let mut image = RangeImage::<2048>::new(Geometry {
         origin: Point3::new(0.0, 0.0, 0.0),
         near: 0.25,
@@ -38,7 +39,7 @@ fn a_wall_leaves_free_before_it_and_unknown_behind() {
         rows: 16,
         columns: 128,
     })
-    .expect("fits");
+    .or_fail("fits")?;
     for i in -40..=40 {
         for j in -40..=40 {
             image.add_return(Point3::new(10.0, i as f32 * 0.1, j as f32 * 0.1));
@@ -52,13 +53,14 @@ fn a_wall_leaves_free_before_it_and_unknown_behind() {
     assert!(!image.sees_free(Point3::new(-5.0, 0.0, 0.0), 0.2));
     assert!(!image.sees_free(Point3::new(3.0, 0.0, 3.0), 0.2));
     assert!(!image.sees_free(Point3::new(f32::NAN, 0.0, 0.0), 0.2));
+    Ok(())
 }
 
 /// Against the returns themselves: a point is free exactly when it lies nearer, by the margin,
 /// than the nearest return in its pixel, the pixels and the nearest return worked out here for
 /// each query by scanning every return (no image).
 #[test]
-fn free_is_nearer_than_every_return_of_its_pixel() {
+fn free_is_nearer_than_every_return_of_its_pixel() -> TestResult {
     let origin = Point3::new(1.0, -2.0, 0.5);
     // A sector of a turn that starts past +pi/2 and wraps through -pi.
     let geometry = Geometry {
@@ -69,7 +71,7 @@ fn free_is_nearer_than_every_return_of_its_pixel() {
         rows: 8,
         columns: 32,
     };
-    let mut image = RangeImage::<256>::new(geometry).expect("fits");
+    let mut image = RangeImage::<256>::new(geometry).or_fail("fits")?;
     let mut rng = stream_rng(7, 0);
     let mut unit = || uniform(&mut rng) as f32;
     let mut returns = [Point3::new(0.0, 0.0, 0.0); 400];
@@ -121,4 +123,5 @@ fn free_is_nearer_than_every_return_of_its_pixel() {
         queried > 1000 && free > 100,
         "{queried} queried, {free} free"
     );
+    Ok(())
 }
