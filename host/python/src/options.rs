@@ -177,6 +177,24 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
             "entity='sphere' is the paper's comparison; add paper=True (or model='paper')"
         );
     }
+    // As on the command line, free space is the batch shells' only: asked for elsewhere, it
+    // would be silently missing.
+    if options.shells.free_space {
+        let without = if model != Model::Shells {
+            Some("paper=True")
+        } else if options.stream.is_some() {
+            Some("stream=True")
+        } else if matches!(options.size, Size::Tolerance(_)) {
+            Some("tolerance=")
+        } else {
+            None
+        };
+        if let Some(without) = without {
+            anyhow::bail!(
+                "free_space=True is kept by the shells' batch map only, not with {without}"
+            );
+        }
+    }
     options.shells.check()?;
     let size = options.size;
     if let Size::Tolerance(tolerance) = size {

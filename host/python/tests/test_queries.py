@@ -209,3 +209,10 @@ def test_state_is_the_clis_and_free_needs_free_space(cli, tmp_path):
     assert m.state(before[0]) == states[0]
     plain = mema.map(sweep, bytes=4000)
     assert not np.any(plain.state(points) == "free")
+
+
+def test_free_space_where_it_is_not_kept_is_refused():
+    sweep = mema.read_cloud(cloud("car6.pcd"))
+    for options in ({"k": 10, "paper": True}, {"k": 10, "stream": True}, {"tolerance": 0.1}):
+        with pytest.raises(mema.MemaError, match="free_space=True is kept by the shells"):
+            mema.map(sweep, free_space=True, **options)

@@ -45,6 +45,24 @@ pub fn map(args: &MapArgs) -> Result<()> {
         )
         .into());
     }
+    // Only the batch shells keep free space: asked for elsewhere, it would be silently missing.
+    if args.free_space {
+        let without = if model == Model::Paper {
+            Some("the paper's model (--paper)")
+        } else if args.stream {
+            Some("--stream")
+        } else if args.tolerance.is_some() {
+            Some("--tolerance")
+        } else {
+            None
+        };
+        if let Some(without) = without {
+            return Err(UsageError(format!(
+                "--free-space is kept by the shells' batch map only, not with {without}"
+            ))
+            .into());
+        }
+    }
     let shells = shell_model(args)?;
     if let Some(t) = args.tolerance {
         return tolerance(args, t, model, shells.shell);
