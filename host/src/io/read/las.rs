@@ -165,6 +165,14 @@ fn check_chunk_table(
     };
     // Before `las` hands the items to `laz`, which panics on some.
     guard::check_laz_items(ctx, &vlr.data, header.point_format().len())?;
+    guard::check_first_chunk_layers(
+        ctx,
+        source,
+        &vlr.data,
+        u64::from(data_at),
+        header.point_format().len(),
+        len,
+    )?;
     let field = |at: usize| {
         vlr.data
             .get(at..at + 4)

@@ -208,6 +208,76 @@ pub(super) fn check_laz_items(ctx: Ctx, vlr: &[u8], record_len: u16) -> Result<(
     Ok(())
 }
 
+/// Layers of a layered (LASzip version 3) item in a chunk's header: Point14's nine, RGB14's one,
+/// RGB and NIR's two, a wave packet's one, extra bytes' one a byte; `None` for an item that is
+/// not layered.
+fn laz_layers(item_type: u16, size: u16, version: u16) -> Option<u64> {
+    if version < 3 {
+        return None;
+    }
+    match item_type {
+        10 => Some(9),
+        11 | 13 => Some(1),
+        12 => Some(2),
+        14 => Some(u64::from(size)),
+        _ => None,
+    }
+}
+
+/// Refuses a LAZ file whose first chunk's layer sizes (layered items, LAZ 1.4) add up to more
+/// bytes than the file holds after them: `laz` 0.13 sizes a buffer by each before reading it,
+/// so a damaged size of 4 GB reserved 4 GB (a `cloud_readers` campaign finding). The chunk
+/// starts after the chunk table's offset: the first point raw (`record_len` bytes), the chunk's
+/// point count, then each layer's size (u32).
+pub(super) fn check_first_chunk_layers(
+    ctx: Ctx,
+    source: &mut (impl Read + Seek),
+    vlr: &[u8],
+    data_at: u64,
+    record_len: u16,
+    len: u64,
+) -> Result<(), ReadError> {
+    let u16_at = |at: usize| Some(u16::from_le_bytes(vlr.get(at..at + 2)?.try_into().ok()?));
+    let Some(count) = u16_at(LAZ_ITEMS_AT) else {
+        return Ok(());
+    };
+    let mut layers = 0u64;
+    for i in 0..usize::from(count) {
+        let at = LAZ_ITEMS_AT + 2 + 6 * i;
+        let (Some(item_type), Some(size), Some(version)) =
+            (u16_at(at), u16_at(at + 2), u16_at(at + 4))
+        else {
+            return Ok(());
+        };
+        match laz_layers(item_type, size, version) {
+            Some(n) => layers += n,
+            // Items of older versions are not layered: no sizes to check.
+            None => return Ok(()),
+        }
+    }
+    let sizes_at = data_at + 8 + u64::from(record_len) + 4;
+    let after = sizes_at + 4 * layers;
+    if after > len {
+        // A file too short for its first chunk's header is `laz`'s to report.
+        return Ok(());
+    }
+    let mut total = 0u64;
+    for k in 0..layers {
+        let at = sizes_at + 4 * k;
+        total += u64::from(u32::from_le_bytes(bytes_at::<4>(ctx, source, at)?));
+    }
+    if total > len - after {
+        return Err(ctx.bad_value(
+            At::Offset(sizes_at),
+            format!(
+                "the first LAZ chunk's layers take {total} bytes, the file holds {} after them",
+                len - after
+            ),
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::super::testkit::expect_err;
@@ -428,6 +498,40 @@ mod tests {
             assert!(
                 matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == table_at + 4),
                 "{name}: {e:?}"
+            );
+        }
+    }
+
+    /// A LAZ 1.4 file (point format 6, layered) whose first chunk declares a layer of 4 GB, as
+    /// a `cloud_readers` campaign found (`laz` reserved it before reading), is refused in one
+    /// line at the layer sizes; the file as written reads.
+    #[test]
+    fn a_layer_larger_than_the_file_is_an_error() {
+        let mut builder = las::Builder::from((1, 4));
+        builder.point_format = las::point::Format::new(6).unwrap();
+        builder.point_format.is_compressed = true;
+        let header = builder.into_header().unwrap();
+        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
+        for x in [1.0, 2.0, 3.0] {
+            writer
+                .write_point(las::Point {
+                    x,
+                    gps_time: Some(x),
+                    ..Default::default()
+                })
+                .unwrap();
+        }
+        writer.close().unwrap();
+        let file = writer.into_inner().unwrap().into_inner();
+        assert_eq!(read_cloud_bytes("layers.laz", &file).unwrap().slots, 3);
+        let data_at = u64::from(u32::from_le_bytes(file[96..100].try_into().unwrap()));
+        let sizes_at = data_at + 8 + 30 + 4;
+        for layer in [0u64, 4, 8] {
+            let bytes = with(&file, sizes_at + 4 * layer, &0xFFFF_FFF0u32.to_le_bytes());
+            let e = expect_err("layer.laz", &bytes, "BadValue");
+            assert!(
+                matches!(e, ReadError::BadValue { at: At::Offset(o), .. } if o == sizes_at),
+                "layer {layer}: {e:?}"
             );
         }
     }
