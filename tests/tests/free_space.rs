@@ -51,8 +51,13 @@ fn segment_distance(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> f64 {
     d.sqrt()
 }
 
-/// `mema query MAP --points` of `points`: each one's state.
-fn states(dir: &Dir, map: &std::path::Path, name: &str, points: &[[f64; 3]]) -> Vec<String> {
+/// `mema query MAP --points --json` of `points`: one answer each.
+fn query_points(
+    dir: &Dir,
+    map: &std::path::Path,
+    name: &str,
+    points: &[[f64; 3]],
+) -> Vec<serde_json::Value> {
     let mut csv = String::from("x,y,z\n");
     for p in points {
         csv += &format!("{},{},{}\n", p[0], p[1], p[2]);
@@ -66,16 +71,21 @@ fn states(dir: &Dir, map: &std::path::Path, name: &str, points: &[[f64; 3]]) -> 
         .arg("--json")
         .run()
         .assert_ok();
-    let answers: Vec<String> = ran
+    let answers: Vec<serde_json::Value> = ran
         .stdout()
         .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
-            v["state"].as_str().expect("a state").to_string()
-        })
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
         .collect();
     assert_eq!(answers.len(), points.len(), "{}", ran.stderr());
     answers
+}
+
+/// Each point's state, as `mema query --points` says it.
+fn states(dir: &Dir, map: &std::path::Path, name: &str, points: &[[f64; 3]]) -> Vec<String> {
+    query_points(dir, map, name, points)
+        .iter()
+        .map(|v| v["state"].as_str().expect("a state").to_string())
+        .collect()
 }
 
 fn fraction(states: &[String], state: &str) -> f64 {
@@ -193,25 +203,9 @@ fn surface_distances(
     name: &str,
     points: &[[f64; 3]],
 ) -> Vec<f64> {
-    let mut csv = String::from("x,y,z\n");
-    for p in points {
-        csv += &format!("{},{},{}\n", p[0], p[1], p[2]);
-    }
-    let file = dir.write(&format!("{name}.csv"), csv.as_bytes());
-    MemaCommand::new(dir)
-        .arg("query")
-        .arg(map)
-        .arg("--points")
-        .arg(&file)
-        .arg("--json")
-        .run()
-        .assert_ok()
-        .stdout()
-        .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
-            v["signed_distance"].as_f64().expect("a distance")
-        })
+    query_points(dir, map, name, points)
+        .iter()
+        .map(|v| v["signed_distance"].as_f64().expect("a distance"))
         .collect()
 }
 

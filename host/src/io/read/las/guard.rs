@@ -169,23 +169,13 @@ fn laz_item_size(item_type: u16) -> Option<u16> {
 /// sound file's items describe its record exactly. A VLR too short for its items is left to
 /// `laz`, which reports it.
 pub(super) fn check_laz_items(ctx: Ctx, vlr: &[u8], record_len: u16) -> Result<(), ReadError> {
-    let u16_at = |at: usize| Some(u16::from_le_bytes(vlr.get(at..at + 2)?.try_into().ok()?));
-    let Some(count) = u16_at(LAZ_ITEMS_AT) else {
-        return Ok(());
-    };
-    let items: Option<Vec<(u16, u16)>> = (0..usize::from(count))
-        .map(|i| {
-            let at = LAZ_ITEMS_AT + 2 + 6 * i;
-            Some((u16_at(at)?, u16_at(at + 2)?))
-        })
-        .collect();
-    let Some(items) = items else {
+    let Some(items) = laz_items(vlr) else {
         return Ok(());
     };
     if items.is_empty() {
         return Err(ctx.bad_value(At::Header, "the LASzip VLR lists no items"));
     }
-    for (i, &(item_type, size)) in items.iter().enumerate() {
+    for (i, &(item_type, size, _)) in items.iter().enumerate() {
         if let Some(want) = laz_item_size(item_type)
             && size != want
         {
@@ -198,7 +188,7 @@ pub(super) fn check_laz_items(ctx: Ctx, vlr: &[u8], record_len: u16) -> Result<(
             ));
         }
     }
-    let total: u32 = items.iter().map(|&(_, size)| u32::from(size)).sum();
+    let total: u32 = items.iter().map(|&(_, size, _)| u32::from(size)).sum();
     if total != u32::from(record_len) {
         return Err(ctx.bad_value(
             At::Header,
@@ -206,6 +196,18 @@ pub(super) fn check_laz_items(ctx: Ctx, vlr: &[u8], record_len: u16) -> Result<(
         ));
     }
     Ok(())
+}
+
+/// The items of a LASzip VLR's data: type, size and version of each; `None` if the data is too
+/// short for the count it gives (`laz` reports that).
+fn laz_items(vlr: &[u8]) -> Option<Vec<(u16, u16, u16)>> {
+    let u16_at = |at: usize| Some(u16::from_le_bytes(vlr.get(at..at + 2)?.try_into().ok()?));
+    (0..usize::from(u16_at(LAZ_ITEMS_AT)?))
+        .map(|i| {
+            let at = LAZ_ITEMS_AT + 2 + 6 * i;
+            Some((u16_at(at)?, u16_at(at + 2)?, u16_at(at + 4)?))
+        })
+        .collect()
 }
 
 /// Layers of a layered (LASzip version 3) item in a chunk's header: Point14's nine, RGB14's one,
@@ -237,18 +239,11 @@ pub(super) fn check_first_chunk_layers(
     record_len: u16,
     len: u64,
 ) -> Result<(), ReadError> {
-    let u16_at = |at: usize| Some(u16::from_le_bytes(vlr.get(at..at + 2)?.try_into().ok()?));
-    let Some(count) = u16_at(LAZ_ITEMS_AT) else {
+    let Some(items) = laz_items(vlr) else {
         return Ok(());
     };
     let mut layers = 0u64;
-    for i in 0..usize::from(count) {
-        let at = LAZ_ITEMS_AT + 2 + 6 * i;
-        let (Some(item_type), Some(size), Some(version)) =
-            (u16_at(at), u16_at(at + 2), u16_at(at + 4))
-        else {
-            return Ok(());
-        };
+    for (item_type, size, version) in items {
         match laz_layers(item_type, size, version) {
             Some(n) => layers += n,
             // Items of older versions are not layered: no sizes to check.
@@ -456,13 +451,11 @@ mod tests {
         }
     }
 
-    /// A chunk table of no chunks for the points (variable-size chunks: "index out of bounds"
-    /// in `laz`'s sequential decompression, a campaign finding; fixed-size ones too) is refused
-    /// in one line.
-    #[test]
-    fn a_chunk_table_of_no_chunks_is_an_error() {
-        let mut builder = las::Builder::from((1, 2));
-        builder.point_format = las::point::Format::new(1).unwrap();
+    /// Three points (x and GPS time 1, 2, 3) in a LAZ file of LAS `version` and point `format`,
+    /// as `las` writes it.
+    fn written_laz(version: (u8, u8), format: u8) -> Vec<u8> {
+        let mut builder = las::Builder::from(version);
+        builder.point_format = las::point::Format::new(format).unwrap();
         builder.point_format.is_compressed = true;
         let header = builder.into_header().unwrap();
         let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
@@ -476,7 +469,15 @@ mod tests {
                 .unwrap();
         }
         writer.close().unwrap();
-        let file = writer.into_inner().unwrap().into_inner();
+        writer.into_inner().unwrap().into_inner()
+    }
+
+    /// A chunk table of no chunks for the points (variable-size chunks: "index out of bounds"
+    /// in `laz`'s sequential decompression, a campaign finding; fixed-size ones too) is refused
+    /// in one line.
+    #[test]
+    fn a_chunk_table_of_no_chunks_is_an_error() {
+        let file = written_laz((1, 2), 1);
         assert_eq!(read_cloud_bytes("chunks.laz", &file).unwrap().slots, 3);
         let data_at = u32::from_le_bytes(file[96..100].try_into().unwrap()) as usize;
         let table_at = u64::from_le_bytes(file[data_at..data_at + 8].try_into().unwrap());
@@ -507,22 +508,7 @@ mod tests {
     /// line at the layer sizes; the file as written reads.
     #[test]
     fn a_layer_larger_than_the_file_is_an_error() {
-        let mut builder = las::Builder::from((1, 4));
-        builder.point_format = las::point::Format::new(6).unwrap();
-        builder.point_format.is_compressed = true;
-        let header = builder.into_header().unwrap();
-        let mut writer = las::Writer::new(std::io::Cursor::new(Vec::new()), header).unwrap();
-        for x in [1.0, 2.0, 3.0] {
-            writer
-                .write_point(las::Point {
-                    x,
-                    gps_time: Some(x),
-                    ..Default::default()
-                })
-                .unwrap();
-        }
-        writer.close().unwrap();
-        let file = writer.into_inner().unwrap().into_inner();
+        let file = written_laz((1, 4), 6);
         assert_eq!(read_cloud_bytes("layers.laz", &file).unwrap().slots, 3);
         let data_at = u64::from(u32::from_le_bytes(file[96..100].try_into().unwrap()));
         let sizes_at = data_at + 8 + 30 + 4;
