@@ -159,6 +159,17 @@ impl<const N: usize> RangeImage<N> {
         &self.geometry
     }
 
+    /// Empties the image in place for `geometry` (a device has no room for a second image);
+    /// false, and the image unchanged, if `geometry` has more pixels than `N`.
+    pub fn reset(&mut self, geometry: Geometry) -> bool {
+        if geometry.pixels() > N {
+            return false;
+        }
+        self.geometry = geometry;
+        self.cells.fill(NO_RETURN);
+        true
+    }
+
     /// The codes, row by row.
     pub fn cells(&self) -> &[u8] {
         self.cells.get(..self.geometry.pixels()).unwrap_or(&[])

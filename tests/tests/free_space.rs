@@ -279,22 +279,18 @@ fn a_ghost_seen_through_twice_leaves_no_surface() {
     assert!(kept > 0.5, "{kept}: the uncarved map should keep the ghost");
 }
 
-/// Free space is the batch shells' only: asked for with the paper's model, a streamed map or
-/// the tolerance mode, it is refused in one line (exit 2) rather than silently missing.
+/// Free space is the shells' only: asked for with the paper's model or the tolerance mode, it
+/// is refused in one line (exit 2) rather than silently missing.
 #[test]
 fn free_space_where_it_is_not_kept_is_refused() {
     let dir = Dir::new("free-space-refused");
     let cloud = shared("car6.pcd").display().to_string();
-    for extra in [
-        &["-k", "10", "--paper"][..],
-        &["-k", "10", "--stream"],
-        &["--tolerance", "0.1"],
-    ] {
+    for extra in [&["-k", "10", "--paper"][..], &["--tolerance", "0.1"]] {
         MemaCommand::new(&dir)
             .args(["map", &cloud, "--free-space", "-o", "m.mema"])
             .args(extra)
             .run()
-            .assert_error(2, "--free-space is kept by the shells' batch map only");
+            .assert_error(2, "--free-space is kept by the shells' maps only");
     }
     assert!(!dir.join("m.mema").exists());
 }

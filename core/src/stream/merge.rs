@@ -147,6 +147,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 continue;
             };
             let (moments, d2) = (cb.moments, ca.center.distance_squared(cb.center));
+            // Either cluster reached by a scan is evidence the merged one is there.
+            let seen_through = ca.seen_through.min(cb.seen_through);
             let last_point = if self.idle(cb) < self.idle(ca) {
                 cb.last_point
             } else {
@@ -158,6 +160,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 ca.center = center_of(&ca.moments);
                 ca.stale = u32::MAX;
                 ca.last_point = last_point;
+                ca.seen_through = seen_through;
             }
             if let (Some(slot), Some(pair)) = (
                 absorbed.get_mut(count),

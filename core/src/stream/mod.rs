@@ -23,12 +23,14 @@ use crate::moments::FixedMoments;
 use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
+pub mod carve;
 pub mod freeze;
 mod merge;
 mod observe;
 pub mod pacing;
 mod pairs;
 pub mod shells;
+pub use carve::Carver;
 pub use freeze::FrozenEntity;
 pub use observe::Observer;
 pub use pacing::Pacing;
@@ -124,6 +126,8 @@ pub struct StreamCluster {
     pub stale: u32,
     /// The stream's point count (mod 2^32) when the cluster last received a point.
     pub last_point: u32,
+    /// Scans in a row that saw through the cluster without reaching it ([`carve`]).
+    pub seen_through: u8,
 }
 
 /// Counters a caller reports.
@@ -141,6 +145,8 @@ pub struct StreamStats {
     /// Points that joined their nearest centre beyond the join radius because the pacing's
     /// credit could not pay for room ([`pacing`]).
     pub paced_joins: u64,
+    /// Working clusters carved: seen through by later scans ([`carve`]).
+    pub carved: u64,
 }
 
 /// The streaming mapper with capacity `K`, a `G`-bucket spatial hash over the centres, and room
@@ -206,6 +212,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 forced_merges: 0,
                 frozen: 0,
                 paced_joins: 0,
+                carved: 0,
             },
         }
     }
@@ -378,6 +385,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             entity: AxisEntity::of_axis_aligned(&Entity::sphere(p, 0.0)),
             stale: u32::MAX,
             last_point: self.stats.points as u32,
+            seen_through: 0,
         };
         let index = self.clusters.len();
         if self.clusters.push(cluster).is_ok() {

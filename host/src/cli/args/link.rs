@@ -54,6 +54,11 @@ pub struct StreamShapeArgs {
     /// k follows from T, in metres (-k is then the capacity).
     #[arg(long)]
     pub tolerance: Option<f64>,
+    /// Carve: a cluster that two later scans saw through, none of their points reaching it,
+    /// leaves the map (a person who walked on, a ghost of a bad frame). Scans are the runs of
+    /// frames under one pose; a single scan carves nothing.
+    #[arg(long)]
+    pub free_space: bool,
     /// Refuse points and poses farther than this from the map's origin (its first point) on
     /// any axis, in metres: a corrupt frame that passed its CRC, or a wrong unit, is counted
     /// and never mapped. 100 km by default, where f32 still resolves 4 mm.

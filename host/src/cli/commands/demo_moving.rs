@@ -62,7 +62,7 @@ pub fn demo_moving(args: &DemoArgs) -> Result<()> {
     write_ply(&files.scan, &world)?;
     let sensor: Vec<SensorScan> = stops.iter().map(SensorScan::of_drive).collect();
     let (sent, link, map) = stage("streaming", || {
-        stream_scans(&sensor, link_params(&config, capacity, None, model))
+        stream_scans(&sensor, link_params(&config, capacity, None, model), false)
     })?;
     map.write(&files.map)?;
     let views: Vec<_> = stops.iter().map(|s| s.config.clone()).collect();

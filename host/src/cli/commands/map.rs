@@ -45,12 +45,10 @@ pub fn map(args: &MapArgs) -> Result<()> {
         )
         .into());
     }
-    // Only the batch shells keep free space: asked for elsewhere, it would be silently missing.
+    // Only the shells keep free space: asked for elsewhere, it would be silently missing.
     if args.free_space {
         let without = if model == Model::Paper {
             Some("the paper's model (--paper)")
-        } else if args.stream {
-            Some("--stream")
         } else if args.tolerance.is_some() {
             Some("--tolerance")
         } else {
@@ -58,7 +56,7 @@ pub fn map(args: &MapArgs) -> Result<()> {
         };
         if let Some(without) = without {
             return Err(UsageError(format!(
-                "--free-space is kept by the shells' batch map only, not with {without}"
+                "--free-space is kept by the shells' maps only, not with {without}"
             ))
             .into());
         }
@@ -131,7 +129,11 @@ fn stream_map(args: &MapArgs, config: &PipelineConfig, model: Model) -> Result<(
     check_bag_args(&args.input, &args.bag)?;
     let scans = scans_of_input(&args.input, args.units.units.as_ref(), &args.bag.options())
         .with_context(|| args.input.display().to_string())?;
-    let (sent, link, map) = stream_scans(&scans, link_params(config, capacity, None, model))?;
+    let (sent, link, map) = stream_scans(
+        &scans,
+        link_params(config, capacity, None, model),
+        args.free_space,
+    )?;
     map.write(&args.output)?;
     let summary = StreamMapSummary {
         map: args.output.display().to_string(),
@@ -140,10 +142,19 @@ fn stream_map(args: &MapArgs, config: &PipelineConfig, model: Model) -> Result<(
         unit_exponent: sent.unit_exponent,
         spacing: sent.spacing,
         entities: map.entities.len(),
+        carved: link.mapper.stats().carved,
         origin: map.origin,
     };
+    let carved = if args.free_space {
+        format!(
+            ", {} clusters carved (seen through by two later scans)",
+            summary.carved
+        )
+    } else {
+        String::new()
+    };
     eprintln!(
-        "mema: map --stream: {} scans, {} points in units of {}, {} entities",
+        "mema: map --stream: {} scans, {} points in units of {}, {} entities{carved}",
         summary.scans,
         summary.points,
         unit_name(summary.unit_exponent),
@@ -168,6 +179,8 @@ struct StreamMapSummary {
     /// The median nearest-point spacing it was picked from (metres).
     spacing: f64,
     entities: usize,
+    /// Clusters carved (`--free-space`): two later scans saw through them.
+    carved: u64,
     origin: [f64; 3],
 }
 

@@ -47,7 +47,12 @@ fn new_link(
         ))
         .into());
     }
-    Ok(Link::with_params(params(config, capacity, shape)).with_reach(shape.reach))
+    let link = Link::with_params(params(config, capacity, shape)).with_reach(shape.reach);
+    Ok(if shape.free_space {
+        link.carving()
+    } else {
+        link
+    })
 }
 
 /// How often `stream` reports progress on stderr.
@@ -157,6 +162,8 @@ pub struct StreamSummary {
     /// pacing could not pay for room (docs/firmware.md, "Longest tick, the link and pacing"): where the map is coarser than the
     /// points asked for.
     pub paced_joins: u64,
+    /// Clusters carved with `--free-space`: later scans saw through them.
+    pub carved: u64,
 }
 
 /// When the mapper's points first and last grew: the window a rate is measured over.
@@ -225,6 +232,7 @@ fn summary(
             0.0
         },
         paced_joins: link.mapper.stats().paced_joins,
+        carved: link.mapper.stats().carved,
     }
 }
 
@@ -247,6 +255,12 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(
             ", {} points joined beyond the radius (paced)",
             s.paced_joins
+        ));
+    }
+    if s.carved > 0 {
+        extra.push_str(&format!(
+            ", {} clusters carved (seen through by two later scans)",
+            s.carved
         ));
     }
     if s.frames_without_pose > 0 {

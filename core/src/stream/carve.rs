@@ -1,0 +1,288 @@
+//! Carving a stream (issue 29): a working cluster that later scans saw through, none of their
+//! points joining it, leaves the map, as the batch map leaves out the points other scans saw
+//! through. A person who walked on, or a ghost of a bad frame, does not stay as surface.
+//!
+//! A stream's points arrive scan by scan, each scan from one sensor origin. While a scan
+//! arrives, its returns fill a range image ([`crate::free_space`]: each pixel keeps its nearest
+//! return) in fixed memory; when the next scan begins (or the stream ends), the image judges
+//! every working cluster the scan did not reach. The judgement is the cluster's, not a point's:
+//! the mapper keeps moments, not points. A cluster is seen through when its centre, moved to the
+//! cluster's far side along the ray (twice its spread along the ray), lies nearer than its
+//! pixel's nearest return by [`CARVE_MARGIN`], and the ends of its two longest axes, moved the
+//! same way, lie either so or where the scan had no return (the sky): a cluster on a surface
+//! the scan saw has its own surface there (a pixel's nearest return is at or before it), and
+//! one spanning a corner reaches past the corner.
+//!
+//! Frozen entities (a device's layout) are not carved: they may already be on the downlink.
+
+use super::{Observer, StreamCluster, StreamMapper};
+use crate::free_space::{Geometry, NO_RETURN, RangeImage, range_of};
+use crate::geometry::Point3;
+
+/// Scans that must see through a cluster, with none of their points joining it, for it to go:
+/// one glance through a cluster may be a sensor's glitch; two are the space being empty.
+pub const SEEN_THROUGH: u8 = 2;
+
+/// How much nearer than its pixel's nearest return a cluster must lie to be seen through
+/// (metres): a lidar's range noise and more.
+pub const CARVE_MARGIN: f32 = 0.2;
+
+/// Axis ends tested are this many standard deviations from the centre: inside the patch of a
+/// uniform surface (whose edge is 1.73 deviations out), so a cluster at a surface's edge is
+/// judged by where its points are.
+const AXIS_REACH: f64 = 1.5;
+
+/// The far side of a cluster along the ray is this many deviations past its centre.
+const FAR_SIDE: f64 = 2.0;
+
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Ends a scan whose points were the stream's points after `scan_start` (the
+    /// [`super::StreamStats::points`] count when it began): every working cluster no point of
+    /// the scan joined and that `seen_through` says the scan saw through gains a count, and one
+    /// with [`SEEN_THROUGH`] counts leaves the working set; a cluster the scan's points joined
+    /// starts its count again. Returns how many clusters left.
+    pub fn carve(
+        &mut self,
+        scan_start: u64,
+        seen_through: impl Fn(&StreamCluster) -> bool,
+        observer: &mut impl Observer,
+    ) -> usize {
+        let scan_points = self.stats.points.saturating_sub(scan_start);
+        let scan_points = u32::try_from(scan_points).unwrap_or(u32::MAX);
+        let mut carved = 0;
+        // From the end down, so the cluster a swap-remove moves in has been judged already.
+        for i in (0..self.clusters.len()).rev() {
+            let Some(c) = self.clusters.get(i) else {
+                continue;
+            };
+            let count = if self.idle(c) < scan_points {
+                0
+            } else if seen_through(c) {
+                c.seen_through.saturating_add(1)
+            } else {
+                c.seen_through
+            };
+            if count < SEEN_THROUGH {
+                if let Some(c) = self.clusters.get_mut(i) {
+                    c.seen_through = count;
+                }
+                continue;
+            }
+            observer.removed(i);
+            let last = self.clusters.len().saturating_sub(1);
+            self.grid.remove(i);
+            self.grid.remove(last);
+            crate::num::swap_remove(&mut self.clusters, i);
+            if let Some(moved) = self.clusters.get(i) {
+                self.grid.insert(i, moved.center);
+            }
+            carved += 1;
+        }
+        self.stats.carved += carved as u64;
+        carved
+    }
+}
+
+/// A stream's scans, one at a time, as range images in fixed memory (`N` pixels at most), and
+/// the carving each one does when it ends.
+#[derive(Clone, Debug)]
+pub struct Carver<const N: usize> {
+    image: RangeImage<N>,
+    /// The mapper's point count when the scan began; `None` before the first scan.
+    scan_start: Option<u64>,
+}
+
+impl<const N: usize> Carver<N> {
+    /// A carver whose images look as `geometry` says from each scan's sensor origin (its
+    /// `origin` is replaced); `None` if the image has more than `N` pixels.
+    pub fn new(geometry: Geometry) -> Option<Self> {
+        Some(Self {
+            image: RangeImage::new(geometry)?,
+            scan_start: None,
+        })
+    }
+
+    /// Images of `rows` x `columns` pixels around the whole sphere, ranges from 1/8 m to 128 m
+    /// (nearer returns leave nothing free, farther ones are free to 128 m): what a carver needs
+    /// who does not know the sensor.
+    pub fn whole_sphere(rows: u16, columns: u16) -> Option<Self> {
+        use core::f32::consts::{FRAC_PI_2, PI, TAU};
+        Self::new(Geometry {
+            origin: Point3::new(0.0, 0.0, 0.0),
+            near: 0.125,
+            elevation: [-FRAC_PI_2, FRAC_PI_2],
+            azimuth: [-PI, TAU],
+            rows,
+            columns,
+        })
+    }
+
+    /// The points that follow were seen from `sensor` (the map's frame): if the scan so far was
+    /// seen from elsewhere, it ends (it carves `mapper`) and a new scan begins. Returns how many
+    /// clusters the ended scan carved.
+    pub fn sensor_at<const K: usize, const G: usize, const F: usize>(
+        &mut self,
+        sensor: Point3,
+        mapper: &mut StreamMapper<K, G, F>,
+        observer: &mut impl Observer,
+    ) -> usize {
+        if self.scan_start.is_some() && self.image.geometry().origin == sensor {
+            return 0;
+        }
+        let carved = self.end_scan(mapper, observer);
+        let geometry = Geometry {
+            origin: sensor,
+            ..*self.image.geometry()
+        };
+        self.image.reset(geometry);
+        self.scan_start = Some(mapper.stats().points);
+        carved
+    }
+
+    /// Notes a return of the current scan.
+    pub fn add_return(&mut self, p: Point3) {
+        if self.scan_start.is_some() {
+            self.image.add_return(p);
+        }
+    }
+
+    /// Ends the current scan (the stream ended, or the next points have no sensor origin): it
+    /// carves `mapper`. Returns how many clusters it carved.
+    pub fn end_scan<const K: usize, const G: usize, const F: usize>(
+        &mut self,
+        mapper: &mut StreamMapper<K, G, F>,
+        observer: &mut impl Observer,
+    ) -> usize {
+        let Some(start) = self.scan_start.take() else {
+            return 0;
+        };
+        mapper.carve(start, |c| self.sees_through(c), observer)
+    }
+
+    /// Forgets the current scan without carving (the map started again).
+    pub fn restart(&mut self) {
+        self.scan_start = None;
+    }
+
+    /// Whether the current scan saw through `cluster` (see the module's documentation).
+    pub fn sees_through(&self, cluster: &StreamCluster) -> bool {
+        let Some((mean, covariance)) = cluster.moments.covariance() else {
+            return false;
+        };
+        let o = self.image.geometry().origin;
+        let d = [
+            mean[0] - f64::from(o.x),
+            mean[1] - f64::from(o.y),
+            mean[2] - f64::from(o.z),
+        ];
+        let r = libm::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if !(r > 0.0 && r.is_finite()) {
+            return false;
+        }
+        let u = d.map(|v| v / r);
+        let mut along = 0.0;
+        for (i, row) in covariance.iter().enumerate() {
+            for (j, c) in row.iter().enumerate() {
+                along += u.get(i).copied().unwrap_or(0.0) * c * u.get(j).copied().unwrap_or(0.0);
+            }
+        }
+        let push = FAR_SIDE * libm::sqrt(along.max(0.0));
+        let (values, vectors) = crate::shell::symmetric_eigen(covariance);
+        let far = |offset: [f64; 3]| {
+            let p = [0, 1, 2].map(|j| {
+                mean.get(j).copied().unwrap_or(0.0)
+                    + offset.get(j).copied().unwrap_or(0.0)
+                    + push * u.get(j).copied().unwrap_or(0.0)
+            });
+            Point3::new(p[0] as f32, p[1] as f32, p[2] as f32)
+        };
+        let axis = |k: usize, sign: f64| {
+            let reach =
+                sign * AXIS_REACH * libm::sqrt(values.get(k).copied().unwrap_or(0.0).max(0.0));
+            [0, 1, 2].map(|j| {
+                reach
+                    * vectors
+                        .get(j)
+                        .and_then(|row| row.get(k))
+                        .copied()
+                        .unwrap_or(0.0)
+            })
+        };
+        let ends = [axis(0, 1.0), axis(0, -1.0), axis(1, 1.0), axis(1, -1.0)];
+        self.sight(far([0.0; 3])) == Sight::Through
+            && ends.iter().all(|&end| self.sight(far(end)) != Sight::Short)
+    }
+
+    /// What the current scan saw of `p`: through it, short of it, or nothing along its pixel.
+    /// A pixel no return fell in, between two that have returns (the rows of a spinning
+    /// lidar's beams, finer pixels than its spacing), takes the nearer of the two: the gap is
+    /// the sensor's sampling, not open space.
+    fn sight(&self, p: Point3) -> Sight {
+        let geometry = self.image.geometry();
+        let Some((index, r)) = geometry.pixel(p) else {
+            return Sight::Nothing;
+        };
+        let Some(c) = self.nearest_return(index) else {
+            return Sight::Nothing;
+        };
+        if r < range_of(c, geometry.near) - CARVE_MARGIN {
+            Sight::Through
+        } else {
+            Sight::Short
+        }
+    }
+
+    /// The code of pixel `index`, or of the nearer of its two neighbours across a one-pixel
+    /// gap (above and below, else left and right); `None` if neither is there.
+    fn nearest_return(&self, index: usize) -> Option<u8> {
+        let cells = self.image.cells();
+        let code = |i: Option<usize>| {
+            i.and_then(|i| cells.get(i))
+                .copied()
+                .filter(|&c| c != NO_RETURN)
+        };
+        if let Some(c) = code(Some(index)) {
+            return Some(c);
+        }
+        let geometry = self.image.geometry();
+        let columns = usize::from(geometry.columns);
+        let (row, column) = (index / columns.max(1), index % columns.max(1));
+        let up = code((row + 1 < usize::from(geometry.rows)).then(|| index + columns));
+        let down = code(index.checked_sub(columns));
+        if let (Some(a), Some(b)) = (up, down) {
+            return Some(a.min(b));
+        }
+        // Across the ends of a whole turn, the first and last columns are neighbours.
+        let whole_turn = geometry.azimuth[1] >= core::f32::consts::TAU;
+        let step = |forward: bool| {
+            let next = if forward {
+                (column + 1 < columns)
+                    .then_some(column + 1)
+                    .or(whole_turn.then_some(0))
+            } else {
+                column
+                    .checked_sub(1)
+                    .or(whole_turn.then(|| columns.saturating_sub(1)))
+            };
+            next.map(|c| row * columns + c)
+        };
+        match (code(step(true)), code(step(false))) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            _ => None,
+        }
+    }
+}
+
+/// What a scan saw along the ray to a point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Sight {
+    /// A return lies past the point, by the margin: the point is in space seen empty.
+    Through,
+    /// The pixel's nearest return lies at or before the point: it may be surface.
+    Short,
+    /// No return along its pixel (the sky, outside the view): nothing is known.
+    Nothing,
+}
+
+#[cfg(test)]
+mod tests;
