@@ -177,8 +177,8 @@ pub fn run(input: &Input, options: &MapOptions) -> Result<Made> {
             "entity='sphere' is the paper's comparison; add paper=True (or model='paper')"
         );
     }
-    // As on the command line, free space is the batch shells' only: asked for elsewhere, it
-    // would be silently missing.
+    // Free space is the batch shells' only here (stream=True sends one scan, which carves
+    // nothing): asked for elsewhere, it would be silently missing.
     if options.shells.free_space {
         let without = if model != Model::Shells {
             Some("paper=True")
@@ -281,8 +281,12 @@ fn stream(input: &Input, options: &MapOptions, working: Option<usize>) -> Result
     let capacity = Capacity::checked(config.k, working, false)?;
     let (cloud, _) = input.cloud().map_err(anyhow::Error::msg)?;
     let scans = [SensorScan::of_cloud(&cloud)?];
-    let (sent, link, map) =
-        stream_scans(&scans, link_params(&config, capacity, None, options.model))?;
+    // One scan: nothing for later scans to see through, so nothing to carve.
+    let (sent, link, map) = stream_scans(
+        &scans,
+        link_params(&config, capacity, None, options.model),
+        false,
+    )?;
     let report = serde_json::json!({
         "scans": sent.scans,
         "points": link.mapper.stats().points,
