@@ -37,7 +37,7 @@ use mema_core::de::{DeParams, OutOfBounds};
 use mema_core::fit::{FitParams, Initialisation, SemiAxisBounds};
 use mema_core::fitness::VolumeTerm;
 use mema_core::geometry::Degeneration;
-use mema_core::link::receiver::{Received, Receiver, ReceiverStats};
+use mema_core::link::receiver::{Received, Receiver, ReceiverStats, is_no_return};
 use mema_core::link::wire::DecoderStats;
 use mema_core::map::EncodeError;
 use mema_core::stream::{
@@ -317,12 +317,13 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         let mut next = start;
         // From `start`, not `points().skip(start)`: skipping an iterator of points converts
         // the points it skips, a third of a frame's conversions again at 32 points a tick.
-        let mut refused = 0;
+        let (mut refused, mut no_returns) = (0, 0);
         for raw in frame.points_from(start) {
             next += 1;
-            // Out of reach: counted, never mapped.
+            // A no-return or out of reach: counted, never mapped.
             let Some(point) = placement.placed(raw) else {
                 refused += 1;
+                no_returns += u64::from(is_no_return(raw));
                 if next - start == TICK_POINTS {
                     break;
                 }
@@ -342,7 +343,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.stats.tick_points_peak = self.stats.tick_points_peak.max(next - start);
         let (count, sequence, end_of_stream) =
             (frame.point_count(), frame.sequence(), frame.end_of_stream());
-        self.receiver.note_out_of_reach(refused);
+        self.receiver.note_refused(refused, no_returns);
         if next < usize::from(count) {
             self.cursor = Some(next);
             return;

@@ -68,6 +68,43 @@ fn a_frame_of_far_points_costs_nothing_of_the_map() {
     );
 }
 
+/// Frames holding no-returns (points at the sensor itself, as lidar drivers write a beam that
+/// returned nothing), first and amid the plane's: the map is, byte for byte, the map of the
+/// plane alone (no surface at the sensor), the firmware's too, and the summary counts them.
+#[test]
+fn no_returns_are_counted_and_never_mapped() {
+    let dir = Dir::new("no-returns");
+    let plane = plane();
+    let mut half = plane[..64].to_vec();
+    half.splice(10..10, [[0, 0, 0]; 20]);
+    let mut with_none = vec![0u8];
+    with_none.extend(frame(0, false, -3, &[[0, 0, 0]; 12]));
+    with_none.extend(frame(1, false, -3, &half));
+    with_none.extend(frame(2, true, -3, &plane[64..]));
+    let mut clean = vec![0u8];
+    clean.extend(frame(1, false, -3, &plane[..64]));
+    clean.extend(frame(2, true, -3, &plane[64..]));
+    let (code, json, with_map) = replay(&dir, "with", &with_none, "8", &[]);
+    assert_eq!(code, 0, "{json}");
+    assert_eq!(json["no_returns"], 32, "{json}");
+    assert_eq!(json["points_out_of_reach"], 0, "{json}");
+    assert_eq!(json["points"], 128, "{json}");
+    let (_, _, clean_map) = replay(&dir, "clean", &clean, "8", &[]);
+    assert_eq!(with_map, clean_map, "the no-returns changed the map");
+    let firmware = play_model(&with_none, (8, 0), SHELLS, &RunConfig::default());
+    assert_eq!(firmware.map, with_map, "firmware vs replay");
+    let ran = MemaCommand::new(&dir)
+        .args(["replay", "with.bin", "-k", "8", "-o", "again.mema"])
+        .run()
+        .assert_ok();
+    assert!(
+        ran.stderr()
+            .contains("32 no-returns at the sensor (not mapped)"),
+        "{}",
+        ran.stderr()
+    );
+}
+
 /// A pose frame 10^12 m away (kilometre units at i32's reach) amid a moving sensor's: refused
 /// and counted, and the map is, byte for byte, the map of the stream without it (the points
 /// that name it are not mapped either way).

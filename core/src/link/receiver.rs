@@ -32,7 +32,7 @@
 
 mod placement;
 
-pub use placement::{Placement, Pose};
+pub use placement::{Placement, Pose, is_no_return};
 
 use crate::link::wire::{
     Decoded, Decoder, DecoderStats, Frame, FrameError, FrameKind, VERSION_1, WirePose,
@@ -104,8 +104,11 @@ pub struct ReceiverStats {
     /// Points frames not mapped because the receiver did not hold their pose.
     pub no_pose: u64,
     /// Points not mapped because they lay out of reach (counted by [`Receiver::feed_all`], or
-    /// told by [`Receiver::note_out_of_reach`]).
+    /// told by [`Receiver::note_refused`]).
     pub points_out_of_reach: u64,
+    /// Points not mapped because they were no-returns, at the sensor itself
+    /// ([`is_no_return`]).
+    pub no_returns: u64,
     /// Pose frames refused because their pose lay out of reach.
     pub poses_out_of_reach: u64,
     /// Origins given up for a rival's poses ([`Received::Restart`]).
@@ -188,6 +191,7 @@ impl Receiver {
                 poses: 0,
                 no_pose: 0,
                 points_out_of_reach: 0,
+                no_returns: 0,
                 poses_out_of_reach: 0,
                 restarts: 0,
             },
@@ -318,11 +322,13 @@ impl Receiver {
         }
     }
 
-    /// Counts points of the held frame its placement refused ([`Placement::placed`]): the
-    /// caller that maps a frame point by point (the firmware's ticks) says how many there were;
-    /// [`Receiver::feed_all`] counts them itself.
-    pub fn note_out_of_reach(&mut self, points: u64) {
-        self.stats.points_out_of_reach += points;
+    /// Counts points of the held frame its placement refused ([`Placement::placed`]),
+    /// `no_returns` of them no-returns and the rest out of reach: the caller that maps a frame
+    /// point by point (the firmware's ticks) says how many there were; [`Receiver::feed_all`]
+    /// counts them itself.
+    pub fn note_refused(&mut self, refused: u64, no_returns: u64) {
+        self.stats.no_returns += no_returns;
+        self.stats.points_out_of_reach += refused.saturating_sub(no_returns);
     }
 
     /// Whether the receiver takes `pose`: within the world's range, and within reach of the
@@ -391,8 +397,12 @@ impl Receiver {
                     remaining,
                 } => {
                     let refused = frame.points_from(0).count() - placement.points(&frame).count();
+                    let no_returns = frame
+                        .points_from(0)
+                        .filter(|&raw| placement::is_no_return(raw))
+                        .count();
                     points(frame, placement);
-                    self.note_out_of_reach(refused as u64);
+                    self.note_refused(refused as u64, no_returns as u64);
                     remaining
                 }
             };
@@ -447,7 +457,8 @@ impl Receiver {
 
 /// The first point of `frame` that more than half of its points lie near (within half the
 /// reach on every axis of the sensor frame, so within the reach however the pose turns them),
-/// else the point most lie near: where the map's origin goes. A sensor glitch among the first
+/// else the point most lie near (never a no-return; `None` if all are): where the map's origin
+/// goes. A sensor glitch among the first
 /// frame's points is then never the origin, which would leave the scene out of reach. Integer
 /// compares only, and it stops at the first point a majority lies near, which in a frame
 /// without glitches is the first: it costs a device one pass over one frame.
@@ -457,7 +468,8 @@ fn anchor(frame: &Frame<&[u8]>, exponent: i8, reach: f32) -> Option<[i32; 3]> {
     let near = (f64::from(reach) / 2.0 / scale) as u64;
     let count = usize::from(frame.point_count());
     let (mut best, mut most) = (None, 0usize);
-    for p in frame.points_from(0) {
+    // A no-return is never mapped, so it is never the origin either.
+    for p in frame.points_from(0).filter(|&p| !is_no_return(p)) {
         let mut neighbours = 0usize;
         for q in frame.points_from(0) {
             let near_all = (u64::from(p[0].abs_diff(q[0])) <= near)

@@ -98,6 +98,14 @@ const POWERS: [i32; 10] = [
 /// exact in f32, and so is `10^|e|`, so one multiplication or division rounds `n 10^e` once.
 const EXACT32: u64 = 1 << 24;
 
+/// Whether raw point `raw` is a no-return: at the sensor itself, where lidar drivers put a
+/// beam that returned nothing. It is never surface (a map would put an obstacle inside the
+/// robot).
+#[inline]
+pub const fn is_no_return(raw: [i32; 3]) -> bool {
+    raw[0] == 0 && raw[1] == 0 && raw[2] == 0
+}
+
 /// Where a frame's points go, worked out once per frame: the pose, the map's origin and the
 /// frame's unit.
 ///
@@ -249,11 +257,14 @@ impl Placement {
         frame.point(i).and_then(|raw| self.placed(raw))
     }
 
-    /// Raw point `raw` in the map's frame, or `None` when it is out of reach (farther from the
-    /// origin than the receiver's reach on some axis, or not finite): the points a receiver
-    /// maps.
+    /// Raw point `raw` in the map's frame, or `None` when it is a no-return ([`is_no_return`])
+    /// or out of reach (farther from the origin than the receiver's reach on some axis, or not
+    /// finite): the points a receiver maps.
     #[inline]
     pub fn placed(&self, raw: [i32; 3]) -> Option<Point3> {
+        if is_no_return(raw) {
+            return None;
+        }
         let p = self.place(raw);
         let r = self.reach;
         // `!(a <= r)` refuses NaN as well.

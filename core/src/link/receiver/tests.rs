@@ -84,7 +84,8 @@ fn frames_after_the_end_are_counted_not_mapped() -> TestResult {
 /// far out the points keep their spacing.
 #[test]
 fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
-    let near = [[0, 0, 0], [-511_999, 0, 7]];
+    // Not (0, 0, 0): that is a no-return, never mapped nor the origin.
+    let near = [[0, 0, 1], [-511_999, 0, 7]];
     let mut wire = [0u8; 512];
     let at = push(&mut wire, 1, 0, true, -3, &near)?;
     let mut r = Receiver::new();
@@ -94,9 +95,12 @@ fn the_origin_keeps_millimetres_anywhere_on_the_link() -> TestResult {
     else {
         return Err("a frame of points");
     };
-    assert_eq!(placement.origin().map(f64::to_bits), [0.0f64.to_bits(); 3]);
+    assert_eq!(
+        placement.origin().map(f64::to_bits),
+        [0.0f64.to_bits(), 0.0f64.to_bits(), 1e-3f64.to_bits()]
+    );
     for (i, q) in near.iter().enumerate() {
-        let want = q.map(|v| (v as f64 * libm::pow(10.0, -3.0)) as f32);
+        let want = [q[0], q[1], q[2] - 1].map(|v| (v as f64 * libm::pow(10.0, -3.0)) as f32);
         // Bits, so a -0 would show.
         assert_eq!(
             placement.point(&frame, i).or_fail("point")?.to_array(),

@@ -141,6 +141,8 @@ pub struct StreamSummary {
     /// Points not mapped: farther than `--reach` from the map's origin, or past the world's
     /// range.
     pub points_out_of_reach: u64,
+    /// Points not mapped: no-returns, at the sensor itself (a beam that returned nothing).
+    pub no_returns: u64,
     /// Pose frames refused: their pose out of reach.
     pub poses_out_of_reach: u64,
     /// Times the map started again because later poses outvoted the first (a glitch as the
@@ -219,6 +221,7 @@ fn summary(
         poses: link.receiver_stats().poses,
         frames_without_pose: link.receiver_stats().no_pose,
         points_out_of_reach: link.receiver_stats().points_out_of_reach,
+        no_returns: link.receiver_stats().no_returns,
         poses_out_of_reach: link.receiver_stats().poses_out_of_reach,
         origin_restarts: link.receiver_stats().restarts,
         origin: link.receiver.origin(),
@@ -273,6 +276,12 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(
             ", {} points out of reach (not mapped)",
             s.points_out_of_reach
+        ));
+    }
+    if s.no_returns > 0 {
+        extra.push_str(&format!(
+            ", {} no-returns at the sensor (not mapped)",
+            s.no_returns
         ));
     }
     if s.poses_out_of_reach > 0 {
@@ -396,6 +405,9 @@ fn nothing_mapped(link: &Link) -> Option<String> {
     }
     if r.points_out_of_reach > 0 {
         reasons.push(format!("{} points out of reach", r.points_out_of_reach));
+    }
+    if r.no_returns > 0 {
+        reasons.push(format!("{} no-returns at the sensor", r.no_returns));
     }
     (!reasons.is_empty()).then(|| reasons.join(", "))
 }
