@@ -92,7 +92,8 @@ fn fraction(states: &[String], state: &str) -> f64 {
     states.iter().filter(|s| *s == state).count() as f64 / states.len().max(1) as f64
 }
 
-/// Sweeps 0 and 2 mapped at 9,600 bytes with their free space; 3,000 of sweep 1's rays:
+/// Sweeps 0 and 2 mapped at 9,600 bytes with their free space, and streamed (`map --stream`,
+/// 600 entities, 9,554 bytes with their free space) with theirs; 3,000 of sweep 1's rays:
 /// - four points before each end (1/5 .. 4/5 of its range) are never occupied (at most 2 %)
 ///   and mostly free;
 /// - of the points 2 m behind each end, those no ray of sweeps 0 and 2 passed within 10 cm of
@@ -104,21 +105,47 @@ fn free_before_the_ends_and_unknown_behind_walls() {
     let dir = Dir::new("free-space-states");
     let kept = sweeps_conf(&dir, "frames02.conf", &[0, 2]);
     let held = sweeps_conf(&dir, "frame1.conf", &[1]);
-    let map = dir.join("free.mema");
-    let plain = dir.join("plain.mema");
-    for (path, extra) in [(&map, Some("--free-space")), (&plain, None)] {
+    let made = |name: &str, size: &[&str], free_space: bool| {
+        let path = dir.join(name);
         MemaCommand::new(&dir)
             .arg("map")
             .arg(&kept)
-            .args(["--bytes", "9600", "-o"])
-            .arg(path)
-            .args(extra)
+            .args(size)
+            .arg("-o")
+            .arg(&path)
+            .args(free_space.then_some("--free-space"))
             .run()
             .assert_ok();
+        path
+    };
+    let batch = ["--bytes", "9600"];
+    let streamed = ["--stream", "-k", "600"];
+    for (map, plain) in [
+        (
+            made("free.mema", &batch, true),
+            made("plain.mema", &batch, false),
+        ),
+        (
+            made("streamed.mema", &streamed, true),
+            made("streamed-plain.mema", &streamed, false),
+        ),
+    ] {
+        held_out_states(&dir, &kept, &held, &map, &plain);
     }
-    let info = MemaCommand::new(&dir)
+}
+
+/// The states and scores of [`free_before_the_ends_and_unknown_behind_walls`] for `map` (made
+/// of `kept` with free space) and `plain` (without).
+fn held_out_states(
+    dir: &Dir,
+    kept: &std::path::Path,
+    held: &std::path::Path,
+    map: &std::path::Path,
+    plain: &std::path::Path,
+) {
+    let info = MemaCommand::new(dir)
         .arg("info")
-        .arg(&map)
+        .arg(map)
         .arg("--json")
         .run()
         .assert_ok()
@@ -126,8 +153,8 @@ fn free_before_the_ends_and_unknown_behind_walls() {
     assert_eq!(info["free_space_images"], 2, "{info}");
     assert!(info["file_bytes"].as_u64().unwrap() <= 9_600 + 52, "{info}");
 
-    let held_rays = rays(&load_cloud(&held).expect("sweep 1"));
-    let kept_rays = rays(&load_cloud(&kept).expect("sweeps 0 and 2"));
+    let held_rays = rays(&load_cloud(held).expect("sweep 1"));
+    let kept_rays = rays(&load_cloud(kept).expect("sweeps 0 and 2"));
     let picked: Vec<_> = held_rays
         .iter()
         .step_by(held_rays.len() / 3_000)
@@ -157,15 +184,16 @@ fn free_before_the_ends_and_unknown_behind_walls() {
         .collect();
     assert!(unseen.len() > behind.len() / 2, "{} unseen", unseen.len());
 
-    let before_states = states(&dir, &map, "before", &before);
-    let unseen_states = states(&dir, &map, "unseen", &unseen);
+    let before_states = states(dir, map, "before", &before);
+    let unseen_states = states(dir, map, "unseen", &unseen);
     let (occupied, free) = (
         fraction(&before_states, "occupied"),
         fraction(&before_states, "free"),
     );
     let unknown = fraction(&unseen_states, "unknown");
     eprintln!(
-        "before the ends: {occupied:.4} occupied, {free:.3} free; behind, unseen: {unknown:.3} unknown of {}",
+        "{}: before the ends: {occupied:.4} occupied, {free:.3} free; behind, unseen: {unknown:.3} unknown of {}",
+        map.display(),
         unseen.len()
     );
     assert!(
@@ -175,12 +203,12 @@ fn free_before_the_ends_and_unknown_behind_walls() {
     assert!(free >= 0.8, "{free} of the points before ends free");
     assert!(unknown >= 0.95, "{unknown} of the unseen points unknown");
 
-    let plain_states = states(&dir, &plain, "plain", &before);
+    let plain_states = states(dir, plain, "plain", &before);
     assert_eq!(fraction(&plain_states, "free"), 0.0);
     let accuracy = |m: &std::path::Path| {
-        MemaCommand::new(&dir)
+        MemaCommand::new(dir)
             .args(["eval", "--rays", "--json"])
-            .arg(&held)
+            .arg(held)
             .arg(m)
             .run()
             .assert_ok()
@@ -188,7 +216,7 @@ fn free_before_the_ends_and_unknown_behind_walls() {
             .as_f64()
             .unwrap()
     };
-    let (with, without) = (accuracy(&map), accuracy(&plain));
+    let (with, without) = (accuracy(map), accuracy(plain));
     eprintln!("occupancy accuracy: {with:.3} with free space, {without:.3} without");
     assert!(
         with > without + 0.2,

@@ -126,17 +126,43 @@ impl<const N: usize> Carver<N> {
         mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> usize {
-        if self.scan_start.is_some() && self.image.geometry().origin == sensor {
+        if !self.begins_scan(sensor) {
             return 0;
         }
         let carved = self.end_scan(mapper, observer);
+        self.begin_scan(sensor, mapper);
+        carved
+    }
+
+    /// Whether points seen from `sensor` begin a new scan: none is under way, or it was seen
+    /// from elsewhere.
+    pub fn begins_scan(&self, sensor: Point3) -> bool {
+        self.scan_start.is_none() || self.image.geometry().origin != sensor
+    }
+
+    /// Begins a scan seen from `sensor` (the current one, if any, ends without carving: call
+    /// [`Carver::end_scan`] first).
+    pub fn begin_scan<const K: usize, const G: usize, const F: usize>(
+        &mut self,
+        sensor: Point3,
+        mapper: &StreamMapper<K, G, F>,
+    ) {
         let geometry = Geometry {
             origin: sensor,
             ..*self.image.geometry()
         };
         self.image.reset(geometry);
         self.scan_start = Some(mapper.stats().points);
-        carved
+    }
+
+    /// Whether a scan is under way.
+    pub fn scanning(&self) -> bool {
+        self.scan_start.is_some()
+    }
+
+    /// The current scan's image (or the last scan's, once it ended).
+    pub fn image(&self) -> &RangeImage<N> {
+        &self.image
     }
 
     /// Notes a return of the current scan.

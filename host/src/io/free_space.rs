@@ -67,7 +67,7 @@ pub fn part_bytes_for(scans: usize) -> usize {
 
 /// The scans of `cloud` an image is kept of: all of them up to [`MAX_IMAGES`], else that many
 /// spread evenly (the first and the last among them).
-fn kept_scans(scans: usize) -> Vec<usize> {
+pub fn kept_scans(scans: usize) -> Vec<usize> {
     if scans <= MAX_IMAGES {
         return (0..scans).collect();
     }
@@ -110,6 +110,16 @@ pub fn image_of(
     returns: impl Iterator<Item = Point3> + Clone,
     size: [u16; 2],
 ) -> Option<FreeImage> {
+    image_from(origin, returns, size, None)
+}
+
+/// [`image_of`], its ranges coded from `near` when given (else from half the nearest return).
+pub fn image_from(
+    origin: Point3,
+    returns: impl Iterator<Item = Point3> + Clone,
+    size: [u16; 2],
+    near: Option<f32>,
+) -> Option<FreeImage> {
     let mut elevation = [f32::INFINITY, f32::NEG_INFINITY];
     let mut azimuths = Vec::new();
     let mut nearest = f32::INFINITY;
@@ -131,7 +141,7 @@ pub fn image_of(
     let elevation = [elevation[0] - 1e-5, elevation[1] + 1e-5];
     let geometry = Geometry {
         origin,
-        near: nearest / 2.0,
+        near: near.unwrap_or(nearest / 2.0),
         elevation,
         azimuth: azimuth_span(&mut azimuths, size[1]),
         rows: size[0],

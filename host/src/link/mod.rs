@@ -7,6 +7,7 @@
 //! The loops that run a link until its end (`mema stream`, `record`, `replay`, `scanner-sim`)
 //! are the command line's: they own Ctrl-C, progress lines and exit statuses.
 pub mod capture;
+pub mod carving;
 pub mod device;
 pub mod frames;
 #[cfg(feature = "fuzzing")]

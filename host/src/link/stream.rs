@@ -5,9 +5,10 @@ use mema_core::fit::FitParams;
 use mema_core::link::receiver::{Receiver, ReceiverStats};
 use mema_core::link::wire::DecoderStats;
 use mema_core::stream::{
-    Carver, MAX_SUMMARY, Pacing, StreamMapper, StreamModel, StreamParams, summary_layout,
+    MAX_SUMMARY, Pacing, StreamMapper, StreamModel, StreamParams, summary_layout,
 };
 
+use super::carving::Carving;
 use super::frames::{dequantise, quantise};
 use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
 use crate::error::ConfigError;
@@ -30,14 +31,6 @@ pub const MAX_WORKING: usize = MAX_SUMMARY;
 /// Working clusters and frozen entities share the host's bound: k <= `MAX_CLUSTERS` in all; the
 /// working set may hold up to [`MAX_WORKING`] clusters until the end merges them down to k.
 pub type HostStreamMapper = StreamMapper<MAX_WORKING, { 2 * MAX_WORKING }, MAX_CLUSTERS>;
-
-/// Rows and columns of the images a host's stream carves with: the whole sphere at 0.35 degrees,
-/// an OS-1-128's spacing (measured on the shared sweeps' ghost, `tests/free_space.rs`: 0.7
-/// degrees left 4.4 % of the ghost on surface, 0.35 degrees 3.4 %).
-pub const CARVE_IMAGE: [u16; 2] = [512, 1024];
-
-/// The carver of a host's stream (512 KiB).
-pub type HostCarver = Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }>;
 
 /// How a stream holds its k ellipsoids: all in working memory (merging when full), or `working`
 /// of them there and the rest frozen once the scan has left them (`--working`), as a small
@@ -170,7 +163,7 @@ pub fn map_of(mapper: &HostStreamMapper, origin: [f64; 3]) -> HostMap {
             mema_core::map::Layout::Quantized(grid) => Some(grid),
             _ => None,
         },
-        // The link's free space is not kept yet (issue 29): streamed maps record none.
+        // A carving link adds its scans' ([`Link::carving`]).
         free_space: Vec::new(),
     }
 }
@@ -222,8 +215,8 @@ pub struct Link {
     pub receiver: Receiver,
     pub mapper: Box<HostStreamMapper>,
     /// Carving, when on ([`Link::carving`]): each scan's image judges the clusters it saw
-    /// through.
-    pub carver: Option<Box<HostCarver>>,
+    /// through, and is kept as the map's free space.
+    pub carving: Option<Carving>,
 }
 
 impl Link {
@@ -243,15 +236,14 @@ impl Link {
         Self {
             receiver: Receiver::new(),
             mapper: new_mapper_with(params),
-            carver: None,
+            carving: None,
         }
     }
 
     /// The link carving what later scans see through ([`mema_core::stream::carve`]): scans
     /// are the runs of points frames from one sensor origin.
     pub fn carving(mut self) -> Self {
-        let [rows, columns] = CARVE_IMAGE;
-        self.carver = HostCarver::whole_sphere(rows, columns).map(Box::new);
+        self.carving = Carving::new();
         self
     }
 
@@ -266,14 +258,14 @@ impl Link {
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
-        let link = std::cell::RefCell::new((&mut self.mapper, &mut self.carver));
+        let link = std::cell::RefCell::new((&mut self.mapper, &mut self.carving));
         self.receiver.feed_all(
             chunk,
             |frame, placement| {
                 let (mapper, carver) = &mut *link.borrow_mut();
                 match carver {
                     Some(carver) => {
-                        carver.sensor_at(placement.place([0, 0, 0]), mapper, &mut ());
+                        carver.sensor_at(placement.place([0, 0, 0]), mapper);
                         for p in placement.points(&frame) {
                             mapper.add(p);
                             carver.add_return(p);
@@ -320,15 +312,20 @@ impl Link {
 
     /// The final map: every cluster refitted from its final moments.
     pub fn finish(&mut self) -> HostMap {
-        if let Some(carver) = &mut self.carver {
-            carver.end_scan(&mut self.mapper, &mut ());
+        if let Some(carving) = &mut self.carving {
+            carving.end_scan(&mut self.mapper);
         }
         self.mapper.finish();
         self.map()
     }
 
     fn map(&self) -> HostMap {
-        map_of(&self.mapper, self.receiver.origin())
+        let origin = self.receiver.origin();
+        let mut map = map_of(&self.mapper, origin);
+        if let Some(carving) = &self.carving {
+            map.free_space = carving.images_at(origin, map.origin);
+        }
+        map
     }
 }
 
