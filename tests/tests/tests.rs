@@ -125,3 +125,5 @@ mod las_classes;
 mod rays;
 // Issue 29: free, occupied, unknown: the map's free space and `mema query --points`.
 mod free_space;
+// Forgetting what moved: the demo drive's walker leaves no trail.
+mod walker;

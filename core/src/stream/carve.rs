@@ -9,7 +9,8 @@
 //! the mapper keeps moments, not points. A cluster is seen through when its centre, moved to the
 //! cluster's far side along the ray (twice its spread along the ray), lies nearer than its
 //! pixel's nearest return by [`CARVE_MARGIN`], and the ends of its two longest axes, moved the
-//! same way, lie either so or where the scan had no return (the sky): a cluster on a surface
+//! same way, lie either so or where the scan had no return (the sky); each pixel is read with
+//! its eight neighbours, the nearest return among them: a cluster on a surface
 //! the scan saw has its own surface there (a pixel's nearest return is at or before it), and
 //! one spanning a corner reaches past the corner.
 //!
@@ -239,16 +240,16 @@ impl<const N: usize> Carver<N> {
             && ends.iter().all(|&end| self.sight(far(end)) != Sight::Short)
     }
 
-    /// What the current scan saw of `p`: through it, short of it, or nothing along its pixel.
-    /// A pixel no return fell in, between two that have returns (the rows of a spinning
-    /// lidar's beams, finer pixels than its spacing), takes the nearer of the two: the gap is
-    /// the sensor's sampling, not open space.
+    /// What the current scan saw of `p`: through it, short of it, or nothing near its pixel.
+    /// A pixel is judged by the nearest return in it and the eight around it: finer pixels
+    /// than the sensor's spacing leave gaps between its rays (the sampling, not open space),
+    /// and the nearest of the neighbourhood never claims more free space than a return allows.
     fn sight(&self, p: Point3) -> Sight {
         let geometry = self.image.geometry();
         let Some((index, r)) = geometry.pixel(p) else {
             return Sight::Nothing;
         };
-        let Some(c) = self.nearest_return(index) else {
+        let Some(c) = self.nearest_around(index) else {
             return Sight::Nothing;
         };
         if r < range_of(c, geometry.near) - CARVE_MARGIN {
@@ -258,44 +259,31 @@ impl<const N: usize> Carver<N> {
         }
     }
 
-    /// The code of pixel `index`, or of the nearer of its two neighbours across a one-pixel
-    /// gap (above and below, else left and right); `None` if neither is there.
-    fn nearest_return(&self, index: usize) -> Option<u8> {
+    /// The least code of pixel `index` and its eight neighbours (across the ends of a whole
+    /// turn, the first and last columns are neighbours); `None` if none has a return.
+    fn nearest_around(&self, index: usize) -> Option<u8> {
         let cells = self.image.cells();
-        let code = |i: Option<usize>| {
-            i.and_then(|i| cells.get(i))
-                .copied()
-                .filter(|&c| c != NO_RETURN)
-        };
-        if let Some(c) = code(Some(index)) {
-            return Some(c);
-        }
         let geometry = self.image.geometry();
-        let columns = usize::from(geometry.columns);
+        let (rows, columns) = (usize::from(geometry.rows), usize::from(geometry.columns));
         let (row, column) = (index / columns.max(1), index % columns.max(1));
-        let up = code((row + 1 < usize::from(geometry.rows)).then(|| index + columns));
-        let down = code(index.checked_sub(columns));
-        if let (Some(a), Some(b)) = (up, down) {
-            return Some(a.min(b));
-        }
-        // Across the ends of a whole turn, the first and last columns are neighbours.
         let whole_turn = geometry.azimuth[1] >= core::f32::consts::TAU;
-        let step = |forward: bool| {
-            let next = if forward {
-                (column + 1 < columns)
-                    .then_some(column + 1)
-                    .or(whole_turn.then_some(0))
-            } else {
-                column
-                    .checked_sub(1)
-                    .or(whole_turn.then(|| columns.saturating_sub(1)))
-            };
-            next.map(|c| row * columns + c)
-        };
-        match (code(step(true)), code(step(false))) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            _ => None,
+        let mut nearest = NO_RETURN;
+        for r in row.saturating_sub(1)..(row + 2).min(rows) {
+            for step in [columns.wrapping_sub(1), 0, 1] {
+                let c = column.wrapping_add(step);
+                let c = if c < columns {
+                    c
+                } else if whole_turn {
+                    c.wrapping_add(columns) % columns.max(1)
+                } else {
+                    continue;
+                };
+                if let Some(&code) = cells.get(r * columns + c) {
+                    nearest = nearest.min(code);
+                }
+            }
         }
+        (nearest != NO_RETURN).then_some(nearest)
     }
 }
 

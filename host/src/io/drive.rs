@@ -7,7 +7,7 @@
 //! the objects from the front and from both sides: no single view covers what the map holds,
 //! and a map that put a view in the wrong place would show it twice.
 
-use super::scene::{Scan, ScanConfig, Scene, scan};
+use super::scene::{Scan, ScanConfig, Scene, scan_labelled};
 
 type V3 = [f64; 3];
 
@@ -27,6 +27,9 @@ pub struct DriveConfig {
     /// The rangefinder at each stop: its azimuth range is taken about the sensor's heading; its
     /// seed is offset by the stop's index.
     pub rangefinder: ScanConfig,
+    /// Someone walking across the robot's path: where they stand at the first stop and at the
+    /// last (metres on the floor), evenly between at the others. `None`: nobody moves.
+    pub walker: Option<[[f64; 2]; 2]>,
 }
 
 impl Default for DriveConfig {
@@ -49,8 +52,29 @@ impl Default for DriveConfig {
                 elevation_range: (-36f64.to_radians(), 12f64.to_radians()),
                 ..ScanConfig::default()
             },
+            walker: None,
         }
     }
+}
+
+/// A drive with someone walking across the robot's line of sight, in a room
+/// ([`Scene::with_walls`]): from beside the box towards the right wall, so each place they
+/// stood in view is seen through by two stops after it and the last stops no longer see them;
+/// the rangefinder looks 24 degrees up (not 12), so the stops after still see the walker's
+/// whole height. The scene is [`room`].
+pub fn walking() -> DriveConfig {
+    let mut config = DriveConfig {
+        walker: Some([[1.9, 0.3], [1.9, -2.1]]),
+        ..DriveConfig::default()
+    };
+    config.rangefinder.elevation_steps = 100;
+    config.rangefinder.elevation_range = (-36f64.to_radians(), 24f64.to_radians());
+    config
+}
+
+/// The scene of the walking drive ([`walking`]): the demo scene in a room.
+pub fn room() -> Scene {
+    Scene::demo().with_walls()
 }
 
 /// One stop of the drive.
@@ -65,6 +89,8 @@ pub struct DriveScan {
     pub points: Vec<V3>,
     /// The world-frame scan they came from: the rays it cast and what it hit.
     pub world: Scan,
+    /// Whether each point fell on the walker.
+    pub on_walker: Vec<bool>,
     /// The rangefinder as it was set at this stop (world-frame azimuths, sensor position).
     pub config: ScanConfig,
 }
@@ -101,7 +127,12 @@ pub fn drive(scene: &Scene, config: &DriveConfig) -> Vec<DriveScan> {
                 seed: config.rangefinder.seed.wrapping_add(i as u64),
                 ..config.rangefinder.clone()
             };
-            let world = scan(scene, &stop);
+            let here = config.walker.map(|[from, to]| {
+                scene.with_walker([0, 1].map(|j| from[j] + t * (to[j] - from[j])))
+            });
+            let seen = here.as_ref().unwrap_or(scene);
+            let (world, labels) = scan_labelled(seen, &stop);
+            let on_walker = labels.iter().map(|&l| seen.is_walker(l)).collect();
             let (s, c) = (libm::sin(yaw), libm::cos(yaw));
             // R(yaw)^T (p - t): the world point in the sensor's frame.
             let points = world
@@ -117,6 +148,7 @@ pub fn drive(scene: &Scene, config: &DriveConfig) -> Vec<DriveScan> {
                 yaw,
                 points,
                 world,
+                on_walker,
                 config: stop,
             }
         })
@@ -131,7 +163,7 @@ mod tests {
     /// are the world scan's points again.
     #[test]
     fn the_pose_takes_each_scan_back_to_the_world() {
-        let scans = drive(&Scene::demo(), &DriveConfig::default());
+        let scans = drive(&room(), &DriveConfig::default());
         assert_eq!(scans.len(), 8);
         let total: usize = scans.iter().map(|s| s.points.len()).sum();
         assert!((20_000..40_000).contains(&total), "{total} points");

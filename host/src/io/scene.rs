@@ -13,6 +13,9 @@ use rand_pcg::Pcg32;
 type V3 = [f64; 3];
 type V2 = [f64; 2];
 
+/// The name every part of a walker ([`Scene::with_walker`]) begins with.
+pub const WALKER: &str = "walker";
+
 /// A simulated rangefinder scan of the built-in scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scan {
@@ -215,6 +218,65 @@ impl Scene {
         Self { primitives }
     }
 
+    /// The scene with someone else standing at `at` (feet on the floor, metres), facing +y as
+    /// if walking that way: torso, head and legs, each named [`WALKER`]` ...`.
+    pub fn with_walker(&self, at: [f64; 2]) -> Self {
+        let [x, y] = at;
+        let ell = |name, center: V3, semi_axes| Primitive {
+            name,
+            shape: Shape::Ellipsoid { center, semi_axes },
+        };
+        let mut scene = self.clone();
+        scene.primitives.extend([
+            ell("walker torso", [x, y, 1.2], [0.21, 0.13, 0.35]),
+            ell("walker head", [x, y, 1.64], [0.09, 0.1, 0.12]),
+            ell(
+                "walker left leg",
+                [x - 0.1, y + 0.1, 0.45],
+                [0.08, 0.08, 0.45],
+            ),
+            ell(
+                "walker right leg",
+                [x + 0.1, y - 0.1, 0.45],
+                [0.08, 0.08, 0.45],
+            ),
+        ]);
+        scene
+    }
+
+    /// The scene as a room: walls along the floor's far edge and its sides, and a ceiling,
+    /// 2.6 m high. Behind anyone standing in it there is then a surface, so the rays that pass
+    /// where they stood end on something (the open scene's rays past the objects return
+    /// nothing, and say nothing about the space they crossed).
+    pub fn with_walls(&self) -> Self {
+        let wall = |name, min, max| Primitive {
+            name,
+            shape: Shape::Box { min, max },
+        };
+        let mut scene = self.clone();
+        scene.primitives.extend([
+            wall("back wall", [5.0, -3.05, 0.0], [5.05, 3.05, 2.6]),
+            wall("left wall", [-1.0, 3.0, 0.0], [5.0, 3.05, 2.6]),
+            wall("right wall", [-1.0, -3.05, 0.0], [5.0, -3.0, 2.6]),
+            Primitive {
+                name: "ceiling",
+                shape: Shape::Rect {
+                    min: [-1.0, -3.0],
+                    max: [5.0, 3.0],
+                    z: 2.6,
+                },
+            },
+        ]);
+        scene
+    }
+
+    /// Whether primitive `index` is part of a walker ([`Scene::with_walker`]).
+    pub fn is_walker(&self, index: usize) -> bool {
+        self.primitives
+            .get(index)
+            .is_some_and(|p| p.name.starts_with(WALKER))
+    }
+
     /// The nearest surface within `max_range` along `direction` (any nonzero length).
     pub fn ray_cast(&self, origin: V3, direction: V3, max_range: f64) -> Option<Hit> {
         let len = dot(direction, direction).sqrt();
@@ -281,7 +343,7 @@ pub fn scan(scene: &Scene, config: &ScanConfig) -> Scan {
 }
 
 /// `scan`, plus the index of the primitive each point came from.
-fn scan_labelled(scene: &Scene, config: &ScanConfig) -> (Scan, Vec<usize>) {
+pub fn scan_labelled(scene: &Scene, config: &ScanConfig) -> (Scan, Vec<usize>) {
     let mut rng = Pcg32::seed_from_u64(config.seed);
     let (mut points, mut labels, mut misses) = (Vec::new(), Vec::new(), 0);
     for d in config.ray_directions() {

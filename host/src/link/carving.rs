@@ -10,7 +10,7 @@ use crate::io::free_space::{COLUMNS, FreeImage, ROWS, image_from, kept_scans};
 
 /// Rows and columns of the images a host's stream carves with: the whole sphere at 0.35 degrees,
 /// an OS-1-128's spacing (measured on the shared sweeps' ghost, `tests/free_space.rs`: 0.7
-/// degrees left 4.4 % of the ghost on surface, 0.35 degrees 3.4 %).
+/// degrees left 5.3 % of the ghost on surface, 0.35 degrees 4.4 %).
 pub const CARVE_IMAGE: [u16; 2] = [512, 1024];
 
 /// The carver of a host's stream (512 KiB).
