@@ -3,8 +3,6 @@
 //! code's value, and the guide must say exactly what the template makes of the code. Text is
 //! compared with every run of white space made one space.
 
-use std::collections::BTreeMap;
-
 use mema_core::link::downlink::RING_BYTES;
 use mema_core::link::receiver::{DEFAULT_REACH, WORLD_LIMIT_NM};
 use mema_core::link::wire::{
@@ -20,7 +18,7 @@ use mema_firmware::{
 };
 use mema_firmware_sim::pacing::LINK_BYTES_PER_S;
 
-use crate::results::{documents, thousands};
+use crate::guides::{each_says, thousands};
 
 /// (guide, template)
 const STATED: &[(&str, &str)] = &[
@@ -198,34 +196,7 @@ fn value(name: &str) -> String {
     }
 }
 
-fn expand(template: &str) -> String {
-    let mut out = String::new();
-    let mut rest = template;
-    while let Some(start) = rest.find('{') {
-        out.push_str(&rest[..start]);
-        let end = rest[start..].find('}').expect("a closing brace") + start;
-        out.push_str(&value(&rest[start + 1..end]));
-        rest = &rest[end + 1..];
-    }
-    out.push_str(rest);
-    out
-}
-
-fn one_space(text: &str) -> String {
-    text.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
 #[test]
 fn the_constants_the_guides_state_are_the_codes() {
-    let documents: BTreeMap<String, String> = documents()
-        .into_iter()
-        .map(|(f, t)| (f, one_space(&t)))
-        .collect();
-    for (file, template) in STATED {
-        let quote = one_space(&expand(template));
-        assert!(
-            documents[*file].contains(&quote),
-            "{file} does not say `{quote}` (the code's constants: `{template}`)"
-        );
-    }
+    each_says(STATED, value, "the code's constants");
 }

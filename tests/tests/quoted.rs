@@ -11,7 +11,9 @@
 
 use std::collections::BTreeMap;
 
-use crate::results::{RESULTS, documents, results, thousands};
+use crate::guides::{
+    RESULTS, documents, each_says, expand, one_space, results, table_rows, thousands,
+};
 
 /// (guide, template)
 const QUOTED: &[(&str, &str)] = &[
@@ -85,21 +87,6 @@ const QUOTED: &[(&str, &str)] = &[
     ),
 ];
 
-/// The cells of a block's table rows (header and rule aside), backticks trimmed.
-fn rows(block: &str) -> Vec<Vec<String>> {
-    block
-        .lines()
-        .filter(|l| l.starts_with('|'))
-        .skip(2)
-        .map(|l| {
-            l.trim_matches('|')
-                .split('|')
-                .map(|c| c.trim().trim_matches('`').to_string())
-                .collect()
-        })
-        .collect()
-}
-
 fn count(cell: &str) -> u64 {
     cell.replace(',', "")
         .parse()
@@ -114,7 +101,7 @@ fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
     let body = results
         .get(block)
         .unwrap_or_else(|| panic!("{RESULTS}: no block `{block}`"));
-    let table = rows(body);
+    let table = table_rows(body);
     let cell = |name: &str| -> String {
         let cells = table
             .iter()
@@ -140,38 +127,10 @@ fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
     }
 }
 
-/// The template with every placeholder replaced by its value.
-fn expand(results: &BTreeMap<String, String>, template: &str) -> String {
-    let mut out = String::new();
-    let mut rest = template;
-    while let Some(start) = rest.find('{') {
-        out.push_str(&rest[..start]);
-        let end = rest[start..].find('}').expect("a closing brace") + start;
-        out.push_str(&value(results, &rest[start + 1..end]));
-        rest = &rest[end + 1..];
-    }
-    out.push_str(rest);
-    out
-}
-
-fn one_space(text: &str) -> String {
-    text.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
 #[test]
 fn the_figures_quoted_in_prose_are_the_results_files() {
     let results = results();
-    let documents: BTreeMap<String, String> = documents()
-        .into_iter()
-        .map(|(f, t)| (f, one_space(&t)))
-        .collect();
-    for (file, template) in QUOTED {
-        let quote = one_space(&expand(&results, template));
-        assert!(
-            documents[*file].contains(&quote),
-            "{file} does not say `{quote}` ({RESULTS}: `{template}`)"
-        );
-    }
+    each_says(QUOTED, |p| value(&results, p), RESULTS);
 }
 
 #[test]
@@ -183,11 +142,11 @@ fn a_template_reads_cells_parts_and_sums() {
             .to_string(),
     );
     assert_eq!(
-        expand(&results, "{b|x.pcd|2} and {b|y|3|2}"),
+        expand("{b|x.pcd|2} and {b|y|3|2}", |p| value(&results, p)),
         "1,500 and 10"
     );
-    assert_eq!(expand(&results, "{b|x.pcd+y|2}"), "4,000");
-    assert_eq!(expand(&results, "{b|y|2|bare}"), "2500");
+    assert_eq!(expand("{b|x.pcd+y|2}", |p| value(&results, p)), "4,000");
+    assert_eq!(expand("{b|y|2|bare}", |p| value(&results, p)), "2500");
 }
 
 /// The README's first claim, "in under 3% of the cloud's memory", against Table 2's maps.
@@ -203,7 +162,7 @@ fn the_readme_memory_claim_is_table_2s() {
         one_space(&readme).contains("in under 3% of the cloud's memory (the paper's Table 2)"),
         "README.md: the claim changed; change this test with it"
     );
-    let table = rows(&results["paper-table-2"]);
+    let table = table_rows(&results["paper-table-2"]);
     assert!(
         table.len() >= 4,
         "{RESULTS}: Table 2 has {} rows",

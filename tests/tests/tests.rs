@@ -2,6 +2,8 @@
 
 // Helpers: temp dirs, the mema binary, the shared data.
 mod util;
+// Helpers: the guides' text, their result blocks, and a sentence a guide must say.
+mod guides;
 
 // Bad input: every kind of broken file or argument gives a one-line error and an exit code.
 mod bad_input;
