@@ -3,6 +3,7 @@
 //! code's value, and the guide must say exactly what the template makes of the code. Text is
 //! compared with every run of white space made one space.
 
+use mema::io::bag::MAX_RECORD;
 use mema_core::link::downlink::RING_BYTES;
 use mema_core::link::receiver::{DEFAULT_REACH, WORLD_LIMIT_NM};
 use mema_core::link::wire::{
@@ -137,6 +138,10 @@ const STATED: &[(&str, &str)] = &[
         "README.md",
         "The board maps at K = {BOARD_K} ({BOARD_WORKING} working, {BOARD_FROZEN} frozen)",
     ),
+    (
+        "docs/ros2-bags.md",
+        "(a record is at most {MAX_RECORD_GIB} GiB)",
+    ),
 ];
 
 /// The code's value of a constant, as the guides write it.
@@ -192,6 +197,7 @@ fn value(name: &str) -> String {
         "AXIS_ALIGNED_LEN" => count(AXIS_ALIGNED_LEN),
         "ORIENTED_LEN" => count(ORIENTED_LEN),
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
+        "MAX_RECORD_GIB" => count(MAX_RECORD >> 30),
         _ => panic!("no constant {name}"),
     }
 }

@@ -1,6 +1,9 @@
 //! The guides as the tests that hold their figures read them (issue 32): README.md, PROTOCOL.md
 //! and docs/*.md, the result blocks `scripts/results.sh` writes into docs/results.md and the
-//! guides copy, and the templates that hold a guide to what a test computed.
+//! guides copy, and `says`, which holds a guide to a sentence a test makes from what it computed.
+//! `scripts/doc_digits.py` reads the `says(FILE, ...)` calls and the templates of quoted.rs and
+//! doc_constants.rs to tell which of a guide's numbers a test holds; keep the file a literal and
+//! the sentence a literal or a `format!` literal so that it can.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -163,6 +166,16 @@ pub fn each_says(templates: &[(&str, &str)], mut value: impl FnMut(&str) -> Stri
             "{file} does not say `{quote}` ({whence}: `{template}`)"
         );
     }
+}
+
+/// Holds a guide to a sentence a test made from what it computed: a figure changed in the guide,
+/// or a change in what the test computes, fails until the two agree again.
+pub fn says(file: &str, sentence: &str) {
+    let text = std::fs::read_to_string(repository().join(file)).expect("guide");
+    assert!(
+        one_space(&text).contains(&one_space(sentence)),
+        "{file} does not say `{sentence}`, which the test computes"
+    );
 }
 
 #[test]
