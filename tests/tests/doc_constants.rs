@@ -4,12 +4,17 @@
 //! compared with every run of white space made one space.
 
 use mema::io::bag::MAX_RECORD;
+use mema::io::free_space::{COLUMNS, FREE_MARGIN, ROWS};
+use mema::io::read::NO_RETURN_RANGE;
+use mema::mapping::carve::{CARVE_MARGIN, CARVE_SIZE};
+use mema::query::held_out::DEFAULT_TOLERANCE;
 use mema_core::link::downlink::RING_BYTES;
 use mema_core::link::receiver::{DEFAULT_REACH, WORLD_LIMIT_NM};
 use mema_core::link::wire::{
     CRC_LEN, HEADER_LEN, MAX_FRAME_LEN, MAX_GAP, MAX_POINTS, MAX_RAW_LEN, MAX_UNIT_EXPONENT,
     MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, WIDE_POSE_FRAME_LEN,
 };
+use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN};
 use mema_core::stream::{MAX_SUMMARY, Pacing, SUMMARY_FACTOR};
@@ -142,6 +147,31 @@ const STATED: &[(&str, &str)] = &[
         "docs/ros2-bags.md",
         "(a record is at most {MAX_RECORD_GIB} GiB)",
     ),
+    (
+        "docs/queries.md",
+        "(within `--min-range`, default {MIN_RANGE_CM} cm)",
+    ),
+    (
+        "docs/queries.md",
+        "within `--ray-tolerance` (default {RAY_TOLERANCE} m)",
+    ),
+    (
+        "docs/queries.md",
+        "in each of {FS_ROWS} x {FS_COLUMNS} pixels of elevation and azimuth",
+    ),
+    (
+        "docs/queries.md",
+        "({FS_IMAGE_BYTES} bytes a scan with its geometry;",
+    ),
+    (
+        "docs/queries.md",
+        "(nearer than its pixel's nearest return by {FREE_MARGIN} m)",
+    ),
+    (
+        "docs/queries.md",
+        "(nearer than their fine range images' nearest return, {CARVE_ROWS} x {CARVE_COLUMNS} \
+         pixels, by {CARVE_MARGIN} m)",
+    ),
 ];
 
 /// The code's value of a constant, as the guides write it.
@@ -198,6 +228,15 @@ fn value(name: &str) -> String {
         "ORIENTED_LEN" => count(ORIENTED_LEN),
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
         "MAX_RECORD_GIB" => count(MAX_RECORD >> 30),
+        "MIN_RANGE_CM" => format!("{:.0}", NO_RETURN_RANGE * 100.0),
+        "RAY_TOLERANCE" => DEFAULT_TOLERANCE.to_string(),
+        "FS_ROWS" => ROWS.to_string(),
+        "FS_COLUMNS" => COLUMNS.to_string(),
+        "FS_IMAGE_BYTES" => count(GEOMETRY_LEN + usize::from(ROWS) * usize::from(COLUMNS)),
+        "FREE_MARGIN" => FREE_MARGIN.to_string(),
+        "CARVE_ROWS" => CARVE_SIZE[0].to_string(),
+        "CARVE_COLUMNS" => CARVE_SIZE[1].to_string(),
+        "CARVE_MARGIN" => CARVE_MARGIN.to_string(),
         _ => panic!("no constant {name}"),
     }
 }
