@@ -68,6 +68,8 @@ mod outliers;
 mod docs;
 // PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
 mod protocol_doc;
+// PROTOCOL.md's field tables: offsets and sizes that add up to the frames the examples are.
+mod protocol_tables;
 // The figures the guides quote: copies of docs/results.md, the figures quoted in prose, and its
 // car6 rows computed again.
 mod results;
