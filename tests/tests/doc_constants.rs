@@ -147,6 +147,7 @@ const STATED: &[(&str, &str)] = &[
         "docs/ros2-bags.md",
         "(a record is at most {MAX_RECORD_GIB} GiB)",
     ),
+    ("README.md", "mema needs Rust {RUST_VERSION} or later"),
     (
         "docs/queries.md",
         "(within `--min-range`, default {MIN_RANGE_CM} cm)",
@@ -228,6 +229,7 @@ fn value(name: &str) -> String {
         "ORIENTED_LEN" => count(ORIENTED_LEN),
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
         "MAX_RECORD_GIB" => count(MAX_RECORD >> 30),
+        "RUST_VERSION" => env!("CARGO_PKG_RUST_VERSION").to_string(),
         "MIN_RANGE_CM" => format!("{:.0}", NO_RETURN_RANGE * 100.0),
         "RAY_TOLERANCE" => DEFAULT_TOLERANCE.to_string(),
         "FS_ROWS" => ROWS.to_string(),

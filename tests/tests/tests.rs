@@ -77,6 +77,9 @@ mod results;
 mod quoted;
 // The constants the guides state (frame sizes, layouts, pacing), each held to the code's.
 mod doc_constants;
+// The layouts, budgets, clocks and defaults the device and design guides state, held to the
+// code's, and every K they name one of the code's layouts.
+mod doc_device;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;
