@@ -92,7 +92,7 @@ def template_spans(text, template):
     the original text."""
     flat, where = one_space(text)
     parts = re.split(r"(\{[^}]*\})", " ".join(template.split()))
-    pattern = "".join("(.{1,16}?)" if p.startswith("{") else re.escape(p) for p in parts)
+    pattern = "".join("(.{1,48}?)" if p.startswith("{") else re.escape(p) for p in parts)
     for m in re.finditer(pattern, flat):
         holes = [(where[m.start(g)], where[m.end(g) - 1] + 1) for g in range(1, m.lastindex + 1)] \
             if m.lastindex else []

@@ -6,14 +6,19 @@
 use mema::io::bag::MAX_RECORD;
 use mema::io::free_space::{COLUMNS, FREE_MARGIN, ROWS};
 use mema::io::read::NO_RETURN_RANGE;
+use mema::link::queries::RAY_REACH;
+use mema::link::session::{MAX_ASKS, MAX_RESTARTS, SILENCE};
 use mema::mapping::carve::{CARVE_MARGIN, CARVE_SIZE};
 use mema::query::held_out::DEFAULT_TOLERANCE;
-use mema_core::link::downlink::RING_BYTES;
+use mema_core::link::downlink::{MAX_MAP_ENTITIES, RING_BYTES};
+use mema_core::link::receiver::SETTLED_POSES;
 use mema_core::link::receiver::{DEFAULT_REACH, WORLD_LIMIT_NM};
+use mema_core::link::uplink::MAX_RESEND;
 use mema_core::link::wire::{
     CRC_LEN, HEADER_LEN, MAX_FRAME_LEN, MAX_GAP, MAX_POINTS, MAX_RAW_LEN, MAX_UNIT_EXPONENT,
     MIN_UNIT_EXPONENT, POINT_LEN, POSE_FRAME_LEN, WIDE_POSE_FRAME_LEN,
 };
+use mema_core::link::wire::{HEADER_LEN_V1, QUATERNION_ONE};
 use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN};
@@ -133,8 +138,96 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "PROTOCOL.md",
-        "At 921,600 baud, 8N1 moves {LINK_BYTES_PER_S} bytes/s",
+        "At {BAUD} baud, 8N1 moves {LINK_BYTES_PER_S} bytes/s, which is about {POINTS_PER_S} \
+         points/s at about {WIRE_PER_POINT} wire bytes per point.",
     ),
+    (
+        "PROTOCOL.md",
+        "The receiver opens the port at `--baud`, {BAUD} by default",
+    ),
+    (
+        "PROTOCOL.md",
+        "a **points frame** carries up to {MAX_POINTS} points",
+    ),
+    (
+        "PROTOCOL.md",
+        "Build the *raw frame*: a {HEADER_LEN}-byte header",
+    ),
+    (
+        "PROTOCOL.md",
+        "| u16, 0..={MAX_POINTS}; `0` in a pose frame |",
+    ),
+    (
+        "PROTOCOL.md",
+        "| i8, {MIN_UNIT_EXPONENT} ..= {MAX_UNIT_EXPONENT}. A length is",
+    ),
+    (
+        "PROTOCOL.md",
+        "| u16, 0..={MAX_POINTS} | | 8 | 1 | unit exponent e | i8, {MIN_UNIT_EXPONENT} ..= \
+         {MAX_UNIT_EXPONENT} |",
+    ),
+    ("PROTOCOL.md", "frame has a {HEADER_LEN_V1}-byte header"),
+    (
+        "PROTOCOL.md",
+        "It is `{V1_OVERHEAD} + {POINT_LEN} n` bytes, at most {V1_MAX_LEN}.",
+    ),
+    ("PROTOCOL.md", "a jump of more than {MAX_GAP} frames"),
+    ("PROTOCOL.md", "a jump past {MAX_GAP}) is a"),
+    (
+        "PROTOCOL.md",
+        "which every unit from {MIN_UNIT_EXPONENT} to {MAX_UNIT_EXPONENT} is a whole number of",
+    ),
+    ("PROTOCOL.md", "within ±{WORLD_KM} km"),
+    ("PROTOCOL.md", "is past ±{WORLD_KM} km, or farther"),
+    (
+        "PROTOCOL.md",
+        "(f32 resolves a millimetre within {F32_MM_KM} km of the origin)",
+    ),
+    (
+        "PROTOCOL.md",
+        "i32 millimetres span ±{I32_MM_KM} km exactly.",
+    ),
+    ("PROTOCOL.md", "sends `-4` (0.1 mm, ±{I32_TENTH_MM_KM} km)"),
+    (
+        "PROTOCOL.md",
+        "Until {SETTLED_POSES} poses have agreed with the origin (`SETTLED_POSES`)",
+    ),
+    (
+        "PROTOCOL.md",
+        "the rotation as a unit quaternion x, y, z, w (scalar last) as i32 in units of \
+         2^-{QUATERNION_BITS}",
+    ),
+    (
+        "PROTOCOL.md",
+        "below 2^{MAP_ENTITIES_BITS} (`MAX_MAP_ENTITIES`)",
+    ),
+    (
+        "PROTOCOL.md",
+        "| entities u32, at most 2^{MAP_ENTITIES_BITS}:",
+    ),
+    (
+        "PROTOCOL.md",
+        "has taken a tenth of its ring ({PROGRESS_EVERY} bytes)",
+    ),
+    (
+        "PROTOCOL.md",
+        "The host keeps at most the ring's {RING_BYTES} bytes beyond",
+    ),
+    (
+        "PROTOCOL.md",
+        "a count (u16, at most {MAX_RESEND}; more is read as {MAX_RESEND}).",
+    ),
+    ("PROTOCOL.md", "| count u16 (at most {MAX_RESEND}) |"),
+    (
+        "PROTOCOL.md",
+        "at most {MAX_RESTARTS} times, so the map it writes",
+    ),
+    (
+        "PROTOCOL.md",
+        "once a second, at most {MAX_ASKS} times, and for the end",
+    ),
+    ("PROTOCOL.md", "for {SILENCE_S} seconds (`--idle-timeout`)"),
+    ("PROTOCOL.md", "(a ray is followed for {RAY_KM} km)"),
     (
         "README.md",
         "(K = {IMAGE_K}: {IMAGE_WORKING} working clusters and {IMAGE_FROZEN} frozen",
@@ -230,6 +323,35 @@ fn value(name: &str) -> String {
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
         "MAX_RECORD_GIB" => count(MAX_RECORD >> 30),
         "RUST_VERSION" => env!("CARGO_PKG_RUST_VERSION").to_string(),
+        // 8N1: ten bits on the line a byte.
+        "BAUD" => count((LINK_BYTES_PER_S * 10.0) as usize),
+        // Full frames: the most points in the fewest wire bytes.
+        "WIRE_PER_POINT" => format!("{:.1}", MAX_FRAME_LEN as f64 / MAX_POINTS as f64),
+        "POINTS_PER_S" => count(
+            ((LINK_BYTES_PER_S * MAX_POINTS as f64 / MAX_FRAME_LEN as f64) / 50.0).round() as usize
+                * 50,
+        ),
+        "HEADER_LEN" => count(HEADER_LEN),
+        "HEADER_LEN_V1" => count(HEADER_LEN_V1),
+        "V1_OVERHEAD" => count(HEADER_LEN_V1 + CRC_LEN),
+        "V1_MAX_LEN" => count(HEADER_LEN_V1 + POINT_LEN * MAX_POINTS + CRC_LEN),
+        // f32's 24-bit significand: a millimetre step up to 2^24 mm.
+        "F32_MM_KM" => format!(
+            "{:.0}",
+            ((1u64 << f32::MANTISSA_DIGITS) as f64 / 1e6).floor()
+        ),
+        "I32_MM_KM" => count((i32::MAX as f64 / 1e6) as usize),
+        "I32_TENTH_MM_KM" => count((i32::MAX as f64 / 1e7) as usize),
+        "SETTLED_POSES" => SETTLED_POSES.to_string(),
+        "QUATERNION_BITS" => QUATERNION_ONE.trailing_zeros().to_string(),
+        "MAP_ENTITIES_BITS" => MAX_MAP_ENTITIES.trailing_zeros().to_string(),
+        // The firmware's `PROGRESS_EVERY` (private): a tenth of the receive ring.
+        "PROGRESS_EVERY" => count(RING_BYTES / 10),
+        "MAX_RESEND" => MAX_RESEND.to_string(),
+        "MAX_RESTARTS" => MAX_RESTARTS.to_string(),
+        "MAX_ASKS" => MAX_ASKS.to_string(),
+        "SILENCE_S" => SILENCE.as_secs().to_string(),
+        "RAY_KM" => format!("{:.0}", RAY_REACH / 1e3),
         "MIN_RANGE_CM" => format!("{:.0}", NO_RETURN_RANGE * 100.0),
         "RAY_TOLERANCE" => DEFAULT_TOLERANCE.to_string(),
         "FS_ROWS" => ROWS.to_string(),

@@ -70,6 +70,8 @@ mod docs;
 mod protocol_doc;
 // PROTOCOL.md's field tables: offsets and sizes that add up to the frames the examples are.
 mod protocol_tables;
+// PROTOCOL.md's words for its examples, made from the examples' own bytes.
+mod protocol_prose;
 // The figures the guides quote: copies of docs/results.md, the figures quoted in prose, and its
 // car6 rows computed again.
 mod results;
