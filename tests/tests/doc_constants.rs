@@ -1,15 +1,22 @@
 //! Constants the guides state (issue 32: no guide states a K, a byte count or an instruction
 //! count the code does not have): each is written in a template here, `{NAME}` standing for the
-//! code's value, and the guide must say exactly what the template makes of the code. Text is
-//! compared with every run of white space made one space.
+//! code's value, or `{DEFAULT command --flag}` for the default `mema command --help` gives the
+//! flag, and the guide must say exactly what the template makes of the code. Text is compared
+//! with every run of white space made one space.
 
+use mema::bench::fidelity::DEFAULT_BUDGETS;
 use mema::io::bag::MAX_RECORD;
 use mema::io::free_space::{COLUMNS, FREE_MARGIN, ROWS};
-use mema::io::read::NO_RETURN_RANGE;
+use mema::io::input::IDLE_TIMEOUT;
+use mema::io::read::classes::{HIGH_NOISE, LOW_NOISE};
+use mema::io::read::outliers::{DEFAULT_NEIGHBOURS, DEFAULT_RATIO};
+use mema::io::read::{NO_RETURN_RANGE, UNSIZED_LIMIT};
 use mema::link::queries::RAY_REACH;
 use mema::link::session::{MAX_ASKS, MAX_RESTARTS, SILENCE};
 use mema::mapping::carve::{CARVE_MARGIN, CARVE_SIZE};
+use mema::mapping::surface_clusters::CANDIDATES;
 use mema::query::held_out::DEFAULT_TOLERANCE;
+use mema_core::kmeans::BLOCK;
 use mema_core::link::downlink::{MAX_MAP_ENTITIES, RING_BYTES};
 use mema_core::link::receiver::SETTLED_POSES;
 use mema_core::link::receiver::{DEFAULT_REACH, WORLD_LIMIT_NM};
@@ -30,6 +37,7 @@ use mema_firmware::{
 use mema_firmware_sim::pacing::LINK_BYTES_PER_S;
 
 use crate::guides::{each_says, thousands};
+use crate::util::mema_bin;
 
 /// (guide, template)
 const STATED: &[(&str, &str)] = &[
@@ -242,6 +250,79 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("README.md", "mema needs Rust {RUST_VERSION} or later"),
     (
+        "README.md",
+        "and poses farther than `--reach` ({REACH_KM} km)",
+    ),
+    (
+        "docs/command-line.md",
+        "read to {UNSIZED_GIB} GiB and failing after {IDLE_TIMEOUT_S} s",
+    ),
+    (
+        "docs/command-line.md",
+        "`--threshold` (the paper's {DEFAULT map --threshold} m)",
+    ),
+    (
+        "docs/command-line.md",
+        "(the {DEFAULT map --threshold} m threshold is {DEFAULT map --threshold} mm of bunny)",
+    ),
+    (
+        "docs/command-line.md",
+        "its noise (class {LOW_NOISE}, low noise; {HIGH_NOISE}, high noise)",
+    ),
+    (
+        "docs/command-line.md",
+        "`Classification![{LOW_NOISE}:{LOW_NOISE}]` and `[{HIGH_NOISE}:{HIGH_NOISE}]`",
+    ),
+    (
+        "docs/command-line.md",
+        "point whose mean distance to its {OUTLIER_NEIGHBOURS} nearest neighbours (the statistic of \
+         PCL's and Open3D's statistical outlier removal) is over {OUTLIER_RATIO} times that \
+         distance's median",
+    ),
+    (
+        "docs/command-line.md",
+        "{QUANTIZED_LEN} for a quantized shell and {PAPER_RECORD} for the paper's entity (its kind \
+         byte aside); `info`'s *paper bytes* counts {PAPER_RECORD} for",
+    ),
+    (
+        "docs/command-line.md",
+        "(B / {QUANTIZED_LEN} for shells, B / {AXIS_ALIGNED_LEN} for the paper's entities;",
+    ),
+    (
+        "docs/command-line.md",
+        "after up to `--surface-rounds` rounds (default {DEFAULT map --surface-rounds},",
+    ),
+    (
+        "docs/command-line.md",
+        "its {SURFACE_CANDIDATES} nearest clusters' Gaussians explains it best",
+    ),
+    (
+        "docs/command-line.md",
+        "`--samples` points (default {DEFAULT eval --samples},",
+    ),
+    (
+        "docs/command-line.md",
+        "the score with the default {DEFAULT eval --samples} samples",
+    ),
+    (
+        "docs/command-line.md",
+        "and paper bytes ({PAPER_RECORD} per entity)",
+    ),
+    (
+        "docs/performance.md",
+        "at the default {DEFAULT draw --size} iso view",
+    ),
+    (
+        "docs/performance.md",
+        "the draw walks exact block sums of {KMEANS_BLOCK} points",
+    ),
+    (
+        "docs/pictures-meshes.md",
+        "A mesh past `--max-bytes` (default {MAX_BYTES_GIB} GiB, {DEFAULT export --max-bytes} \
+         bytes)",
+    ),
+    ("docs/fidelity.md", "(default {FIDELITY_BUDGETS} bytes)"),
+    (
         "docs/queries.md",
         "(within `--min-range`, default {MIN_RANGE_CM} cm)",
     ),
@@ -323,6 +404,33 @@ fn value(name: &str) -> String {
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
         "MAX_RECORD_GIB" => count(MAX_RECORD >> 30),
         "RUST_VERSION" => env!("CARGO_PKG_RUST_VERSION").to_string(),
+        "UNSIZED_GIB" => count((UNSIZED_LIMIT >> 30) as usize),
+        "IDLE_TIMEOUT_S" => IDLE_TIMEOUT.as_secs().to_string(),
+        "LOW_NOISE" => LOW_NOISE.to_string(),
+        "HIGH_NOISE" => HIGH_NOISE.to_string(),
+        "OUTLIER_NEIGHBOURS" => DEFAULT_NEIGHBOURS.to_string(),
+        "OUTLIER_RATIO" => DEFAULT_RATIO.to_string(),
+        // Centre and weights: a version-1 record less its kind byte.
+        "PAPER_RECORD" => count(AXIS_ALIGNED_LEN - 1),
+        "SURFACE_CANDIDATES" => CANDIDATES.to_string(),
+        "KMEANS_BLOCK" => count(BLOCK),
+        "MAX_BYTES_GIB" => {
+            let bytes: u64 = cli_default("export", "--max-bytes")
+                .replace(',', "")
+                .parse()
+                .expect("bytes");
+            count((bytes >> 30) as usize)
+        }
+        "FIDELITY_BUDGETS" => {
+            let b = DEFAULT_BUDGETS.map(count);
+            format!("{}, {} and {}", b[0], b[1], b[2])
+        }
+        _ if name.starts_with("DEFAULT ") => {
+            let (command, flag) = name["DEFAULT ".len()..]
+                .split_once(' ')
+                .expect("command flag");
+            cli_default(command, flag)
+        }
         // 8N1: ten bits on the line a byte.
         "BAUD" => count((LINK_BYTES_PER_S * 10.0) as usize),
         // Full frames: the most points in the fewest wire bytes.
@@ -362,6 +470,30 @@ fn value(name: &str) -> String {
         "CARVE_COLUMNS" => CARVE_SIZE[1].to_string(),
         "CARVE_MARGIN" => CARVE_MARGIN.to_string(),
         _ => panic!("no constant {name}"),
+    }
+}
+
+/// The default `mema command --help` gives `flag`, as the guides write it (a count with its
+/// thousands separated).
+fn cli_default(command: &str, flag: &str) -> String {
+    let out = std::process::Command::new(mema_bin())
+        .args([command, "--help"])
+        .output()
+        .expect("mema runs");
+    let help = String::from_utf8(out.stdout).expect("text");
+    let at = help
+        .lines()
+        .position(|l| l.trim_start().starts_with(flag) || l.contains(&format!(", {flag} ")))
+        .unwrap_or_else(|| panic!("`mema {command} --help` has no {flag}"));
+    let rest: String = help.lines().skip(at).collect::<Vec<_>>().join("\n");
+    let value = rest
+        .split("[default: ")
+        .nth(1)
+        .and_then(|v| v.split(']').next())
+        .unwrap_or_else(|| panic!("`mema {command} --help`: no default for {flag}"));
+    match value.parse::<u64>() {
+        Ok(n) => thousands(n),
+        Err(_) => value.to_string(),
     }
 }
 

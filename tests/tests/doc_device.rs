@@ -204,6 +204,15 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("docs/design.md", "The iteration cap is {KMEANS_CAP}."),
     (
+        "docs/performance.md",
+        "A fit ({DE_GENERATIONS} generations, population {DE_POPULATION}, {DE_EVALUATIONS} \
+         evaluations)",
+    ),
+    (
+        "docs/performance.md",
+        "(population {DE_POPULATION}, {DE_GENERATIONS} generations, F {DE_F}, CR {DE_CR},",
+    ),
+    (
         "docs/design.md",
         "is at most {KMEANS_TOLERANCE} times the mean per-axis variance.",
     ),
@@ -268,6 +277,9 @@ fn value(name: &str) -> String {
         "DE_F" => de.mutation.to_string(),
         "DE_CR" => de.crossover.to_string(),
         "DE_GENERATIONS" => de.generations.to_string(),
+        "DE_POPULATION" => PAPER_POPULATION.to_string(),
+        // The first population, then one trial a member each generation.
+        "DE_EVALUATIONS" => (PAPER_POPULATION * (1 + de.generations as usize)).to_string(),
         "KMEANS_CAP" => KMeansParams::default().max_iterations.to_string(),
         "KMEANS_TOLERANCE" => format!("{:e}", KMeansParams::default().tolerance),
         _ => panic!("no constant {name}"),
