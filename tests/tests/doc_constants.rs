@@ -16,6 +16,7 @@ use mema::link::session::{MAX_ASKS, MAX_RESTARTS, SILENCE};
 use mema::mapping::carve::{CARVE_MARGIN, CARVE_SIZE};
 use mema::mapping::surface_clusters::CANDIDATES;
 use mema::query::held_out::DEFAULT_TOLERANCE;
+use mema_core::free_space::NO_RETURN;
 use mema_core::kmeans::BLOCK;
 use mema_core::link::downlink::{MAX_MAP_ENTITIES, RING_BYTES};
 use mema_core::link::receiver::SETTLED_POSES;
@@ -28,7 +29,7 @@ use mema_core::link::wire::{
 use mema_core::link::wire::{HEADER_LEN_V1, QUATERNION_ONE};
 use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
-use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN};
+use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN, MAGIC};
 use mema_core::stream::{MAX_SUMMARY, Pacing, SUMMARY_FACTOR};
 use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, REFIT_INTERVAL,
@@ -322,6 +323,26 @@ const STATED: &[(&str, &str)] = &[
          bytes)",
     ),
     ("docs/fidelity.md", "(default {FIDELITY_BUDGETS} bytes)"),
+    ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_1} bytes**"),
+    ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_0} bytes**"),
+    ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_2} bytes**"),
+    (
+        "docs/map-format.md",
+        "| 0..{MAGIC_END} | magic `MEMA` | | {MAGIC_END}..{VERSION_END} | version, u16: 1 or 2 | \
+         | {VERSION_END}..{FLAGS_END} | flags, u16:",
+    ),
+    (
+        "docs/map-format.md",
+        "| {FLAGS_END}..{MAP_COUNT_START} | origin x, y, z as f64",
+    ),
+    (
+        "docs/map-format.md",
+        "| last {MAP_CRC_LEN} | CRC-32 (IEEE, as zip/PNG) of every byte before it |",
+    ),
+    (
+        "docs/map-format.md",
+        "row by row from the lowest elevation; {NO_RETURN} where no return fell,",
+    ),
     (
         "docs/queries.md",
         "(within `--min-range`, default {MIN_RANGE_CM} cm)",
@@ -421,6 +442,15 @@ fn value(name: &str) -> String {
                 .expect("bytes");
             count((bytes >> 30) as usize)
         }
+        "FIDELITY_BUDGET_0" => count(DEFAULT_BUDGETS[0]),
+        "FIDELITY_BUDGET_1" => count(DEFAULT_BUDGETS[1]),
+        "FIDELITY_BUDGET_2" => count(DEFAULT_BUDGETS[2]),
+        // The header's fields in order: magic, version u16, flags u16, origin 3 x f64, count.
+        "MAGIC_END" => count(MAGIC.len()),
+        "VERSION_END" => count(MAGIC.len() + 2),
+        "FLAGS_END" => count(MAGIC.len() + 4),
+        "MAP_CRC_LEN" => count(MAP_CRC_LEN),
+        "NO_RETURN" => NO_RETURN.to_string(),
         "FIDELITY_BUDGETS" => {
             let b = DEFAULT_BUDGETS.map(count);
             format!("{}, {} and {}", b[0], b[1], b[2])

@@ -4,7 +4,11 @@
 //! here, `{NAME}` standing for the code's value. And every `K = N`, `N working` and `N frozen` in
 //! the guides is one of the code's layouts.
 
+use mema::analysis::stats::{CLOUD_BYTES_PER_POINT, MAP_BYTES_PER_ENTITY};
+use mema::bench::gmm::{BYTES_PER_COMPONENT, SIGMAS};
+use mema::render::camera::{DENSE_TAIL, STRAY_SPAN};
 use mema_core::de::{DeParams, PAPER_POPULATION};
+use mema_core::fitness::PAPER_ALPHA;
 use mema_core::kmeans::KMeansParams;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::moments::fixed::OFFSET_LIMIT;
@@ -204,6 +208,42 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("docs/design.md", "The iteration cap is {KMEANS_CAP}."),
     (
+        "docs/fidelity.md",
+        "oriented shells of surface-following clusters, {QUANTIZED_LEN} bytes an entity); - the \
+         paper's map (`--bytes B --paper`: axis-aligned DE fits of eq. 12, {AXIS_ALIGNED_LEN} \
+         bytes an entity);",
+    ),
+    (
+        "docs/fidelity.md",
+        "B / {GMM_BYTES} components at {GMM_BYTES} bytes each, drawn as {GMM_SIGMAS}-sigma shells",
+    ),
+    (
+        "docs/fidelity.md",
+        "A shell lies along its patch of surface, {TANGENT_SCALE} standard deviations across it \
+         and {NORMAL_SCALE} through it",
+    ),
+    (
+        "docs/fidelity.md",
+        "The quantized record is {QUANTIZED_LEN} bytes against the paper's {AXIS_ALIGNED_LEN} and \
+         the GMM's {GMM_BYTES}, so a budget buys {PAPER_RATIO} times the paper's entities and \
+         {GMM_RATIO} times the GMM's components.",
+    ),
+    (
+        "docs/fidelity.md",
+        "Defaults apply: seed {KMEANS_SEED}, alpha {ALPHA}, threshold {THRESHOLD}, DE with F \
+         {DE_F}, CR {DE_CR}, population {DE_POPULATION} and {DE_GENERATIONS} generations.",
+    ),
+    (
+        "docs/fidelity.md",
+        "Table 2 (memory; {CLOUD_POINT_BYTES} bytes per point, {MAP_ENTITY_BYTES} bytes per entity \
+         as in the paper):",
+    ),
+    (
+        "docs/pictures-meshes.md",
+        "from the {DENSE_LOW} % quantile to the {DENSE_HIGH} %, widened by a twentieth, in place \
+         of the whole range where that is over {STRAY_SPAN} times wider.",
+    ),
+    (
         "docs/performance.md",
         "A fit ({DE_GENERATIONS} generations, population {DE_POPULATION}, {DE_EVALUATIONS} \
          evaluations)",
@@ -278,6 +318,18 @@ fn value(name: &str) -> String {
         "DE_CR" => de.crossover.to_string(),
         "DE_GENERATIONS" => de.generations.to_string(),
         "DE_POPULATION" => PAPER_POPULATION.to_string(),
+        "GMM_BYTES" => BYTES_PER_COMPONENT.to_string(),
+        "GMM_SIGMAS" => format!("{SIGMAS}"),
+        "PAPER_RATIO" => format!("{:.1}", AXIS_ALIGNED_LEN as f64 / QUANTIZED_LEN as f64),
+        "GMM_RATIO" => format!("{:.1}", BYTES_PER_COMPONENT as f64 / QUANTIZED_LEN as f64),
+        "KMEANS_SEED" => KMeansParams::default().seed.to_string(),
+        "ALPHA" => PAPER_ALPHA.to_string(),
+        "THRESHOLD" => mema_core::Degeneration::default().threshold.to_string(),
+        "CLOUD_POINT_BYTES" => CLOUD_BYTES_PER_POINT.to_string(),
+        "MAP_ENTITY_BYTES" => MAP_BYTES_PER_ENTITY.to_string(),
+        "DENSE_LOW" => format!("{}", DENSE_TAIL * 100.0),
+        "DENSE_HIGH" => format!("{}", (1.0 - DENSE_TAIL) * 100.0),
+        "STRAY_SPAN" => STRAY_SPAN.to_string(),
         // The first population, then one trial a member each generation.
         "DE_EVALUATIONS" => (PAPER_POPULATION * (1 + de.generations as usize)).to_string(),
         "KMEANS_CAP" => KMeansParams::default().max_iterations.to_string(),
