@@ -238,6 +238,10 @@ const STATED: &[(&str, &str)] = &[
     ("PROTOCOL.md", "for {SILENCE_S} seconds (`--idle-timeout`)"),
     ("PROTOCOL.md", "(a ray is followed for {RAY_KM} km)"),
     (
+        "docs/board.md",
+        "ends the session after `--idle-timeout` ({SILENCE_S} s by default)",
+    ),
+    (
         "README.md",
         "(K = {IMAGE_K}: {IMAGE_WORKING} working clusters and {IMAGE_FROZEN} frozen",
     ),

@@ -25,7 +25,7 @@ use mema_firmware_sim::compare::{
 use mema_firmware_sim::harness::RunConfig;
 use mema_firmware_sim::pacing::{CPU_HZ, LINK_BYTES_PER_S};
 
-use crate::guides::{documents, each_says, thousands};
+use crate::guides::{documents, each_says, repository, thousands};
 
 /// (guide, template)
 const STATED: &[(&str, &str)] = &[
@@ -208,6 +208,20 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("docs/design.md", "The iteration cap is {KMEANS_CAP}."),
     (
+        "docs/testing.md",
+        "in both models, under {CHECK_PER_POINT} instructions a point, and answers {CHECK_QUERIES} \
+         queries on car6 as the host does",
+    ),
+    (
+        "docs/board.md",
+        "`firmware-sim/check.sh` holds the board under {CHECK_PER_POINT} instructions a point",
+    ),
+    (
+        "docs/board.md",
+        "and check.sh asserts only that each is under {CHECK_PER_POINT}:",
+    ),
+    ("docs/board.md", "`check.sh` asks {CHECK_QUERIES} on car6"),
+    (
         "docs/fidelity.md",
         "oriented shells of surface-following clusters, {QUANTIZED_LEN} bytes an entity); - the \
          paper's map (`--bytes B --paper`: axis-aligned DE fits of eq. 12, {AXIS_ALIGNED_LEN} \
@@ -318,6 +332,8 @@ fn value(name: &str) -> String {
         "DE_CR" => de.crossover.to_string(),
         "DE_GENERATIONS" => de.generations.to_string(),
         "DE_POPULATION" => PAPER_POPULATION.to_string(),
+        "CHECK_PER_POINT" => thousands(check_sh("p < ").parse().expect("a bound")),
+        "CHECK_QUERIES" => check_sh("queries="),
         "GMM_BYTES" => BYTES_PER_COMPONENT.to_string(),
         "GMM_SIGMAS" => format!("{SIGMAS}"),
         "PAPER_RATIO" => format!("{:.1}", AXIS_ALIGNED_LEN as f64 / QUANTIZED_LEN as f64),
@@ -336,6 +352,21 @@ fn value(name: &str) -> String {
         "KMEANS_TOLERANCE" => format!("{:e}", KMeansParams::default().tolerance),
         _ => panic!("no constant {name}"),
     }
+}
+
+/// The number after the last `key` in `firmware-sim/check.sh`, the board's bounds living there
+/// (`p < 10000`: instructions a point; `queries=32`).
+fn check_sh(key: &str) -> String {
+    let script =
+        std::fs::read_to_string(repository().join("firmware-sim/check.sh")).expect("check.sh");
+    let at = script
+        .rfind(key)
+        .unwrap_or_else(|| panic!("check.sh: no `{key}`"))
+        + key.len();
+    script[at..]
+        .chars()
+        .take_while(char::is_ascii_digit)
+        .collect()
 }
 
 #[test]
