@@ -40,7 +40,7 @@ NUMBER = re.compile(r"(?:(?<![\w.])|(?<=\dx))\d+(?:,\d{3})*(?:\.\d+)?(?:e-?\d+)?
 TEMPLATE_FILES = {"tests/tests/quoted.rs": "cell", "tests/tests/doc_constants.rs": "code",
                   "tests/tests/doc_device.rs": "code"}
 # `K = N`, `N working`, `N frozen`: tests/tests/doc_device.rs holds each to the code's layouts.
-LAYOUT = re.compile(r"(?<=K = )\d[\d,]*|\d[\d,]*(?=\s+(?:working|frozen))")
+LAYOUT = re.compile(r"(?<=K =\s)\d[\d,]*|(?<=K =\n)\d[\d,]*|\d[\d,]*(?=\s+(?:working|frozen))")
 # Where tests hold a guide to a sentence (`says` in tests/tests/guides.rs, `guide_says` in the
 # host's reader tests).
 SOURCES = ["tests/tests", "host/src", "host/tests", "core/src", "firmware/src", "firmware-sim/src",

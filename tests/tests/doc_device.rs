@@ -6,10 +6,13 @@
 
 use mema::analysis::stats::{CLOUD_BYTES_PER_POINT, MAP_BYTES_PER_ENTITY};
 use mema::bench::gmm::{BYTES_PER_COMPONENT, SIGMAS};
+use mema::link::stream::GRID_BUCKETS;
 use mema::render::camera::{DENSE_TAIL, STRAY_SPAN};
 use mema_core::de::{DeParams, PAPER_POPULATION};
 use mema_core::fitness::PAPER_ALPHA;
 use mema_core::kmeans::KMeansParams;
+use mema_core::link::receiver::DEFAULT_REACH;
+use mema_core::link::wire::{MAX_POINTS, MAX_UNIT_EXPONENT, MIN_UNIT_EXPONENT, QUATERNION_ONE};
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::moments::fixed::OFFSET_LIMIT;
 use mema_core::shell::ShellParams;
@@ -207,6 +210,31 @@ const STATED: &[(&str, &str)] = &[
         "**DE/rand/1/bin**: F = {DE_F}, CR = {DE_CR} and {DE_GENERATIONS} generations by default.",
     ),
     ("docs/design.md", "The iteration cap is {KMEANS_CAP}."),
+    ("README.md", "one copy for the {IMAGE_RAM_KIB} KiB image"),
+    (
+        "docs/streaming.md",
+        "COBS-framed frames of up to {MAX_POINTS} points",
+    ),
+    (
+        "docs/streaming.md",
+        "refuses unit exponents outside {MIN_UNIT_EXPONENT}..={MAX_UNIT_EXPONENT},",
+    ),
+    (
+        "docs/streaming.md",
+        "Points and poses farther than `--reach` ({REACH_KM} km) from the origin",
+    ),
+    (
+        "docs/streaming.md",
+        "units of 2^-{QUATERNION_BITS}. The points frames after it name that pose",
+    ),
+    (
+        "docs/streaming.md",
+        "(so its grid is the map's own extent over {I16_MAX},",
+    ),
+    (
+        "docs/firmware.md",
+        "the host maps to the same bytes with {HOST_BUCKETS})",
+    ),
     (
         "docs/testing.md",
         "in both models, under {CHECK_PER_POINT} instructions a point, and answers {CHECK_QUERIES} \
@@ -332,6 +360,13 @@ fn value(name: &str) -> String {
         "DE_CR" => de.crossover.to_string(),
         "DE_GENERATIONS" => de.generations.to_string(),
         "DE_POPULATION" => PAPER_POPULATION.to_string(),
+        "MAX_POINTS" => count(MAX_POINTS),
+        "MIN_UNIT_EXPONENT" => MIN_UNIT_EXPONENT.to_string(),
+        "MAX_UNIT_EXPONENT" => MAX_UNIT_EXPONENT.to_string(),
+        "REACH_KM" => count((DEFAULT_REACH / 1000.0) as usize),
+        "QUATERNION_BITS" => QUATERNION_ONE.trailing_zeros().to_string(),
+        "I16_MAX" => count(i16::MAX as usize),
+        "HOST_BUCKETS" => count(GRID_BUCKETS),
         "CHECK_PER_POINT" => thousands(check_sh("p < ").parse().expect("a bound")),
         "CHECK_QUERIES" => check_sh("queries="),
         "GMM_BYTES" => BYTES_PER_COMPONENT.to_string(),
