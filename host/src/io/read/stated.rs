@@ -44,15 +44,16 @@ fn the_performance_guide_states_the_readers_limits() {
             f64::from(unpacked) / 1e6
         ),
     );
-    // What a compressed body of 49 MB may claim: LZF's bound on its output, as x, y, z f32
-    // columns.
-    let claimed = 49e6 * lzf::MAX_EXPANSION as f64 / size_of::<[f32; 3]>() as f64;
+    // What a compressed body of 49 MB may claim: LZF's bound on its output, within the u32
+    // size the header gives it, as x, y, z f32 columns.
+    let claimed =
+        (49e6 * lzf::MAX_EXPANSION as f64).min(f64::from(u32::MAX)) / size_of::<[f32; 3]>() as f64;
     guide_says(
         "docs/performance.md",
         &format!(
             "reserves at most {} MiB of slots before its output arrives and makes the rest as the \
              first coordinate column is decoded (LZF's {}x bound lets 49 MB claim {:.0} million \
-             points)",
+             points, the most a u32 size allows)",
             pcd::UPFRONT >> 20,
             lzf::MAX_EXPANSION,
             claimed / 1e6
