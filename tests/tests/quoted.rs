@@ -173,3 +173,50 @@ fn the_readme_memory_claim_is_table_2s() {
         );
     }
 }
+
+/// firmware.md's two claims on the firmware's measured cost: car6 under a round bound with the
+/// paper's model (`firmware-cost`), and the most a pacing credit costs, a fit's or a merge
+/// pass's price over the credits it spends (`pacing`, `Pacing::DEVICE`).
+#[test]
+fn the_firmware_guides_claims_are_the_measured_costs() {
+    let results = results();
+    let cost = table_rows(&results["firmware-cost"]);
+    let paper = cost
+        .iter()
+        .find(|r| r[1] == "paper")
+        .expect("the paper's row");
+    let bound = 10_000;
+    assert!(
+        count(&paper[4]) < bound,
+        "{RESULTS}: car6 costs {} a point",
+        paper[4]
+    );
+    says(
+        "docs/firmware.md",
+        &format!(
+            "With the paper's model car6 stays under {} instructions a point;",
+            thousands(bound)
+        ),
+    );
+    let pacing = mema_core::stream::Pacing::DEVICE;
+    let most = table_rows(&results["pacing"])
+        .iter()
+        .flat_map(|r| {
+            let prices: Vec<u64> = r[1].split(", ").map(count).collect();
+            [
+                prices[1] / u64::from(pacing.freeze),
+                prices[2] / u64::from(pacing.merge_pass),
+            ]
+        })
+        .max()
+        .expect("prices");
+    let about = thousands((most + 50) / 100 * 100);
+    says(
+        "docs/firmware.md",
+        &format!("at most ~{about} instructions a credit)"),
+    );
+    says(
+        "docs/firmware.md",
+        &format!("plus ~{about} for the credit it earns"),
+    );
+}
