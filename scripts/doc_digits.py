@@ -18,13 +18,16 @@ changes. It reads what each test reads rather than running the suite once per di
 - `input`: inside inline code (`-k 150`, `--bytes 2400`, `[f32; 3]`): an argument or an
   identifier a command or the code is given, not something mema says;
 - `layout`: a `K = N`, `N working` or `N frozen`, held to the code's layouts (doc_device.rs);
-- `-`: nothing fails.
+- `left: REASON`: nothing fails, for a reason in LEFT below (a figure that is not mema's output,
+  or one no test can hold);
+- `-`: nothing fails, and no reason is given: what is still to be done.
 
 A number that is part of a name (car6, f32, bun000, ouster_os1_0) is not a figure. The few
 numbers that are the project's own definitions or another work's are marked by the reason in
 LEFT below, so that the listing of what no test holds stays short enough to read.
 
-Usage: python3 scripts/doc_digits.py [--all]   (default: the numbers no test holds)"""
+Usage: python3 scripts/doc_digits.py [--all | --left]
+(default: the numbers no test holds and LEFT gives no reason for; --left adds those it does)"""
 
 import glob
 import os
@@ -181,8 +184,57 @@ def audit(path, text, held_by):
         yield line, m[0], status
 
 
+# Numbers no test holds, and why: (file pattern, pattern of the number's line, reason). The first
+# that matches names the reason; a number none matches is listed as still to be done.
+LEFT = [
+    ("docs/testing.md", r"", "a test's parameters and bounds as testing.md describes them; the test "
+     "files hold the values"),
+    ("*", r"\bexit(s| status| with status)? \d|status \d|\(exit \d|with \d\b|exit \d|Exit status",
+     "an exit status, which the behaviour tests assert (`assert_error(N, ..)`)"),
+    ("docs/board.md", r"^\| \d+ \| (car6|demo|1 in|the same)",
+     "one QEMU run's counts, machine-dependent, stated once with their command and machine"),
+    ("docs/python.md", r"worker|machine|sharing the cores",
+     "a timing, stated once with its command and machine"),
+    ("docs/ros2-bags.md", r"1\.6 s", "a timing, stated once with its command and machine"),
+    ("*", r"Experiment|[Tt]he issue|the paper reports|paper's Figure|Figure 12|the paper's 4 m",
+     "a citation of the paper or an issue"),
+    ("*", r"Crazyflie|3\.3 V|stm32f4|svd2rust|`laz` reserves|GeoKey|EPSG|2112|34735|0\.3048|"
+     r"UTM northings|ECEF coordinates to|LAS 1\.|FIPS|laspy|CPython|glTF 2\.0|PCL",
+     "a fact about another project, format or part"),
+    ("*", r"\babout\b|~|\d to \d+ steps|a few|nearly|some \d",
+     "an approximate account of measured behaviour"),
+    ("*", r"\bk = \d|\bk=\d|-k \d|\d+ seeds?\b|random (points|rotations|cases)|one byte in|"
+     r"-entity map|\d-thread|\d threads?\b|1 thread|ulimit|fastest of \d|\d+ Lloyd|candidate|"
+     r"\d+ rounds|After \d|\d+% fewer|\d+ times farther|a Chamfer within|\d+ poses|--chunk-bytes|"
+     r"query-bench|\d+ of the|its first \d|glitch|noise \d|at \d+ bytes|\d+ bytes and near",
+     "a test's or a benchmark's input or bound named in prose (the test file holds it)"),
+    ("*", r"\(-?1, |\(0, 0, 0\)|x_0|x_\{i|2 \+ ln k|\) / 2|\d x the|-means|[(]1 byte|\d+-point|"
+     r"\d-generation|\d+ numbers|\d+ sums|\d+ integer moment|counted as 0\.5|multiples of \d+",
+     "a definition or a formula's own number"),
+    ("docs/board.md", r"QEMU|MHz|quiet for|every read is", "the part's and QEMU's behaviour as the board's "
+     "code handles it"),
+    ("PROTOCOL.md", r"", "a definition (a bit, kind or byte position, a power of two, a chosen "
+     "example value)"),
+    ("docs/map-format.md", r"", "a definition (a bit, byte position or code of the format)"),
+    ("docs/pictures-meshes.md", r"\| .* \|", "a mesh's vertex and triangle counts as formulas"),
+    ("*", r"\b\d+-bit\b|\b2\^|\bu(8|16|32|64)\b|\bi(16|32|64)\b|f32|f64|O\(1\)|3x3|\(N, 3\)|"
+     r"x, y, z|bit \d|bits \d|1e-?\d|\d+ x \d+",
+     "a definition: a type's width, a power of two, a tolerance's order"),
+]
+
+
+def left_reason(path, line_text):
+    import fnmatch
+    for pattern, line, reason in LEFT:
+        if fnmatch.fnmatch(path, pattern) and re.search(line, line_text):
+            return reason
+    return None
+
+
 def main():
     show_all = "--all" in sys.argv
+    show_left = "--left" in sys.argv
+    reasons = {}
     by_file = {}
     for guide, template, kind in templates():
         by_file.setdefault(guide, []).append((template, kind))
@@ -196,11 +248,17 @@ def main():
                    for s, e, holes in template_spans(text, template)]
         lines = text.splitlines()
         for line, number, status in audit(path, text, held_by):
+            context = lines[line - 1].strip()
+            reason = left_reason(path, context) if status == "-" else None
+            if reason:
+                status = "left"
+                reasons[reason] = reasons.get(reason, 0) + 1
             totals[status] = totals.get(status, 0) + 1
-            if show_all or status == "-":
-                context = lines[line - 1].strip()
+            if show_all or status == "-" or (show_left and status == "left"):
                 print(f"{path}:{line}: {number:>10}  {status:7} {context[:100]}")
     print("; ".join(f"{k} {v}" for k, v in sorted(totals.items())), file=sys.stderr)
+    for reason, n in sorted(reasons.items(), key=lambda r: -r[1]):
+        print(f"  left {n:4}: {reason}", file=sys.stderr)
 
 
 main()

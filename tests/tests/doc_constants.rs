@@ -327,6 +327,11 @@ const STATED: &[(&str, &str)] = &[
          bytes)",
     ),
     ("docs/fidelity.md", "(default {FIDELITY_BUDGETS} bytes)"),
+    (
+        "docs/fidelity.md",
+        "Up to {DEFAULT map --surface-rounds} rounds of classification EM (each point moves to \
+         whichever of its {SURFACE_CANDIDATES} nearest clusters' Gaussians explains it best:",
+    ),
     ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_1} bytes**"),
     ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_0} bytes**"),
     ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_2} bytes**"),

@@ -210,6 +210,12 @@ const STATED: &[(&str, &str)] = &[
         "**DE/rand/1/bin**: F = {DE_F}, CR = {DE_CR} and {DE_GENERATIONS} generations by default.",
     ),
     ("docs/design.md", "The iteration cap is {KMEANS_CAP}."),
+    (
+        "docs/board.md",
+        "Here the PLL is set for {CPU_MHZ} MHz from the internal oscillator and its lock is polled \
+         a bounded number of times; on silicon it locks and the part runs at {CPU_MHZ} MHz (APB2 \
+         at {APB2_MHZ} MHz)",
+    ),
     ("README.md", "one copy for the {IMAGE_RAM_KIB} KiB image"),
     (
         "docs/streaming.md",
@@ -317,6 +323,8 @@ fn value(name: &str) -> String {
         // 8N1: ten bits on the line a byte.
         "BAUD" => count((LINK_BYTES_PER_S * 10.0) as usize),
         "CPU_MHZ" => format!("{:.0}", CPU_HZ / 1e6),
+        // APB2 at half the core clock, its most on the STM32F405.
+        "APB2_MHZ" => format!("{:.0}", CPU_HZ / 2e6),
         "M4F_MIPS" => format!("{:.0}", CPU_HZ / 1.5 / 1e6),
         "QUANTIZED_LEN" => count(QUANTIZED_LEN),
         "ORIENTED_LEN" => count(ORIENTED_LEN),
