@@ -328,6 +328,10 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("docs/fidelity.md", "(default {FIDELITY_BUDGETS} bytes)"),
     (
+        "docs/queries.md",
+        "A point is then **occupied** within `--tolerance` (default {DEFAULT query --tolerance} m)",
+    ),
+    (
         "docs/fidelity.md",
         "Up to {DEFAULT map --surface-rounds} rounds of classification EM (each point moves to \
          whichever of its {SURFACE_CANDIDATES} nearest clusters' Gaussians explains it best:",
