@@ -26,7 +26,7 @@ use super::{Carrier, Firmware, RX_CAPACITY, Request, Ring};
 
 mod wired;
 
-/// The second line's receive ring: a listener's requests only (a request is at most 47 bytes on
+/// The second line's receive ring: a listener's requests only (a request is at most 45 bytes on
 /// the wire; asking again for 550 entities takes nine of 26).
 pub const LISTENER_RING: usize = 512;
 

@@ -42,7 +42,7 @@ impl Downlink {
 
 /// A progress frame goes out once the device has taken this many bytes since the last one: a
 /// tenth of the ring, so a sender keeping the ring's size in flight is never held up long,
-/// for 28 bytes back per 312 in.
+/// for 36 bytes back (a progress frame on the wire) per 312 in.
 pub const PROGRESS_EVERY: u32 = (RX_CAPACITY / 10) as u32;
 
 impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>

@@ -7,6 +7,7 @@
 //! The writer runs in the virtual environment `scripts/test.sh` makes (`target/py-venv`, with
 //! rosbags 0.11.9), or the Python `MEMA_PY` names. Without one the tests fail: they never skip.
 
+use crate::guides::{says, thousands};
 use crate::util::{Dir, MemaCommand, shared};
 use mema::io::bag::{BagError, BagOptions, read_bag};
 use std::path::{Path, PathBuf};
@@ -59,6 +60,12 @@ fn messy() -> PathBuf {
     bags().join("messy/messy.mcap")
 }
 
+/// The batch map's options for the bag against bun.conf.
+const BATCH: [&str; 4] = ["-k", "120", "--seed", "3"];
+/// Mutations of the two bags between them, and the most bits each flips.
+const MUTATIONS: usize = 120;
+const MOST_FLIPS: u64 = 4;
+
 fn bytes(path: &Path) -> Vec<u8> {
     std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
@@ -67,11 +74,10 @@ fn bytes(path: &Path) -> Vec<u8> {
 fn bag_in_world_maps_as_the_conf_does_bit_for_bit() {
     let dir = Dir::new("bag-batch");
     let conf = shared("bun.conf");
-    let common = ["-k", "120", "--seed", "3"];
     MemaCommand::new(&dir)
         .arg("map")
         .arg(&conf)
-        .args(common)
+        .args(BATCH)
         .args(["-o", "conf.mema"])
         .run()
         .assert_ok();
@@ -79,7 +85,7 @@ fn bag_in_world_maps_as_the_conf_does_bit_for_bit() {
         .arg("map")
         .arg(bunny())
         .args(["--topic", "/points", "--frame", "world"])
-        .args(common)
+        .args(BATCH)
         .args(["-o", "bag.mema"])
         .run()
         .assert_ok();
@@ -170,6 +176,13 @@ fn bag_replay_and_stream_map_as_the_conf_streams() {
     let summary = replay.json();
     assert_eq!(summary["poses"], 5, "{summary}");
     assert_eq!(summary["frames_rejected"], 0, "{summary}");
+    says(
+        "docs/ros2-bags.md",
+        &format!(
+            "through `replay` ({} poses, no frame refused)",
+            summary["poses"]
+        ),
+    );
     assert_eq!(summary["frames_without_pose"], 0, "{summary}");
 }
 
@@ -232,6 +245,10 @@ fn awkward_layouts_decode_to_numpys_points() {
         (dropped, empty)
     );
     assert_eq!(bag.scans.len(), want.len());
+    says(
+        "docs/ros2-bags.md",
+        &format!("the {dropped} non-finite points and the empty message are counted"),
+    );
     for (i, (scan, want)) in bag.scans.iter().zip(&want).enumerate() {
         assert_eq!(scan.frame_id, "lidar");
         assert_eq!(scan.points.len(), want.len(), "scan {i}");
@@ -327,10 +344,10 @@ fn a_cut_or_damaged_bag_is_an_error_never_a_panic() {
     };
     let sources = [(bytes(&messy()), "/cloud"), (whole, "/points")];
     let mut errors = 0;
-    for round in 0..120 {
+    for round in 0..MUTATIONS {
         let (source, topic) = &sources[round % 2];
         let mut m = source.clone();
-        for _ in 0..1 + next() % 4 {
+        for _ in 0..1 + next() % MOST_FLIPS {
             let at = (next() % m.len() as u64) as usize;
             m[at] ^= 1 << (next() % 8);
         }
@@ -350,4 +367,32 @@ fn a_cut_or_damaged_bag_is_an_error_never_a_panic() {
         }
     }
     assert!(errors > 0, "no mutation was noticed");
+}
+
+/// docs/ros2-bags.md's account of these tests, from the bag and the tests' own parameters.
+#[test]
+fn the_guide_describes_the_bag_these_tests_use() {
+    let options = BagOptions {
+        topic: Some("/points".into()),
+        frame: Some("world".into()),
+    };
+    let bag = read_bag(&bunny(), &options, None).unwrap();
+    let points: usize = bag.scans.iter().map(|s| s.points.len()).sum();
+    let megabytes = std::fs::metadata(bunny()).expect("the bag").len() as f64 / 1e6;
+    says(
+        "docs/ros2-bags.md",
+        &format!(
+            "bun.conf ({} scans, {} points as FLOAT64, {megabytes:.1} MB;",
+            bag.scans.len(),
+            thousands(points as u64)
+        ),
+    );
+    says(
+        "docs/ros2-bags.md",
+        &format!("in batch (`{}`)", BATCH.join(" ")),
+    );
+    says(
+        "docs/ros2-bags.md",
+        &format!("mutated {MUTATIONS} times between them (1-{MOST_FLIPS} bit flips)"),
+    );
 }

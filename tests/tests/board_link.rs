@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
 use crate::device::capture_and_replay;
+use crate::guides::{says, thousands};
 use crate::stream::PtyPair;
 use crate::util::Dir;
 use mema_firmware_sim::fault::LineFaults;
@@ -129,6 +130,18 @@ pub(crate) fn open(path: &Path) -> File {
 
 #[test]
 fn a_faulty_line_both_ways_still_gives_the_replay_map() {
+    // One byte in UP faulty on the way up, one in DOWN on the way down.
+    const UP: u32 = 4_000;
+    const DOWN: u32 = 2_000;
+    says(
+        "docs/board.md",
+        &format!(
+            "that drops, flips or duplicates one byte in {} on the way up and one in {} on the way \
+             down (seeded, two seeds)",
+            thousands(UP.into()),
+            thousands(DOWN.into())
+        ),
+    );
     let dir = Dir::new("board-link");
     let layout = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
     let (capture, _, replayed) = capture_and_replay(&dir, "car6.pcd", layout, "shells");
@@ -145,9 +158,9 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
             board.try_clone().expect("clone"),
             near.try_clone().expect("clone"),
             seed,
-            2_000,
+            DOWN,
         );
-        let up = relay(near, board, seed.wrapping_mul(0x9E37_79B9_7F4A_7C15), 4_000);
+        let up = relay(near, board, seed.wrapping_mul(0x9E37_79B9_7F4A_7C15), UP);
         let out = dir.join(&format!("board-{seed}.mema"));
         let (ok, summary, stderr) = crate::board_sessions::session(&pair.b, &capture, &out, None);
         assert!(ok, "seed {seed}: {stderr}");

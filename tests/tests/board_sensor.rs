@@ -16,6 +16,7 @@ use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 use crate::board_link::{Killed, board_image, open, relay, start_board};
 use crate::board_sessions::finished;
 use crate::device::{capture_and_replay, replay};
+use crate::guides::{says, thousands};
 use crate::stream::PtyPair;
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
 
@@ -96,6 +97,14 @@ fn check_summary(name: &str, summary: &serde_json::Value, model: &str, received:
 
 #[test]
 fn a_sensor_on_usart1_gives_the_listener_on_usart2_the_replay_map() {
+    const PER_POINT: f64 = 10_000.0;
+    says(
+        "docs/board.md",
+        &format!(
+            "nothing refused or lost, no overrun, under {} instructions a point",
+            thousands(PER_POINT as u64)
+        ),
+    );
     let dir = Dir::new("board-sensor");
     for model in ["shells", "paper"] {
         let image = board_image(model);
@@ -117,7 +126,7 @@ fn a_sensor_on_usart1_gives_the_listener_on_usart2_the_replay_map() {
             // The board's budget, on a clean line (a faulty one's damaged frames cost their
             // bytes' work and map no point): under QEMU's -icount the instructions do not
             // depend on the machine's load, and a sensor's line sends nothing twice.
-            assert!(per_point < 10_000.0, "{name}: {per_point} a point");
+            assert!(per_point < PER_POINT, "{name}: {per_point} a point");
             // A clean line: nothing damaged, nothing missing.
             assert_eq!(
                 (summary["refused"].as_u64(), summary["lost"].as_u64()),
@@ -135,6 +144,17 @@ fn a_sensor_on_usart1_gives_the_listener_on_usart2_the_replay_map() {
 
 #[test]
 fn faulty_lines_to_and_from_the_board_cost_frames_never_a_wrong_map() {
+    // One byte in SENSOR faulty on the sensor's line, one in MAP each way on the map's.
+    const SENSOR: u32 = 4_000;
+    const MAP: u32 = 2_000;
+    says(
+        "docs/board.md",
+        &format!(
+            "or duplicate a byte in {} on the sensor's line and one in {} each way on the map's",
+            thousands(SENSOR.into()),
+            thousands(MAP.into())
+        ),
+    );
     let dir = Dir::new("board-sensor-faults");
     let mut asked_again = 0;
     for (seed, cloud, model) in [(3u64, "car6.pcd", "shells"), (11, "demo", "paper")] {
@@ -152,14 +172,14 @@ fn faulty_lines_to_and_from_the_board_cost_frames_never_a_wrong_map() {
         let near = open(&listener.a);
         // The sensor's line one byte in 4,000 (tens of its frames), the map's one in 2,000
         // both ways.
-        let sensor_line = relay(open(&sensor.a), held_board, seed, 4_000);
+        let sensor_line = relay(open(&sensor.a), held_board, seed, SENSOR);
         let down = relay(
             usart2.try_clone().expect("clone"),
             near.try_clone().expect("clone"),
             seed.wrapping_add(1),
-            2_000,
+            MAP,
         );
-        let up = relay(near, usart2, seed.wrapping_add(2), 2_000);
+        let up = relay(near, usart2, seed.wrapping_add(2), MAP);
         let out = dir.join(&format!("listened-{seed}.mema"));
         let (ok, summary, stderr) = listen_to(&listener.b, &sensor.b, cloud, &out, (0, None));
         assert!(ok, "{name}: {stderr}");

@@ -14,6 +14,7 @@ use mema_firmware_sim::compare::{Setup, compare_clouds, shared_clouds};
 use mema_firmware_sim::fault::FaultConfig;
 use mema_firmware_sim::harness::{RunConfig, RunReport, frames_of, map_of_frames, run};
 
+use crate::guides::says;
 use crate::util::{Dir, MemaCommand, mema_bin, shared};
 
 const K: usize = 2048;
@@ -381,6 +382,15 @@ fn readers_never_panic_on_mutated_real_files() {
 /// objective), and even 48 bits fails where 2-point clusters fit almost exactly (lamppost).
 #[test]
 fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
+    // The fewest clouds 24-bit sums must fail on, and the sums the lamppost needs more than.
+    const LEAST_FAILING: usize = 7;
+    const WIDE_BITS: u32 = 48;
+    says(
+        "docs/firmware.md",
+        &format!(
+            "24-bit sums fail on at least {LEAST_FAILING} clouds, {WIDE_BITS}-bit ones on lamppost."
+        ),
+    );
     let clouds = shared_clouds().expect("../shared/data lists");
     let f32_sums = compare_clouds(
         &clouds,
@@ -396,7 +406,7 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
         .map(|c| c.cloud.as_str())
         .collect();
     assert!(
-        failing.len() >= 7,
+        failing.len() >= LEAST_FAILING,
         "24-bit sums failed only on {failing:?}\n{}",
         f32_sums.text()
     );
@@ -408,7 +418,7 @@ fn narrower_moment_sums_lose_the_agreement_with_the_reference() {
     let wide = compare_clouds(
         &lamppost,
         &Setup {
-            sum_bits: 48,
+            sum_bits: WIDE_BITS,
             ..Setup::new(150, 0)
         },
     );

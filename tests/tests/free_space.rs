@@ -5,6 +5,7 @@
 use mema::io::cloud::{LocalCloud, load_cloud};
 use rayon::prelude::*;
 
+use crate::guides::{says, thousands};
 use crate::util::{Dir, MemaCommand, shared};
 
 /// A .conf of the shared sweeps `frames`, pointing at the shared files.
@@ -92,6 +93,21 @@ fn fraction(states: &[String], state: &str) -> f64 {
     states.iter().filter(|s| *s == state).count() as f64 / states.len().max(1) as f64
 }
 
+/// The states test's budget and bounds, as docs/queries.md states them.
+const BYTES: u64 = 9_600;
+/// The streamed map's entities: with its two scans' free space, within [`BYTES`].
+const STREAMED: usize = 600;
+const STREAMED_BYTES: u64 = 9_554;
+const RAYS: usize = 3_000;
+/// Metres behind each end, and the least distance from every kept ray, of an unseen point.
+const BEHIND: f64 = 2.0;
+const UNSEEN: f64 = 0.1;
+const MOST_OCCUPIED: f64 = 0.02;
+const LEAST_FREE: f64 = 0.8;
+const LEAST_UNKNOWN: f64 = 0.95;
+/// What free space must add to the occupancy accuracy of `eval --rays`.
+const GAIN: f64 = 0.2;
+
 /// Sweeps 0 and 2 mapped at 9,600 bytes with their free space, and streamed (`map --stream`,
 /// 600 entities, 9,554 bytes with their free space) with theirs; 3,000 of sweep 1's rays:
 /// - four points before each end (1/5 .. 4/5 of its range) are never occupied (at most 2 %)
@@ -102,6 +118,25 @@ fn fraction(states: &[String], state: &str) -> f64 {
 ///   score (`eval --rays`) is far above it, within the same bytes.
 #[test]
 fn free_before_the_ends_and_unknown_behind_walls() {
+    says(
+        "docs/queries.md",
+        &format!(
+            "maps sweeps 0 and 2 with their free space at {} bytes (and streams them at \
+             {STREAMED} entities, {} bytes) and asks for points along {} of sweep 1's rays: of \
+             the points before each end, at most {:.0} % may be occupied and at least {:.0} % \
+             must be free; of the points {BEHIND} m behind each end that no ray of sweeps 0 and 2 \
+             passed within {:.0} cm of, at least {:.0} % must be unknown; and the occupancy \
+             accuracy of `eval --rays` must beat the same budget's map without free space by \
+             {GAIN}.",
+            thousands(BYTES),
+            thousands(STREAMED_BYTES),
+            thousands(RAYS as u64),
+            MOST_OCCUPIED * 100.0,
+            LEAST_FREE * 100.0,
+            UNSEEN * 100.0,
+            LEAST_UNKNOWN * 100.0
+        ),
+    );
     let dir = Dir::new("free-space-states");
     let kept = sweeps_conf(&dir, "frames02.conf", &[0, 2]);
     let held = sweeps_conf(&dir, "frame1.conf", &[1]);
@@ -118,8 +153,9 @@ fn free_before_the_ends_and_unknown_behind_walls() {
             .assert_ok();
         path
     };
-    let batch = ["--bytes", "9600"];
-    let streamed = ["--stream", "-k", "600"];
+    let (bytes, streamed) = (BYTES.to_string(), STREAMED.to_string());
+    let batch = ["--bytes", bytes.as_str()];
+    let streamed = ["--stream", "-k", streamed.as_str()];
     for (map, plain) in [
         (
             made("free.mema", &batch, true),
@@ -151,13 +187,13 @@ fn held_out_states(
         .assert_ok()
         .json();
     assert_eq!(info["free_space_images"], 2, "{info}");
-    assert!(info["file_bytes"].as_u64().unwrap() <= 9_600 + 52, "{info}");
+    assert!(info["file_bytes"].as_u64().unwrap() <= BYTES + 52, "{info}");
 
     let held_rays = rays(&load_cloud(held).expect("sweep 1"));
     let kept_rays = rays(&load_cloud(kept).expect("sweeps 0 and 2"));
     let picked: Vec<_> = held_rays
         .iter()
-        .step_by(held_rays.len() / 3_000)
+        .step_by(held_rays.len() / RAYS)
         .copied()
         .collect();
     let along = |(o, e): ([f64; 3], [f64; 3]), t: f64| [0, 1, 2].map(|j| o[j] + t * (e[j] - o[j]));
@@ -170,7 +206,7 @@ fn held_out_states(
         .map(|(o, e)| {
             let d = [0, 1, 2].map(|j| e[j] - o[j]);
             let r = d.iter().map(|v| v * v).sum::<f64>().sqrt();
-            [0, 1, 2].map(|j| e[j] + 2.0 * d[j] / r)
+            [0, 1, 2].map(|j| e[j] + BEHIND * d[j] / r)
         })
         .collect();
     let unseen: Vec<[f64; 3]> = behind
@@ -178,7 +214,7 @@ fn held_out_states(
         .filter(|p| {
             kept_rays
                 .iter()
-                .all(|(o, e)| segment_distance(**p, *o, *e) > 0.1)
+                .all(|(o, e)| segment_distance(**p, *o, *e) > UNSEEN)
         })
         .copied()
         .collect();
@@ -197,11 +233,14 @@ fn held_out_states(
         unseen.len()
     );
     assert!(
-        occupied <= 0.02,
+        occupied <= MOST_OCCUPIED,
         "{occupied} of the points before ends occupied"
     );
-    assert!(free >= 0.8, "{free} of the points before ends free");
-    assert!(unknown >= 0.95, "{unknown} of the unseen points unknown");
+    assert!(free >= LEAST_FREE, "{free} of the points before ends free");
+    assert!(
+        unknown >= LEAST_UNKNOWN,
+        "{unknown} of the unseen points unknown"
+    );
 
     let plain_states = states(dir, plain, "plain", &before);
     assert_eq!(fraction(&plain_states, "free"), 0.0);
@@ -219,7 +258,7 @@ fn held_out_states(
     let (with, without) = (accuracy(map), accuracy(plain));
     eprintln!("occupancy accuracy: {with:.3} with free space, {without:.3} without");
     assert!(
-        with > without + 0.2,
+        with > without + GAIN,
         "{with} with free space, {without} without"
     );
 }
@@ -236,6 +275,12 @@ fn surface_distances(
         .map(|v| v["signed_distance"].as_f64().expect("a distance"))
         .collect()
 }
+
+/// Metres the ghost is moved nearer its sensor; the most of it left on new surface, within
+/// [`ON_SURFACE`] metres of the map.
+const NEARER: f64 = 4.0;
+const MOST_CARVED: f64 = 0.05;
+const ON_SURFACE: f64 = 0.25;
 
 /// A ghost: a patch of sweep 0's returns (a 25-degree sector of a wall, 6 to 20 m out)
 /// moved 4 m nearer the sensor along their rays, as a bad frame would put them, with sweeps 1
@@ -256,7 +301,7 @@ fn ghost(dir: &Dir) -> Ghost {
         let azimuth = w[1].atan2(w[0]).to_degrees();
         let patch = (6.0..20.0).contains(&r) && (75.0..100.0).contains(&azimuth) && w[2] > 0.3;
         let q = if patch {
-            let q = w.map(|v| v * (r - 4.0) / r);
+            let q = w.map(|v| v * (r - NEARER) / r);
             points.push(q);
             q
         } else {
@@ -290,7 +335,7 @@ impl Ghost {
             let with = surface_distances(dir, map, "g", &self.points);
             with.iter()
                 .zip(&clean)
-                .filter(|(g, c)| g.abs() <= 0.25 && c.abs() > 0.25)
+                .filter(|(g, c)| g.abs() <= ON_SURFACE && c.abs() > ON_SURFACE)
                 .count() as f64
                 / self.points.len() as f64
         })
@@ -302,6 +347,16 @@ impl Ghost {
 /// without it keeps the ghost (most of its points on surface), so the measure can fail.
 #[test]
 fn a_ghost_seen_through_twice_leaves_no_surface() {
+    says(
+        "docs/queries.md",
+        &format!(
+            "moves a patch of sweep 0's wall {NEARER} m nearer its sensor and maps the three \
+             sweeps: at most {:.0} % of the ghost's points may lie within {:.0} cm of surface the \
+             map without the ghost does not have",
+            MOST_CARVED * 100.0,
+            ON_SURFACE * 100.0
+        ),
+    );
     let dir = Dir::new("free-space-ghost");
     let ghost = ghost(&dir);
     let map = |conf: &std::path::Path, name: &str, free_space: bool| {
@@ -328,7 +383,7 @@ fn a_ghost_seen_through_twice_leaves_no_surface() {
         "ghost of {} points: {carved:.3} on new surface carved, {kept:.3} without free space",
         ghost.points.len()
     );
-    assert!(carved <= 0.05, "{carved} of the ghost on surface");
+    assert!(carved <= MOST_CARVED, "{carved} of the ghost on surface");
     assert!(kept > 0.5, "{kept}: the uncarved map should keep the ghost");
 }
 
@@ -374,7 +429,7 @@ fn a_ghost_streamed_and_seen_through_twice_leaves_no_surface() {
         "streamed ghost of {} points: {carved:.3} on new surface carved ({clusters} clusters), {kept:.3} without free space",
         ghost.points.len()
     );
-    assert!(carved <= 0.05, "{carved} of the ghost on surface");
+    assert!(carved <= MOST_CARVED, "{carved} of the ghost on surface");
     assert!(kept > 0.5, "{kept}: the uncarved map should keep the ghost");
 }
 

@@ -9,7 +9,7 @@ use mema_firmware::{Firmware, model_params};
 use mema_firmware_sim::harness::frames_of;
 
 use crate::firmware::{capture_of, wire_points_of};
-use crate::results::{regenerating, result_block, thousands};
+use crate::guides::{regenerating, result_block, thousands};
 use crate::util::{Dir, MemaCommand};
 
 /// `cloud`'s capture with its points in a fixed pseudo-random order (Fisher-Yates on a 64-bit

@@ -13,8 +13,8 @@ use mema_core::link::{downlink, uplink};
 
 /// One example: its raw frame and its bytes on the wire.
 #[derive(Debug, PartialEq)]
-struct Example {
-    raw: Vec<u8>,
+pub(crate) struct Example {
+    pub(crate) raw: Vec<u8>,
     wire: Vec<u8>,
 }
 
@@ -68,7 +68,7 @@ fn script_examples() -> (Vec<String>, Vec<Example>) {
     (names, examples_in(&text))
 }
 
-fn document_examples() -> Vec<Example> {
+pub(crate) fn document_examples() -> Vec<Example> {
     let text = std::fs::read_to_string(repository().join("PROTOCOL.md")).expect("PROTOCOL.md");
     examples_in(&text)
 }

@@ -11,7 +11,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::results::{RESULTS, documents, results, thousands};
+use crate::guides::{RESULTS, each_says, expand, results, says, table_rows, thousands};
 
 /// (guide, template)
 const QUOTED: &[(&str, &str)] = &[
@@ -85,21 +85,6 @@ const QUOTED: &[(&str, &str)] = &[
     ),
 ];
 
-/// The cells of a block's table rows (header and rule aside), backticks trimmed.
-fn rows(block: &str) -> Vec<Vec<String>> {
-    block
-        .lines()
-        .filter(|l| l.starts_with('|'))
-        .skip(2)
-        .map(|l| {
-            l.trim_matches('|')
-                .split('|')
-                .map(|c| c.trim().trim_matches('`').to_string())
-                .collect()
-        })
-        .collect()
-}
-
 fn count(cell: &str) -> u64 {
     cell.replace(',', "")
         .parse()
@@ -114,7 +99,7 @@ fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
     let body = results
         .get(block)
         .unwrap_or_else(|| panic!("{RESULTS}: no block `{block}`"));
-    let table = rows(body);
+    let table = table_rows(body);
     let cell = |name: &str| -> String {
         let cells = table
             .iter()
@@ -140,38 +125,10 @@ fn value(results: &BTreeMap<String, String>, placeholder: &str) -> String {
     }
 }
 
-/// The template with every placeholder replaced by its value.
-fn expand(results: &BTreeMap<String, String>, template: &str) -> String {
-    let mut out = String::new();
-    let mut rest = template;
-    while let Some(start) = rest.find('{') {
-        out.push_str(&rest[..start]);
-        let end = rest[start..].find('}').expect("a closing brace") + start;
-        out.push_str(&value(results, &rest[start + 1..end]));
-        rest = &rest[end + 1..];
-    }
-    out.push_str(rest);
-    out
-}
-
-fn one_space(text: &str) -> String {
-    text.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
 #[test]
 fn the_figures_quoted_in_prose_are_the_results_files() {
     let results = results();
-    let documents: BTreeMap<String, String> = documents()
-        .into_iter()
-        .map(|(f, t)| (f, one_space(&t)))
-        .collect();
-    for (file, template) in QUOTED {
-        let quote = one_space(&expand(&results, template));
-        assert!(
-            documents[*file].contains(&quote),
-            "{file} does not say `{quote}` ({RESULTS}: `{template}`)"
-        );
-    }
+    each_says(QUOTED, |p| value(&results, p), RESULTS);
 }
 
 #[test]
@@ -183,27 +140,23 @@ fn a_template_reads_cells_parts_and_sums() {
             .to_string(),
     );
     assert_eq!(
-        expand(&results, "{b|x.pcd|2} and {b|y|3|2}"),
+        expand("{b|x.pcd|2} and {b|y|3|2}", |p| value(&results, p)),
         "1,500 and 10"
     );
-    assert_eq!(expand(&results, "{b|x.pcd+y|2}"), "4,000");
-    assert_eq!(expand(&results, "{b|y|2|bare}"), "2500");
+    assert_eq!(expand("{b|x.pcd+y|2}", |p| value(&results, p)), "4,000");
+    assert_eq!(expand("{b|y|2|bare}", |p| value(&results, p)), "2500");
 }
 
 /// The README's first claim, "in under 3% of the cloud's memory", against Table 2's maps.
 #[test]
 fn the_readme_memory_claim_is_table_2s() {
     let results = results();
-    let readme = documents()
-        .into_iter()
-        .find(|(f, _)| f == "README.md")
-        .expect("README")
-        .1;
-    assert!(
-        one_space(&readme).contains("in under 3% of the cloud's memory (the paper's Table 2)"),
-        "README.md: the claim changed; change this test with it"
+    let bound = 3.0;
+    says(
+        "README.md",
+        &format!("in under {bound}% of the cloud's memory (the paper's Table 2)"),
     );
-    let table = rows(&results["paper-table-2"]);
+    let table = table_rows(&results["paper-table-2"]);
     assert!(
         table.len() >= 4,
         "{RESULTS}: Table 2 has {} rows",
@@ -215,8 +168,55 @@ fn the_readme_memory_claim_is_table_2s() {
             .parse()
             .expect("a percentage");
         assert!(
-            percent < 3.0,
-            "{RESULTS}: Table 2's {cells:?} is not under 3%"
+            percent < bound,
+            "{RESULTS}: Table 2's {cells:?} is not under {bound}%"
         );
     }
+}
+
+/// firmware.md's two claims on the firmware's measured cost: car6 under a round bound with the
+/// paper's model (`firmware-cost`), and the most a pacing credit costs, a fit's or a merge
+/// pass's price over the credits it spends (`pacing`, `Pacing::DEVICE`).
+#[test]
+fn the_firmware_guides_claims_are_the_measured_costs() {
+    let results = results();
+    let cost = table_rows(&results["firmware-cost"]);
+    let paper = cost
+        .iter()
+        .find(|r| r[1] == "paper")
+        .expect("the paper's row");
+    let bound = 10_000;
+    assert!(
+        count(&paper[4]) < bound,
+        "{RESULTS}: car6 costs {} a point",
+        paper[4]
+    );
+    says(
+        "docs/firmware.md",
+        &format!(
+            "With the paper's model car6 stays under {} instructions a point;",
+            thousands(bound)
+        ),
+    );
+    let pacing = mema_core::stream::Pacing::DEVICE;
+    let most = table_rows(&results["pacing"])
+        .iter()
+        .flat_map(|r| {
+            let prices: Vec<u64> = r[1].split(", ").map(count).collect();
+            [
+                prices[1] / u64::from(pacing.freeze),
+                prices[2] / u64::from(pacing.merge_pass),
+            ]
+        })
+        .max()
+        .expect("prices");
+    let about = thousands((most + 50) / 100 * 100);
+    says(
+        "docs/firmware.md",
+        &format!("at most ~{about} instructions a credit)"),
+    );
+    says(
+        "docs/firmware.md",
+        &format!("plus ~{about} for the credit it earns"),
+    );
 }

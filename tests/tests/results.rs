@@ -8,104 +8,8 @@
 //! makes. Regenerating the whole file is the script's job; this stays fast (car6 maps in tens of
 //! milliseconds).
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
-
+use crate::guides::{RESULTS, blocks, documents, results, thousands};
 use crate::util::{Dir, MemaCommand, shared};
-
-fn repository() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-pub(crate) const RESULTS: &str = "docs/results.md";
-
-/// The blocks of a text, by name, each with the line it starts on. A block indented in a list
-/// item has its lines indented alike; the body is given without that indentation.
-fn blocks(text: &str, file: &str) -> Vec<(String, usize, String)> {
-    let mut out = Vec::new();
-    let mut lines = text.lines().enumerate();
-    while let Some((n, line)) = lines.next() {
-        let Some(name) = line
-            .trim()
-            .strip_prefix("<!-- result ")
-            .and_then(|l| l.strip_suffix("-->"))
-        else {
-            continue;
-        };
-        let indent = &line[..line.len() - line.trim_start().len()];
-        let mut body = Vec::new();
-        let mut closed = false;
-        for (_, inner) in lines.by_ref() {
-            if inner.trim() == "<!-- /result -->" {
-                closed = true;
-                break;
-            }
-            body.push(inner.strip_prefix(indent).unwrap_or(inner));
-        }
-        assert!(closed, "{file}:{}: a result block never closed", n + 1);
-        out.push((name.trim().to_string(), n + 1, body.join("\n")));
-    }
-    out
-}
-
-/// Set by scripts/results.sh while it runs the tests that print a block (tests/tests/pacing.rs):
-/// they print it instead of holding it to docs/results.md.
-pub(crate) fn regenerating() -> bool {
-    std::env::var_os("MEMA_RESULTS_REGENERATING").is_some()
-}
-
-/// The body of docs/results.md's block `name`.
-pub(crate) fn result_block(name: &str) -> String {
-    results()
-        .remove(name)
-        .unwrap_or_else(|| panic!("{RESULTS}: no block `{name}`"))
-}
-
-pub(crate) fn results() -> BTreeMap<String, String> {
-    let text = std::fs::read_to_string(repository().join(RESULTS)).expect("docs/results.md");
-    let mut map = BTreeMap::new();
-    for (name, line, body) in blocks(&text, RESULTS) {
-        assert!(
-            map.insert(name.clone(), body).is_none(),
-            "{RESULTS}:{line}: a second block `{name}`"
-        );
-    }
-    map
-}
-
-/// README.md, PROTOCOL.md and the guides, the results file aside.
-pub(crate) fn documents() -> Vec<(String, String)> {
-    let root = repository();
-    let mut files = vec!["README.md".to_string(), "PROTOCOL.md".to_string()];
-    let mut guides: Vec<String> = std::fs::read_dir(root.join("docs"))
-        .expect("docs/")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .filter(|f| f.ends_with(".md") && format!("docs/{f}") != RESULTS)
-        .map(|f| format!("docs/{f}"))
-        .collect();
-    guides.sort();
-    files.extend(guides);
-    files
-        .into_iter()
-        .map(|f| {
-            let text = std::fs::read_to_string(root.join(&f)).expect("document");
-            (f, text)
-        })
-        .collect()
-}
-
-/// A figure as the script prints it: thousands separated by commas.
-pub(crate) fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
 
 /// The rows of a results block whose first cell is `` `cloud` ``, and the rows that follow it
 /// with an empty first cell.
@@ -131,12 +35,13 @@ fn the_guides_copy_the_results_file() {
     let results = results();
     let mut copies = 0;
     for (file, text) in documents() {
-        for (name, line, body) in blocks(&text, &file) {
+        for block in blocks(&text, &file) {
+            let (name, line) = (&block.name, block.line);
             let want = results
-                .get(&name)
+                .get(name)
                 .unwrap_or_else(|| panic!("{file}:{line}: no block `{name}` in {RESULTS}"));
             assert!(
-                body == *want,
+                block.body == *want,
                 "{file}:{line}: the block `{name}` differs from {RESULTS}'s; copy it again:\n{want}"
             );
             copies += 1;
@@ -281,13 +186,4 @@ fn the_results_file_is_what_the_code_makes_of_car6() {
         .len();
     assert_eq!(file, 52 + 14 * u(&map["memory"]["entities"]));
     assert_eq!(thousands(file), thousands(u(&info["file_bytes"])));
-}
-
-#[test]
-fn thousands_are_separated_as_the_script_separates_them() {
-    assert_eq!(thousands(0), "0");
-    assert_eq!(thousands(999), "999");
-    assert_eq!(thousands(1_000), "1,000");
-    assert_eq!(thousands(239_064), "239,064");
-    assert_eq!(thousands(1_320_000), "1,320,000");
 }

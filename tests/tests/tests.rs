@@ -2,6 +2,8 @@
 
 // Helpers: temp dirs, the mema binary, the shared data.
 mod util;
+// Helpers: the guides' text, their result blocks, and a sentence a guide must say.
+mod guides;
 
 // Bad input: every kind of broken file or argument gives a one-line error and an exit code.
 mod bad_input;
@@ -66,6 +68,10 @@ mod outliers;
 mod docs;
 // PROTOCOL.md's worked examples: every frame type, the script's bytes, read and emitted by mema.
 mod protocol_doc;
+// PROTOCOL.md's field tables: offsets and sizes that add up to the frames the examples are.
+mod protocol_tables;
+// PROTOCOL.md's words for its examples, made from the examples' own bytes.
+mod protocol_prose;
 // The figures the guides quote: copies of docs/results.md, the figures quoted in prose, and its
 // car6 rows computed again.
 mod results;
@@ -73,6 +79,9 @@ mod results;
 mod quoted;
 // The constants the guides state (frame sizes, layouts, pacing), each held to the code's.
 mod doc_constants;
+// The layouts, budgets, clocks and defaults the device and design guides state, held to the
+// code's, and every K they name one of the code's layouts.
+mod doc_device;
 // Links that resolve: every relative link and anchor of the documentation, every section a
 // --help text cites.
 mod links;

@@ -1,3 +1,4 @@
+use crate::guides::{says, thousands};
 use crate::util::{Dir, MemaCommand, shared};
 use mema::io::mapfile::HostMap;
 use mema_core::EntityKind;
@@ -266,6 +267,14 @@ fn draw_puts_entities_and_points_where_their_projections_fall() {
     assert!(
         entity_px > 20_000 && point_px > 500 && empty_px > 5_000,
         "{entity_px} {point_px} {empty_px}"
+    );
+    says(
+        "docs/testing.md",
+        &format!(
+            "every unambiguous pixel of the plot ({} of its {};",
+            thousands((entity_px + point_px + empty_px) as u64),
+            thousands((plot[2] * plot[3]) as u64)
+        ),
     );
 }
 

@@ -164,7 +164,7 @@ impl Receiver {
 
     /// A receiver that refuses points and poses farther than `reach` metres from the map's
     /// origin on any axis ([`Receiver::new`]: [`DEFAULT_REACH`]). Built in place, as a device's
-    /// static is: a builder on a made receiver would pass its 1.6 KiB decoder through the stack.
+    /// static is: a builder on a made receiver would pass its 1.7 KiB decoder through the stack.
     #[inline(always)]
     pub const fn reaching(reach: f32) -> Self {
         Self::resuming(None, reach)

@@ -38,7 +38,7 @@ pub const AXIS_LOG_STEP_MIN: f32 = 1e-4;
 ///
 /// - Centres: `c = step * i` with `i` an i16 per axis, relative to the map's origin. With the
 ///   origin at the cloud's centre the step is the half extent over 32,767: 2.4 um on a bunny,
-///   2.5 mm on a 160 m lidar frame.
+///   2.6 mm on an Ouster sweep 168 m across (docs/map-format.md).
 /// - Semi-axes: `r = axis_min * exp(axis_log_step * code)`, code 0..=1022 (1023 = infinite), so
 ///   every semi-axis is within half a step (0.5% over a range of 10^4) of its fitted length.
 /// - Rotations: the smallest-three code, three components of 10 bits in `[-1/sqrt 2, 1/sqrt 2]`

@@ -15,6 +15,14 @@ CLOUDS = sorted(
 )
 
 
+def guide_says(file, sentence):
+    """Holds a guide (a path from the repository's root) to a sentence a test made from what it
+    computed: a figure changed on either side fails until they agree (scripts/doc_digits.py
+    reads these calls to tell which of a guide's numbers a test holds)."""
+    text = " ".join((ROOT / file).read_text().split())
+    assert " ".join(sentence.split()) in text, f"{file} does not say `{sentence}`"
+
+
 def cloud(name):
     """The path of a shared cloud; never copied."""
     path = DATA / name

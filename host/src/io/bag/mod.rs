@@ -57,7 +57,7 @@ pub const POINTCLOUD2: &str = "sensor_msgs/msg/PointCloud2";
 /// The schema name of `/tf` and `/tf_static`.
 pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
 
-/// The largest record (or decompressed record of a chunk) read: 1 GiB, some 40 million points
+/// The largest record (or decompressed record of a chunk) read: 1 GiB, some 45 million points
 /// of a 24-byte layout in one message.
 pub const MAX_RECORD: usize = 1 << 30;
 

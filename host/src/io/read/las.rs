@@ -13,11 +13,13 @@ use super::{At, Cloud, Ctx, Format, Points, ReadError};
 use crate::io::units::{FileUnit, from_geokeys, from_wkt};
 
 mod guard;
+#[cfg(test)]
+pub(super) use guard::EVLR_HEADER;
 
 /// Bytes of records per batch: 64k records of the 32 bytes most point formats take. A format
 /// with extra bytes (a record may have up to 64 KiB) is read fewer records at a time: a LAZ
 /// batch is not bounded by the file's length, and 64k of those would be 4 GiB.
-const BATCH_BYTES: u64 = 1 << 21;
+pub(super) const BATCH_BYTES: u64 = 1 << 21;
 
 /// Every LAS and LAZ file starts with this signature.
 pub fn has_signature(bytes: &[u8]) -> bool {
@@ -138,7 +140,7 @@ const CHUNKED: [u16; 2] = [2, 3];
 
 /// The fewest bytes a chunk of points takes: it opens with its first point stored whole, and the
 /// shortest LAS record (format 0) is 20 bytes.
-const MIN_CHUNK_BYTES: u64 = 20;
+pub(super) const MIN_CHUNK_BYTES: u64 = 20;
 
 /// Refuses a LAZ chunk table that lists more chunks than the file can hold. `laz` 0.13's
 /// `ChunkTable::read` reserves 16 bytes for each chunk the table counts before decoding any,
@@ -305,7 +307,7 @@ fn one_line(e: &dyn std::error::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::super::read_cloud_bytes;
-    use super::super::testkit::{XorShift, expect_err, shared};
+    use super::super::testkit::{XorShift, expect_err, guide_says, shared, thousands};
     use super::*;
 
     fn u32_at(b: &[u8], at: usize) -> u32 {
@@ -425,6 +427,14 @@ mod tests {
             (Format::Laz, n, n)
         );
         assert_eq!(cloud.origin, [1.0, 2.0, 3.0]);
+        guide_says(
+            "docs/performance.md",
+            &format!(
+                "({} identical points take {:.1} KB)",
+                thousands(n as u64),
+                bytes.len() as f64 / 1e3
+            ),
+        );
     }
 
     /// `laz` reserves room for every chunk its table counts before decoding one: a count of

@@ -13,10 +13,10 @@
 use std::fmt;
 
 /// The most output one input byte can produce: a 3-byte back reference copies up to 264 bytes.
-const MAX_EXPANSION: usize = 88;
+pub(super) const MAX_EXPANSION: usize = 88;
 
 /// The farthest back a reference reaches: 13 bits of distance, plus one.
-const MAX_DISTANCE: usize = 1 << 13;
+pub(super) const MAX_DISTANCE: usize = 1 << 13;
 
 /// The longest chunk in the input: a control byte and a 32-byte literal run.
 pub(crate) const MAX_CHUNK: usize = 33;
@@ -26,7 +26,7 @@ const MAX_CHUNK_OUT: usize = 264;
 
 /// The output held at a time: the history a back reference may reach, plus the new output
 /// between two hand-overs to the sink (24 KiB of it here; smaller means more sliding).
-const WINDOW: usize = 32 * 1024;
+pub(super) const WINDOW: usize = 32 * 1024;
 
 /// Why an LZF stream could not be decompressed; `at` is the offset in the compressed input.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -16,7 +16,7 @@ use super::{Ctx, ReadError};
 
 /// Bytes read from the source at a time. Small next to any cloud worth streaming, large enough
 /// that a 100 MB file takes a few thousand reads.
-const BUFFER: usize = 32 * 1024;
+pub(super) const BUFFER: usize = 32 * 1024;
 
 /// One line: its 1-based number, its text without the line ending, and whether a newline ended
 /// it (the last line of a cut file has none). It borrows the input's buffer until the next read.

@@ -63,3 +63,29 @@ impl XorShift {
         (self.next() % n.max(1) as u64) as usize
     }
 }
+
+/// Holds a guide (a path from the repository's root) to a sentence a test made from the code's
+/// constants or what it measured: a figure changed on either side fails until they agree.
+/// `scripts/doc_digits.py` reads these calls to tell which of a guide's numbers a test holds.
+pub fn guide_says(file: &str, sentence: &str) {
+    let path = format!("{}/../{file}", env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let one_space = |t: &str| t.split_whitespace().collect::<Vec<_>>().join(" ");
+    assert!(
+        one_space(&text).contains(&one_space(sentence)),
+        "{file} does not say `{sentence}`, which the test computes"
+    );
+}
+
+/// A count as the guides write it: thousands separated by commas.
+pub fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}

@@ -22,7 +22,7 @@ const EVLR_COUNT_AT: u64 = 243;
 
 /// An EVLR's header: a reserved u16, a 16-byte user id, a u16 record id, the u64 length of the
 /// data after the header (at byte 20) and a 32-byte description.
-const EVLR_HEADER: u64 = 60;
+pub(in crate::io::read) const EVLR_HEADER: u64 = 60;
 const EVLR_LENGTH_AT: u64 = 20;
 
 /// Where the point data starts (u32), each record's length (u16), the legacy point count (u32)

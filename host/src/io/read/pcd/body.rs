@@ -200,7 +200,7 @@ fn scatter<S: Slot>(
 /// Bytes of slots reserved before any output is decoded. Common clouds fit (a 640 × 480 frame's
 /// slots take 3.7 MB as f32, 7.4 MB as f64), so theirs are one allocation of the exact size, as
 /// the heap test checks; a larger claim gets its slots only as the data arrives, by doubling.
-pub(super) const UPFRONT: usize = 16 << 20;
+pub(in crate::io::read) const UPFRONT: usize = 16 << 20;
 
 /// A slot the coordinates are written into, one axis at a time.
 pub(super) trait Slot: Copy + Default {

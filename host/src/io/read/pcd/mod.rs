@@ -8,6 +8,8 @@
 //! invalid pixels as NaN slots; they are counted and dropped.
 
 mod body;
+#[cfg(test)]
+pub(super) use body::UPFRONT;
 
 use super::stream::Input;
 use super::xyz::{parse_usize, quote, short, tokens};
@@ -62,11 +64,11 @@ const KEYWORDS: [&[u8]; 9] = [
 
 /// The longest header line kept (a keyword line; comments are skipped). A FIELDS line of
 /// [`MAX_FIELDS`] names of ten letters is 720 KB; real ones are under a hundred bytes.
-const MAX_LINE: usize = 1 << 20;
+pub(super) const MAX_LINE: usize = 1 << 20;
 
 /// The most fields a header may name. Real clouds have a few dozen at most (a descriptor is one
 /// field with a large COUNT); each takes some 60 bytes of bookkeeping.
-const MAX_FIELDS: usize = 1 << 16;
+pub(super) const MAX_FIELDS: usize = 1 << 16;
 
 /// How many field names an error message lists.
 const LISTED: usize = 8;

@@ -13,15 +13,15 @@ use super::{At, Cloud, Ctx, Endian, Format, Points, ReadError, Scalar};
 /// The longest header line read, comments aside (they are skipped, not kept). A line holds at
 /// most five words (`property list uchar int vertex_indices`) and real ones are under fifty
 /// bytes; 64 KiB leaves room for any name a tool means, and bounds the names kept per line.
-const MAX_LINE: usize = 1 << 16;
+pub(super) const MAX_LINE: usize = 1 << 16;
 
 /// The most elements a header may declare. Real files have a few (vertex, face, edge,
 /// material, range_grid, camera); each one kept costs some 80 bytes of bookkeeping.
-const MAX_ELEMENTS: usize = 1 << 12;
+pub(super) const MAX_ELEMENTS: usize = 1 << 12;
 
 /// The most properties a header may declare, over all its elements. Real vertices have a few
 /// dozen at most (a 3D Gaussian splat has 62); each one kept costs 4 bytes and its name.
-const MAX_PROPERTIES: usize = 1 << 16;
+pub(super) const MAX_PROPERTIES: usize = 1 << 16;
 
 /// How many names an error message lists.
 const LISTED: usize = 8;
