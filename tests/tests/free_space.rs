@@ -264,7 +264,7 @@ fn held_out_states(
 }
 
 /// Signed distances (metres) from `points` to `map`'s nearest surface, by `mema query`.
-fn surface_distances(
+pub(crate) fn surface_distances(
     dir: &Dir,
     map: &std::path::Path,
     name: &str,

@@ -6,6 +6,7 @@
 use mema::io::drive::{DriveConfig, DriveScan, drive, room, walking};
 use mema::link::scanner::{SensorScan, send_scans};
 
+use crate::free_space::surface_distances;
 use crate::util::{Dir, MemaCommand};
 
 /// The drive's bytes as `scanner-sim` sends a drive (poses, then points), in `name`.
@@ -32,33 +33,6 @@ fn replay(
         .run()
         .assert_ok();
     (map, ran.json())
-}
-
-/// Signed distances from `points` to `map`'s nearest surface, by `mema query --points`.
-fn distances(dir: &Dir, map: &std::path::Path, name: &str, points: &[[f64; 3]]) -> Vec<f64> {
-    let mut csv = String::from("x,y,z\n");
-    for p in points {
-        csv += &format!("{},{},{}\n", p[0], p[1], p[2]);
-    }
-    let file = dir.write(&format!("{name}.csv"), csv.as_bytes());
-    let ran = MemaCommand::new(dir)
-        .arg("query")
-        .arg(map)
-        .arg("--points")
-        .arg(&file)
-        .arg("--json")
-        .run()
-        .assert_ok();
-    let out: Vec<f64> = ran
-        .stdout()
-        .lines()
-        .map(|l| {
-            let v: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
-            v["signed_distance"].as_f64().expect("a distance")
-        })
-        .collect();
-    assert_eq!(out.len(), points.len(), "{}", ran.stderr());
-    out
 }
 
 /// The walking drive replayed with `--free-space`: the fraction of the walker's points within
@@ -93,9 +67,9 @@ fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
     let (clean, _) = replay(&dir, &still_capture, "still.mema", true);
     let (carved, summary) = replay(&dir, &walked_capture, "carved.mema", true);
     let (kept, _) = replay(&dir, &walked_capture, "kept.mema", false);
-    let clean_distances = distances(&dir, &clean, "clean", &walker);
+    let clean_distances = surface_distances(&dir, &clean, "clean", &walker);
     let on_new_surface = |map: &std::path::Path, name: &str| {
-        distances(&dir, map, name, &walker)
+        surface_distances(&dir, map, name, &walker)
             .iter()
             .zip(&clean_distances)
             .filter(|(w, c)| w.abs() <= 0.25 && c.abs() > 0.25)

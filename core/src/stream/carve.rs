@@ -69,14 +69,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 }
                 continue;
             }
-            observer.removed(i);
-            let last = self.clusters.len().saturating_sub(1);
-            self.grid.remove(i);
-            self.grid.remove(last);
-            crate::num::swap_remove(&mut self.clusters, i);
-            if let Some(moved) = self.clusters.get(i) {
-                self.grid.insert(i, moved.center);
-            }
+            self.remove_working(i, observer);
             carved += 1;
         }
         self.stats.carved += carved as u64;

@@ -1,8 +1,8 @@
 //! Freezing: a cluster the scan has left behind is fitted once and kept as its 28-byte
 //! [`FrozenEntity`], and its slot in working memory is reused.
 //!
-//! Why: a cluster's moments are 24 f64 sums (the agreement with direct sums needs all 53 bits;
-//! `mema-firmware-sim reference --sum-bits`), so a working cluster costs 280 bytes and 400 of
+//! Why: a cluster's moments are 24 sums of 64 bits (the agreement with direct sums needs them all;
+//! `mema-firmware-sim reference --sum-bits`), so a working cluster costs 288 bytes and 400 of
 //! them do not fit a 64 KiB part. A scanner sweeps: once it has moved on, a cluster receives no
 //! more points, and merging it later (what a full working set otherwise does) only coarsens the
 //! map. Freezing keeps it at the resolution it was built at. The cost is that a frozen cluster
@@ -102,17 +102,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         }
         observer.frozen(i);
-        observer.removed(i);
-        // The last cluster takes slot `i`: unfile both, refile it under its new index. (A
-        // rebuild of all 150 centres cost about 18,000 instructions a freeze on the firmware;
-        // the merge candidates are ordered by distance and index, not by the grid's chains.)
-        let last = self.clusters.len().saturating_sub(1);
-        self.grid.remove(i);
-        self.grid.remove(last);
-        crate::num::swap_remove(&mut self.clusters, i);
-        if let Some(moved) = self.clusters.get(i) {
-            self.grid.insert(i, moved.center);
-        }
+        self.remove_working(i, observer);
         self.stats.frozen += 1;
         true
     }

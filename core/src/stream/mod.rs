@@ -375,6 +375,21 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
+    /// Takes working cluster `i` out by swap-remove, telling `observer`: the last cluster takes
+    /// slot `i`, unfiled and refiled under its new index (a rebuild of all 150 centres cost
+    /// about 18,000 instructions a freeze on the firmware; the merge candidates are ordered by
+    /// distance and index, not by the grid's chains).
+    fn remove_working(&mut self, i: usize, observer: &mut impl Observer) {
+        observer.removed(i);
+        let last = self.clusters.len().saturating_sub(1);
+        self.grid.remove(i);
+        self.grid.remove(last);
+        crate::num::swap_remove(&mut self.clusters, i);
+        if let Some(moved) = self.clusters.get(i) {
+            self.grid.insert(i, moved.center);
+        }
+    }
+
     /// A new cluster of `p` at the end (dropped, as the point is, if no room was made).
     fn open(&mut self, p: Point3, observer: &mut impl Observer) {
         let mut moments = FixedMoments::new();

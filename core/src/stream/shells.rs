@@ -60,10 +60,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// How the map is written: the paper's axis-aligned fits in version 1; shells quantized
     /// around the centre of their box, on the finest grid that holds them all, unless that
-    /// grid's centre step would pass 0.1 mm and a quarter of the median shell's thickness (its
-    /// shortest semi-axis): a map kilometres across, or one far entity, would then move every
-    /// shell off its surface, and the shells are written in f32 instead (version 2, 40 bytes an
-    /// entity; version 1 if none is turned). So no single entity coarsens the others.
+    /// grid's centre step passes 0.1 mm and more than half of the shells are thinner than
+    /// [`THIN_STEPS`] steps ([`quantizes`]): a map kilometres across, or one far entity, would
+    /// then move most shells off their surfaces, and the shells are written in f32 instead
+    /// (version 2, 41 bytes an entity; version 1 if none is turned).
     pub fn layout(&self) -> Layout {
         match self.params.model {
             StreamModel::Paper => Layout::AxisAligned,
