@@ -163,7 +163,7 @@ mod tests {
     /// are the world scan's points again.
     #[test]
     fn the_pose_takes_each_scan_back_to_the_world() {
-        let scans = drive(&room(), &DriveConfig::default());
+        let scans = drive(&Scene::demo(), &DriveConfig::default());
         assert_eq!(scans.len(), 8);
         let total: usize = scans.iter().map(|s| s.points.len()).sum();
         assert!((20_000..40_000).contains(&total), "{total} points");
