@@ -13,7 +13,7 @@ use mema::io::read::outliers::{DEFAULT_NEIGHBOURS, DEFAULT_RATIO};
 use mema::io::read::{NO_RETURN_RANGE, UNSIZED_LIMIT};
 use mema::link::queries::RAY_REACH;
 use mema::link::session::{MAX_ASKS, MAX_RESTARTS, SILENCE};
-use mema::mapping::carve::{CARVE_MARGIN, CARVE_SIZE};
+use mema::mapping::carve::{CARVE_COLUMN, CARVE_MARGIN, CARVE_SIZE};
 use mema::mapping::surface_clusters::CANDIDATES;
 use mema::query::held_out::DEFAULT_TOLERANCE;
 use mema_core::free_space::NO_RETURN;
@@ -378,8 +378,8 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/queries.md",
-        "(nearer than their fine range images' nearest return, {CARVE_ROWS} x {CARVE_COLUMNS} \
-         pixels, by {CARVE_MARGIN} m)",
+        "(nearer than their fine range images' nearest return, {CARVE_ROWS} rows and at most \
+         {CARVE_COLUMNS} columns, none narrower than {CARVE_DEGREES} degrees, by {CARVE_MARGIN} m)",
     ),
 ];
 
@@ -512,6 +512,7 @@ fn value(name: &str) -> String {
         "CARVE_ROWS" => CARVE_SIZE[0].to_string(),
         "CARVE_COLUMNS" => CARVE_SIZE[1].to_string(),
         "CARVE_MARGIN" => CARVE_MARGIN.to_string(),
+        "CARVE_DEGREES" => format!("{:.3}", CARVE_COLUMN.to_degrees()),
         _ => panic!("no constant {name}"),
     }
 }

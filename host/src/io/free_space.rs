@@ -120,6 +120,28 @@ pub fn image_from(
     size: [u16; 2],
     near: Option<f32>,
 ) -> Option<FreeImage> {
+    image_with(origin, returns, size, None, near)
+}
+
+/// [`image_of`] with columns no narrower than `column` radians, and at most `size` (rows,
+/// columns): a narrow view (a scanner's 50 degrees) gets as few columns as its span needs, so
+/// its rays, spaced finer than the columns, leave no column between them empty.
+pub fn image_of_view(
+    origin: Point3,
+    returns: impl Iterator<Item = Point3> + Clone,
+    size: [u16; 2],
+    column: f32,
+) -> Option<FreeImage> {
+    image_with(origin, returns, size, Some(column), None)
+}
+
+fn image_with(
+    origin: Point3,
+    returns: impl Iterator<Item = Point3> + Clone,
+    size: [u16; 2],
+    column: Option<f32>,
+    near: Option<f32>,
+) -> Option<FreeImage> {
     let mut elevation = [f32::INFINITY, f32::NEG_INFINITY];
     let mut azimuths = Vec::new();
     let mut nearest = f32::INFINITY;
@@ -139,13 +161,19 @@ pub fn image_from(
     }
     // A hair wider than the returns, so the core's own trigonometry puts the extreme ones in.
     let elevation = [elevation[0] - 1e-5, elevation[1] + 1e-5];
+    let azimuth = azimuth_span(&mut azimuths, size[1]);
+    let columns = match column {
+        // Rounded down: a column is never narrower than `column`.
+        Some(column) if column > 0.0 => ((azimuth[1] / column) as u16).clamp(1, size[1].max(1)),
+        _ => size[1],
+    };
     let geometry = Geometry {
         origin,
         near: near.unwrap_or(nearest / 2.0),
         elevation,
-        azimuth: azimuth_span(&mut azimuths, size[1]),
+        azimuth,
         rows: size[0],
-        columns: size[1],
+        columns,
     };
     let mut cells = vec![NO_RETURN; geometry.pixels()];
     for p in returns {

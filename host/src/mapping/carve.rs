@@ -2,8 +2,9 @@
 //! one scan and seen through in two others (a person who walked on, a ghost of a bad frame) is
 //! left out before clustering, so no entity stands where the rays say the space is empty.
 //!
-//! Each scan's range image is made at a fine resolution (64 x 512 pixels, 0.7 degrees for a
-//! spinning lidar; only while mapping, never stored), and a point of one scan is seen through by
+//! Each scan's range image is made at a fine resolution (64 rows and at most 512 columns, none
+//! narrower than 0.7 degrees: a spinning lidar's sweep in 64 x 512, a scanner's 50-degree view
+//! in 71 columns; only while mapping, never stored), and a point of one scan is seen through by
 //! another when that scan's image puts it nearer than its pixel's nearest return by
 //! [`CARVE_MARGIN`]. The nearest return of a pixel is its least range, so a floor or a wall the
 //! other scan sees at a grazing angle, whose nearest return in the pixel lies at or before the
@@ -13,10 +14,15 @@ use mema_core::Point3;
 use rayon::prelude::*;
 
 use crate::io::cloud::LocalCloud;
-use crate::io::free_space::image_of;
+use crate::io::free_space::image_of_view;
 
-/// Pixels of the images carving looks through: rows of elevation, columns of azimuth.
+/// Pixels of the images carving looks through, at most: rows of elevation, columns of azimuth.
 pub const CARVE_SIZE: [u16; 2] = [64, 512];
+/// The narrowest column carving looks through (radians): a whole turn over `CARVE_SIZE[1]`
+/// columns, 0.703 degrees, so a narrow view (a scanner's 50 degrees) gets no finer columns
+/// than a spinning lidar's sweep, and its rays, spaced finer than them, leave none empty.
+pub const CARVE_COLUMN: f32 = core::f32::consts::TAU / CARVE_SIZE[1] as f32;
+
 /// Other scans that must see through a point for it to go.
 pub const SEEN_THROUGH: usize = 2;
 /// How much nearer than a pixel's nearest return a point must be to be seen through (the
@@ -38,7 +44,12 @@ pub fn carve(cloud: LocalCloud) -> (LocalCloud, usize) {
         .par_iter()
         .map(|(range, origin)| {
             let points = cloud.points.get(range.clone()).unwrap_or_default();
-            image_of(sensor(*origin), points.iter().copied(), CARVE_SIZE)
+            image_of_view(
+                sensor(*origin),
+                points.iter().copied(),
+                CARVE_SIZE,
+                CARVE_COLUMN,
+            )
         })
         .collect();
     let mut scan_of = vec![usize::MAX; cloud.points.len()];
