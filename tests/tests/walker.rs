@@ -15,6 +15,37 @@ fn capture(dir: &Dir, name: &str, stops: &[DriveScan]) -> std::path::PathBuf {
     dir.write(name, &send_scans(&scans).expect("sent").bytes)
 }
 
+/// The walking drive, its walker's points (the world frame), and the same drive with nobody
+/// walking.
+struct Drives {
+    walked: Vec<DriveScan>,
+    walker: Vec<[f64; 3]>,
+    still: Vec<DriveScan>,
+}
+
+fn drives() -> Drives {
+    let walked = drive(&room(), &walking());
+    let walker: Vec<[f64; 3]> = walked
+        .iter()
+        .flat_map(|s| s.world.points.iter().zip(&s.on_walker))
+        .filter(|(_, on)| **on)
+        .map(|(p, _)| *p)
+        .collect();
+    assert!(walker.len() > 1_000, "{} walker points", walker.len());
+    let still = drive(
+        &room(),
+        &DriveConfig {
+            walker: None,
+            ..walking()
+        },
+    );
+    Drives {
+        walked,
+        walker,
+        still,
+    }
+}
+
 /// The drive as a registration file of its stops, each in its sensor's frame with its pose
 /// (Stanford's convention, `x_world = R(q)^T x_scan + t`: the quaternion of the turn by -yaw).
 fn conf(dir: &Dir, name: &str, stops: &[DriveScan]) -> std::path::PathBuf {
@@ -67,20 +98,11 @@ fn replay(
 #[test]
 fn a_walker_leaves_no_trail_in_the_batch_map() {
     let dir = Dir::new("walker-batch");
-    let walked = drive(&room(), &walking());
-    let walker: Vec<[f64; 3]> = walked
-        .iter()
-        .flat_map(|s| s.world.points.iter().zip(&s.on_walker))
-        .filter(|(_, on)| **on)
-        .map(|(p, _)| *p)
-        .collect();
-    let still = drive(
-        &room(),
-        &DriveConfig {
-            walker: None,
-            ..walking()
-        },
-    );
+    let Drives {
+        walked,
+        walker,
+        still,
+    } = drives();
     let map = |conf: &std::path::Path, name: &str, free_space: bool| {
         let out = dir.join(name);
         MemaCommand::new(&dir)
@@ -127,21 +149,11 @@ fn a_walker_leaves_no_trail_in_the_batch_map() {
 #[test]
 fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
     let dir = Dir::new("walker");
-    let walked = drive(&room(), &walking());
-    let walker: Vec<[f64; 3]> = walked
-        .iter()
-        .flat_map(|s| s.world.points.iter().zip(&s.on_walker))
-        .filter(|(_, on)| **on)
-        .map(|(p, _)| *p)
-        .collect();
-    assert!(walker.len() > 1_000, "{} walker points", walker.len());
-    let still = drive(
-        &room(),
-        &DriveConfig {
-            walker: None,
-            ..walking()
-        },
-    );
+    let Drives {
+        walked,
+        walker,
+        still,
+    } = drives();
     let walked_capture = capture(&dir, "walked.bin", &walked);
     let still_capture = capture(&dir, "still.bin", &still);
 
