@@ -7,6 +7,7 @@ use mema::io::drive::{DriveConfig, DriveScan, drive, room, walking};
 use mema::link::scanner::{SensorScan, send_scans};
 
 use crate::free_space::surface_distances;
+use crate::guides::says;
 use crate::util::{Dir, MemaCommand};
 
 /// The drive's bytes as `scanner-sim` sends a drive (poses, then points), in `name`.
@@ -131,6 +132,15 @@ fn a_walker_leaves_no_trail_in_the_batch_map() {
         "batch: walker of {} points: {carved:.3} on new surface carved, {kept:.3} without free space",
         walker.len()
     );
+    says(
+        "docs/queries.md",
+        &format!(
+            "mapped whole (the drive's stops as a .conf, `mema map --bytes 8000 --free-space`) \
+             {:.1} % ({:.1} % without)",
+            carved * 100.0,
+            kept * 100.0
+        ),
+    );
     assert!(carved <= 0.10, "{carved} of the walker on surface");
     assert!(
         kept > 0.9,
@@ -177,6 +187,15 @@ fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
         "walker of {} points: {carved:.3} on new surface carved ({} clusters), {kept:.3} without free space",
         walker.len(),
         summary["carved"]
+    );
+    says(
+        "docs/queries.md",
+        &format!(
+            "streamed at 250 entities with `--free-space`, {:.1} % of the walker's points stay \
+             within 25 cm of new surface ({:.1} % without)",
+            carved * 100.0,
+            kept * 100.0
+        ),
     );
     assert!(carved <= 0.10, "{carved} of the walker on surface");
     assert!(
