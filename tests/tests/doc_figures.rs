@@ -1,0 +1,80 @@
+//! Issue 32: figures the guides state about layouts, held to what the code or the format makes
+//! of them, each computed here from the layout rather than copied, so that a guide's digit and
+//! the code cannot drift apart unnoticed.
+
+use mema::analysis::stats::CLOUD_BYTES_PER_POINT;
+use mema::render::export::{OBJ_VERTEX_MAX, Tessellation};
+
+use crate::guides::says;
+
+/// The largest count `accept` takes, searched upwards from `from` (the bound is what the code
+/// refuses, not a constant restated here).
+fn largest(from: u32, accept: impl Fn(u32) -> bool) -> u32 {
+    let mut n = from;
+    while accept(n + 1) {
+        n += 1;
+    }
+    n
+}
+
+#[test]
+fn the_export_bound_is_each_formats_layout() {
+    // PLY: x, y, z as `double` and r, g, b as `uchar`; a face is a `uchar` count and three
+    // `int` indices.
+    let ply_vertex = 3 * size_of::<f64>() + 3 * size_of::<u8>();
+    let ply_face = size_of::<u8>() + 3 * size_of::<i32>();
+    says(
+        "docs/pictures-meshes.md",
+        &format!(
+            "exactly for PLY (its header, {ply_vertex} bytes a vertex, {ply_face} a triangle)"
+        ),
+    );
+    // GLB: positions as f32 x 3 and indices as u32 x 3; a 12-byte header and two chunks, each
+    // behind a length and a type (u32 each).
+    let gl_vertex = 3 * size_of::<f32>();
+    let gl_triangle = 3 * size_of::<u32>();
+    let framing = 12 + 2 * 2 * size_of::<u32>();
+    says(
+        "docs/pictures-meshes.md",
+        &format!(
+            "counted at their longest ({gl_vertex} bytes a vertex, {gl_triangle} a triangle, the \
+             JSON and {framing} bytes of framing)"
+        ),
+    );
+    // `v`, three coordinates, three colour channels (`0.4471`), six spaces and the newline.
+    let coordinate = (OBJ_VERTEX_MAX - 1 - 3 * 6 - 6 - 1) / 3;
+    says(
+        "docs/pictures-meshes.md",
+        &format!("for OBJ at its longest ({OBJ_VERTEX_MAX} bytes a vertex line,"),
+    );
+    says(
+        "docs/pictures-meshes.md",
+        &format!("so none takes more than {coordinate} characters)"),
+    );
+    // A face line as `write_obj` writes it, less its three indices' digits.
+    let v = 123_456u32;
+    let face = format!("f {v} {v} {v}\n").len() - 3 * v.to_string().len();
+    says(
+        "docs/pictures-meshes.md",
+        &format!("bytes a vertex line, {face} + 3 digits of the vertex count a face line;"),
+    );
+}
+
+#[test]
+fn the_finest_tessellation_is_the_one_the_code_accepts() {
+    let segments = largest(3, |s| Tessellation::checked(s, 2).is_ok());
+    let rings = largest(2, |r| Tessellation::checked(3, r).is_ok());
+    says(
+        "docs/pictures-meshes.md",
+        &format!("at {segments} segments and {rings} rings) is reserved fallibly"),
+    );
+}
+
+#[test]
+fn a_clouds_size_is_three_f32_a_point() {
+    assert_eq!(CLOUD_BYTES_PER_POINT, 3 * size_of::<f32>());
+    says(
+        "docs/performance.md",
+        &format!("The cloud's size is {CLOUD_BYTES_PER_POINT} bytes a point, the paper's count."),
+    );
+}
