@@ -2,8 +2,15 @@
 //! of them, each computed here from the layout rather than copied, so that a guide's digit and
 //! the code cannot drift apart unnoticed.
 
+use mema::analysis::fidelity::MIN_SAMPLES_PER_ENTITY;
 use mema::analysis::stats::CLOUD_BYTES_PER_POINT;
+use mema::mapping::carve::CARVE_MARGIN;
 use mema::render::export::{OBJ_VERTEX_MAX, Tessellation};
+
+use mema_core::map::record::rotation_code;
+use mema_core::moments::fixed::SLOTS;
+use mema_core::rotation::Rotation;
+use mema_core::stream::shells::QUANTIZED_STEP_ALWAYS;
 
 use crate::guides::says;
 
@@ -76,5 +83,48 @@ fn a_clouds_size_is_three_f32_a_point() {
     says(
         "docs/performance.md",
         &format!("The cloud's size is {CLOUD_BYTES_PER_POINT} bytes a point, the paper's count."),
+    );
+}
+
+#[test]
+fn the_mappers_bounds_are_the_codes() {
+    says(
+        "docs/command-line.md",
+        &format!("at least {MIN_SAMPLES_PER_ENTITY} per entity, seeded by `--seed`"),
+    );
+    says(
+        "docs/queries.md",
+        &format!("lies nearer than its pixel's nearest return by {CARVE_MARGIN} m,"),
+    );
+    let step_mm = f64::from(QUANTIZED_STEP_ALWAYS) * 1e3;
+    says(
+        "docs/streaming.md",
+        &format!("grid (and a step is over {step_mm:.1} mm), the grid would move them"),
+    );
+}
+
+#[test]
+fn a_working_cluster_keeps_the_fourth_order_sums() {
+    // Per axis its first four powers, per pair of axes the four products eq. 12 needs.
+    let axes = 3;
+    let pairs = 3;
+    assert_eq!(SLOTS, axes * 4 + pairs * 4);
+    says(
+        "docs/streaming.md",
+        &format!("almost all of it its {SLOTS} integer moment sums"),
+    );
+}
+
+#[test]
+fn a_frozen_entitys_rotation_is_its_quantized_code() {
+    // The code is a u32 whatever the rotation, and the identity's is 0.
+    let identity = rotation_code(&Rotation::IDENTITY);
+    let width = size_of_val(&identity);
+    says(
+        "docs/streaming.md",
+        &format!(
+            "({width} bytes, within a quarter of a degree, which is what a shells file stores \
+             anyway; {identity}, the identity, for the paper's fits)"
+        ),
     );
 }

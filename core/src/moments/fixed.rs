@@ -43,7 +43,7 @@ const MAX_QUANTUM: i32 = 104;
 
 /// The 24 sums: per axis j, `n_j^p` for p = 1..=4 (slots `4 j + p - 1`), then per pair (j, k)
 /// `n_j n_k`, `n_j^2 n_k`, `n_j n_k^2`, `n_j^2 n_k^2` (slots `12 + 4 pair + i`).
-const SLOTS: usize = 24;
+pub const SLOTS: usize = 24;
 
 /// The slots of orders 3 and 4 as products of two factors of `accumulate`'s bank (0-2:
 /// `|n_j|`, 3-5: `n_j^2`, 6-8: `|n_j n_k|` of pairs xy, xz, yz), negative when axis `sign`'s
