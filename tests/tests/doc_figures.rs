@@ -7,8 +7,10 @@ use mema::analysis::stats::CLOUD_BYTES_PER_POINT;
 use mema::mapping::carve::CARVE_MARGIN;
 use mema::render::export::{OBJ_VERTEX_MAX, Tessellation};
 
+use mema_core::Point3;
+use mema_core::grid::CentreGrid;
 use mema_core::map::record::rotation_code;
-use mema_core::moments::fixed::SLOTS;
+use mema_core::moments::fixed::{MANTISSA_LIMIT, SLOTS};
 use mema_core::rotation::Rotation;
 use mema_core::stream::shells::QUANTIZED_STEP_ALWAYS;
 
@@ -126,5 +128,41 @@ fn a_frozen_entitys_rotation_is_its_quantized_code() {
             "({width} bytes, within a quarter of a degree, which is what a shells file stores \
              anyway; {identity}, the identity, for the paper's fits)"
         ),
+    );
+}
+
+#[test]
+fn a_sums_mantissa_is_exact_below_its_limit() {
+    let bits = MANTISSA_LIMIT.trailing_zeros();
+    says(
+        "docs/design.md",
+        &format!("exact until it outgrows {bits} bits, then rounded once per halving"),
+    );
+}
+
+#[test]
+fn the_nearest_centre_comes_from_the_cells_the_grid_walks() {
+    // A centre in every unit cell around the origin; a search that never narrows walks every
+    // cell that can hold a centre within half a cell of the point.
+    let mut grid = CentreGrid::<64, 4096>::new(1.0);
+    let mut index = 0;
+    for i in -2..2 {
+        for j in -2..2 {
+            for k in -2..2 {
+                let centre = Point3::new(i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5);
+                grid.insert(index, centre);
+                index += 1;
+            }
+        }
+    }
+    let mut walked = std::collections::BTreeSet::new();
+    grid.for_each_within_half_cell(Point3::new(0.3, 0.3, 0.3), f32::INFINITY, |i| {
+        walked.insert(i);
+        f32::INFINITY
+    });
+    let cells = walked.len();
+    says(
+        "docs/streaming.md",
+        &format!("The nearest centre comes from {cells} cells of the hash, not a scan of K."),
     );
 }

@@ -29,7 +29,7 @@ const PITCH_BITS: i32 = 23;
 
 /// Mantissas stay below this in magnitude, and a term is added only once it is below half of
 /// it, so no addition can overflow.
-const MANTISSA_LIMIT: i64 = 1 << 62;
+pub const MANTISSA_LIMIT: i64 = 1 << 62;
 
 /// The three axis pairs, in the order of the mixed sums.
 const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
