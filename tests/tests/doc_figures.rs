@@ -4,6 +4,7 @@
 
 use mema::analysis::fidelity::MIN_SAMPLES_PER_ENTITY;
 use mema::analysis::stats::CLOUD_BYTES_PER_POINT;
+use mema::io::read::READ_OVERHEAD;
 use mema::mapping::carve::CARVE_MARGIN;
 use mema::render::export::{OBJ_VERTEX_MAX, Tessellation};
 
@@ -164,5 +165,14 @@ fn the_nearest_centre_comes_from_the_cells_the_grid_walks() {
     says(
         "docs/streaming.md",
         &format!("The nearest centre comes from {cells} cells of the hash, not a scan of K."),
+    );
+}
+
+#[test]
+fn reading_holds_its_buffer_and_window() {
+    let kib = READ_OVERHEAD >> 10;
+    says(
+        "docs/performance.md",
+        &format!("Reading costs the points and {kib} KiB (the stream's buffer and the LZF window)"),
     );
 }
