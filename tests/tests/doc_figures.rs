@@ -9,6 +9,7 @@ use mema::mapping::carve::CARVE_MARGIN;
 use mema::render::export::{OBJ_VERTEX_MAX, Tessellation};
 
 use mema_core::Point3;
+use mema_core::de32::SLOTS as DE_SLOTS;
 use mema_core::grid::CentreGrid;
 use mema_core::map::record::rotation_code;
 use mema_core::moments::fixed::{MANTISSA_LIMIT, SLOTS};
@@ -174,5 +175,15 @@ fn reading_holds_its_buffer_and_window() {
     says(
         "docs/performance.md",
         &format!("Reading costs the points and {kib} KiB (the stream's buffer and the LZF window)"),
+    );
+}
+
+#[test]
+fn the_f32_des_population_has_its_slots() {
+    // A power of two, so that a member index is bounded by a mask.
+    assert!(DE_SLOTS.is_power_of_two());
+    says(
+        "docs/firmware.md",
+        &format!("the population in {DE_SLOTS} slots, the start sphere by Newton"),
     );
 }
