@@ -189,7 +189,7 @@ def audit(path, text, held_by):
 LEFT = [
     ("docs/testing.md", r"", "a test's parameters and bounds as testing.md describes them; the test "
      "files hold the values"),
-    ("*", r"\bexit(s| status| with status)? \d|status \d|\(exit \d|with \d\b|exit \d|Exit status",
+    ("*", r"\d for a stream that ended|\bexit(s| status| with status)? \d|status \d|\(exit \d|with \d\b|exit \d|Exit status",
      "an exit status, which the behaviour tests assert (`assert_error(N, ..)`)"),
     ("docs/board.md", r"^\| \d+ \| (car6|demo|1 in|the same)",
      "one QEMU run's counts, machine-dependent, stated once with their command and machine"),
@@ -217,6 +217,26 @@ LEFT = [
      "example value)"),
     ("docs/map-format.md", r"", "a definition (a bit, byte position or code of the format)"),
     ("docs/pictures-meshes.md", r"\| .* \|", "a mesh's vertex and triangle counts as formulas"),
+    ("*", r"G\(6,3\)|^and \d\. The default|[Ss]weeps? \d|scanners? \d|DE/rand/1/bin|dfu-util -a 0",
+     "a name or an argument, not a figure: the paper's notation or table, a sweep's or a "
+     "scanner's index, an option in inline code a line break splits"),
+    ("*", r"AMD EPYC, \d cores", "the machine a measurement ran on"),
+    ("*", r"^8,880 ellipsoids|fidelity issue sets|\d % the ghost is held to|the \d m threshold",
+     "a citation of the paper or an issue"),
+    ("*", r"GTModelType \d|glTF's \d GiB|point_step \d+|[Aa] 64 KiB device|"
+     r"1\.2 mm from point to|\d+ independent vectors|returns \d+ m out",
+     "a fact of a format, a part or a shared input, not of mema"),
+    ("*", r"10\^9 m|\d+ km passes|one point in 10,000|at \d\s*$|all \d+ on the lower|"
+     r"\d+ dropped bytes|decoder \(10\^6|under \d % of|over \d+(\.\d+)? times|"
+     r"Same seed \(\d\)|\d+ stops on|nearest its first point\), \d|in 1 mm units;|optimises the whole at \d",
+     "a test's or a benchmark's input, bound or build setting named in prose (the file that runs "
+     "it holds it)"),
+    ("*", r"POP ≥ \d|axis is ≤ 0|\d\.\.=N|or -1|anchored at 0|around 0 in its frame|centre at 0|"
+     r"^x = 0\.|\(1x\)|coded in \d+ bits|leaves at least \d$|^\(\"\d+ cm\", \"1 m\"|"
+     r"a \d mm floor|\d cm patch",
+     "a definition or a formula's own number"),
+    ("*", r"\d+ to \d+ times slower|\d to \d % of clean|\d+ mm and more|not under \d+x|\d+ bits and more",
+     "an approximate account of measured behaviour"),
     ("*", r"\b\d+-bit\b|\b2\^|\bu(8|16|32|64)\b|\bi(16|32|64)\b|f32|f64|O\(1\)|3x3|\(N, 3\)|"
      r"x, y, z|bit \d|bits \d|1e-?\d|\d+ x \d+",
      "a definition: a type's width, a power of two, a tolerance's order"),

@@ -152,7 +152,7 @@ fn no_worse(candidate: f32, incumbent: f32) -> bool {
 
 /// The population's storage: `POP <= SLOTS` members, in arrays of a power of two so that a
 /// member index is bounded by a mask (see `donors`).
-const SLOTS: usize = 16;
+pub const SLOTS: usize = 16;
 
 /// One member of the population: its coordinates and their fitness, side by side so that a
 /// trial's winner is stored (and its target loaded) as one block.

@@ -136,3 +136,5 @@ mod rays;
 mod free_space;
 // Forgetting what moved: the demo drive's walker leaves no trail.
 mod walker;
+// Issue 32: layout figures of the guides (export sizes, a cloud's bytes) computed from layouts.
+mod doc_figures;

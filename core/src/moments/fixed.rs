@@ -29,7 +29,7 @@ const PITCH_BITS: i32 = 23;
 
 /// Mantissas stay below this in magnitude, and a term is added only once it is below half of
 /// it, so no addition can overflow.
-const MANTISSA_LIMIT: i64 = 1 << 62;
+pub const MANTISSA_LIMIT: i64 = 1 << 62;
 
 /// The three axis pairs, in the order of the mixed sums.
 const PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
@@ -43,7 +43,7 @@ const MAX_QUANTUM: i32 = 104;
 
 /// The 24 sums: per axis j, `n_j^p` for p = 1..=4 (slots `4 j + p - 1`), then per pair (j, k)
 /// `n_j n_k`, `n_j^2 n_k`, `n_j n_k^2`, `n_j^2 n_k^2` (slots `12 + 4 pair + i`).
-const SLOTS: usize = 24;
+pub const SLOTS: usize = 24;
 
 /// The slots of orders 3 and 4 as products of two factors of `accumulate`'s bank (0-2:
 /// `|n_j|`, 3-5: `n_j^2`, 6-8: `|n_j n_k|` of pairs xy, xz, yz), negative when axis `sign`'s

@@ -48,6 +48,10 @@ pub use outliers::{OutlierDrops, Outliers};
 pub(crate) use points::{Endian, Points, Scalar};
 use stream::{Input, Line};
 
+/// What a read holds beside its points at most: the stream's buffer and the LZF window, the
+/// figure the performance guide gives for reading.
+pub const READ_OVERHEAD: usize = stream::BUFFER + lzf::WINDOW;
+
 /// A cloud read from a file: coordinates moved to a local origin so they survive the trip to f32.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cloud {

@@ -25,7 +25,7 @@ use crate::io::mapfile::HostMap;
 
 mod formats;
 mod size;
-pub use size::{DEFAULT_MAX_BYTES, MeshSize};
+pub use size::{DEFAULT_MAX_BYTES, MeshSize, OBJ_VERTEX_MAX};
 
 /// Colours by kind (Okabe-Ito, readable with colour-blindness), shared with `mema draw`.
 pub fn kind_colour(kind: EntityKind) -> [u8; 3] {

@@ -7,7 +7,7 @@
 //! - glTF: 12 a vertex (three f32) and 12 a triangle (three u32), the JSON chunk and 28 bytes of
 //!   framing: exact but for the accessors' min and max, counted at their longest;
 //! - OBJ: text, counted at its longest: 101 bytes a vertex line (coordinates of at most 25
-//!   characters, see `formats::obj_number`, and a colour), `7 + 3 digits(V)` a face line.
+//!   characters, see `formats::obj_number`, and a colour), `5 + 3 digits(V)` a face line.
 
 use serde::Serialize;
 
@@ -23,7 +23,7 @@ pub const DEFAULT_MAX_BYTES: u64 = 1 << 30;
 
 /// The longest OBJ vertex line: `v`, three coordinates of at most 25 characters, three
 /// colour channels of 6 (`0.4471`), six spaces and the newline.
-pub(crate) const OBJ_VERTEX_MAX: u64 = 1 + 3 * 25 + 3 * 6 + 6 + 1;
+pub const OBJ_VERTEX_MAX: u64 = 1 + 3 * 25 + 3 * 6 + 6 + 1;
 
 /// A JSON number glTF's min and max can take at its longest (`-1.17549435e-38`), less the
 /// placeholder's `0.0`: the slack each of them gets.
