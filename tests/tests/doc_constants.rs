@@ -381,6 +381,22 @@ const STATED: &[(&str, &str)] = &[
         "(nearer than their fine range images' nearest return, {CARVE_ROWS} rows and at most \
          {CARVE_COLUMNS} columns, none narrower than {CARVE_DEGREES} degrees, by {CARVE_MARGIN} m)",
     ),
+    (
+        "docs/performance.md",
+        "Passes over the points run on rayon in fixed chunks of {ASSIGN_CHUNK},",
+    ),
+    (
+        "docs/streaming.md",
+        "free up to K/{MAX_MERGE_BATCH} slots at once",
+    ),
+    (
+        "docs/streaming.md",
+        "(plus {PLANAR_WARD_PERCENT} % of Ward's cost)",
+    ),
+    (
+        "docs/tolerance.md",
+        "Each cluster tries its {MERGE_NEIGHBOURS} nearest neighbours",
+    ),
 ];
 
 /// The code's value of a constant, as the guides write it.
@@ -512,6 +528,12 @@ fn value(name: &str) -> String {
         "CARVE_ROWS" => CARVE_SIZE[0].to_string(),
         "CARVE_COLUMNS" => CARVE_SIZE[1].to_string(),
         "CARVE_MARGIN" => CARVE_MARGIN.to_string(),
+        "ASSIGN_CHUNK" => count(mema::mapping::pipeline::ASSIGN_CHUNK),
+        "MAX_MERGE_BATCH" => mema_core::stream::MAX_MERGE_BATCH.to_string(),
+        "PLANAR_WARD_PERCENT" => (f64::from(mema_core::stream::PLANAR_WARD) * 100.0)
+            .round()
+            .to_string(),
+        "MERGE_NEIGHBOURS" => mema::mapping::tolerance::MERGE_NEIGHBOURS.to_string(),
         "CARVE_DEGREES" => format!("{:.3}", CARVE_COLUMN.to_degrees()),
         _ => panic!("no constant {name}"),
     }

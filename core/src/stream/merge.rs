@@ -18,7 +18,7 @@ fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
 /// patches apart, small enough that the planes decide (tuned on the shared clouds at k = 400:
 /// 0 lets coplanar ground patches of a lidar sweep merge across gaps, 0.1 and more lose most of
 /// what the planes gain on office1 and the bunny; docs/design.md).
-const PLANAR_WARD: f32 = 0.01;
+pub const PLANAR_WARD: f32 = 0.01;
 
 /// The final reduction's merge cost: the growth of the summed squared distances from the points
 /// to their cluster's best plane (a cluster's least covariance eigenvalue times its count),

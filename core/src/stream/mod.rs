@@ -32,8 +32,10 @@ mod pairs;
 pub mod shells;
 pub use carve::Carver;
 pub use freeze::FrozenEntity;
+pub use merge::PLANAR_WARD;
 pub use observe::Observer;
 pub use pacing::Pacing;
+pub use pairs::MAX_MERGE_BATCH;
 
 /// How a cluster becomes its entity.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,7 +1,7 @@
 //! The cheapest merge candidates, kept in a fixed array so a search for room allocates nothing.
 
 /// Most pairs merged per search for room: one search frees up to this many slots.
-pub(super) const MAX_MERGE_BATCH: usize = 32;
+pub const MAX_MERGE_BATCH: usize = 32;
 
 /// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
 /// is independent of visiting order.

@@ -41,7 +41,7 @@ pub enum KMeansEngine {
 
 /// Points per parallel task. The result does not depend on the split; a fixed size keeps the
 /// work identical for any thread count anyway.
-const ASSIGN_CHUNK: usize = 4096;
+pub const ASSIGN_CHUNK: usize = 4096;
 
 /// Runs the accelerated assignment on the rayon pool in fixed chunks.
 #[derive(Clone, Copy, Debug, Default)]

@@ -74,7 +74,7 @@ pub struct ToleranceOutcome {
 /// Clusters with fewer points cannot be split meaningfully (a 2-means of 3 points is noise).
 const MIN_SPLIT: usize = 8;
 /// Neighbours tried per cluster in the merge phase.
-const MERGE_NEIGHBOURS: usize = 4;
+pub const MERGE_NEIGHBOURS: usize = 4;
 
 fn evaluate(
     points: &[Point3],
