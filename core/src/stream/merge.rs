@@ -14,10 +14,10 @@ fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
     ward_of(count32(a), count32(b), d2)
 }
 
-/// Ward's share in the final reduction's cost ([`planar`]): enough to keep two far, coplanar
-/// patches apart, small enough that the planes decide (tuned on the shared clouds at k = 400:
-/// 0 lets coplanar ground patches of a lidar sweep merge across gaps, 0.1 and more lose most of
-/// what the planes gain on office1 and the bunny; docs/design.md).
+/// Ward's share in the final reduction's cost (the planes' cost, `planar`): enough to keep two
+/// far, coplanar patches apart, small enough that the planes decide (tuned on the shared clouds
+/// at k = 400: 0 lets coplanar ground patches of a lidar sweep merge across gaps, 0.1 and more
+/// lose most of what the planes gain on office1 and the bunny; docs/design.md).
 pub const PLANAR_WARD: f32 = 0.01;
 
 /// The final reduction's merge cost: the growth of the summed squared distances from the points
