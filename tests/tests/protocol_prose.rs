@@ -59,26 +59,10 @@ fn floats(b: &[u8], at: usize) -> [f64; 3] {
     [0, 4, 8].map(|o| f32_at(b, at + o).to_string().parse().expect("a number"))
 }
 
-/// A quaternion (x, y, z, w) in units of 2^-30 applied to `p`.
+/// A quaternion (x, y, z, w) in units of 2^-30 applied to `p` (normalised, so its units do
+/// not matter).
 fn turned(q: [f64; 4], p: [f64; 3]) -> [f64; 3] {
-    let [x, y, z, w] = q.map(|c| c / f64::from(1u32 << 30));
-    let m = [
-        [
-            1.0 - 2.0 * (y * y + z * z),
-            2.0 * (x * y - z * w),
-            2.0 * (x * z + y * w),
-        ],
-        [
-            2.0 * (x * y + z * w),
-            1.0 - 2.0 * (x * x + z * z),
-            2.0 * (y * z - x * w),
-        ],
-        [
-            2.0 * (x * z - y * w),
-            2.0 * (y * z + x * w),
-            1.0 - 2.0 * (x * x + y * y),
-        ],
-    ];
+    let m = crate::util::quaternion_matrix(q);
     [0, 1, 2].map(|i| (0..3).map(|j| m[i][j] * p[j]).sum())
 }
 

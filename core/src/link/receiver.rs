@@ -396,13 +396,17 @@ impl Receiver {
                     placement,
                     remaining,
                 } => {
-                    let refused = frame.points_from(0).count() - placement.points(&frame).count();
-                    let no_returns = frame
-                        .points_from(0)
-                        .filter(|&raw| placement::is_no_return(raw))
-                        .count();
+                    // One pass over the raw points: those the placement refuses, and how many of
+                    // them are no-returns.
+                    let (mut refused, mut no_returns) = (0u64, 0u64);
+                    for raw in frame.points_from(0) {
+                        if placement.placed(raw).is_none() {
+                            refused += 1;
+                            no_returns += u64::from(is_no_return(raw));
+                        }
+                    }
                     points(frame, placement);
-                    self.note_refused(refused as u64, no_returns as u64);
+                    self.note_refused(refused, no_returns);
                     remaining
                 }
             };

@@ -262,19 +262,14 @@ impl Link {
         self.receiver.feed_all(
             chunk,
             |frame, placement| {
-                let (mapper, carver) = &mut *link.borrow_mut();
-                match carver {
-                    Some(carver) => {
-                        carver.sensor_at(placement.place([0, 0, 0]), mapper);
-                        for p in placement.points(&frame) {
-                            mapper.add(p);
-                            carver.add_return(p);
-                        }
-                    }
-                    None => {
-                        for p in placement.points(&frame) {
-                            mapper.add(p);
-                        }
+                let (mapper, carving) = &mut *link.borrow_mut();
+                if let Some(carving) = carving {
+                    carving.sensor_at(placement.place([0, 0, 0]), mapper);
+                }
+                for p in placement.points(&frame) {
+                    mapper.add(p);
+                    if let Some(carving) = carving {
+                        carving.add_return(p);
                     }
                 }
             },
