@@ -35,8 +35,8 @@ while [ $# -gt 0 ]; do
   esac
 done
 case "$model" in
-  shells) features=() ;;
-  paper) features=(--features paper) ;;
+  shells) features=(--features qemu) ;;
+  paper) features=(--features qemu,paper) ;;
   *) echo "board.sh: --model is shells or paper, not $model" >&2; exit 2 ;;
 esac
 cd "$(dirname "$0")/.."
@@ -65,7 +65,7 @@ serials=(-serial pty)
 [ "$sensor" = 1 ] && serials+=(-serial pty)
 ports=$(( ${#serials[@]} / 2 ))
 qemu-system-arm -machine netduinoplus2 -nographic -monitor none "${serials[@]}" -icount shift=0 \
-  -kernel "$image" > "$work/qemu.txt" 2>&1 &
+  ${MEMA_QEMU_LOG:+-d guest_errors,int -D "$MEMA_QEMU_LOG"} -kernel "$image" > "$work/qemu.txt" 2>&1 &
 qemu_pid=$!
 ptys=()
 for _ in $(seq 100); do

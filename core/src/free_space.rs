@@ -155,6 +155,23 @@ impl<const N: usize> RangeImage<N> {
         })
     }
 
+    /// An image of no pixels, to be given its geometry by [`RangeImage::reset`]: a `const fn`,
+    /// so a device builds a large image in place in its static rather than on its stack.
+    #[inline(always)]
+    pub const fn empty() -> Self {
+        Self {
+            geometry: Geometry {
+                origin: Point3::new(0.0, 0.0, 0.0),
+                near: 0.0,
+                elevation: [0.0; 2],
+                azimuth: [0.0; 2],
+                rows: 0,
+                columns: 0,
+            },
+            cells: [NO_RETURN; N],
+        }
+    }
+
     pub fn geometry(&self) -> &Geometry {
         &self.geometry
     }

@@ -22,7 +22,7 @@ use mema_core::link::downlink::{DeviceLayout, DeviceTiming, DownFrame, SessionSt
 use mema_core::link::frame::Address;
 use mema_core::query::brute_force;
 
-use super::{Carrier, Firmware, RX_CAPACITY, Request, Ring};
+use super::{Carrier, Carving, Firmware, RX_CAPACITY, Request, Ring};
 
 mod wired;
 
@@ -108,8 +108,8 @@ pub struct Boot {
 
 /// The mapping device: the firmware fed by the line through the carrier, its map sent back.
 #[derive(Debug)]
-pub struct Device<'a, const K: usize, const G: usize, const F: usize> {
-    firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>>,
+pub struct Device<'a, const K: usize, const G: usize, const F: usize, C = ()> {
+    firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>, C>,
     line: &'a Ring<RX_CAPACITY>,
     map: &'a Ring<RX_CAPACITY>,
     carrier: Carrier,
@@ -130,12 +130,12 @@ pub struct Device<'a, const K: usize, const G: usize, const F: usize> {
     listener: Option<(&'a Ring<LISTENER_RING>, Carrier)>,
 }
 
-impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
+impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, K, G, F, C> {
     /// A device in boot `boot` (`session`: the one it booted into, `0` for none), mapping into
     /// `firmware` from `map`, the line's bytes coming into `line`; `entities` holds the finished
     /// map for queries (up to its length).
     pub fn new(
-        firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>>,
+        firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>, C>,
         (line, map): (&'a Ring<RX_CAPACITY>, &'a Ring<RX_CAPACITY>),
         boot: Boot,
         layout: DeviceLayout,
@@ -187,7 +187,7 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
             || self.line.len() == RX_CAPACITY
     }
 
-    pub fn firmware(&self) -> &Firmware<K, G, F, &'a Ring<RX_CAPACITY>> {
+    pub fn firmware(&self) -> &Firmware<K, G, F, &'a Ring<RX_CAPACITY>, C> {
         self.firmware
     }
 
@@ -335,8 +335,14 @@ impl<'a, const K: usize, const G: usize, const F: usize> Device<'a, K, G, F> {
 /// Answers a request of the host's: entities again, or once the map is finished the timing
 /// and end frames again, or a query of the map (the core's no_std queries, timed). A start
 /// request is handed back with its session for the loop to act on.
-fn answer<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>(
-    firmware: &mut Firmware<K, G, F, R>,
+fn answer<
+    const K: usize,
+    const G: usize,
+    const F: usize,
+    R: Borrow<Ring<RX_CAPACITY>>,
+    C: Carving,
+>(
+    firmware: &mut Firmware<K, G, F, R, C>,
     request: Request,
     session: u32,
     finished: &Option<(DownFrame, usize)>,

@@ -8,7 +8,7 @@ use mema_core::link::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::link::frame::Address;
 use mema_core::map::{EncodeError, MapEntity};
 
-use super::{Firmware, LineReport, RX_CAPACITY, Ring};
+use super::{Carving, Firmware, LineReport, RX_CAPACITY, Ring};
 
 /// What the map's way back to the host has sent.
 #[derive(Clone, Copy, Debug, Default)]
@@ -45,8 +45,8 @@ impl Downlink {
 /// for 36 bytes back (a progress frame on the wire) per 312 in.
 pub const PROGRESS_EVERY: u32 = (RX_CAPACITY / 10) as u32;
 
-impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>
-    Firmware<K, G, F, R>
+impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>, C: Carving>
+    Firmware<K, G, F, R, C>
 {
     /// The downlink's frames due now, each handed to `sink` whole: the entities frozen since
     /// the last call (final, so each leaves the device once), then a progress frame if the

@@ -45,6 +45,7 @@ use mema_core::stream::{
 };
 
 mod carrier;
+pub mod carving;
 #[cfg(feature = "cortex-m")]
 pub mod cortex_m;
 pub mod device;
@@ -52,6 +53,7 @@ mod downlink;
 mod ring;
 pub mod source;
 pub use carrier::{Carrier, LineReport, Request};
+pub use carving::Carving;
 use downlink::Downlink;
 pub use downlink::PROGRESS_EVERY;
 pub use ring::Ring;
@@ -71,6 +73,13 @@ pub const IMAGE_FROZEN: usize = 250;
 /// host's batch map: docs/board.md ("The board's layout").
 pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
+/// The board's carving images (rows, columns around the whole sphere: 1.43 by 0.70 degrees),
+/// one byte a pixel, in its 64 KiB of core-coupled RAM, which nothing else uses: 126 rows, not
+/// 128, leave room for the carver's own fields. The board's map is `mema replay -k 700 --working
+/// 150 --carve 126x512`'s.
+pub const BOARD_CARVE_IMAGE: [u16; 2] = [126, 512];
+/// Pixels of [`BOARD_CARVE_IMAGE`].
+pub const BOARD_CARVE_PIXELS: usize = BOARD_CARVE_IMAGE[0] as usize * BOARD_CARVE_IMAGE[1] as usize;
 
 /// The image's reach (metres from the map's origin on any axis; see
 /// [`mema_core::link::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
@@ -171,9 +180,16 @@ pub struct AcceptedFrame {
 }
 
 /// The application state. `K` working clusters, `G` centre-hash buckets, `F` frozen entities;
-/// `R` holds the receive ring or refers to it.
+/// `R` holds the receive ring or refers to it; `C` carves what later scans see through
+/// ([`Carving`]; `()`, nothing).
 #[derive(Debug)]
-pub struct Firmware<const K: usize, const G: usize, const F: usize = 0, R = Ring<RX_CAPACITY>> {
+pub struct Firmware<
+    const K: usize,
+    const G: usize,
+    const F: usize = 0,
+    R = Ring<RX_CAPACITY>,
+    C = (),
+> {
     /// The ring, held (the simulator's) or referred to (a board's `static`).
     rx: R,
     receiver: Receiver,
@@ -184,6 +200,7 @@ pub struct Firmware<const K: usize, const G: usize, const F: usize = 0, R = Ring
     refit_due: bool,
     stats: FirmwareStats,
     down: Downlink,
+    carving: C,
 }
 
 /// The state that survives a reset.
@@ -250,6 +267,14 @@ impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
     /// its receive interrupt pushes into.
     #[inline(always)]
     pub const fn with_ring(params: StreamParams, reach: f32, rx: R) -> Self {
+        Firmware::carving(params, reach, rx, ())
+    }
+}
+
+impl<const K: usize, const G: usize, const F: usize, R, C> Firmware<K, G, F, R, C> {
+    /// [`Firmware::with_ring`] carving with `carving` (a board's carver, in RAM of its own).
+    #[inline(always)]
+    pub const fn carving(params: StreamParams, reach: f32, rx: R, carving: C) -> Self {
         Self {
             rx,
             receiver: Receiver::reaching(reach),
@@ -275,12 +300,13 @@ impl<const K: usize, const G: usize, const F: usize, R> Firmware<K, G, F, R> {
                 sent_frozen: 0,
                 reported: 0,
             },
+            carving,
         }
     }
 }
 
-impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>>
-    Firmware<K, G, F, R>
+impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>>, C: Carving>
+    Firmware<K, G, F, R, C>
 {
     /// The receive interrupt: copies bytes into the ring; bytes past its capacity are dropped and
     /// counted, as a UART overrun drops them. Returns the bytes kept.
@@ -312,6 +338,13 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         };
         let placement = self.receiver.placement();
         let start = self.cursor.unwrap_or(0);
+        if start == 0
+            && !self
+                .carving
+                .step(placement.place([0, 0, 0]), &mut self.mapper)
+        {
+            return;
+        }
         let fitted = |s: &StreamStats| (s.frozen, s.merges, s.refits);
         let before = fitted(self.mapper.stats());
         let mut next = start;
@@ -330,6 +363,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                 continue;
             };
             let refit = self.mapper.ingest_observed(point, &mut ());
+            self.carving.add_return(point);
             let fitted_now = fitted(self.mapper.stats()) != before;
             if refit && fitted_now {
                 self.refit_due = true;
@@ -402,6 +436,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     /// settled origin, [`Firmware::send_frozen`]), and the end frame's counts are the new map's.
     fn start_map_again(&mut self) {
         self.mapper.restart();
+        self.carving.restart();
         self.refit_due = false;
         self.stats.frames = 0;
         self.stats.map_starts += 1;
@@ -422,6 +457,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
 
     /// Ends the stream: every cluster refitted from its final moments.
     pub fn finish(&mut self) {
+        self.carving.end(&mut self.mapper);
         self.mapper.finish();
     }
 
@@ -455,6 +491,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         self.refit_due = false;
         self.receiver = Receiver::resuming(snapshot.origin, self.receiver.reach());
         self.mapper.clone_from(&snapshot.mapper);
+        self.carving.restart();
         self.stats.frames = snapshot.frames;
         self.stats.map_starts = snapshot.map_starts;
         self.stats.end_of_stream = false;

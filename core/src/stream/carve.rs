@@ -48,11 +48,31 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         seen_through: impl Fn(&StreamCluster) -> bool,
         observer: &mut impl Observer,
     ) -> usize {
+        let all = self.clusters.len();
+        self.carve_some(scan_start, all, usize::MAX, seen_through, observer)
+            .1
+    }
+
+    /// [`StreamMapper::carve`] in steps, for a device that bounds each tick's work: judges at
+    /// most `most` of the working clusters below index `below` (the first step's `below` is
+    /// the working set's length), from the highest down, and returns the `below` of the next
+    /// step (0: all judged) and how many clusters left. Steps with nothing mapped between
+    /// them carve what one call would.
+    pub fn carve_some(
+        &mut self,
+        scan_start: u64,
+        below: usize,
+        most: usize,
+        seen_through: impl Fn(&StreamCluster) -> bool,
+        observer: &mut impl Observer,
+    ) -> (usize, usize) {
         let scan_points = self.stats.points.saturating_sub(scan_start);
         let scan_points = u32::try_from(scan_points).unwrap_or(u32::MAX);
+        let below = below.min(self.clusters.len());
+        let last = below.saturating_sub(most);
         let mut carved = 0;
-        // From the end down, so the cluster a swap-remove moves in has been judged already.
-        for i in (0..self.clusters.len()).rev() {
+        // From the highest down, so the cluster a swap-remove moves in has been judged already.
+        for i in (last..below).rev() {
             let Some(c) = self.clusters.get(i) else {
                 continue;
             };
@@ -73,7 +93,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             carved += 1;
         }
         self.stats.carved += carved as u64;
-        carved
+        (last, carved)
     }
 }
 
@@ -84,6 +104,9 @@ pub struct Carver<const N: usize> {
     image: RangeImage<N>,
     /// The mapper's point count when the scan began; `None` before the first scan.
     scan_start: Option<u64>,
+    /// An ended scan's judgement under way ([`Carver::step`]): the working clusters below this
+    /// index are still to be judged.
+    judging_below: Option<usize>,
 }
 
 impl<const N: usize> Carver<N> {
@@ -93,6 +116,7 @@ impl<const N: usize> Carver<N> {
         Some(Self {
             image: RangeImage::new(geometry)?,
             scan_start: None,
+            judging_below: None,
         })
     }
 
@@ -100,15 +124,29 @@ impl<const N: usize> Carver<N> {
     /// (nearer returns leave nothing free, farther ones are free to 128 m): what a carver needs
     /// who does not know the sensor.
     pub fn whole_sphere(rows: u16, columns: u16) -> Option<Self> {
-        use core::f32::consts::{FRAC_PI_2, PI, TAU};
-        Self::new(Geometry {
-            origin: Point3::new(0.0, 0.0, 0.0),
-            near: 0.125,
-            elevation: [-FRAC_PI_2, FRAC_PI_2],
-            azimuth: [-PI, TAU],
-            rows,
-            columns,
-        })
+        Self::new(whole_sphere(rows, columns))
+    }
+
+    /// A carver whose images have no pixels, to be given them by [`Carver::look`]: a
+    /// `const fn`, so a device builds its carver in place in a static.
+    #[inline(always)]
+    pub const fn empty() -> Self {
+        Self {
+            image: RangeImage::empty(),
+            scan_start: None,
+            judging_below: None,
+        }
+    }
+
+    /// Gives the carver whole-sphere images of `rows` x `columns` pixels ([`Carver::whole_sphere`])
+    /// and forgets any scan under way; false, and nothing changed, if they have more than `N`
+    /// pixels.
+    pub fn look(&mut self, rows: u16, columns: u16) -> bool {
+        if !self.image.reset(whole_sphere(rows, columns)) {
+            return false;
+        }
+        self.restart();
+        true
     }
 
     /// The points that follow were seen from `sensor` (the map's frame): if the scan so far was
@@ -126,6 +164,35 @@ impl<const N: usize> Carver<N> {
         let carved = self.end_scan(mapper, observer);
         self.begin_scan(sensor, mapper);
         carved
+    }
+
+    /// [`Carver::sensor_at`] in steps that judge at most `most` clusters each, for a device
+    /// that bounds each tick's work: true once the points seen from `sensor` may be added (the
+    /// scan before, if any, judged in full and the new one begun); false while the ended scan's
+    /// judgement goes on (step again with the same `sensor`, nothing mapped in between). The
+    /// steps carve what one [`Carver::sensor_at`] does.
+    pub fn step<const K: usize, const G: usize, const F: usize>(
+        &mut self,
+        sensor: Point3,
+        most: usize,
+        mapper: &mut StreamMapper<K, G, F>,
+        observer: &mut impl Observer,
+    ) -> bool {
+        if self.judging_below.is_none() && !self.begins_scan(sensor) {
+            return true;
+        }
+        if let Some(start) = self.scan_start {
+            let below = self.judging_below.unwrap_or(usize::MAX);
+            let (next, _) =
+                mapper.carve_some(start, below, most, |c| self.sees_through(c), observer);
+            if next > 0 {
+                self.judging_below = Some(next);
+                return false;
+            }
+        }
+        self.judging_below = None;
+        self.begin_scan(sensor, mapper);
+        true
     }
 
     /// Whether points seen from `sensor` begin a new scan: none is under way, or it was seen
@@ -173,15 +240,19 @@ impl<const N: usize> Carver<N> {
         mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> usize {
+        let below = self.judging_below.take().unwrap_or(usize::MAX);
         let Some(start) = self.scan_start.take() else {
             return 0;
         };
-        mapper.carve(start, |c| self.sees_through(c), observer)
+        mapper
+            .carve_some(start, below, usize::MAX, |c| self.sees_through(c), observer)
+            .1
     }
 
     /// Forgets the current scan without carving (the map started again).
     pub fn restart(&mut self) {
         self.scan_start = None;
+        self.judging_below = None;
     }
 
     /// Whether the current scan saw through `cluster` (see the module's documentation).
@@ -207,7 +278,6 @@ impl<const N: usize> Carver<N> {
             }
         }
         let push = FAR_SIDE * libm::sqrt(along.max(0.0));
-        let (values, vectors) = crate::shell::symmetric_eigen(covariance);
         let far = |offset: [f64; 3]| {
             let p = [0, 1, 2].map(|j| {
                 mean.get(j).copied().unwrap_or(0.0)
@@ -216,6 +286,12 @@ impl<const N: usize> Carver<N> {
             });
             Point3::new(p[0] as f32, p[1] as f32, p[2] as f32)
         };
+        // The centre first: most clusters a scan did not reach, it did not see through either,
+        // and their axes (an eigendecomposition, costly on a device) are not needed.
+        if self.sight(far([0.0; 3])) != Sight::Through {
+            return false;
+        }
+        let (values, vectors) = crate::shell::symmetric_eigen(covariance);
         let axis = |k: usize, sign: f64| {
             let reach =
                 sign * AXIS_REACH * libm::sqrt(values.get(k).copied().unwrap_or(0.0).max(0.0));
@@ -229,8 +305,7 @@ impl<const N: usize> Carver<N> {
             })
         };
         let ends = [axis(0, 1.0), axis(0, -1.0), axis(1, 1.0), axis(1, -1.0)];
-        self.sight(far([0.0; 3])) == Sight::Through
-            && ends.iter().all(|&end| self.sight(far(end)) != Sight::Short)
+        ends.iter().all(|&end| self.sight(far(end)) != Sight::Short)
     }
 
     /// What the current scan saw of `p`: through it, short of it, or nothing near its pixel.
@@ -277,6 +352,19 @@ impl<const N: usize> Carver<N> {
             }
         }
         (nearest != NO_RETURN).then_some(nearest)
+    }
+}
+
+/// A whole-sphere image's geometry around the origin ([`Carver::whole_sphere`]).
+fn whole_sphere(rows: u16, columns: u16) -> Geometry {
+    use core::f32::consts::{FRAC_PI_2, PI, TAU};
+    Geometry {
+        origin: Point3::new(0.0, 0.0, 0.0),
+        near: 0.125,
+        elevation: [-FRAC_PI_2, FRAC_PI_2],
+        azimuth: [-PI, TAU],
+        rows,
+        columns,
     }
 }
 

@@ -5,9 +5,9 @@
 use mema_core::link::downlink::{DownFrame, REASON_LISTENING, SessionStatus};
 
 use super::{Clock, Device, Feed, Out, answer};
-use crate::{RX_CAPACITY, Request};
+use crate::{Carving, RX_CAPACITY, Request};
 
-impl<const K: usize, const G: usize, const F: usize> Device<'_, K, G, F> {
+impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G, F, C> {
     /// A pass fed by a sensor: the listener's requests, then the line's bytes into the
     /// mapper's ring and ticks until a frame has been mapped or nothing moves, then the frozen
     /// entities and progress, and the map once the stream has ended. One frame a pass: the

@@ -13,21 +13,27 @@ use crate::io::free_space::{COLUMNS, FreeImage, ROWS, image_from, kept_scans};
 /// degrees left 5.3 % of the ghost on surface, 0.35 degrees 4.4 %).
 pub const CARVE_IMAGE: [u16; 2] = [512, 1024];
 
-/// The carver of a host's stream (512 KiB).
+/// The carver of a host's stream (512 KiB): images of [`CARVE_IMAGE`] pixels or fewer.
 pub type HostCarver = Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }>;
 
 /// The carver and the images of the scans it ended, in the frame of the receiver's origin.
 pub struct Carving {
     carver: Box<HostCarver>,
     images: Vec<FreeImage>,
+    /// Whether the map keeps free space: each ended scan's image is kept (a device's map
+    /// keeps none).
+    keep_images: bool,
 }
 
 impl Carving {
-    pub fn new() -> Option<Self> {
-        let [rows, columns] = CARVE_IMAGE;
+    /// A carving with whole-sphere images of `[rows, columns]` pixels (at most
+    /// [`CARVE_IMAGE`]'s count; `None` otherwise), keeping each scan's image for the map's free
+    /// space if `keep_images`.
+    pub fn new([rows, columns]: [u16; 2], keep_images: bool) -> Option<Self> {
         Some(Self {
             carver: Box::new(HostCarver::whole_sphere(rows, columns)?),
             images: Vec::new(),
+            keep_images,
         })
     }
 
@@ -57,7 +63,7 @@ impl Carving {
             .carver
             .begins_scan(self.carver.image().geometry().origin);
         self.carver.end_scan(mapper, &mut ());
-        if scanning {
+        if scanning && self.keep_images {
             let image = self.carver.image();
             self.images
                 .extend(map_image(image.geometry(), image.cells()));

@@ -242,8 +242,16 @@ impl Link {
 
     /// The link carving what later scans see through ([`mema_core::stream::carve`]): scans
     /// are the runs of points frames from one sensor origin.
-    pub fn carving(mut self) -> Self {
-        self.carving = Carving::new();
+    pub fn carving(self) -> Self {
+        self.carving_with(super::carving::CARVE_IMAGE, true)
+    }
+
+    /// [`Link::carving`] with whole-sphere images of `[rows, columns]` pixels, as a device
+    /// carves (the STM32F405 board's `mema_firmware::BOARD_CARVE_IMAGE`), keeping each scan's
+    /// image as the map's free space if `keep_free_space`. Images of more pixels than
+    /// [`super::carving::CARVE_IMAGE`] carve nothing.
+    pub fn carving_with(mut self, image: [u16; 2], keep_free_space: bool) -> Self {
+        self.carving = Carving::new(image, keep_free_space);
         self
     }
 

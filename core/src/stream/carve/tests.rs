@@ -180,3 +180,40 @@ fn a_cluster_across_a_corner_stays() -> TestResult {
     assert_eq!(m.stats().carved, 0);
     Ok(())
 }
+
+/// A device judges an ended scan a few clusters a tick ([`Carver::step`]): one cluster a step
+/// carves what the whole judgement at once does, cluster for cluster.
+#[test]
+fn steps_of_one_cluster_carve_what_one_judgement_does() -> TestResult {
+    let [a, b, c, d] = sensors();
+    let scans = [(a, true), (b, false), (c, false), (d, true)];
+    let mut whole = mapper();
+    let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
+    for (sensor, with_person) in scans {
+        let person = person().filter(|_| with_person);
+        scan(&mut whole, &mut carver, sensor, wall().chain(person));
+    }
+    carver.end_scan(&mut whole, &mut ());
+
+    let mut stepped = mapper();
+    let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
+    let mut steps = 0;
+    for (sensor, with_person) in scans {
+        while !carver.step(sensor, 1, &mut stepped, &mut ()) {
+            steps += 1;
+        }
+        for p in wall().chain(person().filter(|_| with_person)) {
+            stepped.add(p);
+            carver.add_return(p);
+        }
+    }
+    carver.end_scan(&mut stepped, &mut ());
+    assert!(whole.stats().carved > 0, "the person was carved");
+    assert!(
+        steps > 3 * 8,
+        "each ended scan took a step a cluster: {steps} steps"
+    );
+    assert_eq!(stepped.stats(), whole.stats());
+    assert_eq!(stepped.clusters(), whole.clusters());
+    Ok(())
+}

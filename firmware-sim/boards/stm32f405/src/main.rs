@@ -43,12 +43,12 @@ use cortex_m_rt::entry;
 use mema_core::geometry::Entity;
 use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
 use mema_core::link::frame::Address;
-use mema_core::stream::StreamModel;
+use mema_core::stream::{Carver, StreamModel};
 use mema_firmware::cortex_m::{stack, systick};
 use mema_firmware::device::{Boot, Clock, Device, LISTENER_RING, Out, Poll};
 use mema_firmware::{
-    BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS,
-    model_params,
+    BOARD_CARVE_IMAGE, BOARD_CARVE_PIXELS, BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS,
+    IMAGE_REACH, RX_CAPACITY, Ring, SHELLS, model_params,
 };
 use panic_never as _;
 use static_cell::StaticCell;
@@ -79,8 +79,13 @@ static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
 /// (and while mapping is under way) rather than at every byte.
 static DELIMITERS: AtomicU32 = AtomicU32::new(0);
 
-type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>>;
+type BoardCarver = Carver<BOARD_CARVE_PIXELS>;
+type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>, &'static mut BoardCarver>;
 static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
+/// The carver, its range image filling the core-coupled RAM (`memory/*.x`: neither loaded nor
+/// zeroed, so it is built at boot, once).
+#[unsafe(link_section = ".ccmram")]
+static mut CARVER: core::mem::MaybeUninit<BoardCarver> = core::mem::MaybeUninit::uninit();
 /// The finished map's entities, for the host's queries: scanned whole (28 KB at K = 700; the
 /// core's index over them would take 109 KB beside the mapper's 60).
 static QUERY_MAP: StaticCell<[Entity; K + F]> = StaticCell::new();
@@ -91,11 +96,30 @@ fn boot(
     slot: &'static mut core::mem::MaybeUninit<BoardFirmware>,
     model: StreamModel,
 ) -> &'static mut BoardFirmware {
-    slot.write(Firmware::with_ring(
+    slot.write(Firmware::carving(
         model_params(SEED, K, F, model),
         IMAGE_REACH,
         &MAP,
+        carver(),
     ))
+}
+
+/// The carver, built in place in the core-coupled RAM. Called once, from `boot`.
+#[inline(never)]
+fn carver() -> &'static mut BoardCarver {
+    // SAFETY: `boot` runs once a reset, before anything else refers to `CARVER`, and hands
+    // the only reference to the firmware.
+    let slot = unsafe { (&raw mut CARVER).as_mut() };
+    let Some(slot) = slot else {
+        // A static's address is never null.
+        loop {
+            cortex_m::asm::wfi();
+        }
+    };
+    let carver = slot.write(Carver::empty());
+    let [rows, columns] = BOARD_CARVE_IMAGE;
+    carver.look(rows, columns);
+    carver
 }
 
 /// The query map's storage, zeroed in place (an entity of zeros is a valid value; a

@@ -59,6 +59,12 @@ pub struct StreamShapeArgs {
     /// frames under one pose; a single scan carves nothing.
     #[arg(long)]
     pub free_space: bool,
+    /// Carve as --free-space does, with range images of ROWS x COLUMNS pixels around the whole
+    /// sphere, and keep no free space in the map: a device's carving, whose map this replays
+    /// (the STM32F405 board carves with 128x512). With --free-space, its images' size (512x1024
+    /// by default; at most 524,288 pixels).
+    #[arg(long, value_name = "ROWSxCOLUMNS", value_parser = parse_carve_image)]
+    pub carve: Option<[u16; 2]>,
     /// Refuse points and poses farther than this from the map's origin (its first point) on
     /// any axis, in metres: a corrupt frame that passed its CRC, or a wrong unit, is counted
     /// and never mapped. 100 km by default, where f32 still resolves 4 mm.
@@ -195,4 +201,24 @@ pub struct DeviceArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `ROWSxCOLUMNS`, each at least 1, at most the host carver's pixels in all.
+fn parse_carve_image(text: &str) -> Result<[u16; 2], String> {
+    let parsed = text
+        .split_once(['x', 'X'])
+        .and_then(|(r, c)| Some([r.trim().parse::<u16>().ok()?, c.trim().parse::<u16>().ok()?]));
+    let [max_rows, max_columns] = mema::link::carving::CARVE_IMAGE;
+    let most = usize::from(max_rows) * usize::from(max_columns);
+    match parsed {
+        Some([rows, columns])
+            if rows > 0 && columns > 0 && usize::from(rows) * usize::from(columns) <= most =>
+        {
+            Ok([rows, columns])
+        }
+        _ => Err(format!(
+            "'{text}' is not ROWSxCOLUMNS with each at least 1 and at most {most} pixels in all \
+             (e.g. 128x512)"
+        )),
+    }
 }
