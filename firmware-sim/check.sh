@@ -94,7 +94,9 @@ for cloud in car6.pcd demo; do
         || { echo "firmware: board.sh failed on $cloud, $model, $link:"; cat "$m/$link.txt"; status=1; continue; }
       k=$(tail -1 "$m/$link.txt" | grep -o '"k":[0-9]*' | head -1 | cut -d: -f2)
       working=$(tail -1 "$m/$link.txt" | grep -o '"working":[0-9]*' | head -1 | cut -d: -f2)
-      target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" -o "$m/board-replay.mema" >/dev/null 2>&1
+      # The board carves as `--carve 124x512 --carve-every 2` (BOARD_CARVE_IMAGE, BOARD_CARVE_EVERY).
+      target/release/mema replay "$m/capture.bin" -k "$k" --working "$working" --model "$model" \
+        --carve 124x512 --carve-every 2 -o "$m/board-replay.mema" >/dev/null 2>&1
       if cmp -s "$m/board-replay.mema" "$m/$link.mema"; then
         if [ "$link" = host ]; then
           echo "   $cloud, $model: the STM32F405 board's map over its USART = mema replay"

@@ -93,14 +93,20 @@ impl Geometry {
         if !(r.is_finite() && r > 0.0) {
             return None;
         }
-        let [low, high] = self.elevation;
         let elevation = libm::asinf((d[2] / r).clamp(-1.0, 1.0));
+        let index = self.pixel_of(elevation, libm::atan2f(d[1], d[0]))?;
+        Some((index, r))
+    }
+
+    /// The pixel of a direction, `elevation` and `azimuth` in radians (the azimuth in any
+    /// turn); `None` outside the image.
+    pub fn pixel_of(&self, elevation: f32, azimuth: f32) -> Option<usize> {
+        let [low, high] = self.elevation;
         if !(elevation >= low && elevation <= high && high > low) {
             return None;
         }
         let [start, width] = self.azimuth;
-        let from_start = libm::atan2f(d[1], d[0]) - start;
-        let wrapped = libm::fmodf(from_start, core::f32::consts::TAU);
+        let wrapped = remainder_of_turn(azimuth - start);
         let turned = if wrapped < 0.0 {
             wrapped + core::f32::consts::TAU
         } else {
@@ -115,7 +121,23 @@ impl Geometry {
         let row = ((((elevation - low) / (high - low)) * rows as f32) as usize)
             .min(rows.saturating_sub(1));
         let column = (((turned / width) * columns as f32) as usize).min(columns.saturating_sub(1));
-        Some((row * columns + column, r))
+        Some(row * columns + column)
+    }
+}
+
+/// `x` modulo a whole turn as `libm::fmodf(x, TAU)` gives it (the remainder has `x`'s sign),
+/// without its bit-by-bit loop where it is not needed: within a turn the remainder is `x`, and
+/// within two turns one subtraction is exact (Sterbenz), so the bits are fmodf's.
+fn remainder_of_turn(x: f32) -> f32 {
+    use core::f32::consts::TAU;
+    if x > -TAU && x < TAU {
+        x
+    } else if x >= TAU && x < 2.0 * TAU {
+        x - TAU
+    } else if x <= -TAU && x > -2.0 * TAU {
+        x + TAU
+    } else {
+        libm::fmodf(x, TAU)
     }
 }
 
@@ -190,6 +212,16 @@ impl<const N: usize> RangeImage<N> {
     /// The codes, row by row.
     pub fn cells(&self) -> &[u8] {
         self.cells.get(..self.geometry.pixels()).unwrap_or(&[])
+    }
+
+    /// Notes a return of code `code` in pixel `index` (a [`Geometry::pixel`] of this image's):
+    /// the pixel keeps the lower code.
+    pub fn lower(&mut self, index: usize, code: u8) {
+        if index < self.geometry.pixels()
+            && let Some(cell) = self.cells.get_mut(index)
+        {
+            *cell = (*cell).min(code);
+        }
     }
 
     pub fn add_return(&mut self, p: Point3) {

@@ -73,11 +73,16 @@ pub const IMAGE_FROZEN: usize = 250;
 /// host's batch map: docs/board.md ("The board's layout").
 pub const BOARD_WORKING: usize = IMAGE_WORKING;
 pub const BOARD_FROZEN: usize = 550;
-/// The board's carving images (rows, columns around the whole sphere: 1.43 by 0.70 degrees),
-/// one byte a pixel, in its 64 KiB of core-coupled RAM, which nothing else uses: 126 rows, not
-/// 128, leave room for the carver's own fields. The board's map is `mema replay -k 700 --working
-/// 150 --carve 126x512`'s.
-pub const BOARD_CARVE_IMAGE: [u16; 2] = [126, 512];
+/// The board's carving images (rows, columns around the whole sphere: 1.45 by 0.70 degrees),
+/// one byte a pixel, in its 64 KiB of core-coupled RAM, which nothing else uses: 124 rows, not
+/// 128, leave room for the carver's own fields and its table of ranges. The board's map is
+/// `mema replay -k 700 --working 150 --carve 124x512`'s.
+pub const BOARD_CARVE_IMAGE: [u16; 2] = [124, 512];
+/// The board's images take every other return of a scan ([`mema_core::stream::Carver::sample`]):
+/// every return costs the demo drive's paper model about 400 instructions a point, above the
+/// board's 10,000 (`firmware-sim/check.sh`); every other one carved the walking drive's walker
+/// as all of them did (`mema replay --carve-every`, tests/tests/walker.rs).
+pub const BOARD_CARVE_EVERY: u16 = 2;
 /// Pixels of [`BOARD_CARVE_IMAGE`].
 pub const BOARD_CARVE_PIXELS: usize = BOARD_CARVE_IMAGE[0] as usize * BOARD_CARVE_IMAGE[1] as usize;
 

@@ -33,10 +33,11 @@ impl Drop for Killed {
 pub(crate) fn board_image(model: &str) -> PathBuf {
     let board = Path::new(env!("CARGO_MANIFEST_DIR")).join("../firmware-sim/boards/stm32f405");
     let target = format!("target/{model}");
+    // Linked for QEMU, which models no core-coupled RAM (the board's memory/qemu.x).
     let features: &[&str] = if model == "paper" {
-        &["--features", "paper"]
+        &["--features", "qemu,paper"]
     } else {
-        &[]
+        &["--features", "qemu"]
     };
     let status = Command::new("cargo")
         .args(["build", "-q", "--release", "--target-dir", &target])

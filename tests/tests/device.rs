@@ -11,7 +11,8 @@ use mema_core::link::frame::Address;
 use mema_core::link::framing;
 use mema_core::stream::StreamModel;
 use mema_firmware::{
-    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
+    BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS,
+    IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, SHELLS, model_params,
 };
 
 use crate::util::{Dir, MemaCommand, shared};
@@ -46,7 +47,8 @@ pub(crate) fn capture_and_replay(
 }
 
 /// `mema replay`'s map of `capture` at `k` ellipsoids, `working` of them in working memory, in
-/// `model`.
+/// `model`; at the board's layout, carving as the board carves (its images, every other
+/// return: `BOARD_CARVE_IMAGE`, `BOARD_CARVE_EVERY`), which the 64 KiB image has no room for.
 pub(crate) fn replay(
     dir: &Dir,
     capture: &Path,
@@ -57,12 +59,21 @@ pub(crate) fn replay(
         .file_stem()
         .map_or("capture".into(), |s| s.to_string_lossy());
     let map = dir.join(&format!("{name}-{k}-{model}.mema"));
+    let board = (k, working) == (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
+    let [rows, columns] = BOARD_CARVE_IMAGE;
+    let carve = [
+        "--carve".to_string(),
+        format!("{rows}x{columns}"),
+        "--carve-every".to_string(),
+        BOARD_CARVE_EVERY.to_string(),
+    ];
     let (k, working) = (k.to_string(), working.to_string());
     MemaCommand::new(dir)
         .arg("replay")
         .arg(capture)
         .args(["-k", &k, "--working", &working, "--model", model, "-o"])
         .arg(&map)
+        .args(carve.iter().filter(|_| board))
         .run()
         .assert_ok();
     std::fs::read(&map).expect("map")

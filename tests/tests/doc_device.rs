@@ -18,7 +18,10 @@ use mema_core::moments::fixed::OFFSET_LIMIT;
 use mema_core::shell::ShellParams;
 use mema_core::stream::freeze::IDLE_TURNOVERS;
 use mema_core::stream::{MAX_SUMMARY, Pacing, SUMMARY_FACTOR};
-use mema_firmware::{BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING};
+use mema_firmware::{
+    BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN,
+    IMAGE_WORKING,
+};
 use mema_firmware::{REFIT_INTERVAL, TICK_POINTS};
 use mema_firmware_sim::board::TARGET_BOARD;
 use mema_firmware_sim::budget::{BOARD_FLASH, BOARD_SRAM};
@@ -464,4 +467,17 @@ fn every_k_the_guides_state_is_a_layout_of_the_code() {
         }
     }
     assert!(seen >= 30, "{seen} layouts named");
+}
+
+/// check.sh replays the board's map carving as the board carves (its images and sampling).
+#[test]
+fn check_sh_replays_the_board_as_it_carves() {
+    let script =
+        std::fs::read_to_string(repository().join("firmware-sim/check.sh")).expect("check.sh");
+    let [rows, columns] = BOARD_CARVE_IMAGE;
+    let flags = format!("--carve {rows}x{columns} --carve-every {BOARD_CARVE_EVERY}");
+    assert!(
+        script.contains(&flags),
+        "check.sh does not replay with {flags}"
+    );
 }

@@ -102,11 +102,20 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 #[derive(Clone, Debug)]
 pub struct Carver<const N: usize> {
     image: RangeImage<N>,
+    /// The range each code stands for in the image ([`range_of`] at its `near`): a return's
+    /// code is found among them by bisection, and a pixel's range read from them, where
+    /// [`crate::free_space::code`]'s logarithm and its check's power cost a device more than
+    /// the rest of the pixel.
+    ranges: [f32; CODES],
     /// The mapper's point count when the scan began; `None` before the first scan.
     scan_start: Option<u64>,
     /// An ended scan's judgement under way ([`Carver::step`]): the working clusters below this
     /// index are still to be judged.
     judging_below: Option<usize>,
+    /// Returns a scan's image takes: each one (1), or every so many ([`Carver::sample`]).
+    every: u16,
+    /// Returns of the scan since the last one the image took.
+    passed: u16,
 }
 
 impl<const N: usize> Carver<N> {
@@ -115,8 +124,11 @@ impl<const N: usize> Carver<N> {
     pub fn new(geometry: Geometry) -> Option<Self> {
         Some(Self {
             image: RangeImage::new(geometry)?,
+            ranges: ranges_from(geometry.near),
             scan_start: None,
             judging_below: None,
+            every: 1,
+            passed: 0,
         })
     }
 
@@ -133,8 +145,11 @@ impl<const N: usize> Carver<N> {
     pub const fn empty() -> Self {
         Self {
             image: RangeImage::empty(),
+            ranges: [0.0; CODES],
             scan_start: None,
             judging_below: None,
+            every: 1,
+            passed: 0,
         }
     }
 
@@ -142,9 +157,11 @@ impl<const N: usize> Carver<N> {
     /// and forgets any scan under way; false, and nothing changed, if they have more than `N`
     /// pixels.
     pub fn look(&mut self, rows: u16, columns: u16) -> bool {
-        if !self.image.reset(whole_sphere(rows, columns)) {
+        let geometry = whole_sphere(rows, columns);
+        if !self.image.reset(geometry) {
             return false;
         }
+        self.ranges = ranges_from(geometry.near);
         self.restart();
         true
     }
@@ -195,6 +212,14 @@ impl<const N: usize> Carver<N> {
         true
     }
 
+    /// Notes only every `every`-th return of a scan in its image (the first, then each
+    /// `every`-th after it; 0 counts as 1): a device short of time carves from a measured
+    /// subset of its rays.
+    pub fn sample(&mut self, every: u16) {
+        self.every = every.max(1);
+        self.passed = 0;
+    }
+
     /// Whether points seen from `sensor` begin a new scan: none is under way, or it was seen
     /// from elsewhere.
     pub fn begins_scan(&self, sensor: Point3) -> bool {
@@ -214,6 +239,7 @@ impl<const N: usize> Carver<N> {
         };
         self.image.reset(geometry);
         self.scan_start = Some(mapper.stats().points);
+        self.passed = 0;
     }
 
     /// Whether a scan is under way.
@@ -228,9 +254,44 @@ impl<const N: usize> Carver<N> {
 
     /// Notes a return of the current scan.
     pub fn add_return(&mut self, p: Point3) {
-        if self.scan_start.is_some() {
-            self.image.add_return(p);
+        if self.scan_start.is_none() {
+            return;
         }
+        let taken = self.passed == 0;
+        self.passed = if self.passed + 1 >= self.every {
+            0
+        } else {
+            self.passed + 1
+        };
+        if taken && let Some((index, r)) = direction::pixel(self.image.geometry(), p) {
+            // Most returns are not their pixel's nearest: only a nearer one is coded.
+            let held = self.image.cells().get(index).copied().unwrap_or(0);
+            if r < self
+                .ranges
+                .get(usize::from(held))
+                .copied()
+                .unwrap_or(f32::INFINITY)
+            {
+                let code = self.code_of(r);
+                self.image.lower(index, code);
+            }
+        }
+    }
+
+    /// The largest code whose range is at most `r` (0 for none, or NaN): what
+    /// [`crate::free_space::code`] means, found among the image's ranges.
+    fn code_of(&self, r: f32) -> u8 {
+        // `ranges[low] <= r` holds throughout (ranges[0] is 0), `ranges[high]` is past r.
+        let (mut low, mut high) = (0, CODES);
+        while high - low > 1 {
+            let middle = (low + high) / 2;
+            if self.ranges.get(middle).is_some_and(|&m| m <= r) {
+                low = middle;
+            } else {
+                high = middle;
+            }
+        }
+        low as u8
     }
 
     /// Ends the current scan (the stream ended, or the next points have no sensor origin): it
@@ -313,14 +374,14 @@ impl<const N: usize> Carver<N> {
     /// than the sensor's spacing leave gaps between its rays (the sampling, not open space),
     /// and the nearest of the neighbourhood never claims more free space than a return allows.
     fn sight(&self, p: Point3) -> Sight {
-        let geometry = self.image.geometry();
-        let Some((index, r)) = geometry.pixel(p) else {
+        let Some((index, r)) = direction::pixel(self.image.geometry(), p) else {
             return Sight::Nothing;
         };
         let Some(c) = self.nearest_around(index) else {
             return Sight::Nothing;
         };
-        if r < range_of(c, geometry.near) - CARVE_MARGIN {
+        let range = self.ranges.get(usize::from(c)).copied().unwrap_or(0.0);
+        if r < range - CARVE_MARGIN {
             Sight::Through
         } else {
             Sight::Short
@@ -355,6 +416,18 @@ impl<const N: usize> Carver<N> {
     }
 }
 
+/// Codes a pixel can hold for a return (all but [`NO_RETURN`]).
+const CODES: usize = NO_RETURN as usize;
+
+/// The range of each code at `near` ([`range_of`]).
+fn ranges_from(near: f32) -> [f32; CODES] {
+    let mut ranges = [0.0; CODES];
+    for (c, range) in ranges.iter_mut().enumerate() {
+        *range = range_of(c as u8, near);
+    }
+    ranges
+}
+
 /// A whole-sphere image's geometry around the origin ([`Carver::whole_sphere`]).
 fn whole_sphere(rows: u16, columns: u16) -> Geometry {
     use core::f32::consts::{FRAC_PI_2, PI, TAU};
@@ -379,5 +452,6 @@ enum Sight {
     Nothing,
 }
 
+mod direction;
 #[cfg(test)]
 mod tests;

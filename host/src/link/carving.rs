@@ -27,11 +27,14 @@ pub struct Carving {
 
 impl Carving {
     /// A carving with whole-sphere images of `[rows, columns]` pixels (at most
-    /// [`CARVE_IMAGE`]'s count; `None` otherwise), keeping each scan's image for the map's free
-    /// space if `keep_images`.
-    pub fn new([rows, columns]: [u16; 2], keep_images: bool) -> Option<Self> {
+    /// [`CARVE_IMAGE`]'s count; `None` otherwise) taking every `every`-th return of a scan
+    /// ([`Carver::sample`]), keeping each scan's image for the map's free space if
+    /// `keep_images`.
+    pub fn new([rows, columns]: [u16; 2], every: u16, keep_images: bool) -> Option<Self> {
+        let mut carver = Box::new(HostCarver::whole_sphere(rows, columns)?);
+        carver.sample(every);
         Some(Self {
-            carver: Box::new(HostCarver::whole_sphere(rows, columns)?),
+            carver,
             images: Vec::new(),
             keep_images,
         })

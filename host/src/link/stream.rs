@@ -243,15 +243,16 @@ impl Link {
     /// The link carving what later scans see through ([`mema_core::stream::carve`]): scans
     /// are the runs of points frames from one sensor origin.
     pub fn carving(self) -> Self {
-        self.carving_with(super::carving::CARVE_IMAGE, true)
+        self.carving_with(super::carving::CARVE_IMAGE, 1, true)
     }
 
-    /// [`Link::carving`] with whole-sphere images of `[rows, columns]` pixels, as a device
-    /// carves (the STM32F405 board's `mema_firmware::BOARD_CARVE_IMAGE`), keeping each scan's
-    /// image as the map's free space if `keep_free_space`. Images of more pixels than
+    /// [`Link::carving`] as a device carves: whole-sphere images of `[rows, columns]` pixels
+    /// taking every `every`-th return of a scan (the STM32F405 board's
+    /// `mema_firmware::BOARD_CARVE_IMAGE` and `BOARD_CARVE_EVERY`), keeping each scan's image
+    /// as the map's free space if `keep_free_space`. Images of more pixels than
     /// [`super::carving::CARVE_IMAGE`] carve nothing.
-    pub fn carving_with(mut self, image: [u16; 2], keep_free_space: bool) -> Self {
-        self.carving = Carving::new(image, keep_free_space);
+    pub fn carving_with(mut self, image: [u16; 2], every: u16, keep_free_space: bool) -> Self {
+        self.carving = Carving::new(image, every, keep_free_space);
         self
     }
 

@@ -217,3 +217,86 @@ fn steps_of_one_cluster_carve_what_one_judgement_does() -> TestResult {
     assert_eq!(stepped.clusters(), whole.clusters());
     Ok(())
 }
+
+/// A return's code, found among the image's ranges, is the largest whose range is at most the
+/// return's (so the image never claims free space past it), as `free_space::code` means it;
+/// code's logarithm lands on it or one below.
+#[test]
+fn codes_by_bisection_are_the_largest_not_past_the_return() -> TestResult {
+    let carver = Carver::<64>::whole_sphere(4, 8).or_fail("carver")?;
+    let near = carver.image().geometry().near;
+    let mut r = 1e-3_f32;
+    let mut seen_below = 0;
+    while r < 400.0 {
+        let c = carver.code_of(r);
+        assert!(range_of(c, near) <= r, "{r}: code {c}");
+        assert!(
+            c == NO_RETURN - 1 || range_of(c + 1, near) > r,
+            "{r}: code {c} is not the largest"
+        );
+        let logarithm = crate::free_space::code(r, near);
+        assert!(
+            logarithm == c || logarithm + 1 == c,
+            "{r}: {logarithm} and {c}"
+        );
+        seen_below += usize::from(logarithm != c);
+        r *= 1.0007;
+    }
+    assert_eq!(carver.code_of(f32::NAN), 0);
+    assert_eq!(carver.code_of(-1.0), 0);
+    assert!(seen_below < 100, "{seen_below} codes differ");
+    Ok(())
+}
+
+/// The carver's square root and arctangent are within their stated errors of the library's
+/// over every octant, and its pixels are [`Geometry::pixel`]'s but for directions at an edge.
+#[test]
+fn a_carver_pixel_is_the_geometry_pixel_but_at_edges() -> TestResult {
+    use super::direction::{arctangent, pixel, square_root};
+    let mut worst_angle = 0.0_f32;
+    for i in 0..20_000 {
+        let turn = i as f32 / 20_000.0 * core::f32::consts::TAU;
+        for radius in [1e-3_f32, 0.7, 30.0, 2.0e4] {
+            let (y, x) = (radius * libm::sinf(turn), radius * libm::cosf(turn));
+            worst_angle = worst_angle.max((arctangent(y, x) - libm::atan2f(y, x)).abs());
+        }
+    }
+    assert!(worst_angle < 1e-5, "arctangent off by {worst_angle}");
+    assert_eq!(arctangent(0.0, 0.0), 0.0);
+    assert!(arctangent(f32::NAN, 1.0).is_nan());
+    let mut worst_root = 0.0_f32;
+    let mut x = 1e-6_f32;
+    while x < 1e9 {
+        let exact = libm::sqrtf(x);
+        worst_root = worst_root.max((square_root(x) - exact).abs() / exact);
+        x *= 1.013;
+    }
+    assert!(worst_root < 1e-6, "square root off by {worst_root} of it");
+    assert_eq!(square_root(0.0), 0.0);
+    assert!(square_root(-1.0).is_nan());
+
+    let carver = Carver::<{ 124 * 512 }>::whole_sphere(124, 512).or_fail("carver")?;
+    let geometry = *carver.image().geometry();
+    let (mut same, mut all) = (0, 0);
+    for i in 0..200_000_u32 {
+        // A spiral over the sphere at ranges from 0.3 m to 90 m.
+        let z = -1.0 + 2.0 * (i as f32 + 0.5) / 200_000.0;
+        let turn = i as f32 * 2.399_963;
+        let across = libm::sqrtf(1.0 - z * z);
+        let r = 0.3 + (i % 997) as f32 * 0.09;
+        let p = Point3::new(
+            r * across * libm::cosf(turn),
+            r * across * libm::sinf(turn),
+            r * z,
+        );
+        let (fast, exact) = (pixel(&geometry, p), geometry.pixel(p));
+        let (Some((a, ra)), Some((b, rb))) = (fast, exact) else {
+            return Err("a point on the sphere is outside a whole-sphere image");
+        };
+        assert!((ra - rb).abs() <= 1e-6 * rb, "{ra} and {rb}");
+        all += 1;
+        same += usize::from(a == b);
+    }
+    assert!(same * 1000 >= all * 999, "{same} of {all} pixels the same");
+    Ok(())
+}

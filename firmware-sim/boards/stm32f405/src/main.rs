@@ -47,8 +47,8 @@ use mema_core::stream::{Carver, StreamModel};
 use mema_firmware::cortex_m::{stack, systick};
 use mema_firmware::device::{Boot, Clock, Device, LISTENER_RING, Out, Poll};
 use mema_firmware::{
-    BOARD_CARVE_IMAGE, BOARD_CARVE_PIXELS, BOARD_FROZEN, BOARD_WORKING, Firmware, IMAGE_BUCKETS,
-    IMAGE_REACH, RX_CAPACITY, Ring, SHELLS, model_params,
+    BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_CARVE_PIXELS, BOARD_FROZEN, BOARD_WORKING,
+    Firmware, IMAGE_BUCKETS, IMAGE_REACH, RX_CAPACITY, Ring, SHELLS, model_params,
 };
 use panic_never as _;
 use static_cell::StaticCell;
@@ -119,6 +119,7 @@ fn carver() -> &'static mut BoardCarver {
     let carver = slot.write(Carver::empty());
     let [rows, columns] = BOARD_CARVE_IMAGE;
     carver.look(rows, columns);
+    carver.sample(BOARD_CARVE_EVERY);
     carver
 }
 

@@ -61,10 +61,15 @@ pub struct StreamShapeArgs {
     pub free_space: bool,
     /// Carve as --free-space does, with range images of ROWS x COLUMNS pixels around the whole
     /// sphere, and keep no free space in the map: a device's carving, whose map this replays
-    /// (the STM32F405 board carves with 128x512). With --free-space, its images' size (512x1024
+    /// (the STM32F405 board carves with 124x512). With --free-space, its images' size (512x1024
     /// by default; at most 524,288 pixels).
     #[arg(long, value_name = "ROWSxCOLUMNS", value_parser = parse_carve_image)]
     pub carve: Option<[u16; 2]>,
+    /// With --carve or --free-space: the images take only every Nth return of a scan (its
+    /// first, then each Nth after), as a device short of time carves (the STM32F405 board: 2).
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u16).range(1..))]
+    pub carve_every: u16,
     /// Refuse points and poses farther than this from the map's origin (its first point) on
     /// any axis, in metres: a corrupt frame that passed its CRC, or a wrong unit, is counted
     /// and never mapped. 100 km by default, where f32 still resolves 4 mm.

@@ -50,7 +50,7 @@ fn new_link(
     let link = Link::with_params(params(config, capacity, shape)).with_reach(shape.reach);
     let image = shape.carve.unwrap_or(mema::link::carving::CARVE_IMAGE);
     Ok(if shape.free_space || shape.carve.is_some() {
-        link.carving_with(image, shape.free_space)
+        link.carving_with(image, shape.carve_every, shape.free_space)
     } else {
         link
     })
