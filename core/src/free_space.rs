@@ -132,7 +132,7 @@ fn remainder_of_turn(x: f32) -> f32 {
     use core::f32::consts::TAU;
     if x > -TAU && x < TAU {
         x
-    } else if x >= TAU && x < 2.0 * TAU {
+    } else if (TAU..2.0 * TAU).contains(&x) {
         x - TAU
     } else if x <= -TAU && x > -2.0 * TAU {
         x + TAU
