@@ -47,13 +47,18 @@ fn row<const K: usize, const G: usize, const F: usize>() -> StaticRow {
     }
 }
 
-/// `llvm-size` of the image: flash = text + data, RAM = data + bss (the stack comes on top).
+/// `llvm-size` of the image: flash = text + data, RAM = data + bss (the stack comes on top);
+/// `ccm`, the board's core-coupled RAM (its `.ccmram` section: the carver), counted apart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ImageSize {
     pub text: u64,
     pub data: u64,
     pub bss: u64,
+    pub ccm: u64,
 }
+
+/// The STM32F405's core-coupled RAM.
+pub const BOARD_CCM: u64 = 64 * 1024;
 
 /// The image's own report line (`mema-image: key=value ...`).
 #[derive(Clone, Debug, PartialEq, Eq, Default)]
@@ -222,8 +227,27 @@ pub fn llvm_size(image: &Path) -> Result<ImageSize, BudgetError> {
         .take(3)
         .filter_map(|v| v.parse().ok())
         .collect();
+    // The Berkeley totals count a section of no contents as bss wherever it lies: the CCM's
+    // is taken back out, from the sections' own sizes.
+    let ccm = Command::new("llvm-size")
+        .args(["-A"])
+        .arg(image)
+        .output()
+        .ok()
+        .and_then(|out| {
+            String::from_utf8_lossy(&out.stdout)
+                .lines()
+                .find(|l| l.starts_with(".ccmram"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
+        })
+        .unwrap_or(0);
     match numbers[..] {
-        [text, data, bss] => Ok(ImageSize { text, data, bss }),
+        [text, data, bss] => Ok(ImageSize {
+            text,
+            data,
+            bss: bss.saturating_sub(ccm),
+            ccm,
+        }),
         _ => Err(BudgetError::LlvmSize(format!(
             "{}: unexpected output {text:?} {}",
             image.display(),
@@ -399,13 +423,16 @@ impl Report {
         };
         let (flash, ram) = (b.text + b.data, b.data + b.bss);
         let mut s = format!(
-            "board image (STM32F405, thumbv7em-none-eabihf, K = {}: {BOARD_WORKING} working + {BOARD_FROZEN} frozen): flash {} (text {} + data {}) of 1 MiB, static RAM {} (data + bss {}) of 128 KiB SRAM\n",
+            "board image (STM32F405, thumbv7em-none-eabihf, K = {}: {BOARD_WORKING} working + {BOARD_FROZEN} frozen): flash {} (text {} + data {}) of 1 MiB, static RAM {} (data + bss {}) of 128 KiB SRAM, and the carver's {} of its 64 KiB of CCM ({} bytes; fits: {})\n",
             BOARD_WORKING + BOARD_FROZEN,
             kib(flash),
             b.text,
             b.data,
             kib(ram),
             ram,
+            kib(b.ccm),
+            b.ccm,
+            if b.ccm <= BOARD_CCM { "yes" } else { "no" },
         );
         if let Some(r) = self.board_run {
             let used = ram + r.stack_bytes;
@@ -464,8 +491,8 @@ impl Report {
                 )
             });
             format!(
-                "{{\"text\":{},\"data\":{},\"bss\":{},\"run\":{run}}}",
-                b.text, b.data, b.bss
+                "{{\"text\":{},\"data\":{},\"bss\":{},\"ccm\":{},\"run\":{run}}}",
+                b.text, b.data, b.bss, b.ccm
             )
         });
         format!(
