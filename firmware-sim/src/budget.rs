@@ -1,5 +1,5 @@
 //! The memory budget: static RAM of the firmware state at K = 150, 400 (all working, and 150
-//! working + 250 frozen) and 1000 (`size_of`, so
+//! working + 250 frozen), 700 (the board's 150 working + 550 frozen) and 1000 (`size_of`, so
 //! exact for this build), the image's flash and RAM (`llvm-size`), and what the image measured
 //! under QEMU (stack high-water marks, instructions per ingested point).
 

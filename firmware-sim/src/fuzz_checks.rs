@@ -26,7 +26,8 @@ use mema_firmware::{
 };
 
 /// The seeds' device: 12 working clusters and 4 frozen entities, so its whole downlink is a
-/// couple of kilobytes (the board's 700 would make the assembler's seeds 40 KB).
+/// couple of kilobytes (the board's 700 entity frames alone would make the assembler's seeds
+/// over 45 KB).
 const SEED_WORKING: usize = 12;
 const SEED_FROZEN: usize = 4;
 const SEED_BUCKETS: usize = 16;

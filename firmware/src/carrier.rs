@@ -20,7 +20,8 @@ pub struct LineReport {
     pub refused: u32,
 }
 
-/// The carry frames' receiver (about 270 bytes: one frame's block). It takes frames only of
+/// The carry frames' receiver (one frame's block of [`MAX_UP_FRAME_LEN`] bytes and a few
+/// counters). It takes frames only of
 /// the session the device is in and addressed to its boot; a start request it hands on with
 /// the session asked for, whatever the device is in.
 #[derive(Debug)]

@@ -473,7 +473,8 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     }
 
     /// Sends the map's `.mema` bytes out piece by piece (a UART, a file): the device needs no
-    /// buffer for the whole map, which at 400 entities would be 10 KB of its RAM.
+    /// buffer for the whole map, which at 400 entities would be up to 10 KB of its RAM (the
+    /// paper's 25 bytes an entity; shells take 14).
     pub fn send_map(&self, sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
         self.mapper.encode_pieces(self.receiver.origin(), sink)
     }

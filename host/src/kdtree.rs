@@ -62,7 +62,7 @@ impl KdTree<f64> {
 
 impl<C: Coordinate> KdTree<C> {
     /// Builds the tree in the caller's allocation (which a reader reserves fallibly): the
-    /// entries are permuted in place, and only the splits, about 8 bytes a point, are new.
+    /// entries are permuted in place, and only the splits, at most 8 bytes a point, are new.
     pub fn from_entries(entries: Vec<Entry<C>>) -> Self {
         let n = entries.len();
         // Heap slots for a tree whose leaves hold at most LEAF points.

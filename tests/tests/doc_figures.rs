@@ -75,9 +75,19 @@ fn the_export_bound_is_each_formats_layout() {
 fn the_finest_tessellation_is_the_one_the_code_accepts() {
     let segments = largest(3, |s| Tessellation::checked(s, 2).is_ok());
     let rings = largest(2, |r| Tessellation::checked(3, r).is_ok());
+    // What export holds there: the triangles of each shape (an ellipsoid, a tube of one
+    // infinite axis, the planes of two), three u32 indices each, and one ellipsoid's vertices,
+    // three f64 each.
+    let t = Tessellation::checked(segments, rings).expect("the finest");
+    let triangles: usize = (0..3).map(|d| t.counts(d).1).sum();
+    let bytes = triangles * size_of::<[u32; 3]>() + t.counts(0).0 * size_of::<[f64; 3]>();
     says(
         "docs/pictures-meshes.md",
-        &format!("at {segments} segments and {rings} rings) is reserved fallibly"),
+        &format!(
+            "what memory there is (at most {:.0} MB, at {segments} segments and {rings} rings) is \
+             reserved fallibly",
+            bytes as f64 / 1e6
+        ),
     );
 }
 

@@ -255,3 +255,176 @@ fn a_streamed_map_lines_up_with_its_file() {
         .assert_ok();
     assert!(q.stdout().contains("hits entity"), "{}", q.stdout());
 }
+
+/// The median distance from a point to its nearest other point, each scan's points against
+/// its own, found here on a grid of `cell` metres (the 27 cells around a point hold every point
+/// within `cell` of it, so each distance under `cell` is exact, and the median is checked to be).
+fn median_spacing(scans: &[Vec<[f64; 3]>], cell: f64) -> f64 {
+    let mut nearest = Vec::new();
+    for points in scans {
+        let key = |p: &[f64; 3]| p.map(|v| (v / cell).floor() as i64);
+        let mut grid: std::collections::HashMap<[i64; 3], Vec<usize>> = Default::default();
+        for (i, p) in points.iter().enumerate() {
+            grid.entry(key(p)).or_default().push(i);
+        }
+        for (i, p) in points.iter().enumerate() {
+            let k = key(p);
+            let mut best = f64::INFINITY;
+            for d in 0..27 {
+                let at = [k[0] + d % 3 - 1, k[1] + d / 3 % 3 - 1, k[2] + d / 9 - 1];
+                for &j in grid.get(&at).into_iter().flatten() {
+                    if j != i {
+                        let q = points[j];
+                        let d2 = (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>();
+                        best = best.min(d2.sqrt());
+                    }
+                }
+            }
+            nearest.push(best);
+        }
+    }
+    // The mean of the two middle values for an even count.
+    nearest.sort_by(f64::total_cmp);
+    let n = nearest.len();
+    let m = if n % 2 == 0 {
+        0.5 * (nearest[n / 2 - 1] + nearest[n / 2])
+    } else {
+        nearest[n / 2]
+    };
+    assert!(
+        m < cell,
+        "median spacing {m} m not under the grid's {cell} m"
+    );
+    m
+}
+
+/// The unit the wire takes for a spacing: the largest power of ten at most a quarter of it.
+fn unit_for(spacing: f64) -> i32 {
+    let mut e = -9;
+    while 10f64.powi(e + 1) <= spacing / 4.0 {
+        e += 1;
+    }
+    e
+}
+
+/// scanner-sim's line: the unit's exponent and the spacing (mm) it was picked from.
+fn sent_unit(dir: &Dir, args: &[&str]) -> (i32, f64) {
+    let ran = MemaCommand::new(dir).args(args).run().assert_ok();
+    let err = ran.stderr();
+    let after = |mark: &str| {
+        let at = err
+            .find(mark)
+            .unwrap_or_else(|| panic!("no `{mark}` in {err}"))
+            + mark.len();
+        err[at..]
+            .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+            .next()
+            .expect("a number")
+            .to_string()
+    };
+    (
+        after("(10^").parse().expect("exponent"),
+        after("point spacing of ").parse().expect("spacing"),
+    )
+}
+
+/// `10^e` m in millimetres, as streaming.md writes a unit ("0.1 mm", "1 mm"; 1 cm as "1 cm").
+fn unit_words(e: i32) -> String {
+    if e == -2 {
+        return "1 cm".into();
+    }
+    format!("{} mm", 10f64.powi(e + 3))
+}
+
+/// streaming.md's units on the wire: scanner-sim picks for the bunny scans, car6 and the demo
+/// drive the unit a quarter of the spacing computed here gives (the drive's from the binary
+/// alone), and millimetres would have moved the bunny scans' points by the RMS computed here.
+#[test]
+fn the_unit_on_the_wire_is_the_power_of_ten_under_a_quarter_of_the_spacing() {
+    let dir = Dir::new("wire-units");
+    let conf = shared("bun.conf");
+    let (bunny_unit, bunny_printed) = sent_unit(
+        &dir,
+        &[
+            "scanner-sim",
+            "--conf",
+            conf.to_str().expect("utf8"),
+            "--port",
+            "bun.bin",
+        ],
+    );
+    // Each scan's points in its own frame, as its file holds them (the wire rounds those).
+    let scans: Vec<Vec<[f64; 3]>> = registration()
+        .iter()
+        .map(|(file, _, _)| {
+            let cloud = load_cloud(&shared(file)).expect("scan");
+            cloud
+                .points
+                .iter()
+                .map(|p| [0, 1, 2].map(|j| cloud.origin[j] + p.to_f64()[j]))
+                .collect()
+        })
+        .collect();
+    let spacing = median_spacing(&scans, 0.002);
+    assert!(
+        (spacing * 1e3 - bunny_printed).abs() < 1e-3,
+        "scanner-sim says {bunny_printed} mm, the test finds {} mm",
+        spacing * 1e3
+    );
+    assert_eq!(bunny_unit, unit_for(spacing), "the bunny scans' unit");
+    // What whole millimetres would have moved each point by, RMS in 3D.
+    let (mut sum, mut n) = (0.0, 0usize);
+    for p in scans.iter().flatten() {
+        sum += p
+            .iter()
+            .map(|v| (v - (v * 1e3).round() / 1e3).powi(2))
+            .sum::<f64>();
+        n += 1;
+    }
+    let rms = (sum / n as f64).sqrt();
+
+    let car6 = shared("car6.pcd");
+    let (car_unit, car_printed) = sent_unit(
+        &dir,
+        &[
+            "scanner-sim",
+            car6.to_str().expect("utf8"),
+            "--port",
+            "car6.bin",
+        ],
+    );
+    let cloud = load_cloud(&car6).expect("car6");
+    let points: Vec<[f64; 3]> = cloud
+        .points
+        .iter()
+        .map(|p| [0, 1, 2].map(|j| cloud.origin[j] + p.to_f64()[j]))
+        .collect();
+    let car_spacing = median_spacing(&[points], 0.2);
+    assert!(
+        (car_spacing * 1e3 - car_printed).abs() < 1e-3,
+        "scanner-sim says {car_printed} mm for car6, the test finds {} mm",
+        car_spacing * 1e3
+    );
+    assert_eq!(car_unit, unit_for(car_spacing), "car6's unit");
+    let (drive_unit, drive_printed) = sent_unit(&dir, &["scanner-sim", "--port", "drive.bin"]);
+    assert_eq!(
+        drive_unit,
+        unit_for(drive_printed / 1e3),
+        "the drive's unit"
+    );
+
+    says(
+        "docs/streaming.md",
+        &format!(
+            "{} for the bunny scans ({:.2} mm spacing; millimetres, the only unit of version 1, \
+             added {:.2} mm RMS), {} for car6 ({:.0} mm spacing) and {} for the drive ({:.0} mm)",
+            unit_words(bunny_unit),
+            spacing * 1e3,
+            rms * 1e3,
+            unit_words(car_unit),
+            car_spacing * 1e3,
+            unit_words(drive_unit),
+            drive_printed
+        ),
+    );
+}

@@ -64,8 +64,8 @@ impl StreamModel {
 /// Working clusters per map entity where memory allows (a host's stream with every entity in
 /// working memory): the stream keeps this many times the map's clusters, a finer summary of the
 /// points, and merges them down to the map's at the end by a cost that follows the surfaces
-/// ([`StreamParams::final_clusters`]). At k = 400 on the shared clouds this brings the streamed
-/// map from 1.1-3.1x the batch map's two-way Chamfer to 0.9-1.2x (docs/design.md).
+/// ([`StreamParams::final_clusters`]). At k = 400 the streamed maps of the shared inputs then
+/// score 0.8-1.2x the batch map's two-way Chamfer (docs/results.md, "Streamed maps").
 pub const SUMMARY_FACTOR: usize = 8;
 
 /// Most working clusters a summary keeps ([`summary_layout`]): 2.4 MB of clusters.

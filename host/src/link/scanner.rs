@@ -6,8 +6,8 @@
 //! largest power of ten at most a quarter of the scans' point spacing (the median distance
 //! from a point to its nearest other point), so rounding moves a point by at most an eighth of
 //! the spacing in each coordinate (about 0.07 of it RMS in 3D) and the finest detail a scan
-//! holds survives. Millimetres, the unit of version 1, added 0.49 mm RMS to a bunny scan of
-//! 0.5 mm spacing; its 0.1 mm unit adds 0.05 mm. A coarser unit is taken only if the scan's
+//! holds survives. Millimetres, the unit of version 1, added 0.51 mm RMS to the bunny scans of
+//! 0.55 mm spacing; their 0.1 mm unit adds 0.05 mm. A coarser unit is taken only if the scan's
 //! coordinates would not fit i32.
 //!
 //! **The frame.** A scan's points go in its sensor frame, which keeps them small. A single

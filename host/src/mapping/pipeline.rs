@@ -333,6 +333,36 @@ pub fn to_map(origin: [f64; 3], fits: &[Fit], sphere_tolerance: f64) -> HostMap 
 mod tests {
     use super::*;
 
+    /// docs/performance.md's counting sort: every point once, in its cluster's run and in point
+    /// order, and what the sort and the labels it sorts keep a point, as they are stored.
+    #[test]
+    fn the_counting_sort_keeps_each_point_once_at_the_bytes_the_guide_states() {
+        use crate::io::read::testkit::guide_says;
+        let k = 13;
+        let labels: Vec<u32> = (0..1_000u32).map(|i| i * 7 % 13).collect();
+        let members = Members::of(&labels, k);
+        assert_eq!(members.order.len(), labels.len());
+        for c in 0..k {
+            let run = members.of_cluster(c);
+            assert!(
+                run.windows(2).all(|w| w[0] < w[1]),
+                "cluster {c} out of order"
+            );
+            assert!(run.iter().all(|&p| labels[p as usize] as usize == c));
+        }
+        let sorted = size_of_val(members.order.as_slice()) / labels.len();
+        let label = size_of_val(labels.as_slice()) / labels.len();
+        guide_says(
+            "docs/performance.md",
+            &format!("each cluster with a counting sort ({sorted} bytes a point)"),
+        );
+        assert_eq!(label, sorted, "the guide says the same of labels and sort");
+        guide_says(
+            "docs/performance.md",
+            &format!("the labels and a counting sort of them ({label} bytes a point each)"),
+        );
+    }
+
     /// The tree gives the plain scan's labels on a real cloud, ties included: centres drawn
     /// from the points themselves (so some points sit exactly on one) and duplicated (so two
     /// centres tie and the lower index must win), plus a NaN point and no centres at all.

@@ -40,7 +40,7 @@ pub const INDEX_CAPACITY: usize = 16_384;
 /// The core's query index at the host's capacity.
 pub type HostIndex = MapIndex<INDEX_CAPACITY>;
 
-/// Builds the index on a thread with a large stack: at 16,384 entities the value is ~2.5 MB.
+/// Builds the index on a thread with a large stack: at 16,384 entities the value is 2.6 MB.
 pub fn build_index(map: &HostMap) -> Result<Box<HostIndex>> {
     let entities: Vec<MapEntity> = map.entities.clone();
     std::thread::Builder::new()

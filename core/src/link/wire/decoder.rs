@@ -33,7 +33,8 @@ pub struct DecoderStats {
 
 /// The longest run of lost frames counted as lost: a jump further ahead is taken for a sender
 /// that started again (the protocol lets a sender start its sequence anywhere), not for 2^31
-/// lost frames. 65,535 frames are about 80 MB, over 14 minutes of a 921,600-baud link.
+/// lost frames. 65,535 frames of [`MAX_POINTS`](super::MAX_POINTS) points are 102 MB, over 18
+/// minutes of a 921,600-baud link.
 pub const MAX_GAP: u32 = 0xFFFF;
 
 /// What one call to [`Decoder::feed`] produced. Every variant but `Consumed` carries the rest of

@@ -502,8 +502,8 @@ pub fn stream(args: &StreamArgs) -> Result<()> {
     conclude(link, &args.output, end, (started, &arrivals), args.json)
 }
 
-/// The largest capture replayed: 1 GiB is about 88 million points on the wire (12.1 bytes a
-/// point); `mema replay /dev/zero` used to read until memory ran out.
+/// The largest capture replayed: 1 GiB is about 88 million points on the wire (12.2 bytes a
+/// point in full frames); `mema replay /dev/zero` used to read until memory ran out.
 pub(super) const CAPTURE_LIMIT: u64 = 1 << 30;
 
 pub fn replay(args: &ReplayArgs) -> Result<()> {

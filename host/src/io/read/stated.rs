@@ -70,6 +70,13 @@ fn the_performance_guide_states_the_readers_limits() {
     guide_says(
         "docs/performance.md",
         &format!(
+            "a PLY header keeps {} bytes and the name of each property",
+            size_of::<ply::Property>()
+        ),
+    );
+    guide_says(
+        "docs/performance.md",
+        &format!(
             "up to {} properties, {} elements and {} KiB a line",
             thousands(ply::MAX_PROPERTIES as u64),
             thousands(ply::MAX_ELEMENTS as u64),

@@ -229,7 +229,7 @@ pub(crate) struct Shapes {
 }
 
 impl Shapes {
-    /// The shapes' triangles, their memory reserved fallibly (12.5 MB at the most segments
+    /// The shapes' triangles, their memory reserved fallibly (12.6 MB at the most segments
     /// and rings).
     pub(crate) fn new(t: &Tessellation) -> Result<Self, TryReserveError> {
         let (s, rings) = (t.segments, t.rings);

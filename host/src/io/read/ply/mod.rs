@@ -35,7 +35,7 @@ enum Kind {
 /// A property as the body is read; its name is in its element's `names`, looked up only for
 /// matching x, y, z and for messages.
 #[derive(Clone, Copy)]
-struct Property {
+pub(super) struct Property {
     kind: Kind,
     /// 0, 1, 2 for the vertex's x, y, z; `None` for everything that is skipped.
     axis: Option<u8>,
