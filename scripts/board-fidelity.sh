@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The board's map against the host's batch map at the same bytes (issue 22, docs/board.md,
 # "The board's layout"): each shared cloud encoded as `mema scanner-sim` sends it, mapped as the
-# board maps it (`mema replay -k K --working 150`, which the board equals byte for byte) at each
+# board maps it (`mema replay -k K --working 150`, carving at K = 700 as the board does, which the board equals byte for byte) at each
 # K given, then `mema map --bytes` of the same cloud at that map's size; both scored by
 # `mema eval` (two-way Chamfer distance, mm, 50,000 surface samples).
 #
@@ -26,7 +26,10 @@ for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd f
   for k in "${ks[@]}"; do
     board="$work/$cloud.$k.board.mema"
     batch="$work/$cloud.$k.batch.mema"
-    "$MEMA" replay "$work/$cloud.bin" -k "$k" --working 150 -o "$board" >/dev/null 2>&1
+    # The board (K = 700) carves as `--carve 124x512 --carve-every 2`; the 64 KiB image does not.
+    carve=()
+    [ "$k" = 700 ] && carve=(--carve 124x512 --carve-every 2)
+    "$MEMA" replay "$work/$cloud.bin" -k "$k" --working 150 "${carve[@]}" -o "$board" >/dev/null 2>&1
     bytes=$(stat -c %s "$board")
     "$MEMA" map "$data/$cloud" --bytes "$bytes" -o "$batch" >/dev/null 2>&1
     entities=$("$MEMA" info "$board" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["entities"])')

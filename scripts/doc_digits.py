@@ -228,7 +228,8 @@ LEFT = [
      "a fact of a format, a part or a shared input, not of mema"),
     ("*", r"10\^9 m|\d+ km passes|one point in 10,000|at \d\s*$|all \d+ on the lower|"
      r"\d+ dropped bytes|decoder \(10\^6|under \d % of|over \d+(\.\d+)? times|"
-     r"Same seed \(\d\)|\d+ stops on|nearest its first point\), \d|in 1 mm units;|optimises the whole at \d",
+     r"Same seed \(\d\)|\d+ stops on|nearest its first point\), \d|in 1 mm units;|optimises the whole at \d|"
+     r"approximations within 10\^-\d",
      "a test's or a benchmark's input, bound or build setting named in prose (the file that runs "
      "it holds it)"),
     ("*", r"POP ≥ \d|axis is ≤ 0|\d\.\.=N|or -1|anchored at 0|around 0 in its frame|centre at 0|"

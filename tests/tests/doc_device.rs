@@ -307,6 +307,18 @@ const STATED: &[(&str, &str)] = &[
         "docs/design.md",
         "is at most {KMEANS_TOLERANCE} times the mean per-axis variance.",
     ),
+    (
+        "docs/queries.md",
+        "with images of {CARVE_ROWS} x {CARVE_COLUMNS} pixels ({CARVE_ROW_DEGREES} by \
+         {CARVE_COLUMN_DEGREES} degrees) that take every other return of a scan, and judges an \
+         ended scan {JUDGED_PER_TICK} clusters a tick; its map is `mema replay -k {BOARD_K} \
+         --working {BOARD_WORKING} --carve {CARVE_ROWS}x{CARVE_COLUMNS} --carve-every \
+         {CARVE_EVERY}`'s,",
+    ),
+    (
+        "docs/queries.md",
+        "400 instructions a point, over the board's {CHECK_PER_POINT};",
+    ),
 ];
 
 /// The code's value of a constant, as the guides write it.
@@ -319,6 +331,13 @@ fn value(name: &str) -> String {
         "IMAGE_FROZEN" => count(IMAGE_FROZEN),
         "IMAGE_BUCKETS" => count(IMAGE_BUCKETS),
         "BOARD_K" => count(BOARD_WORKING + BOARD_FROZEN),
+        "BOARD_WORKING" => count(BOARD_WORKING),
+        "CARVE_ROWS" => BOARD_CARVE_IMAGE[0].to_string(),
+        "CARVE_COLUMNS" => BOARD_CARVE_IMAGE[1].to_string(),
+        "CARVE_ROW_DEGREES" => format!("{:.2}", 180.0 / f64::from(BOARD_CARVE_IMAGE[0])),
+        "CARVE_COLUMN_DEGREES" => format!("{:.2}", 360.0 / f64::from(BOARD_CARVE_IMAGE[1])),
+        "CARVE_EVERY" => BOARD_CARVE_EVERY.to_string(),
+        "JUDGED_PER_TICK" => mema_firmware::carving::JUDGED_PER_TICK.to_string(),
         "IMAGE_RAM_KIB" => count(TARGET_BOARD.ram_bytes >> 10),
         "STACK_KIB" => count(TARGET_BOARD.stack_bytes >> 10),
         "BOARD_FLASH_MIB" => count((BOARD_FLASH >> 20) as usize),

@@ -232,3 +232,75 @@ fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
     eprintln!("nobody walking: accuracy {with:.5} m carved, {without:.5} m not");
     assert!(with <= without * 1.02, "{with} carved, {without} not");
 }
+
+/// The walking drive replayed as the STM32F405 board maps and carves it (`-k 700 --working 150
+/// --carve 124x512 --carve-every 2`): carving takes the working clusters the walker left, but
+/// at the board's layout most of the walker's clusters freeze (150 working clusters) before
+/// two scans see through them, and frozen entities are not carved. Measured 56 % of the walker
+/// within 25 cm of new surface, against 89 % uncarved; held here to below the uncarved map's,
+/// and to what queries.md says.
+#[test]
+fn the_board_carves_the_walker_its_working_clusters_still_hold() {
+    use mema_firmware::{BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_FROZEN, BOARD_WORKING};
+    let dir = Dir::new("walker-board");
+    let Drives {
+        walked,
+        walker,
+        still,
+    } = drives();
+    let walked_capture = capture(&dir, "walked.bin", &walked);
+    let still_capture = capture(&dir, "still.bin", &still);
+    let [rows, columns] = BOARD_CARVE_IMAGE;
+    let (k, working) = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
+    let board = |capture: &std::path::Path, name: &str, carve: bool| {
+        let map = dir.join(name);
+        let carving = [
+            "--carve".to_string(),
+            format!("{rows}x{columns}"),
+            "--carve-every".to_string(),
+            BOARD_CARVE_EVERY.to_string(),
+        ];
+        MemaCommand::new(&dir)
+            .arg("replay")
+            .arg(capture)
+            .args([
+                "-k",
+                &k.to_string(),
+                "--working",
+                &working.to_string(),
+                "-o",
+            ])
+            .arg(&map)
+            .args(carving.iter().filter(|_| carve))
+            .run()
+            .assert_ok();
+        map
+    };
+    let clean = surface_distances(
+        &dir,
+        &board(&still_capture, "still.mema", true),
+        "clean",
+        &walker,
+    );
+    let on_new_surface = |map: &std::path::Path, name: &str| {
+        surface_distances(&dir, map, name, &walker)
+            .iter()
+            .zip(&clean)
+            .filter(|(w, c)| w.abs() <= NEAR && c.abs() > NEAR)
+            .count() as f64
+            / walker.len() as f64
+    };
+    let carved = on_new_surface(&board(&walked_capture, "carved.mema", true), "carved");
+    let kept = on_new_surface(&board(&walked_capture, "kept.mema", false), "kept");
+    eprintln!("board: {carved:.3} of the walker on new surface carved, {kept:.3} not");
+    says(
+        "docs/queries.md",
+        &format!(
+            "at the board's layout {:.0} % of the walker's points stay on new surface ({:.0} % \
+             uncarved)",
+            carved * 100.0,
+            kept * 100.0
+        ),
+    );
+    assert!(carved < kept, "{carved} carved, {kept} not");
+}
