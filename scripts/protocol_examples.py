@@ -90,6 +90,7 @@ timing = struct.pack("<7Q2I", 2_000_000, 150_000, 90_000, 1_000, 2_500, 5_400, 3
 show("down: timing", frame(DOWN, 3, SESSION, BOOT, 5, timing))
 answer = struct.pack("<IBIdI", 77, 1, 3, 2.5, 41_000)
 show("down: answer", frame(DOWN, 4, SESSION, BOOT, 6, answer))
+show("down: retract", frame(DOWN, 6, SESSION, BOOT, 7, struct.pack("<I", 5)))
 
 # Host to device, after the device's frames, as PROTOCOL.md orders them.
 stream_start = bytes([0x00, 0x04, 0x02, 0x02, 0x08, 0x01, 0x01, 0x01])

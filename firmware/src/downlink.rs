@@ -74,6 +74,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         if !self.receiver.settled() {
             return;
         }
+        self.send_carved(&mut sink);
         let frozen = self.mapper.frozen().len();
         while self.down.sent_frozen < frozen {
             let index = self.down.sent_frozen;
@@ -81,6 +82,23 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                 self.down.send_entity(index, entity, &mut sink);
             }
             self.down.sent_frozen += 1;
+        }
+    }
+
+    /// What carving changed of the frozen entities already sent: slots the map no longer has
+    /// are retracted (the highest first), and slots that hold another entity now are sent
+    /// again, so the host's copy is the device's.
+    fn send_carved(&mut self, sink: &mut impl FnMut(&[u8])) {
+        let frozen = self.mapper.frozen().len();
+        while self.down.sent_frozen > frozen {
+            self.down.sent_frozen -= 1;
+            let index = self.down.sent_frozen as u32;
+            self.down.send(&DownFrame::Retract { index }, sink);
+        }
+        while let Some(index) = self.carving.take_changed(self.down.sent_frozen) {
+            if let Some(entity) = self.mapper.frozen_entity(index) {
+                self.down.send_entity(index, entity, sink);
+            }
         }
     }
 
@@ -126,6 +144,8 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     /// After [`Firmware::finish`]: the entities not sent yet (the working clusters'), then the
     /// end frame. Returns the file's length.
     pub fn send_end(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
+        // The last scan's carving, judged when the stream ended, on what was sent.
+        self.send_carved(&mut sink);
         let first = self.down.sent_frozen;
         for (index, entity) in self.mapper.entities().enumerate().skip(first) {
             self.down.send_entity(index, entity, &mut sink);

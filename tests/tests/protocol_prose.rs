@@ -69,7 +69,7 @@ fn turned(q: [f64; 4], p: [f64; 3]) -> [f64; 3] {
 #[test]
 fn the_examples_are_what_their_words_say() {
     let e: Vec<Vec<u8>> = document_examples().into_iter().map(|e| e.raw).collect();
-    assert_eq!(e.len(), 16, "the examples, in the script's order");
+    assert_eq!(e.len(), 17, "the examples, in the script's order");
     // The rangefinder's wire: version 1 points, then version 2's pose, points and wide pose.
     let v1 = &e[0];
     let end = |b: &[u8]| b[1] & 1 == 1;
@@ -231,8 +231,8 @@ fn the_examples_are_what_their_words_say() {
     says(
         "PROTOCOL.md",
         &format!(
-            "and the answer to query {}, a ray, which met entity {} at {} m in {} ticks (sequence \
-             {}).",
+            "the answer to query {}, a ray, which met entity {} at {} m in {} ticks (sequence \
+             {});",
             u32_at(answer, 14),
             u32_at(answer, 19),
             f64_at(answer, 23),
@@ -240,9 +240,19 @@ fn the_examples_are_what_their_words_say() {
             u32_at(answer, 10)
         ),
     );
+    let retract = &e[11];
+    assert_eq!(retract[1], 6, "a retraction");
+    says(
+        "PROTOCOL.md",
+        &format!(
+            "and the retraction of entity {} (sequence {}).",
+            u32_at(retract, 14),
+            u32_at(retract, 10)
+        ),
+    );
 
     // The host's: start, carry, resend, resend the end, query.
-    let (start, carry, resend, query) = (&e[11], &e[12], &e[13], &e[15]);
+    let (start, carry, resend, query) = (&e[12], &e[13], &e[14], &e[16]);
     let first = u32_at(resend, 14);
     let last = first + u32::from(u16_at(resend, 18)) - 1;
     assert_eq!(query[14], 1, "a ray");

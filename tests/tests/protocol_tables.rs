@@ -154,8 +154,8 @@ fn every_frames_stated_length_is_its_examples() {
     let (stated, _) = read(&text);
     assert_eq!(
         stated.len(),
-        11,
-        "the device's six frames and the host's five"
+        12,
+        "the device's seven frames and the host's five"
     );
     for s in stated {
         let payload = example_payload(s.version, s.kind, s.line);

@@ -207,6 +207,7 @@ fn check_down(raw: &[u8]) -> Result<bool, Violation> {
                 && end.origin.iter().all(|o| o.is_finite())
         }
         DownFrame::Answer { value, .. } => !value.is_nan(),
+        DownFrame::Retract { index } => index < MAX_MAP_ENTITIES,
         DownFrame::Progress { .. } | DownFrame::Timing(_) | DownFrame::Session { .. } => true,
     };
     if !bounded {

@@ -67,6 +67,8 @@ pub const MAX_MAP_ENTITIES: u32 = 1 << 20;
 
 /// A session frame's payload: status, reason, the map's capacity and working clusters, model.
 pub const SESSION_PAYLOAD_LEN: usize = 1 + 1 + 4 + 4 + 1;
+/// A retraction's payload: the entity's index.
+pub const RETRACT_PAYLOAD_LEN: usize = 4;
 /// The longest raw frame.
 pub const MAX_RAW_LEN: usize = HEADER_LEN + END_PAYLOAD_LEN + CRC_LEN;
 /// The longest frame on the wire, its delimiter included.
@@ -78,6 +80,7 @@ const KIND_PROGRESS: u8 = 2;
 const KIND_TIMING: u8 = 3;
 const KIND_ANSWER: u8 = 4;
 const KIND_SESSION: u8 = 5;
+const KIND_RETRACT: u8 = 6;
 
 /// What a session frame says of the device's session.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -156,6 +159,12 @@ pub enum DownFrame {
         status: SessionStatus,
         layout: DeviceLayout,
     },
+    /// The map no longer has an entity at `index`: an entity sent from there was carved (seen
+    /// through by later scans), and the map's last frozen entity moved into its slot, which
+    /// an entity frame sends again.
+    Retract {
+        index: u32,
+    },
 }
 
 /// A device's own account of its work, in ticks of its timer, with the calibration that turns
@@ -211,6 +220,7 @@ pub fn encode(
         DownFrame::Timing(_) => KIND_TIMING,
         DownFrame::Answer { .. } => KIND_ANSWER,
         DownFrame::Session { .. } => KIND_SESSION,
+        DownFrame::Retract { .. } => KIND_RETRACT,
     };
     let mut w = Emitter::new(DOWNLINK_VERSION, kind, from, sequence);
     match frame {
@@ -278,6 +288,9 @@ pub fn encode(
                 w.u64(v);
             }
             w.u32(t.ring_overruns).u32(t.line_overruns);
+        }
+        DownFrame::Retract { index } => {
+            w.u32(*index);
         }
         DownFrame::Session { status, layout } => {
             let (code, reason) = match *status {
@@ -355,6 +368,14 @@ pub fn decode(raw: &[u8]) -> Result<(Address, u32, DownFrame), LinkError> {
                 model: r.u8()?,
             };
             DownFrame::Session { status, layout }
+        }
+        KIND_RETRACT => {
+            let mut r = f.payload_of(RETRACT_PAYLOAD_LEN)?;
+            let index = r.u32()?;
+            if index >= MAX_MAP_ENTITIES {
+                return Err(LinkError::Value);
+            }
+            DownFrame::Retract { index }
         }
         KIND_ENTITY => {
             let mut r = f.payload_of(ENTITY_PAYLOAD_LEN)?;

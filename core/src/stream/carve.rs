@@ -98,9 +98,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 }
 
 /// A stream's scans, one at a time, as range images in fixed memory (`N` pixels at most), and
-/// the carving each one does when it ends.
+/// the carving each one does when it ends: of the working clusters, and of the first `F`
+/// frozen entities ([`frozen`]).
 #[derive(Clone, Debug)]
-pub struct Carver<const N: usize> {
+pub struct Carver<const N: usize, const F: usize = 0> {
     image: RangeImage<N>,
     /// The range each code stands for in the image ([`range_of`] at its `near`): a return's
     /// code is found among them by bisection, and a pixel's range read from them, where
@@ -109,16 +110,34 @@ pub struct Carver<const N: usize> {
     ranges: [f32; CODES],
     /// The mapper's point count when the scan began; `None` before the first scan.
     scan_start: Option<u64>,
-    /// An ended scan's judgement under way ([`Carver::step`]): the working clusters below this
-    /// index are still to be judged.
-    judging_below: Option<usize>,
+    /// An ended scan's judgement under way ([`Carver::step`]).
+    judging: Option<Judging>,
+    /// Each frozen entity's slot: scans in a row that saw through it, and [`frozen::CHANGED`].
+    frozen: [u8; F],
+    /// Whether a slot may be marked changed.
+    changed: bool,
     /// Returns a scan's image takes: each one (1), or every so many ([`Carver::sample`]).
     every: u16,
     /// Returns of the scan since the last one the image took.
     passed: u16,
 }
 
-impl<const N: usize> Carver<N> {
+/// Where an ended scan's judgement stands: the working clusters, then the frozen entities,
+/// below these indices are still to be judged, from the highest down.
+#[derive(Clone, Copy, Debug)]
+struct Judging {
+    working_below: usize,
+    frozen_below: usize,
+}
+
+impl Judging {
+    const ALL: Self = Self {
+        working_below: usize::MAX,
+        frozen_below: usize::MAX,
+    };
+}
+
+impl<const N: usize, const F: usize> Carver<N, F> {
     /// A carver whose images look as `geometry` says from each scan's sensor origin (its
     /// `origin` is replaced); `None` if the image has more than `N` pixels.
     pub fn new(geometry: Geometry) -> Option<Self> {
@@ -126,7 +145,9 @@ impl<const N: usize> Carver<N> {
             image: RangeImage::new(geometry)?,
             ranges: ranges_from(geometry.near),
             scan_start: None,
-            judging_below: None,
+            judging: None,
+            frozen: [0; F],
+            changed: false,
             every: 1,
             passed: 0,
         })
@@ -147,7 +168,9 @@ impl<const N: usize> Carver<N> {
             image: RangeImage::empty(),
             ranges: [0.0; CODES],
             scan_start: None,
-            judging_below: None,
+            judging: None,
+            frozen: [0; F],
+            changed: false,
             every: 1,
             passed: 0,
         }
@@ -169,10 +192,10 @@ impl<const N: usize> Carver<N> {
     /// The points that follow were seen from `sensor` (the map's frame): if the scan so far was
     /// seen from elsewhere, it ends (it carves `mapper`) and a new scan begins. Returns how many
     /// clusters the ended scan carved.
-    pub fn sensor_at<const K: usize, const G: usize, const F: usize>(
+    pub fn sensor_at<const K: usize, const G: usize, const FM: usize>(
         &mut self,
         sensor: Point3,
-        mapper: &mut StreamMapper<K, G, F>,
+        mapper: &mut StreamMapper<K, G, FM>,
         observer: &mut impl Observer,
     ) -> usize {
         if !self.begins_scan(sensor) {
@@ -188,28 +211,55 @@ impl<const N: usize> Carver<N> {
     /// scan before, if any, judged in full and the new one begun); false while the ended scan's
     /// judgement goes on (step again with the same `sensor`, nothing mapped in between). The
     /// steps carve what one [`Carver::sensor_at`] does.
-    pub fn step<const K: usize, const G: usize, const F: usize>(
+    pub fn step<const K: usize, const G: usize, const FM: usize>(
         &mut self,
         sensor: Point3,
         most: usize,
-        mapper: &mut StreamMapper<K, G, F>,
+        mapper: &mut StreamMapper<K, G, FM>,
         observer: &mut impl Observer,
     ) -> bool {
-        if self.judging_below.is_none() && !self.begins_scan(sensor) {
+        if self.judging.is_none() && !self.begins_scan(sensor) {
             return true;
         }
         if let Some(start) = self.scan_start {
-            let below = self.judging_below.unwrap_or(usize::MAX);
-            let (next, _) =
-                mapper.carve_some(start, below, most, |c| self.sees_through(c), observer);
-            if next > 0 {
-                self.judging_below = Some(next);
+            let judging = self.judging.unwrap_or(Judging::ALL);
+            self.judging = self.judge(start, judging, most, mapper, observer);
+            if self.judging.is_some() {
                 return false;
             }
         }
-        self.judging_below = None;
         self.begin_scan(sensor, mapper);
         true
+    }
+
+    /// Judges at most `most` clusters and entities of the scan that began at `start` from
+    /// where `judging` stands: where it stands after, or `None` once all are judged.
+    fn judge<const K: usize, const G: usize, const FM: usize>(
+        &mut self,
+        start: u64,
+        mut judging: Judging,
+        most: usize,
+        mapper: &mut StreamMapper<K, G, FM>,
+        observer: &mut impl Observer,
+    ) -> Option<Judging> {
+        let mut left = most;
+        if judging.working_below > 0 {
+            let below = judging.working_below.min(mapper.clusters().len());
+            let (next, _) =
+                mapper.carve_some(start, below, left, |c| self.sees_through(c), observer);
+            left -= (below - next).min(left);
+            judging.working_below = next;
+            if next > 0 {
+                return Some(judging);
+            }
+        }
+        let below = judging.frozen_below.min(mapper.frozen().len());
+        let last = below.saturating_sub(left);
+        for i in (last..below).rev() {
+            self.judge_frozen(i, mapper);
+        }
+        judging.frozen_below = last;
+        (last > 0).then_some(judging)
     }
 
     /// Notes only every `every`-th return of a scan in its image (the first, then each
@@ -228,10 +278,10 @@ impl<const N: usize> Carver<N> {
 
     /// Begins a scan seen from `sensor` (the current one, if any, ends without carving: call
     /// [`Carver::end_scan`] first).
-    pub fn begin_scan<const K: usize, const G: usize, const F: usize>(
+    pub fn begin_scan<const K: usize, const G: usize, const FM: usize>(
         &mut self,
         sensor: Point3,
-        mapper: &StreamMapper<K, G, F>,
+        mapper: &StreamMapper<K, G, FM>,
     ) {
         let geometry = Geometry {
             origin: sensor,
@@ -296,24 +346,26 @@ impl<const N: usize> Carver<N> {
 
     /// Ends the current scan (the stream ended, or the next points have no sensor origin): it
     /// carves `mapper`. Returns how many clusters it carved.
-    pub fn end_scan<const K: usize, const G: usize, const F: usize>(
+    pub fn end_scan<const K: usize, const G: usize, const FM: usize>(
         &mut self,
-        mapper: &mut StreamMapper<K, G, F>,
+        mapper: &mut StreamMapper<K, G, FM>,
         observer: &mut impl Observer,
     ) -> usize {
-        let below = self.judging_below.take().unwrap_or(usize::MAX);
+        let judging = self.judging.take().unwrap_or(Judging::ALL);
         let Some(start) = self.scan_start.take() else {
             return 0;
         };
-        mapper
-            .carve_some(start, below, usize::MAX, |c| self.sees_through(c), observer)
-            .1
+        let before = mapper.stats().carved;
+        self.judge(start, judging, usize::MAX, mapper, observer);
+        (mapper.stats().carved - before) as usize
     }
 
     /// Forgets the current scan without carving (the map started again).
     pub fn restart(&mut self) {
         self.scan_start = None;
-        self.judging_below = None;
+        self.judging = None;
+        self.frozen = [0; F];
+        self.changed = false;
     }
 
     /// Whether the current scan saw through `cluster` (see the module's documentation).
@@ -453,5 +505,6 @@ enum Sight {
 }
 
 mod direction;
+pub mod frozen;
 #[cfg(test)]
 mod tests;

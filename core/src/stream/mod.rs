@@ -491,6 +491,14 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         &self.frozen
     }
 
+    /// Removes frozen entity `index` by swap-remove (the last takes its slot), a carving's
+    /// removal: counted in [`StreamStats::carved`]. False if there is none.
+    pub(crate) fn remove_frozen(&mut self, index: usize) -> bool {
+        let removed = crate::num::swap_remove(&mut self.frozen, index);
+        self.stats.carved += u64::from(removed);
+        removed
+    }
+
     /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on
     /// the cluster's index only, so the final map is a function of the points alone.
     pub fn finish(&mut self) {

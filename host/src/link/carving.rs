@@ -13,8 +13,10 @@ use crate::io::free_space::{COLUMNS, FreeImage, ROWS, image_from, kept_scans};
 /// degrees left 5.3 % of the ghost on surface, 0.35 degrees 4.4 %).
 pub const CARVE_IMAGE: [u16; 2] = [512, 1024];
 
-/// The carver of a host's stream (512 KiB): images of [`CARVE_IMAGE`] pixels or fewer.
-pub type HostCarver = Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }>;
+/// The carver of a host's stream (512 KiB): images of [`CARVE_IMAGE`] pixels or fewer, and
+/// the count of each of the stream's frozen entities.
+pub type HostCarver =
+    Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }, { super::stream::MAX_CLUSTERS }>;
 
 /// The carver and the images of the scans it ended, in the frame of the receiver's origin.
 pub struct Carving {

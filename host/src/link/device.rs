@@ -97,6 +97,8 @@ pub struct DownlinkCounts {
     /// Entities the host asked for again (each time asked), and the end.
     pub asked_again: u64,
     pub ends_asked: u64,
+    /// Entities the device retracted: carved after it sent them.
+    pub retracted: u64,
     /// Entities received (each once).
     pub entities: usize,
     /// Frames intact but not of this session and boot (a previous session's, or another
@@ -343,6 +345,11 @@ impl MapFrames {
             DownFrame::Entity { index, entity } => {
                 if self.entities.insert(index, entity).is_none() {
                     self.counts.entities += 1;
+                }
+            }
+            DownFrame::Retract { index } => {
+                if self.entities.remove(&index).is_some() {
+                    self.counts.retracted += 1;
                 }
             }
             DownFrame::Progress {

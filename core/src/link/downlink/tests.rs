@@ -107,8 +107,9 @@ fn a_host_rebuilds_the_devices_file_from_the_frames() -> TestResult {
                 DownFrame::Progress { .. }
                 | DownFrame::Timing(_)
                 | DownFrame::Answer { .. }
-                | DownFrame::Session { .. } => {
-                    return Err("no progress or timing was sent");
+                | DownFrame::Session { .. }
+                | DownFrame::Retract { .. } => {
+                    return Err("no progress, timing or retraction was sent");
                 }
             }
         }
@@ -185,7 +186,10 @@ fn corrupt_and_cut_frames_are_refused() -> TestResult {
             model: 9,
         },
     };
-    for frame in [progress, timing, answer, session] {
+    let retract = DownFrame::Retract {
+        index: MAX_MAP_ENTITIES - 1,
+    };
+    for frame in [progress, timing, answer, session, retract] {
         let mut wire = [0u8; MAX_DOWN_FRAME_LEN];
         let m = encode(FROM, u32::MAX, &frame, &mut wire).or_fail("encodes")?;
         let raw = decode_block(wire.get_mut(..m - 1).or_fail("block")?).or_fail("COBS")?;

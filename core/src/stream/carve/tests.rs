@@ -300,3 +300,127 @@ fn a_carver_pixel_is_the_geometry_pixel_but_at_edges() -> TestResult {
     assert!(same * 1000 >= all * 999, "{same} of {all} pixels the same");
     Ok(())
 }
+
+/// A device's layout: the person's cluster freezes once the scan has left it, before any scan
+/// saw through it. Two later scans that do take it out of the frozen entities too, the wall's
+/// frozen entities stay, and the slots the last frozen entities moved into are marked changed
+/// (a downlink that sent them sends them again).
+#[test]
+fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> TestResult {
+    type Small = StreamMapper<8, 16, 64>;
+    let mut m = Small::new(StreamParams {
+        fit: crate::fit::FitParams::default(),
+        seed: 0,
+        max_clusters: 8,
+        max_frozen: 64,
+        refit_interval: 0,
+        tolerance: 0.0,
+        model: StreamModel::shells(0.01),
+        pacing: Pacing::NONE,
+        final_clusters: 0,
+    });
+    let mut carver = Carver::<8192, 64>::whole_sphere(64, 128).or_fail("carver")?;
+    let [a, b, c, _] = sensors();
+    let mut scan = |m: &mut Small, sensor: Point3, with_person: bool| {
+        carver.sensor_at(sensor, m, &mut ());
+        for p in person().filter(|_| with_person).chain(wall()) {
+            m.add(p);
+            carver.add_return(p);
+        }
+    };
+    scan(&mut m, a, true);
+    let near = |m: &Small| {
+        m.frozen()
+            .iter()
+            .filter(|e| e.entity.center.x < 8.0)
+            .count()
+    };
+    let person_entities = near(&m);
+    if person_entities == 0 {
+        return Err("the person's cluster did not freeze");
+    }
+    let wall_before = m.frozen().len() - person_entities;
+    scan(&mut m, b, false);
+    scan(&mut m, c, false);
+    carver.end_scan(&mut m, &mut ());
+    assert_eq!(near(&m), 0, "{:?}", m.frozen());
+    assert!(m.clusters().iter().all(|c| c.center.x > 8.0));
+    assert!(m.frozen().len() >= wall_before, "a wall entity was carved");
+    assert!(m.stats().carved >= person_entities as u64);
+    let mut changed = 0;
+    while carver.take_changed(m.frozen().len()).is_some() {
+        changed += 1;
+    }
+    assert!(changed <= person_entities, "{changed} slots changed");
+    Ok(())
+}
+
+/// A frozen entity across an inside corner has its centre in free space: later scans that see
+/// both walls from elsewhere see through its centre, but not past its axis ends, on the walls,
+/// and it stays.
+#[test]
+fn a_frozen_entity_across_a_corner_stays() -> TestResult {
+    let corner = |i: usize| {
+        let t = (i % 100) as f32 * 0.03;
+        if i < 100 {
+            Point3::new(6.0 - t, 6.0, 0.0)
+        } else {
+            Point3::new(6.0, 6.0 - t, 0.0)
+        }
+    };
+    // The corner's one cluster (the final reduction's merges), as it would freeze.
+    let mut whole = StreamMapper::<64, 128>::new(StreamParams {
+        final_clusters: 1,
+        ..mapper().params
+    });
+    for i in 0..200 {
+        whole.add(corner(i));
+    }
+    whole.finish();
+    let entity = whole
+        .entities()
+        .next()
+        .or_fail("the corner's entity")?
+        .entity;
+    let frozen = crate::stream::FrozenEntity::of(&entity);
+    let centre = frozen.entity.center;
+    if !(centre.x < 5.5 && centre.y < 5.5 && whole.clusters().len() == 1) {
+        return Err("not one entity centred in the corner's free space");
+    }
+    let mut m = StreamMapper::<4, 8, 16>::new(StreamParams {
+        max_clusters: 4,
+        max_frozen: 16,
+        ..mapper().params
+    });
+    m.frozen.push(frozen).or_fail("room")?;
+    let mut carver = Carver::<8192, 16>::whole_sphere(64, 128).or_fail("carver")?;
+    for sensor in sensors() {
+        carver.sensor_at(sensor, &mut m, &mut ());
+        for i in 0..200 {
+            carver.add_return(corner(i));
+        }
+    }
+    carver.end_scan(&mut m, &mut ());
+    assert_eq!(m.frozen(), &[frozen], "the corner was carved");
+    // And the same entity where no wall stands behind it is seen through and carved.
+    let mut open = StreamMapper::<4, 8, 16>::new(StreamParams {
+        max_clusters: 4,
+        max_frozen: 16,
+        ..mapper().params
+    });
+    open.frozen.push(frozen).or_fail("room")?;
+    let mut carver = Carver::<8192, 16>::whole_sphere(64, 128).or_fail("carver")?;
+    for sensor in sensors() {
+        carver.sensor_at(sensor, &mut open, &mut ());
+        for i in 0..200 {
+            let p = corner(i);
+            carver.add_return(Point3::new(p.x * 3.0, p.y * 3.0, 0.0));
+        }
+    }
+    carver.end_scan(&mut open, &mut ());
+    assert!(
+        open.frozen().is_empty(),
+        "seen through with walls behind it, it stays"
+    );
+    Ok(())
+}

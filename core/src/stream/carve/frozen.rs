@@ -1,0 +1,171 @@
+//! Carving frozen entities: a device's layout freezes a cluster once the scan has left it, and
+//! a person who walked on may freeze before two scans have seen through where they stood. A
+//! frozen entity keeps no moments, so it is judged by its shape: its centre, and the ends of
+//! its two longest axes (three quarters of each, as a working cluster's 1.5 deviations are of
+//! a shell's two) moved to its far side along the ray (its support in the ray's direction), as
+//! [`Carver::sees_through`] judges a cluster. A scan that saw through it counts; one whose
+//! nearest return lies at or before its centre (its surface, or something in front) starts the
+//! count again; one with no return near it, or whose axis ends it did not see through, leaves
+//! the count as it is. [`SEEN_THROUGH`]
+//! counts and it leaves the map, the last frozen entity taking its slot: the slot is marked
+//! changed, so a downlink that sent the slot sends it again ([`Carver::take_changed`]).
+
+use super::direction::square_root;
+use super::{Carver, SEEN_THROUGH, Sight};
+use crate::geometry::Point3;
+use crate::stream::{FrozenEntity, StreamMapper};
+
+/// Axis ends tested, as a fraction of the semi-axis.
+const AXIS_REACH: f32 = 0.75;
+
+/// A frozen slot's byte: its count in the low bits, and this bit once the slot holds another
+/// entity than the one the downlink last sent from it.
+pub(super) const CHANGED: u8 = 0x80;
+
+/// What a scan saw of a frozen entity.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Verdict {
+    Through,
+    Seen,
+    Unknown,
+}
+
+impl<const N: usize, const F: usize> Carver<N, F> {
+    /// Judges frozen entity `index` by the scan that ended, and removes it at its
+    /// [`SEEN_THROUGH`]th count.
+    pub(super) fn judge_frozen<const K: usize, const G: usize, const FM: usize>(
+        &mut self,
+        index: usize,
+        mapper: &mut StreamMapper<K, G, FM>,
+    ) {
+        let Some(entity) = mapper.frozen().get(index) else {
+            return;
+        };
+        let verdict = self.verdict(entity);
+        let Some(slot) = self.frozen.get_mut(index) else {
+            // More frozen entities than this carver counts for: never carved.
+            return;
+        };
+        let count = *slot & !CHANGED;
+        let count = match verdict {
+            Verdict::Through => count.saturating_add(1),
+            Verdict::Seen => 0,
+            Verdict::Unknown => count,
+        };
+        if count < SEEN_THROUGH {
+            *slot = (*slot & CHANGED) | count;
+            return;
+        }
+        let last = mapper.frozen().len().saturating_sub(1);
+        if !mapper.remove_frozen(index) {
+            return;
+        }
+        // The slots as the mapper's swap-remove left them.
+        let moved = self.frozen.get(last).copied().unwrap_or(0);
+        if let Some(vacated) = self.frozen.get_mut(last) {
+            *vacated = 0;
+        }
+        if index < last
+            && let Some(slot) = self.frozen.get_mut(index)
+        {
+            *slot = moved | CHANGED;
+            self.changed = true;
+        }
+    }
+
+    /// The lowest frozen slot below `below` marked changed since it was last sent, its mark
+    /// taken: a downlink that had sent the slot sends what it holds now.
+    pub fn take_changed(&mut self, below: usize) -> Option<usize> {
+        if !self.changed {
+            return None;
+        }
+        let end = below.min(F);
+        let found = self
+            .frozen
+            .get(..end)?
+            .iter()
+            .position(|s| s & CHANGED != 0);
+        match found {
+            Some(i) => {
+                if let Some(slot) = self.frozen.get_mut(i) {
+                    *slot &= !CHANGED;
+                }
+                Some(i)
+            }
+            None => {
+                // Marks at or past `below` are slots the downlink has not sent: sent whole
+                // when it does, so their marks go.
+                for slot in self.frozen.iter_mut() {
+                    *slot &= !CHANGED;
+                }
+                self.changed = false;
+                None
+            }
+        }
+    }
+
+    fn verdict(&self, e: &FrozenEntity) -> Verdict {
+        let w = e.entity.weights;
+        if !w.iter().all(|&w| w > 0.0 && w.is_finite()) {
+            // A pseudocylinder or a pair of planes reaches without end: never judged.
+            return Verdict::Unknown;
+        }
+        let o = self.image.geometry().origin;
+        let c = e.entity.center;
+        let d = [c.x - o.x, c.y - o.y, c.z - o.z];
+        let r = square_root(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        if !(r > 0.0 && r.is_finite()) {
+            return Verdict::Unknown;
+        }
+        // The centre first, as it is: most entities a scan did not see through fail here,
+        // before their rotation (costly on a device) is decoded.
+        match self.sight(c) {
+            Sight::Through => {}
+            Sight::Short => return Verdict::Seen,
+            Sight::Nothing => return Verdict::Unknown,
+        }
+        let semi_axes = w.map(|w| 1.0 / square_root(w));
+        let rotation = e.to_entity().rotation;
+        let u = d.map(|v| f64::from(v / r));
+        // How far the entity reaches along the ray: its support in the ray's direction.
+        let local = rotation.inverse_rotate(u);
+        let reach = libm::sqrt(
+            (0..3)
+                .map(|j| {
+                    let a = f64::from(semi_axes.get(j).copied().unwrap_or(0.0));
+                    let l = local.get(j).copied().unwrap_or(0.0);
+                    a * a * l * l
+                })
+                .sum::<f64>(),
+        );
+        let far = |offset: [f64; 3]| {
+            let p = [0, 1, 2].map(|j| {
+                f64::from(c.to_array().get(j).copied().unwrap_or(0.0))
+                    + offset.get(j).copied().unwrap_or(0.0)
+                    + reach * u.get(j).copied().unwrap_or(0.0)
+            });
+            Point3::new(p[0] as f32, p[1] as f32, p[2] as f32)
+        };
+        // The ends of the two longest axes (the rotation's columns in the world), moved to the
+        // far side: an entity across an inside corner has its centre in free space, but its
+        // ends on the walls. (The far side of the centre itself is not asked: a walker's leg,
+        // frozen, stands where its later steps and the floor crowd the pixels around it, and
+        // asking it kept half the walker in the board's map.)
+        let mut order = [0, 1, 2];
+        order.sort_unstable_by(|&a, &b| semi_axes[b].total_cmp(&semi_axes[a]));
+        for &j in order.iter().take(2) {
+            let mut unit = [0.0; 3];
+            if let Some(v) = unit.get_mut(j) {
+                *v = 1.0;
+            }
+            let axis = rotation.rotate(unit);
+            let length = f64::from(AXIS_REACH * semi_axes.get(j).copied().unwrap_or(0.0));
+            for sign in [1.0, -1.0] {
+                if self.sight(far(axis.map(|v| sign * length * v))) == Sight::Short {
+                    return Verdict::Unknown;
+                }
+            }
+        }
+        Verdict::Through
+    }
+}
