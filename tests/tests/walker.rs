@@ -307,3 +307,23 @@ fn the_board_carves_the_walker_frozen_entities_too() {
         "{kept}: the uncarved map should keep the walker"
     );
 }
+
+/// `mema scanner-sim --walker` plays the walking drive (the bytes the library sends for it),
+/// and its replay with `--free-space` carves what the walker left.
+#[test]
+fn scanner_sim_plays_the_walking_drive() {
+    let dir = Dir::new("walker-cli");
+    let played = dir.join("walking.bin");
+    MemaCommand::new(&dir)
+        .args(["scanner-sim", "--walker", "--port"])
+        .arg(&played)
+        .run()
+        .assert_ok();
+    let expected = capture(&dir, "expected.bin", &drive(&room(), &walking()));
+    assert!(
+        std::fs::read(&played).expect("played") == std::fs::read(&expected).expect("expected"),
+        "scanner-sim --walker is not the walking drive"
+    );
+    let (_, summary) = replay(&dir, &played, "walking.mema", true);
+    assert!(summary["carved"].as_u64().unwrap_or(0) > 0, "{summary}");
+}

@@ -134,6 +134,10 @@ pub struct ScannerSimArgs {
     /// Stanford's bun.conf): each in its own sensor frame after its pose frame.
     #[arg(long, value_name = "SCANS.conf", conflicts_with = "cloud")]
     pub conf: Option<PathBuf>,
+    /// The built-in drive in a walled room while someone walks across the robot's line of
+    /// sight: what carving (`--free-space`, `--carve`) takes out of the map again.
+    #[arg(long, conflicts_with_all = ["cloud", "conf"])]
+    pub walker: bool,
     /// Points per second (default: as fast as the port takes them).
     #[arg(long)]
     pub rate: Option<f64>,

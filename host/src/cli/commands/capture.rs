@@ -101,6 +101,10 @@ pub fn scanner_sim(args: &ScannerSimArgs) -> Result<()> {
             &super::read_in_metres(path, &args.units)?.0,
         )?],
         // The robot driving through the demo scene: each stop's scan after its pose.
+        (None, None) if args.walker => drive(&mema::io::drive::room(), &mema::io::drive::walking())
+            .iter()
+            .map(SensorScan::of_drive)
+            .collect(),
         (None, None) => drive(&Scene::demo(), &DriveConfig::default())
             .iter()
             .map(SensorScan::of_drive)
