@@ -216,7 +216,7 @@ pub struct Link {
     pub mapper: Box<HostStreamMapper>,
     /// Carving, when on ([`Link::carving`]): each scan's image judges the clusters it saw
     /// through, and is kept as the map's free space.
-    pub carving: Option<Carving>,
+    pub carving: Option<Carving<MAX_CLUSTERS>>,
 }
 
 impl Link {
