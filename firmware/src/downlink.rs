@@ -3,7 +3,6 @@
 
 use core::borrow::Borrow;
 
-use mema_core::link::crc32::Crc32;
 use mema_core::link::downlink::{self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::link::frame::Address;
 use mema_core::map::{EncodeError, MapEntity};
@@ -156,8 +155,14 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     /// The end frame alone (again, when the host asks): the file's layout, length and CRC-32,
     /// which the map is encoded once more to compute, a piece at a time (no buffer for it).
     pub fn send_end_again(&mut self, mut sink: impl FnMut(&[u8])) -> Result<usize, EncodeError> {
-        let mut crc = Crc32::new();
-        let len = self.send_map(|piece| crc.update(piece))?;
+        // The file's own checksum, its last four bytes (the CRC-32 of every byte before them:
+        // `downlink::map_checksum`), read as the map streams past.
+        let mut last = [0u8; 4];
+        let len = self.send_map(|piece| {
+            for &b in piece {
+                last = [last[1], last[2], last[3], b];
+            }
+        })?;
         let layout = self.mapper.layout();
         let count = self.mapper.entities().count();
         let end = MapEnd {
@@ -166,7 +171,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             shift: self.mapper.file_shift(layout),
             origin: self.receiver.origin(),
             map_len: u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?,
-            map_crc: crc.finish(),
+            map_crc: u32::from_le_bytes(last),
             points: self.mapper.stats().points as u32,
             frames: self.stats.frames as u32,
         };

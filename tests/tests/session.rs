@@ -18,7 +18,8 @@ use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
 use mema_core::link::frame::Address;
 use mema_firmware::device::{Boot, Device, NoClock, Out, Poll};
 use mema_firmware::{
-    Firmware, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
+    BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_CARVE_PIXELS, BOARD_FROZEN, Carving, Firmware,
+    IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_REACH, IMAGE_WORKING, RX_CAPACITY, Ring, SHELLS,
     model_params,
 };
 
@@ -86,8 +87,19 @@ impl Write for Port {
 fn run_device(
     input: Receiver<Vec<u8>>,
     output: Sender<Vec<u8>>,
+    line: Line,
+    near_wrap: bool,
+) -> u64 {
+    run_carving_device::<IMAGE_FROZEN, ()>(input, output, line, near_wrap, || ())
+}
+
+/// [`run_device`] with `F` frozen entities, carving with what `carving` gives at each boot.
+fn run_carving_device<const F: usize, C: Carving>(
+    input: Receiver<Vec<u8>>,
+    output: Sender<Vec<u8>>,
     mut line: Line,
     near_wrap: bool,
+    carving: impl Fn() -> C,
 ) -> u64 {
     let (mut boot, mut session, mut first_carry) = (1u32, 0u32, 0u32);
     // Every counter of the device just before its wrap, or from 0 as a board boots.
@@ -97,7 +109,7 @@ fn run_device(
         (0, 0, 0)
     };
     let layout = DeviceLayout {
-        capacity: (IMAGE_WORKING + IMAGE_FROZEN) as u32,
+        capacity: (IMAGE_WORKING + F) as u32,
         working: IMAGE_WORKING as u32,
         model: 1,
     };
@@ -106,11 +118,10 @@ fn run_device(
             Ring::<RX_CAPACITY>::counting_from(ring_start),
             Ring::<RX_CAPACITY>::counting_from(ring_start),
         );
-        let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, SHELLS);
-        let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, _>> =
-            Box::new(Firmware::with_ring(params, IMAGE_REACH, &map_ring));
-        let mut entities =
-            vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + IMAGE_FROZEN];
+        let params = model_params(0, IMAGE_WORKING, F, SHELLS);
+        let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, F, _, C>> =
+            Box::new(Firmware::carving(params, IMAGE_REACH, &map_ring, carving()));
+        let mut entities = vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + F];
         let start = Boot {
             address: Address { session, boot },
             first_carry,
@@ -267,4 +278,74 @@ fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
         drop(pair);
         let _ = device.join();
     }
+}
+
+/// The board's layout carving (issue 29): someone walks across the robot's line of sight, each
+/// stop's scan sent in four pieces after the same pose, so the origin settles (16 poses) at the
+/// fourth stop and frozen entities go down the link as they freeze; later scans carve some of
+/// them. The device, its downlink running only between passes as the board's does, retracts
+/// them and sends what took their slots (an entity frozen into a vacated slot included: once
+/// the host kept the slot's old entity, and the end's check, then the CRC of the whole file,
+/// always the CRC-32 residue, passed it). The host's map is `mema replay`'s.
+#[test]
+fn a_carving_device_keeps_the_hosts_copy_through_retractions() {
+    use mema::io::drive::{drive, room, walking};
+    use mema::link::scanner::{SensorScan, send_scans};
+    type BoardCarver = mema_core::stream::Carver<BOARD_CARVE_PIXELS, BOARD_FROZEN>;
+    let dir = Dir::new("session-carving");
+    let mut config = walking();
+    config.rangefinder.elevation_steps = 50;
+    let scans: Vec<SensorScan> = drive(&room(), &config)
+        .iter()
+        .map(SensorScan::of_drive)
+        .flat_map(|scan| {
+            let piece = scan.points.len().div_ceil(4).max(1);
+            let pieces: Vec<SensorScan> = scan
+                .points
+                .chunks(piece)
+                .map(|points| SensorScan {
+                    points: points.to_vec(),
+                    ..scan.clone()
+                })
+                .collect();
+            pieces
+        })
+        .collect();
+    let stream = send_scans(&scans).expect("sent").bytes;
+    let capture = dir.write("walking.bin", &stream);
+    let layout = (IMAGE_WORKING + BOARD_FROZEN, IMAGE_WORKING);
+    // The board's layout: `replay` carves as the board does.
+    let replayed = crate::device::replay(&dir, &capture, layout, "shells");
+    let (to_device, device_in) = channel();
+    let (device_out, from_device) = channel();
+    let carving = || {
+        let mut carver = Box::new(BoardCarver::empty());
+        let [rows, columns] = BOARD_CARVE_IMAGE;
+        assert!(carver.look(rows, columns));
+        carver.sample(BOARD_CARVE_EVERY);
+        Box::leak(carver)
+    };
+    let down = Line(LineFaults::new(1, 0));
+    let device = thread::spawn(move || {
+        run_carving_device::<BOARD_FROZEN, _>(device_in, device_out, down, false, carving)
+    });
+    let mut port = Port {
+        to_device,
+        from_device,
+        held: VecDeque::new(),
+        line: Line(LineFaults::new(0, 0)),
+    };
+    let mut frames = MapFrames::default();
+    let limits = SessionLimits {
+        window: RING_BYTES,
+        silence: SILENCE,
+        first_carry: 0,
+    };
+    let map = send_and_receive(&mut port, &stream, limits, &mut frames, |_| {});
+    drop(port);
+    device.join().expect("the device thread");
+    let map = map.unwrap_or_else(|e| panic!("{e}"));
+    let c = &frames.counts;
+    assert!(c.retracted > 0, "nothing was retracted: {c:?}");
+    assert!(map == replayed, "not replay's map: {c:?}");
 }

@@ -45,6 +45,8 @@ mod tolerance;
 mod board_link;
 // Sessions against one running board under QEMU, and a reset mid-session.
 mod board_sessions;
+// The board carving a walker out of its map, its retractions through a faulty relay.
+mod board_carving;
 // A sensor wired to the board's USART1 under QEMU, its map to a listener on USART2.
 mod board_sensor;
 // mema device's session against the firmware in a thread, through faulty lines both ways.

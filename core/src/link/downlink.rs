@@ -193,6 +193,13 @@ pub struct DeviceTiming {
     pub line_overruns: u32,
 }
 
+/// A map file's own checksum, which an end frame carries: the CRC-32 of every byte before the
+/// file's last four (where the file keeps it). Not the CRC of the whole file: a file ending in
+/// the CRC of what precedes it always has the CRC-32 residue `0x2144df1c`, whatever it holds.
+pub fn map_checksum(file: &[u8]) -> u32 {
+    crate::link::crc32::crc32(file.get(..file.len().saturating_sub(4)).unwrap_or(&[]))
+}
+
 /// The file's record of `entity` in `layout` for a file shifted by `shift` from the mapper's
 /// frame: what a device's `.mema` holds and what a host rebuilds it from.
 pub fn stored_entity(entity: MapEntity, shift: [f32; 3], layout: Layout) -> MapEntity {

@@ -5,10 +5,9 @@
 //! [`MapFrames`] takes the device's bytes in any pieces; [`super::session`] runs a whole
 //! session over a port.
 
-use mema_core::link::crc32::crc32;
 use mema_core::link::downlink::{
     self, DOWNLINK_VERSION, DeviceLayout, DeviceTiming, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd,
-    SessionStatus, stored_entity,
+    SessionStatus, map_checksum, stored_entity,
 };
 use mema_core::link::frame::{Address, LinkError};
 use mema_core::link::framing::{Block, Deframer};
@@ -430,6 +429,11 @@ impl MapFrames {
         self.end.is_some()
     }
 
+    /// Forgets every entity received, so all are asked for again: the copy was found stale.
+    pub fn forget_entities(&mut self) {
+        self.entities.clear();
+    }
+
     /// The entities the end says the map has and that have not arrived intact.
     pub fn missing(&self) -> Vec<u32> {
         let Some(end) = self.end else {
@@ -470,7 +474,7 @@ impl MapFrames {
         let len =
             encode_as(end.layout, origin, stored, &mut out).map_err(DeviceError::MapEncode)?;
         out.truncate(len);
-        let got_crc = crc32(&out);
+        let got_crc = map_checksum(&out);
         if len != end.map_len as usize || got_crc != end.map_crc {
             return Err(DeviceError::Mismatch {
                 got_len: len,

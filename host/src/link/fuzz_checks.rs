@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use mema_core::fuzz_checks::{crcs_made_right, plain_blocks};
 use mema_core::link::crc32::crc32;
 use mema_core::link::downlink::{
-    self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, SessionStatus, stored_entity,
+    self, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd, SessionStatus, map_checksum, stored_entity,
 };
 use mema_core::link::frame::Address;
 use mema_core::map::{MapEntity, MapFile, encode_as};
@@ -193,7 +193,7 @@ fn rebuilt(m: &Model, end: &MapEnd) -> Option<Vec<u8>> {
 /// A map `map_file` gave: the end's length, CRC-32 and counts, and it reads back with the
 /// end's count of entities.
 fn check_map(map: &[u8], end: &MapEnd, expected: Option<(u32, u32)>) -> Result<(), Violation> {
-    if map.len() != end.map_len as usize || crc32(map) != end.map_crc {
+    if map.len() != end.map_len as usize || map_checksum(map) != end.map_crc {
         return Err(Violation::WrongMap(format!(
             "{} bytes, CRC-32 {:08x}: the end says {} and {:08x}",
             map.len(),
@@ -282,7 +282,7 @@ pub fn map_frames(data: &[u8]) -> Result<Outcome, Violation> {
     };
     let right = MapEnd {
         map_len: map.len() as u32,
-        map_crc: crc32(&map),
+        map_crc: map_checksum(&map),
         ..end
     };
     let mut sealed = [0u8; MAX_DOWN_FRAME_LEN];

@@ -357,12 +357,24 @@ pub(super) fn whole_or_ask(
     asked: &mut Option<Instant>,
     asks: &mut u32,
 ) -> Option<Result<Vec<u8>, DeviceError>> {
-    let missing = frames.missing();
-    if missing.is_empty() {
-        return Some(frames.map_file().unwrap_or(Err(DeviceError::Missing {
-            missing: Vec::new(),
-        })));
+    if frames.missing().is_empty() {
+        match frames.map_file() {
+            // A lost frame may have been a retraction or a carved slot's entity sent again
+            // (PROTOCOL.md, "Retract"): some slot the host holds is stale, and which one no
+            // frame says. Every entity again.
+            Some(Err(DeviceError::Mismatch { .. }))
+                if frames.counts.lost > 0 && *asks < MAX_ASKS =>
+            {
+                frames.forget_entities();
+            }
+            file => {
+                return Some(file.unwrap_or(Err(DeviceError::Missing {
+                    missing: Vec::new(),
+                })));
+            }
+        }
     }
+    let missing = frames.missing();
     if asked.is_some_and(|t| t.elapsed() <= RETRY) {
         return None;
     }

@@ -60,17 +60,19 @@ impl<const N: usize, const F: usize> Carver<N, F> {
         if !mapper.remove_frozen(index) {
             return;
         }
-        // The slots as the mapper's swap-remove left them.
+        // The slots as the mapper's swap-remove left them. The vacated last slot is marked
+        // too: an entity that freezes into it before the downlink looks again is new to a host
+        // that holds the slot's old one.
         let moved = self.frozen.get(last).copied().unwrap_or(0);
         if let Some(vacated) = self.frozen.get_mut(last) {
-            *vacated = 0;
+            *vacated = CHANGED;
         }
         if index < last
             && let Some(slot) = self.frozen.get_mut(index)
         {
             *slot = moved | CHANGED;
-            self.changed = true;
         }
+        self.changed = true;
     }
 
     /// The lowest frozen slot below `below` marked changed since it was last sent, its mark
