@@ -17,20 +17,19 @@ use crate::util::{Dir, MemaCommand};
 /// sensor origin), four poses to the receiver, whose origin settles at the fourth stop.
 const PIECES: usize = 4;
 
-#[test]
-fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
-    let dir = Dir::new("board-carving");
-    // A coarser rangefinder than the walking drive's, so the run stays short.
+/// The walking drive (a coarser rangefinder, so runs stay short), each stop's scan sent in
+/// [`PIECES`] pieces after its pose, as `scanner-sim` would send them: the stream's bytes.
+pub(crate) fn walking_in_pieces() -> Vec<u8> {
     let mut config = walking();
     config.rangefinder.elevation_steps = 50;
     let scans: Vec<SensorScan> = drive(&room(), &config)
         .iter()
         .map(SensorScan::of_drive)
         .flat_map(|scan| {
-            let piece = scan.points.len().div_ceil(PIECES);
+            let piece = scan.points.len().div_ceil(PIECES).max(1);
             let pieces: Vec<SensorScan> = scan
                 .points
-                .chunks(piece.max(1))
+                .chunks(piece)
                 .map(|points| SensorScan {
                     points: points.to_vec(),
                     ..scan.clone()
@@ -39,7 +38,13 @@ fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
             pieces
         })
         .collect();
-    let capture = dir.write("walking.bin", &send_scans(&scans).expect("sent").bytes);
+    send_scans(&scans).expect("sent").bytes
+}
+
+#[test]
+fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
+    let dir = Dir::new("board-carving");
+    let capture = dir.write("walking.bin", &walking_in_pieces());
     let layout = (BOARD_WORKING + BOARD_FROZEN, BOARD_WORKING);
     let replayed = crate::device::replay(&dir, &capture, layout, "shells");
     // What carving takes out: replay's own count, as the board carves.

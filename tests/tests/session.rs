@@ -289,29 +289,9 @@ fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
 /// always the CRC-32 residue, passed it). The host's map is `mema replay`'s.
 #[test]
 fn a_carving_device_keeps_the_hosts_copy_through_retractions() {
-    use mema::io::drive::{drive, room, walking};
-    use mema::link::scanner::{SensorScan, send_scans};
     type BoardCarver = mema_core::stream::Carver<BOARD_CARVE_PIXELS, BOARD_FROZEN>;
     let dir = Dir::new("session-carving");
-    let mut config = walking();
-    config.rangefinder.elevation_steps = 50;
-    let scans: Vec<SensorScan> = drive(&room(), &config)
-        .iter()
-        .map(SensorScan::of_drive)
-        .flat_map(|scan| {
-            let piece = scan.points.len().div_ceil(4).max(1);
-            let pieces: Vec<SensorScan> = scan
-                .points
-                .chunks(piece)
-                .map(|points| SensorScan {
-                    points: points.to_vec(),
-                    ..scan.clone()
-                })
-                .collect();
-            pieces
-        })
-        .collect();
-    let stream = send_scans(&scans).expect("sent").bytes;
+    let stream = crate::board_carving::walking_in_pieces();
     let capture = dir.write("walking.bin", &stream);
     let layout = (IMAGE_WORKING + BOARD_FROZEN, IMAGE_WORKING);
     // The board's layout: `replay` carves as the board does.

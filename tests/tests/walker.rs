@@ -16,6 +16,23 @@ const ENTITIES: usize = 250;
 /// How near map surface a walker's point counts as kept, in metres.
 const NEAR: f64 = 0.25;
 
+/// The share of the walker's points within [`NEAR`] of `map`'s surface where the map without
+/// the walker (its distances `clean`) has none: the trail the walker left.
+fn on_new_surface(
+    dir: &Dir,
+    map: &std::path::Path,
+    name: &str,
+    walker: &[[f64; 3]],
+    clean: &[f64],
+) -> f64 {
+    surface_distances(dir, map, name, walker)
+        .iter()
+        .zip(clean)
+        .filter(|(w, c)| w.abs() <= NEAR && c.abs() > NEAR)
+        .count() as f64
+        / walker.len() as f64
+}
+
 /// The drive's bytes as `scanner-sim` sends a drive (poses, then points), in `name`.
 fn capture(dir: &Dir, name: &str, stops: &[DriveScan]) -> std::path::PathBuf {
     let scans: Vec<SensorScan> = stops.iter().map(SensorScan::of_drive).collect();
@@ -124,14 +141,8 @@ fn a_walker_leaves_no_trail_in_the_batch_map() {
     };
     let (walked, still) = (conf(&dir, "walked", &walked), conf(&dir, "still", &still));
     let clean = surface_distances(&dir, &map(&still, "still.mema", true), "clean", &walker);
-    let on_new_surface = |map: &std::path::Path, name: &str| {
-        surface_distances(&dir, map, name, &walker)
-            .iter()
-            .zip(&clean)
-            .filter(|(w, c)| w.abs() <= NEAR && c.abs() > NEAR)
-            .count() as f64
-            / walker.len() as f64
-    };
+    let on_new_surface =
+        |map: &std::path::Path, name: &str| on_new_surface(&dir, map, name, &walker, &clean);
     let carved = on_new_surface(&map(&walked, "carved.mema", true), "carved");
     let kept = on_new_surface(&map(&walked, "kept.mema", false), "kept");
     eprintln!(
@@ -178,12 +189,7 @@ fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
     let (kept, _) = replay(&dir, &walked_capture, "kept.mema", false);
     let clean_distances = surface_distances(&dir, &clean, "clean", &walker);
     let on_new_surface = |map: &std::path::Path, name: &str| {
-        surface_distances(&dir, map, name, &walker)
-            .iter()
-            .zip(&clean_distances)
-            .filter(|(w, c)| w.abs() <= NEAR && c.abs() > NEAR)
-            .count() as f64
-            / walker.len() as f64
+        on_new_surface(&dir, map, name, &walker, &clean_distances)
     };
     let (carved, kept) = (
         on_new_surface(&carved, "carved"),
@@ -281,14 +287,8 @@ fn the_board_carves_the_walker_frozen_entities_too() {
         "clean",
         &walker,
     );
-    let on_new_surface = |map: &std::path::Path, name: &str| {
-        surface_distances(&dir, map, name, &walker)
-            .iter()
-            .zip(&clean)
-            .filter(|(w, c)| w.abs() <= NEAR && c.abs() > NEAR)
-            .count() as f64
-            / walker.len() as f64
-    };
+    let on_new_surface =
+        |map: &std::path::Path, name: &str| on_new_surface(&dir, map, name, &walker, &clean);
     let carved = on_new_surface(&board(&walked_capture, "carved.mema", true), "carved");
     let kept = on_new_surface(&board(&walked_capture, "kept.mema", false), "kept");
     eprintln!("board: {carved:.3} of the walker on new surface carved, {kept:.3} not");

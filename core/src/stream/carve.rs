@@ -141,16 +141,12 @@ impl<const N: usize, const F: usize> Carver<N, F> {
     /// A carver whose images look as `geometry` says from each scan's sensor origin (its
     /// `origin` is replaced); `None` if the image has more than `N` pixels.
     pub fn new(geometry: Geometry) -> Option<Self> {
-        Some(Self {
-            image: RangeImage::new(geometry)?,
-            ranges: ranges_from(geometry.near),
-            scan_start: None,
-            judging: None,
-            frozen: [0; F],
-            changed: false,
-            every: 1,
-            passed: 0,
-        })
+        let mut carver = Self::empty();
+        if !carver.image.reset(geometry) {
+            return None;
+        }
+        carver.ranges = ranges_from(geometry.near);
+        Some(carver)
     }
 
     /// Images of `rows` x `columns` pixels around the whole sphere, ranges from 1/8 m to 128 m
