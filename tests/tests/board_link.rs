@@ -28,6 +28,16 @@ impl Drop for Killed {
     }
 }
 
+/// One board under QEMU at a time: the reset-mid-session case (board_sessions.rs) went silent
+/// after its reset when another board ran beside it on the two cores CI has.
+static ONE_BOARD: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+/// A board under QEMU: the process, killed on drop, then the turn given up.
+pub(crate) struct Board {
+    _qemu: Killed,
+    _turn: std::sync::MutexGuard<'static, ()>,
+}
+
 /// The board image in `model` (shells or paper), built as `firmware-sim/board.sh` builds it:
 /// one target directory per model.
 pub(crate) fn board_image(model: &str) -> PathBuf {
@@ -60,7 +70,9 @@ pub(crate) fn start_board(
     image: &Path,
     monitor: Option<&Path>,
     ports: usize,
-) -> (Killed, Vec<PathBuf>) {
+) -> (Board, Vec<PathBuf>) {
+    // A test that failed while holding the turn poisons it; the next board may still run.
+    let turn = ONE_BOARD.lock().unwrap_or_else(|e| e.into_inner());
     let log = dir.join("qemu.txt");
     let child = Command::new("qemu-system-arm")
         .args(["-machine", "netduinoplus2", "-nographic", "-monitor"])
@@ -89,7 +101,11 @@ pub(crate) fn start_board(
             })
             .collect();
         if ptys.len() >= ports {
-            return (qemu, ptys);
+            let board = Board {
+                _qemu: qemu,
+                _turn: turn,
+            };
+            return (board, ptys);
         }
         assert!(Instant::now() < deadline, "QEMU gave no pty: {text}");
         std::thread::sleep(Duration::from_millis(50));
