@@ -84,8 +84,8 @@ const fn ranks(k: usize, n: usize) -> [usize; 3] {
     [a, b, c]
 }
 
-/// [`ranks`] for the paper's population, packed `a | b << 4 | c << 8`: one load instead of
-/// about 25 instructions of comparisons a trial on the Cortex-M4F (1,008 bytes of flash).
+/// [`ranks`] for the paper's population, packed `a | b << 4 | c << 8`: one load a trial instead
+/// of a chain of comparisons, for 504 entries of two bytes of flash.
 const PAPER_RANKS: [u16; 504] = {
     let mut table = [0u16; 504];
     let mut k = 0;
@@ -236,7 +236,7 @@ where
                     } else if clamps {
                         // F = 1.2 sends about one donor in six out of the box on real
                         // clusters: the default rule inline. (`repair` stays out of line at
-                        // the image's low inline thresholds: 4,400 instructions a fit at 25.)
+                        // the image's low inline thresholds, and a call a trial costs a fit.)
                         clamp32(donor, lo, hi)
                     } else {
                         repair(donor, lo, hi, out_of_bounds, &mut draws)

@@ -218,7 +218,7 @@ impl SearchBox {
 
 /// The semi-axes at log-box coordinates `x`. Out of line and cold: the log box is not the
 /// default, and a call the register allocator sees as cold leaves the DE loop's registers
-/// alone on the linear path (inlined, it cost the default fit 7 instructions a trial).
+/// alone on the linear path (inlined, it costs the default fit instructions at every trial).
 #[cold]
 #[inline(never)]
 fn exp_axes<const D: usize>(x: &[f32; D]) -> [f32; D] {
@@ -301,7 +301,7 @@ fn moment_candidate32(unit: &UnitMoments, fast: &Fitness32, search: &SearchBox) 
     let estimate = sphere.estimate(search.unit_lo, search.unit_hi);
     match least_squares_axes(unit.raw, unit.mean, search.unit_lo, search.unit_hi) {
         // The comparison is in f32, where the sphere's f32 estimate serves; its exact radius
-        // (a step in soft f64, about 2,000 instructions on the M4F) only when the sphere wins.
+        // (a step in soft f64 on the M4F) only when the sphere wins.
         Some(e)
             if fast.fitness(&e.map(|r| r as f32)) <= fast.fitness(&[estimate.radius32(); 3]) =>
         {
@@ -411,7 +411,7 @@ fn search_ellipsoid<const POP: usize, R: Rng + ?Sized>(
 
 /// The entity of [`fit_ellipsoid_paper`], the same bits, without the fit's statistics (eq. 12
 /// in f64, its residual and volume term, the bound counts): the streaming mapper keeps only
-/// the entity, and on a Cortex-M4F those soft-float sums cost about 7,000 instructions a fit.
+/// the entity, and on a Cortex-M4F those sums are soft-float routines at every fit.
 pub fn fit_entity_paper<R: Rng + ?Sized>(
     moments: &CentralMoments,
     params: &FitParams,

@@ -197,7 +197,7 @@ impl Entity {
 
     /// [`Entity::from_semi_axes`] from f32 semi-axes, by the same rules in f32 arithmetic: the f32
     /// search's fits (`fit`) end here, and on the Cortex-M4F the f64 form's divisions and
-    /// comparisons are software routines (about 1,600 instructions a fit).
+    /// comparisons are software routines, at every fit.
     pub fn from_semi_axes32(
         center: Point3,
         semi_axes: [f32; 3],
@@ -319,7 +319,7 @@ impl Entity {
                 }
                 // Weights go as 1/r^2, so the axis ratio is sqrt(hi/lo), compared squared and
                 // without the division, in f32: on a Cortex-M4F the square root and division
-                // in soft f64 cost about 500 instructions, for every entity a map encodes.
+                // in soft f64 are software routines, for every entity a map encodes.
                 let bound = 1.0 + sphere_tolerance as f32;
                 if hi <= lo * (bound * bound) {
                     EntityKind::Sphere

@@ -29,8 +29,8 @@ pub fn stream_rng(seed: u64, stream: u64) -> Pcg32 {
 /// Why not PCG32 itself: its 64-bit state costs a 64-bit multiply-add per draw, three
 /// multiplications and a carry chain on a 32-bit core, and a fit draws about 2,000 numbers.
 /// This step is three shifted XORs and the output one multiplication, and the state needs no
-/// constant in a register, which the DE's loop is short of (measured on the Cortex-M4F image:
-/// 20 instructions a trial fewer than PCG's 32-bit RXS M XS variant).
+/// constant in a register, which the DE's loop is short of (on the Cortex-M4F image its trials
+/// took fewer instructions than with PCG's 32-bit RXS M XS variant).
 ///
 /// Quality: xorshift's state is linear over GF(2), which shows in its low output bits; the
 /// multiplication by an odd constant carries every state bit into the high bits, and those

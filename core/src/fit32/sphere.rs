@@ -16,8 +16,8 @@
 //! f64 reference) must find the same f32, or the two DE runs part. Newton's method on `k` runs
 //! in f32 (a few steps of about twenty FPU operations on the Cortex-M4F), then one step with `k`
 //! in f64 takes the root from f32's precision to about its square (the step's size needs
-//! only f32's `k'`), where before a golden-section search in f32 and five f64 Newton steps
-//! (software square roots and divisions) cost about 25,000 instructions.
+//! only f32's `k'`): one software f64 step, where a search in f64 would take a software square
+//! root and division at every step.
 
 /// Eq. 12 restricted to spheres (module doc), in f64 and rounded to f32.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -3,7 +3,7 @@
 
 /// The CRC of each 4-bit value: a byte is two table steps. A 256-entry table would take one
 /// step, but it is 1 KiB of the firmware image's flash, and a frame's CRC is a small share
-/// of a point's cost (about 3 instructions a byte more).
+/// of a point's cost (a second table step a byte).
 const TABLE: [u32; 16] = {
     let mut table = [0u32; 16];
     let mut i = 0;

@@ -1,5 +1,5 @@
-//! The stream's power sums: integers, so a point costs a few hundred instructions on a Cortex-M4F
-//! instead of 45 soft-float operations (about 4,300 instructions, half of a point's whole cost).
+//! The stream's power sums: integers, so a point costs a Cortex-M4F integer multiply-adds
+//! instead of 45 soft-float operations, each a software routine.
 //!
 //! Scheme: each coordinate of a point's offset from the cluster's anchor (its first point) is
 //! rounded to a grid of pitch `2^quantum[j]` per axis, chosen so every offset seen on that axis is
@@ -116,8 +116,8 @@ fn pow2_64(e: i32) -> f64 {
 }
 
 /// `x 2^e` for `e` within f64's normal exponents: the product `x * pow2_64(e)`, the same bits,
-/// by moving the exponent when the result stays normal (a soft-f64 multiplication costs about
-/// 50 instructions on the M4F, once per sum at every fit).
+/// by moving the exponent when the result stays normal (a soft-f64 multiplication on the M4F
+/// would be a software routine, once per sum at every fit).
 fn scaled_by_pow2(x: f64, e: i32) -> f64 {
     let bits = x.to_bits();
     let biased = ((bits >> 52) & 0x7ff) as i32;
@@ -130,7 +130,7 @@ fn scaled_by_pow2(x: f64, e: i32) -> f64 {
 }
 
 /// The smallest shift `s <= 63` with `|x| < 2^(61 + s)` (63 for infinities, 0 for NaN), from
-/// the exponent bits: a loop of soft-f64 comparisons cost about 300 instructions a slot.
+/// the exponent bits, where a loop of soft-f64 comparisons would call a routine at every step.
 fn shift_below_2_61(x: f64) -> u8 {
     if x.is_nan() {
         return 0;
@@ -519,8 +519,8 @@ impl FixedMoments {
             let sum = self.sums.get(slot).copied().unwrap_or(0);
             let unit = pow2_32(i32::from(q) + self.shift.get(slot).copied().map_or(0, i32::from));
             // Below 2^31 (a cluster of up to 2^7 points at the largest offsets) the FPU converts
-            // it; above, its two halves are (the i64 routine cost ~37 instructions a sum, three
-            // a point; the result may differ from it in the last bit, the same on every target).
+            // it; above, its two halves are (the i64 routine is a software call at every sum;
+            // the result may differ from it in the last bit, the same on every target).
             let sum = match i32::try_from(sum) {
                 Ok(v) => v as f32,
                 Err(_) => ((sum >> 32) as i32 as f32) * pow2_32(32) + (sum as u32) as f32,

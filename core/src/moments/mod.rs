@@ -270,8 +270,8 @@ impl Moments {
     }
 
     /// [`Moments::central`] with each mean formed as a product by `1/n`, within an ulp of the
-    /// quotient: the stream's fits take this one, where each of the ~30 soft-f64 divisions
-    /// costs a Cortex-M4F about three multiplications (~4,000 instructions a fit). The batch
+    /// quotient: the stream's fits take this one, where each soft-f64 division costs a
+    /// Cortex-M4F several multiplications' worth, and a fit has one for every mean. The batch
     /// pipeline keeps the quotients, and with them the paper tables' bits.
     pub fn central_by_reciprocal(&self) -> Option<CentralMoments> {
         let inverse = 1.0 / self.count as f64;

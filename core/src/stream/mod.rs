@@ -378,8 +378,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Takes working cluster `i` out by swap-remove, telling `observer`: the last cluster takes
-    /// slot `i`, unfiled and refiled under its new index (a rebuild of all 150 centres cost
-    /// about 18,000 instructions a freeze on the firmware; the merge candidates are ordered by
+    /// slot `i`, unfiled and refiled under its new index (a rebuild of every working centre at
+    /// each freeze would cost the firmware far more; the merge candidates are ordered by
     /// distance and index, not by the grid's chains).
     fn remove_working(&mut self, i: usize, observer: &mut impl Observer) {
         observer.removed(i);

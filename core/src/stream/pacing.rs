@@ -1,9 +1,9 @@
 //! Pacing: the stream's costly steps paid for in points, so a device that keeps up with the
 //! points keeps up with the whole stream.
 //!
-//! Making room for a point far from every centre costs a freeze (one DE fit, up to about
-//! 150,000 instructions on the firmware's Cortex-M4F) or a merge pass (up to about 460,000),
-//! while a point that joins a cluster costs about 4,000. Entering new ground, a scanner can ask for room at
+//! Making room for a point far from every centre costs a freeze (one DE fit) or a merge pass,
+//! each the price of tens of points that join a cluster (docs/results.md's pacing table has
+//! the firmware's measured prices). Entering new ground, a scanner can ask for room at
 //! every point: a DE fit per point outruns a 921,600-baud link whatever the processor's
 //! average, and the receive ring overflows (issue 13). So each ingested point earns one credit,
 //! a freeze or merge pass spends its price in credits, and saved credit is capped: over any

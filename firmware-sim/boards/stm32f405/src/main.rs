@@ -54,8 +54,9 @@ use panic_never as _;
 use static_cell::StaticCell;
 use stm32f4::stm32f405::{self as pac, interrupt};
 
-/// The board's layout, K = 700 as 150 working clusters and 550 frozen entities: the board's
-/// map is `mema replay -k 700 --working 150`'s.
+/// The board's layout, K = 700 as 150 working clusters and 550 frozen entities, carving on a
+/// 124 x 512 range image every second scan: the board's map is
+/// `mema replay -k 700 --working 150 --carve 124x512 --carve-every 2`'s.
 const K: usize = BOARD_WORKING;
 const G: usize = IMAGE_BUCKETS;
 const F: usize = BOARD_FROZEN;
