@@ -53,7 +53,9 @@ CARGO_TARGET_DIR="$PWD/target" target/py-venv/bin/python -m pip install --quiet 
 echo "== tests (release profile: real clouds)"
 MEMA_PY="$PWD/target/py-venv/bin/python" cargo test --workspace --release
 echo "== firmware: bit for bit across builds and targets, and the budget"
-firmware-sim/check.sh
+firmware-sim/check.sh | tee target/check.log
+echo "== docs/results.md's firmware figures are this build's (scripts/results/held.py)"
+python3 scripts/results/held.py target/check.log
 echo "== the Python package: lint and pytest (installed above)"
 # Its own workspace (host/python), built into the main target directory.
 (cd host/python && cargo fmt --check)

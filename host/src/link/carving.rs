@@ -64,9 +64,7 @@ impl<const F: usize> Carving<F> {
         &mut self,
         mapper: &mut StreamMapper<K, G, FM>,
     ) {
-        let scanning = !self
-            .carver
-            .begins_scan(self.carver.image().geometry().origin);
+        let scanning = self.carver.scanning();
         self.carver.end_scan(mapper, &mut ());
         if scanning && self.keep_images {
             let image = self.carver.image();
