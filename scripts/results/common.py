@@ -74,7 +74,9 @@ class Logs:
         dates = sorted({m["date"] for m in metas})
         seconds = sum(m["seconds"] for m in metas)
         took = f"{seconds:.0f} s" if seconds < 600 else f"{seconds / 60:.0f} minutes"
-        return (f"Run at commit {', '.join(commits)} on {', '.join(dates)}; it took {took} "
+        # A log given whole (MEMA_CHECK_LOG) took no time of this run's.
+        took = f"it took {took}" if seconds >= 1 else "its output given, not timed here"
+        return (f"Run at commit {', '.join(commits)} on {', '.join(dates)}; {took} "
                 f"(`scripts/results.sh` log{'s' if len(names) > 1 else ''} "
                 f"{', '.join(f'`{x}`' for x in names)}).")
 

@@ -158,9 +158,11 @@ def pacing(logs):
 def board_fidelity(logs):
     out = ["## The board's layout against the batch map", "",
            "`scripts/board-fidelity.sh`: each cloud encoded as `mema scanner-sim` sends it, mapped "
-           "as the board maps it (`mema replay -k K --working 150`, which the board equals byte "
-           "for byte), then `mema map --bytes` of the same cloud at that map's size; both scored "
-           "by `mema eval --samples 50000`, two-way Chamfer distance in mm. "
+           "as the board maps it (`mema replay -k K --working 150`, and at K = 700 `--carve "
+           "124x512 --carve-every 2`, which the board equals byte for byte; a single cloud is one "
+           "scan, which carving leaves whole), then `mema map --bytes` of the same cloud at that "
+           "map's size; both scored by `mema eval --samples 50000`, two-way Chamfer distance in "
+           "mm. "
            + logs.source("board-fidelity"), ""]
     runs = {}
     for line in logs.lines("board-fidelity"):
