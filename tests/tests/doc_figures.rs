@@ -110,10 +110,10 @@ fn the_mappers_bounds_are_the_codes() {
         "docs/queries.md",
         &format!("lies nearer than its pixel's nearest return by {CARVE_MARGIN} m,"),
     );
-    let step_mm = f64::from(QUANTIZED_STEP_ALWAYS) * 1e3;
+    let step_mm = QUANTIZED_STEP_ALWAYS * 1e3;
     says(
         "docs/streaming.md",
-        &format!("grid (and a step is over {step_mm:.1} mm), the grid would move them"),
+        &format!("grid (and a step is over {step_mm} mm), the grid would move them"),
     );
 }
 

@@ -164,15 +164,17 @@ fn paper_and_shell_maps_keep_within_their_bytes_in_their_versions() {
     }
 }
 
-/// A streamed map of few working clusters keeps most of its shells thinner than four steps of
-/// the grid its extent would take (five_people at --working 150: single-point frozen shells), so
-/// it is written in f32; `mema info` says why, with the count, which is held here to the map's
-/// own shells and extent; a quantized map says nothing of the kind.
+/// A streamed map whose extent takes a coarse grid and most of whose shells are thinner than
+/// four of its steps (simple.las, 2.3 km across: 7 cm steps; at --working 150 many shells
+/// froze with few points) is written in f32; `mema info` says why, with the count, which is held
+/// here to the map's own shells and extent. five_people at --working 150, whose single-point
+/// frozen shells are as thin but whose steps are under 0.25 mm, is quantized and says nothing
+/// of the kind.
 #[test]
 fn info_says_why_a_streamed_map_is_not_quantized() {
     let dir = Dir::new("not-quantized");
     MemaCommand::new(&dir)
-        .args(["map", &shared("five_people.pcd").display().to_string()])
+        .args(["map", &shared("simple.las").display().to_string()])
         .args([
             "-k",
             "400",
@@ -220,7 +222,15 @@ fn info_says_why_a_streamed_map_is_not_quantized() {
     );
     MemaCommand::new(&dir)
         .args(["map", &shared("five_people.pcd").display().to_string()])
-        .args(["-k", "400", "--stream", "-o", "quantized.mema"])
+        .args([
+            "-k",
+            "400",
+            "--stream",
+            "--working",
+            "150",
+            "-o",
+            "quantized.mema",
+        ])
         .run()
         .assert_ok();
     let info = MemaCommand::new(&dir)

@@ -22,9 +22,12 @@ pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> 
     shell(mean, covariance, params)
 }
 
-/// A quantized file's centre step that is fine whatever the shells' thickness: below any range
-/// sensor's noise.
-pub const QUANTIZED_STEP_ALWAYS: f32 = 1e-4;
+/// A quantized file's centre step that is fine whatever the shells' thickness: the grid moves a
+/// centre by at most half a step, 0.125 mm, under a depth camera's noise (a millimetre and more)
+/// and a quarter of the rounding of a stream sent in millimetres. A shell thinner than a few such
+/// steps is a cloud on a coarser lattice than the grid (a depth frame's points sent in 1 mm
+/// units lie on depth layers), not a surface the grid could move off.
+pub const QUANTIZED_STEP_ALWAYS: f32 = 2.5e-4;
 
 /// Centre steps a shell must be thick for the grid not to move it off its surface by more than
 /// an eighth of its thickness.
