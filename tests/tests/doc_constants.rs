@@ -13,7 +13,9 @@ use mema::io::read::outliers::{DEFAULT_NEIGHBOURS, DEFAULT_RATIO};
 use mema::io::read::{NO_RETURN_RANGE, UNSIZED_LIMIT};
 use mema::link::queries::RAY_REACH;
 use mema::link::session::{MAX_ASKS, MAX_RESTARTS, SILENCE};
-use mema::mapping::carve::{CARVE_COLUMN, CARVE_MARGIN, CARVE_SIZE};
+use mema::mapping::carve::{
+    CARVE_COLUMN, CARVE_MARGIN, CARVE_SIZE, REST_MARGIN, REST_REACH, REST_SEEN_THROUGH,
+};
 use mema::mapping::surface_clusters::CANDIDATES;
 use mema::query::held_out::DEFAULT_TOLERANCE;
 use mema_core::free_space::NO_RETURN;
@@ -382,6 +384,21 @@ const STATED: &[(&str, &str)] = &[
          {CARVE_COLUMNS} columns, none narrower than {CARVE_DEGREES} degrees, by {CARVE_MARGIN} m)",
     ),
     (
+        "docs/queries.md",
+        "each scan is held until {LAG_AFTER} more have arrived, judged by them and the {LAG_BEFORE} \
+         before it,",
+    ),
+    (
+        "docs/queries.md",
+        "the map stays {LAG_AFTER} scans behind the sensor, and holds those scans' points (at most \
+         {LAG_MOST_HELD} a scan;",
+    ),
+    (
+        "docs/queries.md",
+        "point within {REST_REACH} m of a carved point of its own scan goes when {REST_SCANS} other \
+         scan saw through it by {REST_MARGIN} m, in its own pixel.",
+    ),
+    (
         "docs/performance.md",
         "Passes over the points run on rayon in fixed chunks of {ASSIGN_CHUNK},",
     ),
@@ -400,6 +417,16 @@ const STATED: &[(&str, &str)] = &[
 ];
 
 /// The code's value of a constant, as the guides write it.
+/// A small count as the guides write it.
+fn word(n: usize) -> String {
+    match n {
+        1 => "one".into(),
+        2 => "two".into(),
+        3 => "three".into(),
+        n => n.to_string(),
+    }
+}
+
 fn value(name: &str) -> String {
     let count = |n: usize| thousands(n as u64);
     match name {
@@ -528,6 +555,12 @@ fn value(name: &str) -> String {
         "CARVE_ROWS" => CARVE_SIZE[0].to_string(),
         "CARVE_COLUMNS" => CARVE_SIZE[1].to_string(),
         "CARVE_MARGIN" => CARVE_MARGIN.to_string(),
+        "REST_REACH" => REST_REACH.to_string(),
+        "REST_MARGIN" => REST_MARGIN.to_string(),
+        "REST_SCANS" => word(REST_SEEN_THROUGH),
+        "LAG_AFTER" => word(mema::link::lag::AFTER),
+        "LAG_BEFORE" => word(mema::link::lag::BEFORE),
+        "LAG_MOST_HELD" => count(mema::link::lag::MOST_HELD),
         "ASSIGN_CHUNK" => count(mema::mapping::pipeline::ASSIGN_CHUNK),
         "MAX_MERGE_BATCH" => mema_core::stream::MAX_MERGE_BATCH.to_string(),
         "PLANAR_WARD_PERCENT" => (f64::from(mema_core::stream::PLANAR_WARD) * 100.0)

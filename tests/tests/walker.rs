@@ -114,11 +114,12 @@ fn replay(
 }
 
 /// The walking drive mapped whole (`mema map` of its stops' .conf at 8,000 bytes) with
-/// `--free-space`: the points two other stops saw through are left out before clustering.
-/// Measured 6.1 % of the walker within 25 cm of new surface (without `--free-space`, 95 %),
-/// above the 5 %: what stays is the lower legs, 0.2 to 0.4 m up. The bound here is
-/// 10 %. (With the scanner's 50-degree view in 512 columns of 0.1 degrees, most between its
-/// 0.6-degree rays empty, nothing was carved: 95 %.)
+/// `--free-space`: the points two other stops saw through are left out before clustering, and
+/// the rest of the walker next to them that one stop saw through (their feet above the floor).
+/// Held to the 5 % within 25 cm of new surface (without `--free-space`, 95 %).
+/// (With the scanner's 50-degree view in 512 columns of 0.1 degrees, most between its
+/// 0.6-degree rays empty, nothing was carved: 95 %. Without the rest rule, the 17 points of the
+/// walker's feet left raised the floor's shells beside their legs: 2.6-6.6 % over five seeds.)
 #[test]
 fn a_walker_leaves_no_trail_in_the_batch_map() {
     let dir = Dir::new("walker-batch");
@@ -158,7 +159,7 @@ fn a_walker_leaves_no_trail_in_the_batch_map() {
             kept * 100.0
         ),
     );
-    assert!(carved <= 0.10, "{carved} of the walker on surface");
+    assert!(carved <= 0.05, "{carved} of the walker on surface");
     assert!(
         kept > 0.9,
         "{kept}: the uncarved map should keep the walker"
@@ -166,13 +167,12 @@ fn a_walker_leaves_no_trail_in_the_batch_map() {
 }
 
 /// The walking drive replayed with `--free-space`: the fraction of the walker's points within
-/// 25 cm of map surface where the map of the same drive with nobody walking has none. Measured
-/// 7.1 %, above the 5 %: the clusters where the walker's feet met the floor keep
-/// receiving floor points, so no scan sees through them, and a cluster's moments cannot give
-/// back the leg points in them (a floor patch raised 14 cm where the walker stood). The bound
-/// here is 10 %; without `--free-space` more than 90 % stay. The same drive with nobody
-/// walking, carved, lies no farther from its points (`mema eval`'s accuracy) than uncarved,
-/// within 2 %.
+/// 25 cm of map surface where the map of the same drive with nobody walking has none, held to
+/// the 5 %. Each scan is held until two more have judged its points
+/// ([`mema::link::lag`]); with clusters carved alone, 7.1 % stayed: the clusters where the
+/// walker's feet met the floor kept receiving floor points, so no scan saw through them.
+/// Without `--free-space` more than 90 % stay. The same drive with nobody walking, carved, lies
+/// no farther from its points (`mema eval`'s accuracy) than uncarved, within 2 %.
 #[test]
 fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
     let dir = Dir::new("walker");
@@ -210,7 +210,7 @@ fn a_walker_leaves_almost_no_trail_in_the_streamed_map() {
             kept * 100.0
         ),
     );
-    assert!(carved <= 0.10, "{carved} of the walker on surface");
+    assert!(carved <= 0.05, "{carved} of the walker on surface");
     assert!(
         kept > 0.9,
         "{kept}: the uncarved map should keep the walker"

@@ -37,6 +37,44 @@ impl FreeImage {
         free_space::sees_free(&self.geometry, &self.cells, p, margin)
     }
 
+    /// The image with each pixel that holds a return given the nearest return of it and its
+    /// eight neighbours (columns wrap round a whole turn; pixels without a return stay so).
+    /// Rays a pixel apart leave an object's edge anywhere within one: a point at the edge of
+    /// what this scan saw, in a pixel whose rays passed just beside it, is not seen through.
+    pub fn nearest_around(&self) -> FreeImage {
+        let rows = usize::from(self.geometry.rows);
+        let columns = usize::from(self.geometry.columns);
+        let whole_turn = self.geometry.azimuth[1] >= core::f32::consts::TAU * 0.999;
+        let at = |row: usize, column: isize| -> u8 {
+            let column = if whole_turn {
+                column.rem_euclid(columns as isize)
+            } else {
+                column
+            };
+            usize::try_from(column)
+                .ok()
+                .filter(|c| *c < columns)
+                .and_then(|c| self.cells.get(row * columns + c).copied())
+                .unwrap_or(NO_RETURN)
+        };
+        let mut cells = self.cells.clone();
+        for (i, cell) in cells.iter_mut().enumerate() {
+            if *cell == NO_RETURN {
+                continue;
+            }
+            let (row, column) = (i / columns.max(1), (i % columns.max(1)) as isize);
+            let around = row.saturating_sub(1)..=(row + 1).min(rows.saturating_sub(1));
+            *cell = around
+                .flat_map(|r| [column - 1, column, column + 1].map(|c| at(r, c)))
+                .min()
+                .unwrap_or(*cell);
+        }
+        FreeImage {
+            geometry: self.geometry,
+            cells,
+        }
+    }
+
     /// Bytes the image takes in the map file.
     pub fn file_bytes(&self) -> usize {
         mema_core::map::free_space_part::GEOMETRY_LEN + self.cells.len()

@@ -12,6 +12,7 @@ pub mod device;
 pub mod frames;
 #[cfg(feature = "fuzzing")]
 pub mod fuzz_checks;
+pub mod lag;
 pub mod listen;
 pub mod port;
 pub mod queries;

@@ -1,6 +1,7 @@
 //! Bytes in, map out: the decoder and the streaming mapper, exactly as the firmware runs them.
 
 use anyhow::Result;
+use mema_core::Point3;
 use mema_core::fit::FitParams;
 use mema_core::link::receiver::{Receiver, ReceiverStats};
 use mema_core::link::wire::DecoderStats;
@@ -10,6 +11,7 @@ use mema_core::stream::{
 
 use super::carving::Carving;
 use super::frames::{dequantise, quantise};
+use super::lag::ScanLag;
 use super::scanner::{SensorScan, SentScans, quantise_scans, send_scans};
 use crate::error::ConfigError;
 use crate::io::cloud::LocalCloud;
@@ -217,6 +219,9 @@ pub struct Link {
     /// Carving, when on ([`Link::carving`]): each scan's image judges the clusters it saw
     /// through, and is kept as the map's free space.
     pub carving: Option<Carving<MAX_CLUSTERS>>,
+    /// With free space kept ([`Link::carving`]): the scans held until later ones have judged
+    /// their points.
+    pub lag: Option<ScanLag>,
 }
 
 impl Link {
@@ -237,6 +242,7 @@ impl Link {
             receiver: Receiver::new(),
             mapper: new_mapper_with(params),
             carving: None,
+            lag: None,
         }
     }
 
@@ -253,6 +259,9 @@ impl Link {
     /// [`super::carving::CARVE_IMAGE`] carve nothing.
     pub fn carving_with(mut self, image: [u16; 2], every: u16, keep_free_space: bool) -> Self {
         self.carving = Carving::new(image, every, keep_free_space);
+        // A map that keeps free space is the host's own: its points are carved as `mema map`
+        // carves them, each scan held until later ones have looked (a device's is not).
+        self.lag = keep_free_space.then(ScanLag::new);
         self
     }
 
@@ -267,26 +276,36 @@ impl Link {
     /// pose into the world (frames after the end of stream are only counted, so any chunking
     /// gives the same map).
     pub fn feed(&mut self, chunk: &[u8]) {
-        let link = std::cell::RefCell::new((&mut self.mapper, &mut self.carving));
+        let link = std::cell::RefCell::new((&mut self.mapper, &mut self.carving, &mut self.lag));
         self.receiver.feed_all(
             chunk,
             |frame, placement| {
-                let (mapper, carving) = &mut *link.borrow_mut();
-                if let Some(carving) = carving {
-                    carving.sensor_at(placement.place([0, 0, 0]), mapper);
-                }
-                for p in placement.points(&frame) {
-                    mapper.add(p);
-                    if let Some(carving) = carving {
-                        carving.add_return(p);
+                let (mapper, carving, lag) = &mut *link.borrow_mut();
+                let sensor = placement.place([0, 0, 0]);
+                match lag {
+                    Some(lag) => {
+                        let mut send = |sensor, p, seen_through| {
+                            take_point(mapper, carving, sensor, p, seen_through)
+                        };
+                        for p in placement.points(&frame) {
+                            lag.push(sensor, p, &mut send);
+                        }
+                    }
+                    None => {
+                        for p in placement.points(&frame) {
+                            take_point(mapper, carving, sensor, p, false);
+                        }
                     }
                 }
             },
             || {
-                let (mapper, carver) = &mut *link.borrow_mut();
+                let (mapper, carver, lag) = &mut *link.borrow_mut();
                 mapper.restart();
                 if let Some(carver) = carver {
                     carver.restart();
+                }
+                if let Some(lag) = lag {
+                    lag.restart();
                 }
             },
         );
@@ -316,6 +335,12 @@ impl Link {
 
     /// The final map: every cluster refitted from its final moments.
     pub fn finish(&mut self) -> HostMap {
+        if let Some(lag) = &mut self.lag {
+            let (mapper, carving) = (&mut self.mapper, &mut self.carving);
+            lag.finish(&mut |sensor, p, seen_through| {
+                take_point(mapper, carving, sensor, p, seen_through)
+            });
+        }
         if let Some(carving) = &mut self.carving {
             carving.end_scan(&mut self.mapper);
         }
@@ -330,6 +355,26 @@ impl Link {
             map.free_space = carving.images_at(origin, map.origin);
         }
         map
+    }
+}
+
+/// A point of a scan seen from `sensor` into the mapper, unless later scans saw through it, and
+/// into the carving's image of that scan (a new scan if `sensor` is not the current one's).
+fn take_point(
+    mapper: &mut HostStreamMapper,
+    carving: &mut Option<Carving<MAX_CLUSTERS>>,
+    sensor: Point3,
+    p: Point3,
+    seen_through: bool,
+) {
+    if let Some(carving) = carving {
+        carving.sensor_at(sensor, mapper);
+    }
+    if !seen_through {
+        mapper.add(p);
+    }
+    if let Some(carving) = carving {
+        carving.add_return(p);
     }
 }
 
