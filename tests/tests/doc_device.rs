@@ -146,10 +146,6 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/board.md",
-        "map is written in f32 records ({ORIENTED_LEN} bytes an entity)",
-    ),
-    (
-        "docs/board.md",
         "take at {CPU_MHZ} MHz and 1.5 cycles an instruction:",
     ),
     (
