@@ -16,8 +16,8 @@ trap 'rm -rf "$work"' EXIT
 chamfer() { "$mema" eval "$1" "$2" --json 2>/dev/null | python3 -c 'import sys,json; print(json.load(sys.stdin)["chamfer"])'; }
 echo "| input | streamed Chamfer | batch Chamfer | streamed / batch |"
 echo "|---|---|---|---|"
-for input in car6.pcd cturtle.pcd five_people.pcd lamppost.pcd milk.pcd office1.pcd rops_cloud.pcd \
-    autzen_trim.laz simple.las vegetation_1_3.las bun_zipper.ply bun.conf ouster_os1.conf; do
+for path in "$data"/*.{ply,pcd,las,laz,conf}; do
+  input=$(basename "$path")
   case $input in
     *.conf) "$mema" scanner-sim --conf "$data/$input" --port "$work/capture.bin" >/dev/null 2>&1 ;;
     *) "$mema" scanner-sim "$data/$input" --port "$work/capture.bin" >/dev/null 2>&1 ;;
