@@ -173,24 +173,20 @@ fn paper_and_shell_maps_keep_within_their_bytes_in_their_versions() {
 #[test]
 fn info_says_why_a_streamed_map_is_not_quantized() {
     let dir = Dir::new("not-quantized");
-    MemaCommand::new(&dir)
-        .args(["map", &shared("simple.las").display().to_string()])
-        .args([
-            "-k",
-            "400",
-            "--stream",
-            "--working",
-            "150",
-            "-o",
-            "f32.mema",
-        ])
-        .run()
-        .assert_ok();
-    let info = MemaCommand::new(&dir)
-        .args(["info", "f32.mema", "--json"])
-        .run()
-        .assert_ok()
-        .json();
+    // `cloud` streamed at the board's working set; `mema info --json` of the map in `out`.
+    let streamed_info = |cloud: &str, out: &str| {
+        MemaCommand::new(&dir)
+            .args(["map", &shared(cloud).display().to_string()])
+            .args(["-k", "400", "--stream", "--working", "150", "-o", out])
+            .run()
+            .assert_ok();
+        MemaCommand::new(&dir)
+            .args(["info", out, "--json"])
+            .run()
+            .assert_ok()
+            .json()
+    };
+    let info = streamed_info("simple.las", "f32.mema");
     assert_eq!(info["layout"], "version 2, oriented f32", "{info}");
     let why = info["not_quantized"].as_str().expect("a reason");
     let map = HostMap::read(&dir.join("f32.mema")).expect("the map");
@@ -220,24 +216,7 @@ fn info_says_why_a_streamed_map_is_not_quantized() {
         )),
         "{why}"
     );
-    MemaCommand::new(&dir)
-        .args(["map", &shared("five_people.pcd").display().to_string()])
-        .args([
-            "-k",
-            "400",
-            "--stream",
-            "--working",
-            "150",
-            "-o",
-            "quantized.mema",
-        ])
-        .run()
-        .assert_ok();
-    let info = MemaCommand::new(&dir)
-        .args(["info", "quantized.mema", "--json"])
-        .run()
-        .assert_ok()
-        .json();
+    let info = streamed_info("five_people.pcd", "quantized.mema");
     assert!(info["not_quantized"].is_null(), "{info}");
 }
 
