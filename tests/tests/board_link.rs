@@ -28,6 +28,13 @@ impl Drop for Killed {
     }
 }
 
+/// How long a test's `mema device` waits through the board's silence (`--idle-timeout`, s):
+/// QEMU behind CPU-bound tests on two cores has left the board quiet for over the default 30 s
+/// (board_sensor's listener, car6, shells: 103 frames heard, then nothing, in one of two runs
+/// beside four busy loops; the same runs took 8 s a session unloaded and 21 s loaded with
+/// this bound). A board that hangs still fails, later.
+pub(crate) const BOARD_IDLE_TIMEOUT: &str = "120";
+
 /// One board under QEMU at a time: the reset-mid-session case (board_sessions.rs) went silent
 /// after its reset when another board ran beside it on the two cores CI has.
 static ONE_BOARD: std::sync::Mutex<()> = std::sync::Mutex::new(());

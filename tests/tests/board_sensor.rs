@@ -13,7 +13,7 @@ use std::time::Duration;
 use mema::link::session::stream_counts;
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
-use crate::board_link::{Killed, board_image, open, relay, start_board};
+use crate::board_link::{BOARD_IDLE_TIMEOUT, Killed, board_image, open, relay, start_board};
 use crate::board_sessions::finished;
 use crate::device::{capture_and_replay, replay};
 use crate::guides::{says, thousands};
@@ -40,7 +40,8 @@ fn listen_to(
         .arg(listen)
         .arg("-o")
         .arg(out)
-        .args(["--json", "--queries", &queries.to_string()])
+        .args(["--json", "--idle-timeout", BOARD_IDLE_TIMEOUT])
+        .args(["--queries", &queries.to_string()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
-use crate::board_link::{Killed, board_image, start_board};
+use crate::board_link::{BOARD_IDLE_TIMEOUT, Killed, board_image, start_board};
 use crate::device::capture_and_replay;
 use crate::util::{Dir, mema_bin};
 
@@ -31,7 +31,7 @@ pub(crate) fn session(
         .arg(capture)
         .arg("-o")
         .arg(out)
-        .arg("--json")
+        .args(["--json", "--idle-timeout", BOARD_IDLE_TIMEOUT])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
