@@ -9,8 +9,7 @@ use mema::io::drive::{drive, room, walking};
 use mema::link::scanner::{SensorScan, send_scans};
 use mema_firmware::{BOARD_FROZEN, BOARD_WORKING};
 
-use crate::board_link::{board_image, open, relay, start_board};
-use crate::stream::PtyPair;
+use crate::board_link::{board_image, relayed_session, start_board};
 use crate::util::{Dir, MemaCommand};
 
 /// Pieces each stop's scan is sent in, each after the stop's pose: one scan to the carver (one
@@ -68,10 +67,7 @@ fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
     let image = board_image("shells");
     let mut retracted = 0;
     for (seed, faulty) in [(0u64, false), (5, true)] {
-        let (qemu, ptys) = start_board(&dir, &image, None, 1);
-        let board = open(&ptys[0]);
-        let pair = PtyPair::new(&dir);
-        let near = open(&pair.a);
+        let (board, ptys) = start_board(&dir, &image, None, 1);
         // One byte in 2,000 faulty on the way down, one in 4,000 up (as board_link's line);
         // none on the clean run.
         let (down_rate, up_rate) = if faulty {
@@ -79,15 +75,15 @@ fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
         } else {
             (u32::MAX, u32::MAX)
         };
-        let down = relay(
-            board.try_clone().expect("clone"),
-            near.try_clone().expect("clone"),
-            seed,
-            down_rate,
-        );
-        let up = relay(near, board, seed.wrapping_add(1), up_rate);
         let out = dir.join(&format!("board-{seed}.mema"));
-        let (ok, summary, stderr) = crate::board_sessions::session(&pair.b, &capture, &out, None);
+        let ((ok, summary, stderr), _) = relayed_session(
+            &dir,
+            board,
+            &ptys[0],
+            &capture,
+            &out,
+            ((seed, down_rate), (seed.wrapping_add(1), up_rate)),
+        );
         assert!(ok, "seed {seed}: {stderr}");
         eprintln!("seed {seed}: {summary}");
         let map = std::fs::read(&out).expect("the board's map");
@@ -97,9 +93,6 @@ fn the_boards_retractions_through_a_faulty_line_give_the_replay_map() {
         if faulty {
             assert!(count("refused") + count("lost") > 0, "no fault: {summary}");
         }
-        drop(pair);
-        drop(qemu);
-        let _ = (up.join(), down.join());
     }
     assert!(retracted > 0, "the board retracted nothing");
 }

@@ -28,6 +28,38 @@ impl Drop for Killed {
     }
 }
 
+/// A faulty line, one way: its seed and how rarely it faults (one byte in `one_in`;
+/// `u32::MAX`: clean).
+pub(crate) type Faults = (u64, u32);
+
+/// `mema device` sending `capture` to the board at `board_pty` through a relay that corrupts
+/// bytes on the way down (board to host) and up as `down` and `up` say: the session's status,
+/// summary and stderr, and the faults each way, once the board and the relays have stopped.
+pub(crate) fn relayed_session(
+    dir: &Dir,
+    board: Board,
+    board_pty: &Path,
+    capture: &Path,
+    out: &Path,
+    (down, up): (Faults, Faults),
+) -> ((bool, serde_json::Value, String), (u64, u64)) {
+    let pair = PtyPair::new(dir);
+    let line = open(board_pty);
+    let near = open(&pair.a);
+    let to_host = relay(
+        line.try_clone().expect("clone"),
+        near.try_clone().expect("clone"),
+        down.0,
+        down.1,
+    );
+    let to_board = relay(near, line, up.0, up.1);
+    let session = crate::board_sessions::session(&pair.b, capture, out, None);
+    drop(pair);
+    drop(board);
+    let faults = |relay: std::thread::JoinHandle<(u64, Vec<u8>)>| relay.join().map_or(0, |r| r.0);
+    (session, (faults(to_host), faults(to_board)))
+}
+
 /// How long a test's `mema device` waits through the board's silence (`--idle-timeout`, s):
 /// QEMU behind CPU-bound tests on two cores has left the board quiet for over the default 30 s
 /// (board_sensor's listener, car6, shells: 103 frames heard, then nothing, in one of two runs
@@ -172,21 +204,18 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
     let image = board_image("shells");
     let mut asked_again = 0;
     for seed in [3u64, 11] {
-        let (qemu, ptys) = start_board(&dir, &image, None, 1);
-        let board_pty = &ptys[0];
-        let pair = PtyPair::new(&dir);
-        let board = open(board_pty);
-        let near = open(&pair.a);
-        // Down (board to host) one byte in 2,000, up one in 4,000: tens of faults each way.
-        let down = relay(
-            board.try_clone().expect("clone"),
-            near.try_clone().expect("clone"),
-            seed,
-            DOWN,
-        );
-        let up = relay(near, board, seed.wrapping_mul(0x9E37_79B9_7F4A_7C15), UP);
+        let (board, ptys) = start_board(&dir, &image, None, 1);
         let out = dir.join(&format!("board-{seed}.mema"));
-        let (ok, summary, stderr) = crate::board_sessions::session(&pair.b, &capture, &out, None);
+        // Down (board to host) one byte in 2,000, up one in 4,000: tens of faults each way.
+        let up_seed = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let ((ok, summary, stderr), (down, up)) = relayed_session(
+            &dir,
+            board,
+            &ptys[0],
+            &capture,
+            &out,
+            ((seed, DOWN), (up_seed, UP)),
+        );
         assert!(ok, "seed {seed}: {stderr}");
         let map = std::fs::read(&out).expect("the board's map");
         assert!(
@@ -206,11 +235,6 @@ fn a_faulty_line_both_ways_still_gives_the_replay_map() {
             "seed {seed}: {summary}"
         );
         asked_again += count("asked_again") + count("ends_asked");
-        drop(pair);
-        drop(qemu);
-        let faults =
-            |relay: std::thread::JoinHandle<(u64, Vec<u8>)>| relay.join().map_or(0, |r| r.0);
-        let (up, down) = (faults(up), faults(down));
         assert!(
             up > 0 && down > 0,
             "seed {seed}: {up} faults up, {down} down"

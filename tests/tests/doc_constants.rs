@@ -39,7 +39,7 @@ use mema_firmware::{
 };
 use mema_firmware_sim::pacing::LINK_BYTES_PER_S;
 
-use crate::guides::{each_says, thousands};
+use crate::guides::{each_says, thousands, word};
 use crate::util::mema_bin;
 
 /// (guide, template)
@@ -417,16 +417,6 @@ const STATED: &[(&str, &str)] = &[
 ];
 
 /// The code's value of a constant, as the guides write it.
-/// A small count as the guides write it.
-fn word(n: usize) -> String {
-    match n {
-        1 => "one".into(),
-        2 => "two".into(),
-        3 => "three".into(),
-        n => n.to_string(),
-    }
-}
-
 fn value(name: &str) -> String {
     let count = |n: usize| thousands(n as u64);
     match name {

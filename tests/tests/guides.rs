@@ -117,6 +117,16 @@ pub fn documents() -> Vec<(String, String)> {
         .collect()
 }
 
+/// A small count as the guides write it: a word up to three.
+pub fn word(n: usize) -> String {
+    match n {
+        1 => "one".into(),
+        2 => "two".into(),
+        3 => "three".into(),
+        n => n.to_string(),
+    }
+}
+
 /// A figure as the script prints it: thousands separated by commas.
 pub fn thousands(n: u64) -> String {
     let digits = n.to_string();
