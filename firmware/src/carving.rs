@@ -33,10 +33,6 @@ pub trait Carving {
 
     /// The map started again, or RAM was lost: the scan under way is forgotten uncarved.
     fn restart(&mut self);
-
-    /// The lowest frozen slot below `below` that holds another entity than the downlink sent
-    /// from it (the last frozen entity moved in when one was carved), its mark taken.
-    fn take_changed(&mut self, below: usize) -> Option<usize>;
 }
 
 /// No carving.
@@ -58,13 +54,9 @@ impl Carving for () {
     }
 
     fn restart(&mut self) {}
-
-    fn take_changed(&mut self, _: usize) -> Option<usize> {
-        None
-    }
 }
 
-impl<const N: usize, const FC: usize> Carving for Carver<N, FC> {
+impl<const N: usize> Carving for Carver<N> {
     fn step<const K: usize, const G: usize, const F: usize>(
         &mut self,
         sensor: Point3,
@@ -86,10 +78,6 @@ impl<const N: usize, const FC: usize> Carving for Carver<N, FC> {
 
     fn restart(&mut self) {
         Carver::restart(self);
-    }
-
-    fn take_changed(&mut self, below: usize) -> Option<usize> {
-        Carver::take_changed(self, below)
     }
 }
 
@@ -116,9 +104,5 @@ impl<T: Carving> Carving for &mut T {
 
     fn restart(&mut self) {
         (**self).restart();
-    }
-
-    fn take_changed(&mut self, below: usize) -> Option<usize> {
-        (**self).take_changed(below)
     }
 }

@@ -84,9 +84,9 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         }
     }
 
-    /// What carving changed of the frozen entities already sent: slots the map no longer has
-    /// are retracted (the highest first), and slots that hold another entity now are sent
-    /// again, so the host's copy is the device's.
+    /// What carving and coarsening changed of the frozen entities already sent: slots the map
+    /// no longer has are retracted (the highest first), and slots that hold another entity now
+    /// are sent again, so the host's copy is the device's.
     fn send_carved(&mut self, sink: &mut impl FnMut(&[u8])) {
         let frozen = self.mapper.frozen().len();
         while self.down.sent_frozen > frozen {
@@ -94,7 +94,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
             let index = self.down.sent_frozen as u32;
             self.down.send(&DownFrame::Retract { index }, sink);
         }
-        while let Some(index) = self.carving.take_changed(self.down.sent_frozen) {
+        while let Some(index) = self.mapper.take_changed(self.down.sent_frozen) {
             if let Some(entity) = self.mapper.frozen_entity(index) {
                 self.down.send_entity(index, entity, sink);
             }

@@ -289,7 +289,7 @@ fn a_silent_or_babbling_device_ends_the_session_without_a_map() {
 /// always the CRC-32 residue, passed it). The host's map is `mema replay`'s.
 #[test]
 fn a_carving_device_keeps_the_hosts_copy_through_retractions() {
-    type BoardCarver = mema_core::stream::Carver<BOARD_CARVE_PIXELS, BOARD_FROZEN>;
+    type BoardCarver = mema_core::stream::Carver<BOARD_CARVE_PIXELS>;
     let dir = Dir::new("session-carving");
     let stream = crate::board_carving::walking_in_pieces();
     let capture = dir.write("walking.bin", &stream);

@@ -98,10 +98,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 }
 
 /// A stream's scans, one at a time, as range images in fixed memory (`N` pixels at most), and
-/// the carving each one does when it ends: of the working clusters, and of the first `F`
-/// frozen entities ([`frozen`]).
+/// the carving each one does when it ends: of the working clusters, and of the frozen
+/// entities ([`frozen`]).
 #[derive(Clone, Debug)]
-pub struct Carver<const N: usize, const F: usize = 0> {
+pub struct Carver<const N: usize> {
     image: RangeImage<N>,
     /// The range each code stands for in the image ([`range_of`] at its `near`): a return's
     /// code is found among them by bisection, and a pixel's range read from them, where
@@ -112,10 +112,6 @@ pub struct Carver<const N: usize, const F: usize = 0> {
     scan_start: Option<u64>,
     /// An ended scan's judgement under way ([`Carver::step`]).
     judging: Option<Judging>,
-    /// Each frozen entity's slot: scans in a row that saw through it, and [`frozen::CHANGED`].
-    frozen: [u8; F],
-    /// Whether a slot may be marked changed.
-    changed: bool,
     /// Returns a scan's image takes: each one (1), or every so many ([`Carver::sample`]).
     every: u16,
     /// Returns of the scan since the last one the image took.
@@ -137,7 +133,7 @@ impl Judging {
     };
 }
 
-impl<const N: usize, const F: usize> Carver<N, F> {
+impl<const N: usize> Carver<N> {
     /// A carver whose images look as `geometry` says from each scan's sensor origin (its
     /// `origin` is replaced); `None` if the image has more than `N` pixels.
     pub fn new(geometry: Geometry) -> Option<Self> {
@@ -165,8 +161,6 @@ impl<const N: usize, const F: usize> Carver<N, F> {
             ranges: [0.0; CODES],
             scan_start: None,
             judging: None,
-            frozen: [0; F],
-            changed: false,
             every: 1,
             passed: 0,
         }
@@ -188,10 +182,10 @@ impl<const N: usize, const F: usize> Carver<N, F> {
     /// The points that follow were seen from `sensor` (the map's frame): if the scan so far was
     /// seen from elsewhere, it ends (it carves `mapper`) and a new scan begins. Returns how many
     /// clusters the ended scan carved.
-    pub fn sensor_at<const K: usize, const G: usize, const FM: usize>(
+    pub fn sensor_at<const K: usize, const G: usize, const F: usize>(
         &mut self,
         sensor: Point3,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> usize {
         if !self.begins_scan(sensor) {
@@ -207,11 +201,11 @@ impl<const N: usize, const F: usize> Carver<N, F> {
     /// scan before, if any, judged in full and the new one begun); false while the ended scan's
     /// judgement goes on (step again with the same `sensor`, nothing mapped in between). The
     /// steps carve what one [`Carver::sensor_at`] does.
-    pub fn step<const K: usize, const G: usize, const FM: usize>(
+    pub fn step<const K: usize, const G: usize, const F: usize>(
         &mut self,
         sensor: Point3,
         most: usize,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> bool {
         if self.judging.is_none() && !self.begins_scan(sensor) {
@@ -230,12 +224,12 @@ impl<const N: usize, const F: usize> Carver<N, F> {
 
     /// Judges at most `most` clusters and entities of the scan that began at `start` from
     /// where `judging` stands: where it stands after, or `None` once all are judged.
-    fn judge<const K: usize, const G: usize, const FM: usize>(
+    fn judge<const K: usize, const G: usize, const F: usize>(
         &mut self,
         start: u64,
         mut judging: Judging,
         most: usize,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> Option<Judging> {
         let mut left = most;
@@ -274,10 +268,10 @@ impl<const N: usize, const F: usize> Carver<N, F> {
 
     /// Begins a scan seen from `sensor` (the current one, if any, ends without carving: call
     /// [`Carver::end_scan`] first).
-    pub fn begin_scan<const K: usize, const G: usize, const FM: usize>(
+    pub fn begin_scan<const K: usize, const G: usize, const F: usize>(
         &mut self,
         sensor: Point3,
-        mapper: &StreamMapper<K, G, FM>,
+        mapper: &StreamMapper<K, G, F>,
     ) {
         let geometry = Geometry {
             origin: sensor,
@@ -342,9 +336,9 @@ impl<const N: usize, const F: usize> Carver<N, F> {
 
     /// Ends the current scan (the stream ended, or the next points have no sensor origin): it
     /// carves `mapper`. Returns how many clusters it carved.
-    pub fn end_scan<const K: usize, const G: usize, const FM: usize>(
+    pub fn end_scan<const K: usize, const G: usize, const F: usize>(
         &mut self,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
         observer: &mut impl Observer,
     ) -> usize {
         let judging = self.judging.take().unwrap_or(Judging::ALL);
@@ -360,8 +354,6 @@ impl<const N: usize, const F: usize> Carver<N, F> {
     pub fn restart(&mut self) {
         self.scan_start = None;
         self.judging = None;
-        self.frozen = [0; F];
-        self.changed = false;
     }
 
     /// Whether the current scan saw through `cluster` (see the module's documentation).

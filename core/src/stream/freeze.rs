@@ -63,10 +63,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Frees a working slot by freezing the longest-idle cluster, if there is room for another
-    /// frozen entity and that cluster has been idle for [`IDLE_TURNOVERS`] turnovers. Returns
-    /// whether a slot was freed; otherwise the caller merges.
+    /// frozen entity (a full store of shells makes one, [`super::coarsen`]) and that cluster
+    /// has been idle for [`IDLE_TURNOVERS`] turnovers. Returns whether a slot was freed;
+    /// otherwise the caller merges.
     pub(super) fn freeze_one(&mut self, observer: &mut impl Observer) -> bool {
-        if self.frozen.len() >= self.params.max_frozen.min(F) || self.params.tolerance > 0.0 {
+        if self.params.max_frozen.min(F) == 0 || self.params.tolerance > 0.0 {
             return false;
         }
         let mut pick: Option<(usize, u32)> = None;
@@ -81,6 +82,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         };
         if u64::from(idle) < IDLE_TURNOVERS * self.limit() as u64 {
+            return false;
+        }
+        if self.store_full() && !self.coarsen_one() {
             return false;
         }
         let stream = FROZEN_STREAMS | self.frozen.len() as u64;

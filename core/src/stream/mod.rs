@@ -24,13 +24,16 @@ use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
 pub mod carve;
+mod coarsen;
 pub mod freeze;
 mod merge;
 mod observe;
 pub mod pacing;
 mod pairs;
 pub mod shells;
+mod slots;
 pub use carve::Carver;
+pub use coarsen::{MOST_MEASURED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;
 pub use merge::PLANAR_WARD;
 pub use observe::Observer;
@@ -147,6 +150,8 @@ pub struct StreamStats {
     /// Points that joined their nearest centre beyond the join radius because the pacing's
     /// credit could not pay for room ([`pacing`]).
     pub paced_joins: u64,
+    /// Pairs of frozen entities merged to make room for another ([`coarsen`]).
+    pub coarsened: u64,
     /// Working clusters carved: seen through by later scans ([`carve`]).
     pub carved: u64,
 }
@@ -157,6 +162,9 @@ pub struct StreamStats {
 pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     clusters: heapless::Vec<StreamCluster, K>,
     frozen: heapless::Vec<FrozenEntity, F>,
+    /// Each frozen slot's marks, moved with its entity.
+    marks: slots::SlotMarks<F>,
+    coarsening: coarsen::Coarsening,
     grid: CentreGrid<K, G>,
     radius: f32,
     /// The cluster the last point went to: a scan's next point is likely nearest to it, and
@@ -199,6 +207,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         Self {
             clusters: heapless::Vec::new(),
             frozen: heapless::Vec::new(),
+            marks: slots::SlotMarks::new(),
+            coarsening: coarsen::Coarsening::new(),
             grid: CentreGrid::new(f32::MIN_POSITIVE),
             radius: 0.0,
             recent: 0,
@@ -214,6 +224,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 forced_merges: 0,
                 frozen: 0,
                 paced_joins: 0,
+                coarsened: 0,
                 carved: 0,
             },
         }
@@ -225,6 +236,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub fn restart(&mut self) {
         self.clusters.clear();
         self.frozen.clear();
+        self.marks.clear();
+        self.coarsening = coarsen::Coarsening::new();
         self.grid.rebuild(f32::MIN_POSITIVE, core::iter::empty());
         self.radius = 0.0;
         self.recent = 0;
@@ -313,9 +326,27 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     #[inline(never)]
     fn make_room(&mut self, observer: &mut impl Observer) -> bool {
         let pacing = self.params.pacing;
-        if self.credit >= pacing.freeze && self.freeze_one(observer) {
-            self.credit -= pacing.freeze;
-            return true;
+        // A freeze into a full store of shells first merges two frozen shells, a shell's fit
+        // like the freeze's own, and scans for candidates when the last scan's are spent, a
+        // fit's price more ([`coarsen::MOST_MEASURED`]).
+        let scan = pacing.freeze;
+        let freeze = match (
+            self.store_full() && self.coarsens(),
+            self.coarsening.spent(),
+        ) {
+            (false, _) => pacing.freeze,
+            (true, false) => pacing.freeze.saturating_mul(2),
+            (true, true) => pacing.freeze.saturating_mul(2).saturating_add(scan),
+        };
+        if self.credit >= freeze {
+            let scans = self.coarsening.scans();
+            if self.freeze_one(observer) {
+                self.credit -= freeze;
+                return true;
+            }
+            if self.coarsening.scans() != scans {
+                self.credit -= scan.min(self.credit);
+            }
         }
         if self.credit >= pacing.merge_pass {
             self.credit -= pacing.merge_pass;
@@ -323,6 +354,21 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return true;
         }
         false
+    }
+
+    /// Grows the join radius to `r` if that is wider, with the grid's cells (a cell is two
+    /// radii, so the nearest centre within the radius is found within half a cell).
+    fn widen_radius(&mut self, r: f32) {
+        if !(r > self.radius) {
+            return;
+        }
+        self.radius = r;
+        if self.radius * 2.0 > self.grid.cell() {
+            self.stats.grid_rebuilds += 1;
+            let cell = (self.radius * 2.0).max(f32::MIN_POSITIVE);
+            self.grid
+                .rebuild(cell, self.clusters.iter().map(|c| c.center));
+        }
     }
 
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {
@@ -494,9 +540,30 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Removes frozen entity `index` by swap-remove (the last takes its slot), a carving's
     /// removal: counted in [`StreamStats::carved`]. False if there is none.
     pub(crate) fn remove_frozen(&mut self, index: usize) -> bool {
+        let last = self.frozen.len().saturating_sub(1);
         let removed = crate::num::swap_remove(&mut self.frozen, index);
+        if removed {
+            self.marks.swap_removed(index, last);
+            self.coarsening.forget();
+        }
         self.stats.carved += u64::from(removed);
         removed
+    }
+
+    /// Scans in a row that saw through frozen entity `index` ([`carve`]).
+    pub(crate) fn seen_through_count(&self, index: usize) -> u8 {
+        self.marks.count(index)
+    }
+
+    pub(crate) fn set_seen_through_count(&mut self, index: usize, count: u8) {
+        self.marks.set_count(index, count);
+    }
+
+    /// The lowest frozen slot below `below` that holds another entity than a downlink last sent
+    /// from it (a carving or a coarsening changed it), its mark taken: a downlink that had sent
+    /// the slot sends what it holds now.
+    pub fn take_changed(&mut self, below: usize) -> Option<usize> {
+        self.marks.take_changed(below)
     }
 
     /// Ends the stream: every cluster refitted from its final moments, with seeds that depend on

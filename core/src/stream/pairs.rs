@@ -5,6 +5,7 @@ pub const MAX_MERGE_BATCH: usize = 32;
 
 /// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
 /// is independent of visiting order.
+#[derive(Clone, Debug)]
 pub(super) struct ClosestPairs {
     pairs: [(f32, usize, usize); MAX_MERGE_BATCH],
     pub(super) len: usize,
@@ -13,10 +14,22 @@ pub(super) struct ClosestPairs {
 
 impl ClosestPairs {
     pub(super) fn new(wanted: usize) -> Self {
+        Self::new_const(wanted)
+    }
+
+    /// [`ClosestPairs::new`] for a `const fn` (a mapper built in a static).
+    pub(super) const fn new_const(wanted: usize) -> Self {
+        let wanted = if wanted < 1 {
+            1
+        } else if wanted > MAX_MERGE_BATCH {
+            MAX_MERGE_BATCH
+        } else {
+            wanted
+        };
         Self {
             pairs: [(0.0, 0, 0); MAX_MERGE_BATCH],
             len: 0,
-            wanted: wanted.clamp(1, MAX_MERGE_BATCH),
+            wanted,
         }
     }
 

@@ -13,27 +13,25 @@ use crate::io::free_space::{COLUMNS, FreeImage, ROWS, image_from, kept_scans};
 /// degrees left 5.3 % of the ghost on surface, 0.35 degrees 4.4 %).
 pub const CARVE_IMAGE: [u16; 2] = [512, 1024];
 
-/// The carver of a host's stream (512 KiB): images of [`CARVE_IMAGE`] pixels or fewer, and
-/// the counts of up to `F` frozen entities (the stream's bound on them).
-pub type HostCarver<const F: usize> =
-    Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }, F>;
+/// The carver of a host's stream (512 KiB): images of [`CARVE_IMAGE`] pixels or fewer.
+pub type HostCarver = Carver<{ CARVE_IMAGE[0] as usize * CARVE_IMAGE[1] as usize }>;
 
 /// The carver and the images of the scans it ended, in the frame of the receiver's origin.
-pub struct Carving<const F: usize> {
-    carver: Box<HostCarver<F>>,
+pub struct Carving {
+    carver: Box<HostCarver>,
     images: Vec<FreeImage>,
     /// Whether the map keeps free space: each ended scan's image is kept (a device's map
     /// keeps none).
     keep_images: bool,
 }
 
-impl<const F: usize> Carving<F> {
+impl Carving {
     /// A carving with whole-sphere images of `[rows, columns]` pixels (at most
     /// [`CARVE_IMAGE`]'s count; `None` otherwise) taking every `every`-th return of a scan
     /// ([`Carver::sample`]), keeping each scan's image for the map's free space if
     /// `keep_images`.
     pub fn new([rows, columns]: [u16; 2], every: u16, keep_images: bool) -> Option<Self> {
-        let mut carver = Box::new(HostCarver::<F>::whole_sphere(rows, columns)?);
+        let mut carver = Box::new(HostCarver::whole_sphere(rows, columns)?);
         carver.sample(every);
         Some(Self {
             carver,
@@ -44,10 +42,10 @@ impl<const F: usize> Carving<F> {
 
     /// The points that follow were seen from `sensor`: a new scan if it is not the current
     /// one's, which then ends.
-    pub fn sensor_at<const K: usize, const G: usize, const FM: usize>(
+    pub fn sensor_at<const K: usize, const G: usize, const F: usize>(
         &mut self,
         sensor: Point3,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
     ) {
         if self.carver.begins_scan(sensor) {
             self.end_scan(mapper);
@@ -60,9 +58,9 @@ impl<const F: usize> Carving<F> {
     }
 
     /// Ends the current scan, if one is under way: it carves `mapper`, and its image is kept.
-    pub fn end_scan<const K: usize, const G: usize, const FM: usize>(
+    pub fn end_scan<const K: usize, const G: usize, const F: usize>(
         &mut self,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
     ) {
         let scanning = self.carver.scanning();
         self.carver.end_scan(mapper, &mut ());

@@ -218,7 +218,7 @@ pub struct Link {
     pub mapper: Box<HostStreamMapper>,
     /// Carving, when on ([`Link::carving`]): each scan's image judges the clusters it saw
     /// through, and is kept as the map's free space.
-    pub carving: Option<Carving<MAX_CLUSTERS>>,
+    pub carving: Option<Carving>,
     /// With free space kept ([`Link::carving`]): the scans held until later ones have judged
     /// their points.
     pub lag: Option<ScanLag>,
@@ -362,7 +362,7 @@ impl Link {
 /// into the carving's image of that scan (a new scan if `sensor` is not the current one's).
 fn take_point(
     mapper: &mut HostStreamMapper,
-    carving: &mut Option<Carving<MAX_CLUSTERS>>,
+    carving: &mut Option<Carving>,
     sensor: Point3,
     p: Point3,
     seen_through: bool,

@@ -8,7 +8,8 @@
 //! count again; one with no return near it, or whose axis ends it did not see through, leaves
 //! the count as it is. [`SEEN_THROUGH`]
 //! counts and it leaves the map, the last frozen entity taking its slot: the slot is marked
-//! changed, so a downlink that sent the slot sends it again ([`Carver::take_changed`]).
+//! changed, so a downlink that sent the slot sends it again
+//! ([`StreamMapper::take_changed`]).
 
 use super::direction::square_root;
 use super::{Carver, SEEN_THROUGH, Sight};
@@ -18,10 +19,6 @@ use crate::stream::{FrozenEntity, StreamMapper};
 /// Axis ends tested, as a fraction of the semi-axis.
 const AXIS_REACH: f32 = 0.75;
 
-/// A frozen slot's byte: its count in the low bits, and this bit once the slot holds another
-/// entity than the one the downlink last sent from it.
-pub(super) const CHANGED: u8 = 0x80;
-
 /// What a scan saw of a frozen entity.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Verdict {
@@ -30,80 +27,29 @@ enum Verdict {
     Unknown,
 }
 
-impl<const N: usize, const F: usize> Carver<N, F> {
+impl<const N: usize> Carver<N> {
     /// Judges frozen entity `index` by the scan that ended, and removes it at its
     /// [`SEEN_THROUGH`]th count.
-    pub(super) fn judge_frozen<const K: usize, const G: usize, const FM: usize>(
-        &mut self,
+    pub(super) fn judge_frozen<const K: usize, const G: usize, const F: usize>(
+        &self,
         index: usize,
-        mapper: &mut StreamMapper<K, G, FM>,
+        mapper: &mut StreamMapper<K, G, F>,
     ) {
         let Some(entity) = mapper.frozen().get(index) else {
             return;
         };
         let verdict = self.verdict(entity);
-        let Some(slot) = self.frozen.get_mut(index) else {
-            // More frozen entities than this carver counts for: never carved.
-            return;
-        };
-        let count = *slot & !CHANGED;
+        let count = mapper.seen_through_count(index);
         let count = match verdict {
             Verdict::Through => count.saturating_add(1),
             Verdict::Seen => 0,
             Verdict::Unknown => count,
         };
         if count < SEEN_THROUGH {
-            *slot = (*slot & CHANGED) | count;
+            mapper.set_seen_through_count(index, count);
             return;
         }
-        let last = mapper.frozen().len().saturating_sub(1);
-        if !mapper.remove_frozen(index) {
-            return;
-        }
-        // The slots as the mapper's swap-remove left them. The vacated last slot is marked
-        // too: an entity that freezes into it before the downlink looks again is new to a host
-        // that holds the slot's old one.
-        let moved = self.frozen.get(last).copied().unwrap_or(0);
-        if let Some(vacated) = self.frozen.get_mut(last) {
-            *vacated = CHANGED;
-        }
-        if index < last
-            && let Some(slot) = self.frozen.get_mut(index)
-        {
-            *slot = moved | CHANGED;
-        }
-        self.changed = true;
-    }
-
-    /// The lowest frozen slot below `below` marked changed since it was last sent, its mark
-    /// taken: a downlink that had sent the slot sends what it holds now.
-    pub fn take_changed(&mut self, below: usize) -> Option<usize> {
-        if !self.changed {
-            return None;
-        }
-        let end = below.min(F);
-        let found = self
-            .frozen
-            .get(..end)?
-            .iter()
-            .position(|s| s & CHANGED != 0);
-        match found {
-            Some(i) => {
-                if let Some(slot) = self.frozen.get_mut(i) {
-                    *slot &= !CHANGED;
-                }
-                Some(i)
-            }
-            None => {
-                // Marks at or past `below` are slots the downlink has not sent: sent whole
-                // when it does, so their marks go.
-                for slot in self.frozen.iter_mut() {
-                    *slot &= !CHANGED;
-                }
-                self.changed = false;
-                None
-            }
-        }
+        mapper.remove_frozen(index);
     }
 
     fn verdict(&self, e: &FrozenEntity) -> Verdict {

@@ -319,7 +319,7 @@ fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> Test
         pacing: Pacing::NONE,
         final_clusters: 0,
     });
-    let mut carver = Carver::<8192, 64>::whole_sphere(64, 128).or_fail("carver")?;
+    let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
     let [a, b, c, _] = sensors();
     let mut scan = |m: &mut Small, sensor: Point3, with_person: bool| {
         carver.sensor_at(sensor, m, &mut ());
@@ -348,7 +348,7 @@ fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> Test
     assert!(m.frozen().len() >= wall_before, "a wall entity was carved");
     assert!(m.stats().carved >= person_entities as u64);
     let mut changed = 0;
-    while carver.take_changed(m.frozen().len()).is_some() {
+    while m.take_changed(m.frozen().len()).is_some() {
         changed += 1;
     }
     assert!(changed <= person_entities, "{changed} slots changed");
@@ -393,7 +393,7 @@ fn a_frozen_entity_across_a_corner_stays() -> TestResult {
         ..mapper().params
     });
     m.frozen.push(frozen).or_fail("room")?;
-    let mut carver = Carver::<8192, 16>::whole_sphere(64, 128).or_fail("carver")?;
+    let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
     for sensor in sensors() {
         carver.sensor_at(sensor, &mut m, &mut ());
         for i in 0..200 {
@@ -409,7 +409,7 @@ fn a_frozen_entity_across_a_corner_stays() -> TestResult {
         ..mapper().params
     });
     open.frozen.push(frozen).or_fail("room")?;
-    let mut carver = Carver::<8192, 16>::whole_sphere(64, 128).or_fail("carver")?;
+    let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
     for sensor in sensors() {
         carver.sensor_at(sensor, &mut open, &mut ());
         for i in 0..200 {

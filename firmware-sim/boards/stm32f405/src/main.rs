@@ -80,7 +80,7 @@ static LINE_OVERRUNS: AtomicU32 = AtomicU32::new(0);
 /// (and while mapping is under way) rather than at every byte.
 static DELIMITERS: AtomicU32 = AtomicU32::new(0);
 
-type BoardCarver = Carver<BOARD_CARVE_PIXELS, F>;
+type BoardCarver = Carver<BOARD_CARVE_PIXELS>;
 type BoardFirmware = Firmware<K, G, F, &'static Ring<RX_CAPACITY>, &'static mut BoardCarver>;
 static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
 /// The carver, its range image filling the core-coupled RAM (`memory/*.x`: neither loaded nor

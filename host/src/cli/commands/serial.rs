@@ -165,6 +165,8 @@ pub struct StreamSummary {
     /// pacing could not pay for room (docs/firmware.md, "Longest tick, the link and pacing"): where the map is coarser than the
     /// points asked for.
     pub paced_joins: u64,
+    /// Pairs of frozen entities merged to make room (a device's layout).
+    pub coarsened: u64,
     /// Clusters carved with `--free-space`: later scans saw through them.
     pub carved: u64,
 }
@@ -236,6 +238,7 @@ fn summary(
             0.0
         },
         paced_joins: link.mapper.stats().paced_joins,
+        coarsened: link.mapper.stats().coarsened,
         carved: link.mapper.stats().carved,
     }
 }
@@ -260,6 +263,9 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
             ", {} points joined beyond the radius (paced)",
             s.paced_joins
         ));
+    }
+    if s.coarsened > 0 {
+        extra.push_str(&format!(", {} frozen pairs merged", s.coarsened));
     }
     if s.carved > 0 {
         extra.push_str(&format!(

@@ -1,0 +1,303 @@
+//! Coarsening: when a cluster is due to freeze and the frozen store is full, two frozen shells
+//! merge into one first, so the store keeps taking what the scan leaves behind.
+//!
+//! Why: the join radius starts at nothing and grows with the merges, so the first clusters a
+//! stream freezes are its finest, and a device's store used to fill within the first quarter of
+//! a frame (five_people at the board's layout: 630, 57, 35 and 26 entities nearest each quarter
+//! of its rows, against the batch map's 232, 214, 193 and 182); the rest of the frame then had
+//! only the working clusters, merged ever coarser. Merging the cheapest frozen pairs spreads the
+//! store over the whole stream at the resolution its capacity can afford, as the working set's
+//! merges do for the clusters.
+//!
+//! A frozen shell keeps no moments, so each stands for a patch whose mean is its centre and whose
+//! covariance its axes give back ([`crate::shell`] made them from it), weighed by its area (the
+//! product of its two longest semi-axes): a frozen entity keeps no point count, and one would
+//! cost the 64 KiB image a thousand bytes. Pairs are ranked by Ward's cost on those weights, the
+//! growth of the weighted squared distances to the centre, so the smallest, closest shells merge
+//! first, and only pairs within two join radii are candidates.
+//!
+//! A device's budget: a scan over the pairs measures at most [`MOST_MEASURED`] distances, going
+//! on from the row where the last one stopped, and keeps the cheapest [`MAX_MERGE_BATCH`] pairs;
+//! each freeze into a full store merges the next of them whose cost is unchanged to the bit (a
+//! merge or a carving since may have moved either slot), and a scan runs only once the list is
+//! spent, priced as a merge pass ([`super::Pacing`]).
+
+use super::pairs::{ClosestPairs, MAX_MERGE_BATCH};
+use super::{FrozenEntity, StreamMapper, StreamModel};
+use crate::geometry::Entity;
+use crate::map::record::rotation_of_code;
+use crate::shell::{ShellParams, shell};
+
+/// Most pair distances one scan measures, about a shell fit's work (a scan is priced as one):
+/// a whole store of 550 (the board's) is 151,000.
+pub const MOST_MEASURED: usize = 5_000;
+
+/// Candidates lie within this many join radii of each other.
+const REACH_RADII: f32 = 2.0;
+
+/// How the reach widens after a whole store's scan found no pair within it.
+const WIDEN: f32 = 1.25;
+
+/// The join radius grows to this share of a coarsening's merged distance: the working clusters
+/// then keep to the resolution the frozen store has come to.
+pub const RADIUS_SHARE: f32 = 0.5;
+
+/// Where coarsening stands: the last scan's candidates and where the next scan starts.
+#[derive(Clone, Debug)]
+pub(super) struct Coarsening {
+    pending: ClosestPairs,
+    /// The next candidate of `pending` to try.
+    next: usize,
+    /// The row the next scan starts from.
+    row: usize,
+    /// Rows scanned since a scan last found a candidate.
+    empty_rows: usize,
+    /// The reach in join radii: [`REACH_RADII`], widened by [`WIDEN`] whenever a whole store
+    /// had no pair within it.
+    reach: f32,
+    /// Scans so far (wrapping), for the pacing to price the ones that ran.
+    scans: u32,
+    /// Slots changed since the scan ([`Coarsening::touch`]); `usize::MAX` unused.
+    touched: [usize; TOUCHED],
+}
+
+/// Changed slots a list follows: three a merge, so a list of [`MAX_MERGE_BATCH`] pairs yields
+/// at most this many over three merges before it is stale.
+const TOUCHED: usize = 3 * 8;
+
+impl Coarsening {
+    pub(super) const fn new() -> Self {
+        Self {
+            pending: ClosestPairs::new_const(MAX_MERGE_BATCH),
+            next: 0,
+            row: 0,
+            empty_rows: 0,
+            reach: REACH_RADII,
+            scans: 0,
+            touched: [usize::MAX; TOUCHED],
+        }
+    }
+
+    /// Whether the candidates of the last scan are spent (a freeze into a full store then
+    /// scans first).
+    pub(super) fn spent(&self) -> bool {
+        self.next >= self.pending.len
+    }
+
+    pub(super) fn scans(&self) -> u32 {
+        self.scans
+    }
+
+    /// Slots whose entities changed since the scan: a listed pair with either is skipped.
+    pub(super) fn touch(&mut self, slots: [usize; 3]) {
+        for slot in slots {
+            if let Some(t) = self
+                .touched
+                .iter_mut()
+                .find(|t| **t == usize::MAX || **t == slot)
+            {
+                *t = slot;
+            } else {
+                // More changes than the list can follow: the rest of the list is stale.
+                self.next = self.pending.len;
+            }
+        }
+    }
+
+    /// Whether pair (a, b) holds other entities than when it was listed (a pair with a slot
+    /// past the store's end is gone by itself).
+    fn moved(&self, a: usize, b: usize) -> bool {
+        self.touched.iter().any(|&t| t == a || t == b)
+    }
+
+    /// A carving removed a frozen entity: the listed pairs may name moved slots.
+    pub(super) fn forget(&mut self) {
+        self.next = self.pending.len;
+    }
+}
+
+/// The area a frozen shell stands for, its two longest semi-axes' product; `None` for a shell
+/// with an axis that does not close (never merged: it has no patch to weigh).
+fn area(e: &FrozenEntity) -> Option<f32> {
+    let w = e.entity.weights;
+    if !w.iter().all(|&w| w > 0.0 && w.is_finite()) {
+        return None;
+    }
+    // The two smallest weights are the two longest semi-axes.
+    let [a, b, c] = w;
+    let largest = a.max(b).max(c);
+    let (lo, mid) = if largest == a {
+        (b, c)
+    } else if largest == b {
+        (a, c)
+    } else {
+        (a, b)
+    };
+    let area = (1.0 / libm::sqrtf(lo)) * (1.0 / libm::sqrtf(mid));
+    (area > 0.0 && area.is_finite()).then_some(area)
+}
+
+/// Ward's cost of merging two frozen shells, on their areas: `None` if either has none or the
+/// cost is not finite.
+fn cost(a: &FrozenEntity, b: &FrozenEntity, d2: f32) -> Option<f32> {
+    let (wa, wb) = (area(a)?, area(b)?);
+    let cost = wa * wb / (wa + wb) * d2;
+    cost.is_finite().then_some(cost)
+}
+
+/// A frozen shell's patch: its centre, the covariance its axes give back, and its area.
+struct Patch {
+    center: [f64; 3],
+    covariance: [[f64; 3]; 3],
+    area: f64,
+}
+
+impl Patch {
+    fn of(e: &FrozenEntity, params: &ShellParams) -> Option<Self> {
+        let area = f64::from(area(e)?);
+        let scales = [
+            params.tangent_scale,
+            params.tangent_scale,
+            params.normal_scale,
+        ];
+        let r = rotation_of_code(e.rotation).matrix();
+        let mut covariance = [[0.0; 3]; 3];
+        for (j, (&w, &scale)) in e.entity.weights.iter().zip(scales.iter()).enumerate() {
+            // The shell's semi-axis is `scale sqrt(variance)`, and its weight 1 / semi-axis^2.
+            let variance = 1.0 / (f64::from(w) * scale * scale);
+            for (row, out) in r.iter().zip(covariance.iter_mut()) {
+                for (col, v) in r.iter().zip(out.iter_mut()) {
+                    *v += variance
+                        * row.get(j).copied().unwrap_or(0.0)
+                        * col.get(j).copied().unwrap_or(0.0);
+                }
+            }
+        }
+        Some(Self {
+            center: e.entity.center.to_array().map(f64::from),
+            covariance,
+            area,
+        })
+    }
+}
+
+/// The shell of two frozen shells' patches together: their area-weighted mean and covariance.
+pub(super) fn merged(a: &FrozenEntity, b: &FrozenEntity, params: &ShellParams) -> Option<Entity> {
+    let (pa, pb) = (Patch::of(a, params)?, Patch::of(b, params)?);
+    let total = pa.area + pb.area;
+    // About a's centre: the world frame may be far from 0.
+    let apart = [0, 1, 2].map(|j| {
+        pb.center.get(j).copied().unwrap_or(0.0) - pa.center.get(j).copied().unwrap_or(0.0)
+    });
+    let shift = apart.map(|d| d * pb.area / total);
+    let mut covariance = [[0.0; 3]; 3];
+    for (i, out) in covariance.iter_mut().enumerate() {
+        for (j, v) in out.iter_mut().enumerate() {
+            let at = |m: &[[f64; 3]; 3]| m.get(i).and_then(|r| r.get(j)).copied().unwrap_or(0.0);
+            let of = |d: &[f64; 3], k: usize| d.get(k).copied().unwrap_or(0.0);
+            let from_b = [0, 1, 2].map(|k| of(&apart, k) - of(&shift, k));
+            *v = (pa.area * (at(&pa.covariance) + of(&shift, i) * of(&shift, j))
+                + pb.area * (at(&pb.covariance) + of(&from_b, i) * of(&from_b, j)))
+                / total;
+        }
+    }
+    let mean = [0, 1, 2]
+        .map(|j| pa.center.get(j).copied().unwrap_or(0.0) + shift.get(j).copied().unwrap_or(0.0));
+    shell(mean, covariance, params)
+}
+
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Whether the frozen store has no room for another entity.
+    pub(super) fn store_full(&self) -> bool {
+        self.frozen.len() >= self.params.max_frozen.min(F)
+    }
+
+    /// Only shells coarsen: the paper's axis-aligned fits stand for no covariance to merge.
+    pub(super) fn coarsens(&self) -> bool {
+        matches!(self.params.model, StreamModel::Shells(_)) && self.params.tolerance <= 0.0
+    }
+
+    /// Frees a frozen slot by merging the cheapest candidate pair: the next unchanged one of the
+    /// last scan's, else one a new scan finds. False if there is none within reach.
+    pub(super) fn coarsen_one(&mut self) -> bool {
+        let StreamModel::Shells(params) = self.params.model else {
+            return false;
+        };
+        if !self.coarsens() {
+            return false;
+        }
+        if self.coarsening.spent() {
+            self.scan_frozen_pairs();
+        }
+        while let Some(&(_, a, b)) = self.coarsening.pending.as_slice().get(self.coarsening.next) {
+            self.coarsening.next += 1;
+            let last = self.frozen.len().saturating_sub(1);
+            if self.coarsening.moved(a, b) {
+                continue;
+            }
+            let (Some(ea), Some(eb)) = (self.frozen.get(a), self.frozen.get(b)) else {
+                continue;
+            };
+            let Some(entity) = merged(ea, eb, &params) else {
+                continue;
+            };
+            let d2 = ea.entity.center.distance_squared(eb.entity.center);
+            if let Some(slot) = self.frozen.get_mut(a) {
+                *slot = FrozenEntity::of(&entity);
+            }
+            self.marks.replaced(a);
+            if crate::num::swap_remove(&mut self.frozen, b) {
+                self.marks.swap_removed(b, last);
+            }
+            self.coarsening.touch([a, b, last]);
+            self.stats.coarsened += 1;
+            self.widen_radius(RADIUS_SHARE * libm::sqrtf(d2));
+            return true;
+        }
+        false
+    }
+
+    /// Lists the cheapest candidate pairs of up to [`MOST_MEASURED`] distances, from the row
+    /// where the last scan stopped.
+    fn scan_frozen_pairs(&mut self) {
+        let len = self.frozen.len();
+        let mut pending = ClosestPairs::new(MAX_MERGE_BATCH);
+        let reach = self.coarsening.reach * self.radius;
+        // Before the radius has grown (coincident points merged first), nothing is in reach.
+        let reach2 = reach * reach;
+        let (mut a, mut rows, mut measured) = (self.coarsening.row, 0, 0);
+        while rows < len && measured < MOST_MEASURED {
+            a = if a >= len { 0 } else { a };
+            if let Some((ea, rest)) = self.frozen.get(a..).and_then(|s| s.split_first()) {
+                for (offset, eb) in rest.iter().enumerate() {
+                    let d2 = ea.entity.center.distance_squared(eb.entity.center);
+                    if d2 <= reach2
+                        && let Some(c) = cost(ea, eb, d2)
+                    {
+                        pending.offer(a, a + 1 + offset, c);
+                    }
+                }
+                measured += rest.len();
+            }
+            a += 1;
+            rows += 1;
+        }
+        self.coarsening.row = a;
+        if pending.len == 0 {
+            self.coarsening.empty_rows += rows;
+            if self.coarsening.empty_rows >= len {
+                self.coarsening.reach *= WIDEN;
+                self.coarsening.empty_rows = 0;
+            }
+        } else {
+            self.coarsening.empty_rows = 0;
+        }
+        self.coarsening.pending = pending;
+        self.coarsening.next = 0;
+        self.coarsening.touched = [usize::MAX; TOUCHED];
+        self.coarsening.scans = self.coarsening.scans.wrapping_add(1);
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,202 @@
+use super::*;
+use crate::fit::FitParams;
+use crate::geometry::Point3;
+use crate::moments::{FixedMoments, Moments};
+use crate::stream::{Pacing, StreamParams};
+use crate::test_support::{OrFail, TestResult};
+
+/// A uniform grid of `n x m` points spaced `step` on a plane through `center`, spanned by the
+/// unit vectors `u` and `v`.
+fn patch(
+    center: [f64; 3],
+    u: [f64; 3],
+    v: [f64; 3],
+    n: usize,
+    m: usize,
+    step: f64,
+) -> heapless::Vec<[f64; 3], 1200> {
+    let mut out = heapless::Vec::new();
+    for i in 0..n {
+        for j in 0..m {
+            let (s, t) = (
+                (i as f64 - (n - 1) as f64 / 2.0) * step,
+                (j as f64 - (m - 1) as f64 / 2.0) * step,
+            );
+            let _ = out.push([0, 1, 2].map(|k| center[k] + s * u[k] + t * v[k]));
+        }
+    }
+    out
+}
+
+fn frozen_shell(points: &[[f64; 3]]) -> Option<FrozenEntity> {
+    let mut m = FixedMoments::new();
+    for p in points {
+        m.add(Point3::new(p[0] as f32, p[1] as f32, p[2] as f32));
+    }
+    let e = crate::stream::shells::shell_of(&m, &ShellParams::DEFAULT)?;
+    Some(FrozenEntity::of(&e))
+}
+
+fn semi_axes(e: &Entity) -> [f64; 3] {
+    e.weights.map(|w| 1.0 / libm::sqrt(f64::from(w)))
+}
+
+/// Two patches of one sampling density (a scanner's, at one range): the merged shell of their
+/// frozen shells is the shell of all their points, from direct f64 sums over the points.
+#[test]
+fn a_merged_pair_is_the_shell_of_both_patches_points() -> TestResult {
+    let tilt = libm::sqrt(0.5);
+    let a = patch(
+        [1000.0, -20.0, 3.0],
+        [1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        40,
+        20,
+        0.01,
+    );
+    let b = patch(
+        [1000.3, -19.9, 3.05],
+        [tilt, tilt, 0.0],
+        [0.0, 0.0, 1.0],
+        30,
+        30,
+        0.01,
+    );
+    let (fa, fb) = (
+        frozen_shell(&a).or_fail("a")?,
+        frozen_shell(&b).or_fail("b")?,
+    );
+    let merged = merged(&fa, &fb, &ShellParams::DEFAULT).or_fail("merged")?;
+    let mut direct = Moments::with_shift([1000.0, -20.0, 3.0]);
+    for p in a.iter().chain(b.iter()) {
+        direct.add_f64(*p);
+    }
+    let (mean, covariance) = direct.covariance().or_fail("covariance")?;
+    let expected = shell(mean, covariance, &ShellParams::DEFAULT).or_fail("shell")?;
+    let extent = semi_axes(&expected)[0];
+    for (got, want) in merged
+        .center
+        .to_array()
+        .iter()
+        .zip(expected.center.to_array())
+    {
+        assert!(
+            libm::fabs(f64::from(*got) - f64::from(want)) < 1e-3 * extent,
+            "{:?} {:?}",
+            merged.center,
+            expected.center
+        );
+    }
+    for (got, want) in semi_axes(&merged).iter().zip(semi_axes(&expected)) {
+        assert!(
+            libm::fabs(got - want) < 0.01 * want.max(0.05 * extent),
+            "{got} {want}"
+        );
+    }
+    // The same principal axes (each up to its sign).
+    let (rm, re) = (merged.rotation.matrix(), expected.rotation.matrix());
+    for j in 0..2 {
+        let dot: f64 = (0..3).map(|i| rm[i][j] * re[i][j]).sum();
+        assert!(libm::fabs(dot) > 0.999, "axis {j}: {dot}");
+    }
+    Ok(())
+}
+
+fn params(model: StreamModel, working: usize, frozen: usize) -> StreamParams {
+    StreamParams {
+        fit: FitParams::default(),
+        seed: 0,
+        max_clusters: working,
+        max_frozen: frozen,
+        refit_interval: 64,
+        tolerance: 0.0,
+        model,
+        pacing: Pacing::NONE,
+        final_clusters: 0,
+    }
+}
+
+/// A scanner sweeping a 30 m strip of ground once, 12,000 points, rows across it.
+fn long_sweep() -> heapless::Vec<Point3, 12_000> {
+    let mut out = heapless::Vec::new();
+    for row in 0..600 {
+        for col in 0..20 {
+            let x = row as f32 * 0.05;
+            let y = col as f32 * 0.05;
+            let _ = out.push(Point3::new(x, y, 0.01 * libm::sinf(x)));
+        }
+    }
+    out
+}
+
+type Small = StreamMapper<8, 64, 16>;
+
+/// A small store on a long sweep: the first clusters frozen are coarsened as the sweep goes on,
+/// so the map keeps every third of the strip (without it, the store is full early on and
+/// the rest of the strip has only the working clusters).
+#[test]
+fn a_long_sweep_keeps_every_third_of_it() {
+    let mut m = Small::new(params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16));
+    for &p in &long_sweep() {
+        m.add(p);
+    }
+    m.finish();
+    let mut thirds = [0usize; 3];
+    for f in m.frozen() {
+        let third = (f.entity.center.x / 10.0) as usize;
+        if let Some(t) = thirds.get_mut(third) {
+            *t += 1;
+        }
+    }
+    assert!(thirds.iter().all(|&t| t > 0), "{thirds:?}");
+    assert!(m.stats().coarsened > 0);
+    assert_eq!(m.frozen().len(), 16);
+}
+
+/// The paper's model freezes axis-aligned fits, which stand for no covariance: never coarsened.
+#[test]
+fn the_papers_model_never_coarsens() {
+    let mut m = Small::new(params(StreamModel::Paper, 8, 16));
+    for &p in &long_sweep() {
+        m.add(p);
+    }
+    assert_eq!(m.stats().coarsened, 0);
+    assert!(m.stats().frozen > 0 && m.frozen().len() <= 16);
+}
+
+/// A downlink's copy of the frozen store, kept as the firmware keeps it (retract what the
+/// store no longer has, resend each slot marked changed, send the new ones), equals the store
+/// after every point while coarsening merges and moves its slots.
+#[test]
+fn a_copy_that_follows_the_changed_slots_is_the_store() -> TestResult {
+    let mut m = Small::new(params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16));
+    let mut copy: heapless::Vec<FrozenEntity, 16> = heapless::Vec::new();
+    for &p in &long_sweep() {
+        m.add(p);
+        copy.truncate(m.frozen().len());
+        while let Some(i) = m.take_changed(copy.len()) {
+            *copy.get_mut(i).or_fail("sent slot")? = *m.frozen().get(i).or_fail("slot")?;
+        }
+        copy.extend_from_slice(m.frozen().get(copy.len()..).or_fail("new")?)
+            .or_fail("room")?;
+        assert_eq!(copy.as_slice(), m.frozen());
+    }
+    assert!(m.stats().coarsened > 0);
+    Ok(())
+}
+
+#[test]
+fn coarsening_gives_the_same_map_whatever_the_batching() {
+    let pts = long_sweep();
+    let model = StreamModel::Shells(ShellParams::DEFAULT);
+    let mut whole = Small::new(params(model, 8, 16));
+    whole.add_all(&pts);
+    whole.finish();
+    let mut pieces = Small::new(params(model, 8, 16));
+    for chunk in pts.chunks(17) {
+        pieces.add_all(chunk);
+    }
+    pieces.finish();
+    assert!(whole.stats().coarsened > 0);
+    assert!(whole.entities().eq(pieces.entities()));
+}
