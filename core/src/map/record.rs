@@ -335,6 +335,46 @@ pub fn rotation_of_code(code: u32) -> Rotation {
     }
 }
 
+/// Column `j` of the rotation matrix of a [`rotation_code`], in single precision: the world
+/// direction of an entity's axis `j`, for a device ranking pairs of frozen shells by it
+/// (`rotation_of_code` decodes in f64, a software routine on the M4F).
+pub fn rotation_column32(code: u32, j: usize) -> [f32; 3] {
+    let mut unit = [0.0f32; 3];
+    if let Some(v) = unit.get_mut(j) {
+        *v = 1.0;
+    }
+    if code == 0 {
+        return unit;
+    }
+    let largest = (code & 3) as usize;
+    let mut q = [0.0f32; 4];
+    let mut shift = 2;
+    let mut sum = 0.0f32;
+    for (i, v) in q.iter_mut().enumerate() {
+        if i == largest {
+            continue;
+        }
+        let bits = (code >> shift) & ((1 << QUATERNION_BITS) - 1);
+        *v = (bits as f32 / QUATERNION_MAX as f32 * 2.0 - 1.0) * core::f32::consts::FRAC_1_SQRT_2;
+        sum += *v * *v;
+        shift += QUATERNION_BITS;
+    }
+    if let Some(v) = q.get_mut(largest) {
+        *v = libm::sqrtf((1.0 - sum).max(0.0));
+    }
+    let n2: f32 = q.iter().map(|v| v * v).sum();
+    if !(n2 > 0.0) {
+        return unit;
+    }
+    let s = 2.0 / n2;
+    let [x, y, z, w] = q;
+    match j {
+        0 => [1.0 - s * (y * y + z * z), s * (x * y + z * w), s * (x * z - y * w)],
+        1 => [s * (x * y - z * w), 1.0 - s * (x * x + z * z), s * (y * z + x * w)],
+        _ => [s * (x * z + y * w), s * (y * z - x * w), 1.0 - s * (x * x + y * y)],
+    }
+}
+
 /// Writes a quantized version-2 record (`out` is [`QUANTIZED_LEN`] bytes).
 pub fn write_quantized(grid: &Quantization, e: &MapEntity, out: &mut [u8]) {
     let c = e.entity.center.to_array();

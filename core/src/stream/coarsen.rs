@@ -17,20 +17,20 @@
 //! first, and only pairs within two join radii are candidates.
 //!
 //! A device's budget: a scan over the pairs measures at most [`MOST_MEASURED`] distances, going
-//! on from the row where the last one stopped, and keeps the cheapest [`MAX_MERGE_BATCH`] pairs;
-//! each freeze into a full store merges the next of them whose cost is unchanged to the bit (a
-//! merge or a carving since may have moved either slot), and a scan runs only once the list is
+//! on from the row where the last one stopped, and keeps the cheapest dozen pairs;
+//! each freeze into a full store merges the next of them whose slots no merge or carving has
+//! changed since, and a scan runs only once the list is
 //! spent, priced as a merge pass ([`super::Pacing`]).
 
-use super::pairs::{ClosestPairs, MAX_MERGE_BATCH};
-use super::{FrozenEntity, StreamMapper, StreamModel};
-use crate::geometry::Entity;
-use crate::map::record::rotation_of_code;
+use super::pairs::ClosestPairs;
+use super::{FrozenEntity, PLANAR_WARD, StreamMapper, StreamModel};
+use crate::geometry::{Entity, Point3};
+use crate::map::record::{rotation_column32, rotation_of_code};
 use crate::shell::{ShellParams, shell};
 
 /// Most pair distances one scan measures, about a shell fit's work (a scan is priced as one):
 /// a whole store of 550 (the board's) is 151,000.
-pub const MOST_MEASURED: usize = 5_000;
+pub const MOST_MEASURED: usize = 40_000;
 
 /// Candidates lie within this many join radii of each other.
 const REACH_RADII: f32 = 2.0;
@@ -45,7 +45,7 @@ pub const RADIUS_SHARE: f32 = 0.5;
 /// Where coarsening stands: the last scan's candidates and where the next scan starts.
 #[derive(Clone, Debug)]
 pub(super) struct Coarsening {
-    pending: ClosestPairs,
+    pending: ClosestPairs<LISTED>,
     /// The next candidate of `pending` to try.
     next: usize,
     /// The row the next scan starts from.
@@ -61,14 +61,17 @@ pub(super) struct Coarsening {
     touched: [usize; TOUCHED],
 }
 
-/// Changed slots a list follows: three a merge, so a list of [`MAX_MERGE_BATCH`] pairs yields
-/// at most this many over three merges before it is stale.
-const TOUCHED: usize = 3 * 8;
+/// Candidate pairs a scan lists.
+const LISTED: usize = 12;
+
+/// Changed slots a list follows: three a merge, so a list yields at most four merges before it
+/// is stale (a fifth listed pair would need its slots followed too).
+const TOUCHED: usize = 3 * 4;
 
 impl Coarsening {
     pub(super) const fn new() -> Self {
         Self {
-            pending: ClosestPairs::new_const(MAX_MERGE_BATCH),
+            pending: ClosestPairs::new_const(LISTED),
             next: 0,
             row: 0,
             empty_rows: 0,
@@ -137,11 +140,80 @@ fn area(e: &FrozenEntity) -> Option<f32> {
     (area > 0.0 && area.is_finite()).then_some(area)
 }
 
-/// Ward's cost of merging two frozen shells, on their areas: `None` if either has none or the
+/// A frozen shell as its plane, in single precision: what ranking a pair needs.
+struct Plane {
+    center: Point3,
+    /// The unit normal: the direction of the shortest semi-axis.
+    normal: [f32; 3],
+    area: f32,
+    /// The patch's variance along its plane (the mean of its two tangent variances).
+    tangent: f32,
+}
+
+impl Plane {
+    fn of(e: &FrozenEntity, tangent_scale: f32) -> Option<Self> {
+        let area = area(e)?;
+        let w = e.entity.weights;
+        let [a, b, c] = w;
+        let (thin, others) = if a >= b && a >= c {
+            (0, b.recip() + c.recip())
+        } else if b >= c {
+            (1, a.recip() + c.recip())
+        } else {
+            (2, a.recip() + b.recip())
+        };
+        let tangent = 0.5 * others / (tangent_scale * tangent_scale);
+        tangent.is_finite().then_some(Self {
+            center: e.entity.center,
+            normal: rotation_column32(e.rotation, thin),
+            area,
+            tangent,
+        })
+    }
+}
+
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The cost of merging two frozen shells: how far the merged patch spreads off its plane
+/// beyond the two patches (area-weighted, as the final reduction's planar cost counts points:
+/// each patch's offset from the merged plane, and its tilt against it times its spread along
+/// its own plane), plus [`PLANAR_WARD`] of Ward's cost. Two patches of one surface cost next to
+/// nothing, two walls across a corner a great deal. `None` if either shell has no area or the
 /// cost is not finite.
-fn cost(a: &FrozenEntity, b: &FrozenEntity, d2: f32) -> Option<f32> {
-    let (wa, wb) = (area(a)?, area(b)?);
-    let cost = wa * wb / (wa + wb) * d2;
+fn cost(a: &Plane, b: &Plane, d2: f32) -> Option<f32> {
+    let (wa, wb) = (a.area, b.area);
+    let total = wa + wb;
+    let nb = if dot(a.normal, b.normal) < 0.0 {
+        b.normal.map(|v| -v)
+    } else {
+        b.normal
+    };
+    let sum = [0, 1, 2].map(|j| {
+        wa * a.normal.get(j).copied().unwrap_or(0.0) + wb * nb.get(j).copied().unwrap_or(0.0)
+    });
+    let length = libm::sqrtf(dot(sum, sum));
+    let normal = if length > 0.0 {
+        sum.map(|v| v / length)
+    } else {
+        a.normal
+    };
+    let d = [
+        b.center.x - a.center.x,
+        b.center.y - a.center.y,
+        b.center.z - a.center.z,
+    ];
+    let off = dot(normal, d);
+    let tilt = |n: [f32; 3]| {
+        let c = dot(normal, n);
+        (1.0 - c * c).max(0.0)
+    };
+    let ward = wa * wb / total;
+    let cost = ward * off * off
+        + wa * a.tangent * tilt(a.normal)
+        + wb * b.tangent * tilt(nb)
+        + PLANAR_WARD * ward * d2;
     cost.is_finite().then_some(cost)
 }
 
@@ -218,7 +290,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Frees a frozen slot by merging the cheapest candidate pair: the next unchanged one of the
-    /// last scan's, else one a new scan finds. False if there is none within reach.
+    /// last scan's, else one a new scan finds. False if there is none within reach. Out of
+    /// line: its frame is not on the stack of every freeze (the 64 KiB image's RAM is short).
+    #[inline(never)]
     pub(super) fn coarsen_one(&mut self) -> bool {
         let StreamModel::Shells(params) = self.params.model else {
             return false;
@@ -261,19 +335,33 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// where the last scan stopped.
     fn scan_frozen_pairs(&mut self) {
         let len = self.frozen.len();
-        let mut pending = ClosestPairs::new(MAX_MERGE_BATCH);
+        let mut pending = ClosestPairs::<LISTED>::new(LISTED);
         let reach = self.coarsening.reach * self.radius;
         // Before the radius has grown (coincident points merged first), nothing is in reach.
         let reach2 = reach * reach;
+        let tangent_scale = match self.params.model {
+            StreamModel::Shells(p) => p.tangent_scale as f32,
+            StreamModel::Paper => return,
+        };
         let (mut a, mut rows, mut measured) = (self.coarsening.row, 0, 0);
         while rows < len && measured < MOST_MEASURED {
             a = if a >= len { 0 } else { a };
             if let Some((ea, rest)) = self.frozen.get(a..).and_then(|s| s.split_first()) {
+                // Its plane once, when a first pair is within reach.
+                let mut plane_a = None;
                 for (offset, eb) in rest.iter().enumerate() {
                     let d2 = ea.entity.center.distance_squared(eb.entity.center);
-                    if d2 <= reach2
-                        && let Some(c) = cost(ea, eb, d2)
-                    {
+                    if d2 > reach2 {
+                        continue;
+                    }
+                    if plane_a.is_none() {
+                        plane_a = Some(Plane::of(ea, tangent_scale));
+                    }
+                    let (Some(Some(pa)), Some(pb)) = (&plane_a, Plane::of(eb, tangent_scale))
+                    else {
+                        continue;
+                    };
+                    if let Some(c) = cost(pa, &pb, d2) {
                         pending.offer(a, a + 1 + offset, c);
                     }
                 }

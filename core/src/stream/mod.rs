@@ -74,6 +74,10 @@ pub const SUMMARY_FACTOR: usize = 8;
 /// Most working clusters a summary keeps ([`summary_layout`]): 2.4 MB of clusters.
 pub const MAX_SUMMARY: usize = 8192;
 
+/// The join radius grows by this factor at every point the pacing could not make room for: the
+/// radius then settles where the room the points ask for is the room the credit pays for.
+pub const PACED_GROWTH: f32 = 1.005;
+
 /// Working clusters and the final count for a map of `k` entities of which `frozen` are frozen
 /// entities: with none frozen, the finer summary of [`SUMMARY_FACTOR`] clusters per entity (at
 /// most [`MAX_SUMMARY`]) merged down to `k` at the end; with frozen entities, a device's
@@ -291,6 +295,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             Some(i) => Some(i),
             None if full && !self.make_room(observer) => {
                 self.stats.paced_joins += 1;
+                self.widen_radius(self.radius * PACED_GROWTH);
                 self.nearest_within(p, f32::INFINITY)
             }
             None => None,

@@ -6,13 +6,13 @@ pub const MAX_MERGE_BATCH: usize = 32;
 /// The closest centre pairs seen so far, sorted by distance, ties by index pair, so the choice
 /// is independent of visiting order.
 #[derive(Clone, Debug)]
-pub(super) struct ClosestPairs {
-    pairs: [(f32, usize, usize); MAX_MERGE_BATCH],
+pub(super) struct ClosestPairs<const N: usize = MAX_MERGE_BATCH> {
+    pairs: [(f32, usize, usize); N],
     pub(super) len: usize,
     wanted: usize,
 }
 
-impl ClosestPairs {
+impl<const N: usize> ClosestPairs<N> {
     pub(super) fn new(wanted: usize) -> Self {
         Self::new_const(wanted)
     }
@@ -21,13 +21,13 @@ impl ClosestPairs {
     pub(super) const fn new_const(wanted: usize) -> Self {
         let wanted = if wanted < 1 {
             1
-        } else if wanted > MAX_MERGE_BATCH {
-            MAX_MERGE_BATCH
+        } else if wanted > N {
+            N
         } else {
             wanted
         };
         Self {
-            pairs: [(0.0, 0, 0); MAX_MERGE_BATCH],
+            pairs: [(0.0, 0, 0); N],
             len: 0,
             wanted,
         }
