@@ -369,9 +369,21 @@ pub fn rotation_column32(code: u32, j: usize) -> [f32; 3] {
     let s = 2.0 / n2;
     let [x, y, z, w] = q;
     match j {
-        0 => [1.0 - s * (y * y + z * z), s * (x * y + z * w), s * (x * z - y * w)],
-        1 => [s * (x * y - z * w), 1.0 - s * (x * x + z * z), s * (y * z + x * w)],
-        _ => [s * (x * z + y * w), s * (y * z - x * w), 1.0 - s * (x * x + y * y)],
+        0 => [
+            1.0 - s * (y * y + z * z),
+            s * (x * y + z * w),
+            s * (x * z - y * w),
+        ],
+        1 => [
+            s * (x * y - z * w),
+            1.0 - s * (x * x + z * z),
+            s * (y * z + x * w),
+        ],
+        _ => [
+            s * (x * z + y * w),
+            s * (y * z - x * w),
+            1.0 - s * (x * x + y * y),
+        ],
     }
 }
 

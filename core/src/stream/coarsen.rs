@@ -30,7 +30,7 @@ use crate::shell::{ShellParams, shell};
 
 /// Most pair distances one scan measures, about a shell fit's work (a scan is priced as one):
 /// a whole store of 550 (the board's) is 151,000.
-pub const MOST_MEASURED: usize = 40_000;
+pub const MOST_MEASURED: usize = 8_000;
 
 /// Candidates lie within this many join radii of each other.
 const REACH_RADII: f32 = 2.0;

@@ -325,42 +325,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 
-    /// Frees a working slot by a freeze, else a merge pass, as far as the pacing's credit
-    /// pays; false if it could not. Out of line: at most once a point, and the image's flash
-    /// is short.
-    #[inline(never)]
-    fn make_room(&mut self, observer: &mut impl Observer) -> bool {
-        let pacing = self.params.pacing;
-        // A freeze into a full store of shells first merges two frozen shells, a shell's fit
-        // like the freeze's own, and scans for candidates when the last scan's are spent, a
-        // fit's price more ([`coarsen::MOST_MEASURED`]).
-        let scan = pacing.freeze;
-        let freeze = match (
-            self.store_full() && self.coarsens(),
-            self.coarsening.spent(),
-        ) {
-            (false, _) => pacing.freeze,
-            (true, false) => pacing.freeze.saturating_mul(2),
-            (true, true) => pacing.freeze.saturating_mul(2).saturating_add(scan),
-        };
-        if self.credit >= freeze {
-            let scans = self.coarsening.scans();
-            if self.freeze_one(observer) {
-                self.credit -= freeze;
-                return true;
-            }
-            if self.coarsening.scans() != scans {
-                self.credit -= scan.min(self.credit);
-            }
-        }
-        if self.credit >= pacing.merge_pass {
-            self.credit -= pacing.merge_pass;
-            self.merge_closest_pairs(observer);
-            return true;
-        }
-        false
-    }
-
     /// Grows the join radius to `r` if that is wider, with the grid's cells (a cell is two
     /// radii, so the nearest centre within the radius is found within half a cell).
     fn widen_radius(&mut self, r: f32) {

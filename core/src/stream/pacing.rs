@@ -14,6 +14,8 @@
 //! Credit is counted in points, never in time: the same points give the same map on every
 //! target, at any speed, and the host's replay of a capture is the device's map.
 
+use super::{Observer, StreamMapper};
+
 /// Prices in points of credit, and the most credit that can be saved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Pacing {
@@ -48,5 +50,43 @@ impl Pacing {
     /// The credit after one more point.
     pub(super) fn earn(&self, credit: u32) -> u32 {
         credit.saturating_add(1).min(self.burst)
+    }
+}
+
+impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Frees a working slot by a freeze, else a merge pass, as far as the pacing's credit
+    /// pays; false if it could not. Out of line: at most once a point, and the image's flash
+    /// is short.
+    #[inline(never)]
+    pub(super) fn make_room(&mut self, observer: &mut impl Observer) -> bool {
+        let pacing = self.params.pacing;
+        // A freeze into a full store of shells first merges two frozen shells, a shell's fit
+        // like the freeze's own, and scans for candidates when the last scan's are spent, a
+        // fit's price more ([`coarsen::MOST_MEASURED`]).
+        let scan = pacing.freeze;
+        let freeze = match (
+            self.store_full() && self.coarsens(),
+            self.coarsening.spent(),
+        ) {
+            (false, _) => pacing.freeze,
+            (true, false) => pacing.freeze.saturating_mul(2),
+            (true, true) => pacing.freeze.saturating_mul(2).saturating_add(scan),
+        };
+        if self.credit >= freeze {
+            let scans = self.coarsening.scans();
+            if self.freeze_one(observer) {
+                self.credit -= freeze;
+                return true;
+            }
+            if self.coarsening.scans() != scans {
+                self.credit -= scan.min(self.credit);
+            }
+        }
+        if self.credit >= pacing.merge_pass {
+            self.credit -= pacing.merge_pass;
+            self.merge_closest_pairs(observer);
+            return true;
+        }
+        false
     }
 }
