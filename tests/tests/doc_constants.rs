@@ -32,7 +32,7 @@ use mema_core::link::wire::{HEADER_LEN_V1, QUATERNION_ONE};
 use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN, MAGIC};
-use mema_core::stream::{MAX_SUMMARY, Pacing, SUMMARY_FACTOR};
+use mema_core::stream::{MAX_SUMMARY, MOST_MEASURED, Pacing, SUMMARY_FACTOR};
 use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, REFIT_INTERVAL,
     TICK_POINTS,
@@ -98,6 +98,15 @@ const STATED: &[(&str, &str)] = &[
     (
         "docs/firmware.md",
         "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes",
+    ),
+    (
+        "docs/firmware.md",
+        "when it must scan for the pair (at most {MOST_MEASURED} distances, about a fit's work)",
+    ),
+    (
+        "docs/streaming.md",
+        "each point earns a credit, a freeze costs {PACING_FREEZE} (twice that when it coarsens, \
+         three times when it must also scan for a pair) and a merge pass {PACING_MERGE}",
     ),
     (
         "docs/streaming.md",
@@ -444,6 +453,7 @@ fn value(name: &str) -> String {
         "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
+        "MOST_MEASURED" => count(MOST_MEASURED),
         "REFIT_INTERVAL" => count(REFIT_INTERVAL as usize),
         "SUMMARY_FACTOR" => count(SUMMARY_FACTOR),
         "MAX_SUMMARY" => count(MAX_SUMMARY),
