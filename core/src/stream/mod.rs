@@ -24,7 +24,7 @@ use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
 pub mod carve;
-mod coarsen;
+pub mod coarsen;
 pub mod freeze;
 mod merge;
 mod observe;
