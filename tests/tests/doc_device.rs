@@ -156,7 +156,8 @@ const STATED: &[(&str, &str)] = &[
     ("docs/board.md", "so the USART runs at {BAUD} either way."),
     (
         "docs/streaming.md",
-        "a freeze costs {PACING_FREEZE} and a merge pass {PACING_MERGE}",
+        "each point earns a credit, a freeze costs {PACING_FREEZE} (twice that when it coarsens, \
+         three times when it must also scan for a pair) and a merge pass {PACING_MERGE}",
     ),
     (
         "docs/streaming.md",

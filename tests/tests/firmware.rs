@@ -109,7 +109,9 @@ fn shells_are_the_same_whatever_the_chunking() {
     };
     let whole = play(0, 1 << 20);
     assert!(whole.end_of_stream && whole.mapper.points == 10_031);
-    assert!(whole.mapper.frozen > 200 && whole.mapper.refits == 0);
+    // Most of the image's 250 frozen slots filled (the join radius grows where the pacing falls
+    // short, so car6's clusters are fewer and larger than the slots).
+    assert!(whole.mapper.frozen > 150 && whole.mapper.refits == 0);
     for (chunk_seed, max_chunk) in [(0, 1), (2, 7), (3, 256)] {
         assert_eq!(
             play(chunk_seed, max_chunk).map,

@@ -2,7 +2,9 @@
 //!
 //! - Every entity of a shells stream map is the shell of its cluster's points, computed here
 //!   independently: the points each cluster received (followed through the mapper's `Observer`),
-//!   a two-pass f64 covariance, and nalgebra's eigen-decomposition. Frozen entities included.
+//!   a two-pass f64 covariance, and nalgebra's eigen-decomposition. Frozen entities included,
+//!   except those a coarsening merged: each stands for its two shells' patches weighed by
+//!   their areas, not for their points, and is held to the box and the extent of its points.
 //! - `mema replay --model shells` writes the same bytes for every chunking, equal to the mapper
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
@@ -28,6 +30,8 @@ struct Members {
     point: [f64; 3],
     working: Vec<Vec<[f64; 3]>>,
     frozen: Vec<Vec<[f64; 3]>>,
+    /// Whether each frozen entity came of a coarsening.
+    coarsened: Vec<bool>,
 }
 
 impl Observer for Members {
@@ -48,6 +52,14 @@ impl Observer for Members {
     fn frozen(&mut self, index: usize) {
         let points = std::mem::take(&mut self.working[index]);
         self.frozen.push(points);
+        self.coarsened.push(false);
+    }
+
+    fn coarsened(&mut self, into: usize, from: usize) {
+        let moved = self.frozen.swap_remove(from);
+        self.coarsened.swap_remove(from);
+        self.frozen[into].extend(moved);
+        self.coarsened[into] = true;
     }
 
     fn removed(&mut self, index: usize) {
@@ -105,8 +117,8 @@ fn wire_points(cloud: &str) -> Vec<Point3> {
 }
 
 /// Maps `cloud` with shells, following every cluster, and checks each entity against its
-/// direct shell. Returns (entities, frozen) for the caller's own assertions.
-fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
+/// direct shell. Returns (entities, frozen, coarsened) for the caller's own assertions.
+fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize) {
     let points = wire_points(cloud);
     let mut mapper = new_mapper_with(stream_params(
         capacity,
@@ -139,9 +151,34 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
     // rotation by theta moves the shape by at most 2 sin(theta) r_max^2.
     let code_bound = 2.0 * 0.25f64.to_radians().sin();
     let mut worst = [0.0f64; 3];
+    let mut coarsened = 0;
+    let mut extent_ratio = [f64::INFINITY, 0.0f64];
     for (i, (e, points)) in entities.iter().zip(&clusters).enumerate() {
         let (mean, r_direct, shape_direct) = direct_shell(points);
         let c = e.entity.center.to_f64();
+        if members.coarsened.get(i) == Some(&true) {
+            // Inside the box of its points (a weighted mean of its patches' centres, each the
+            // mean of its points), and as long as their own shell within a factor of three.
+            coarsened += 1;
+            for j in 0..3 {
+                let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                    (lo.min(p[j]), hi.max(p[j]))
+                });
+                let slack = 1e-6 * (hi - lo).max(c[j].abs() * f32::EPSILON as f64);
+                assert!(
+                    c[j] >= lo - slack && c[j] <= hi + slack,
+                    "{cloud} entity {i}: coarsened centre {c:?} outside its points' box"
+                );
+            }
+            let r = e.entity.semi_axes_f64().into_iter().fold(0.0, f64::max);
+            let ratio = r / r_direct[0];
+            assert!(
+                (1.0 / 3.0..=3.0).contains(&ratio),
+                "{cloud} entity {i}: coarsened, longest semi-axis {ratio} of its points' shell's"
+            );
+            extent_ratio = [extent_ratio[0].min(ratio), extent_ratio[1].max(ratio)];
+            continue;
+        }
         for j in 0..3 {
             // The stored centre is the mean in f32: within one f32 rounding of it, plus what
             // the moments' grid moves it by: at most half a pitch, and the pitch is at most
@@ -203,22 +240,24 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize) {
         );
     }
     eprintln!(
-        "{cloud} {capacity:?}: {} entities ({} frozen); worst semi-axis {:.1e}, shape {:.1e} working / {:.1e} frozen",
+        "{cloud} {capacity:?}: {} entities ({} frozen, {coarsened} coarsened: longest semi-axis {:.2}-{:.2} of their points' shell's); worst semi-axis {:.1e}, shape {:.1e} working / {:.1e} frozen",
         entities.len(),
         members.frozen.len(),
+        extent_ratio[0],
+        extent_ratio[1],
         worst[0],
         worst[1],
         worst[2]
     );
-    (entities.len(), members.frozen.len())
+    (entities.len(), members.frozen.len(), coarsened)
 }
 
 #[test]
 fn stream_shells_are_the_shells_of_their_clusters_points() {
-    let (n, frozen) = check_against_direct("car6.pcd", Capacity::all_working(150));
+    let (n, frozen, _) = check_against_direct("car6.pcd", Capacity::all_working(150));
     assert!(n > 120 && frozen == 0, "{n} entities, {frozen} frozen");
     for cloud in ["car6.pcd", "bun000.ply"] {
-        let (n, frozen) = check_against_direct(
+        let (n, frozen, coarsened) = check_against_direct(
             cloud,
             Capacity {
                 k: 400,
@@ -226,8 +265,13 @@ fn stream_shells_are_the_shells_of_their_clusters_points() {
             },
         );
         assert!(
-            n > 390 && frozen > 200,
+            n > 300 && frozen > 150,
             "{cloud}: {n} entities, {frozen} frozen"
+        );
+        // bun000's 40,256 points fill the frozen store: it coarsens.
+        assert!(
+            cloud != "bun000.ply" || coarsened > 0,
+            "{cloud}: nothing coarsened"
         );
     }
 }

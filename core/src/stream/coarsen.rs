@@ -293,7 +293,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// last scan's, else one a new scan finds. False if there is none within reach. Out of
     /// line: its frame is not on the stack of every freeze (the 64 KiB image's RAM is short).
     #[inline(never)]
-    pub(super) fn coarsen_one(&mut self) -> bool {
+    pub(super) fn coarsen_one(&mut self, observer: &mut impl super::Observer) -> bool {
         let StreamModel::Shells(params) = self.params.model else {
             return false;
         };
@@ -323,6 +323,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if crate::num::swap_remove(&mut self.frozen, b) {
                 self.marks.swap_removed(b, last);
             }
+            observer.coarsened(a, b);
             self.coarsening.touch([a, b, last]);
             self.stats.coarsened += 1;
             self.widen_radius(RADIUS_SHARE * libm::sqrtf(d2));

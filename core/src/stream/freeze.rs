@@ -84,7 +84,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         if u64::from(idle) < IDLE_TURNOVERS * self.limit() as u64 {
             return false;
         }
-        if self.store_full() && !self.coarsen_one() {
+        if self.store_full() && !self.coarsen_one(observer) {
             return false;
         }
         let stream = FROZEN_STREAMS | self.frozen.len() as u64;

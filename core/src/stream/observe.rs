@@ -15,6 +15,9 @@ pub trait Observer {
     fn frozen(&mut self, _index: usize) {}
     /// Cluster `index` left the working set by swap-remove: the last cluster took its slot.
     fn removed(&mut self, _index: usize) {}
+    /// Frozen entity `from` merged into frozen entity `into` (a coarsening,
+    /// [`super::coarsen`]), and the last frozen entity took `from`'s slot by swap-remove.
+    fn coarsened(&mut self, _into: usize, _from: usize) {}
 }
 
 impl Observer for () {}

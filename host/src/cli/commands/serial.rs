@@ -265,7 +265,7 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         ));
     }
     if s.coarsened > 0 {
-        extra.push_str(&format!(", {} frozen pairs merged", s.coarsened));
+        extra.push_str(&format!(", {} merges of frozen entities", s.coarsened));
     }
     if s.carved > 0 {
         extra.push_str(&format!(
