@@ -12,15 +12,16 @@
 //! A frozen shell keeps no moments, so each stands for a patch whose mean is its centre and whose
 //! covariance its axes give back ([`crate::shell`] made them from it), weighed by its area (the
 //! product of its two longest semi-axes): a frozen entity keeps no point count, and one would
-//! cost the 64 KiB image a thousand bytes. Pairs are ranked by Ward's cost on those weights, the
-//! growth of the weighted squared distances to the centre, so the smallest, closest shells merge
-//! first, and only pairs within two join radii are candidates.
+//! cost the 64 KiB image a thousand bytes. Pairs are ranked by how far the merged patch would
+//! spread off its plane, as the final reduction ranks working clusters ([`PLANAR_WARD`]), so
+//! patches of one surface merge first; only pairs within two join radii are candidates, since
+//! the cost favours coplanar pairs, which would otherwise join patches of a floor far apart.
 //!
 //! A device's budget: a scan over the pairs measures at most [`MOST_MEASURED`] distances, going
-//! on from the row where the last one stopped, and keeps the cheapest dozen pairs;
-//! each freeze into a full store merges the next of them whose slots no merge or carving has
-//! changed since, and a scan runs only once the list is
-//! spent, priced as a merge pass ([`super::Pacing`]).
+//! on from the row where the last one stopped, and keeps the cheapest dozen pairs; each freeze
+//! into a full store merges the next of them whose slots no merge or carving has changed since,
+//! priced as a fit, and a scan runs only once the list is spent, priced as a fit again
+//! ([`super::Pacing`]).
 
 use super::pairs::ClosestPairs;
 use super::{FrozenEntity, PLANAR_WARD, StreamMapper, StreamModel};
