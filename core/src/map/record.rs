@@ -298,18 +298,21 @@ fn stored_component(bits: u32) -> f64 {
     (bits as f64 / QUATERNION_MAX * 2.0 - 1.0) * core::f64::consts::FRAC_1_SQRT_2
 }
 
+/// A smallest-three code's parts: the index of the largest component, and each other
+/// component's stored bits, in order.
+fn code_parts(code: u32) -> (usize, [u32; 3]) {
+    let field = |j: u32| (code >> (2 + QUATERNION_BITS * j)) & ((1 << QUATERNION_BITS) - 1);
+    ((code & 3) as usize, [field(0), field(1), field(2)])
+}
+
 fn decode_rotation(code: u32) -> Rotation {
-    let largest = (code & 3) as usize;
+    let (largest, bits) = code_parts(code);
     let mut q = [0.0f64; 4];
-    let mut shift = 2;
     let mut sum = 0.0;
-    for (i, v) in q.iter_mut().enumerate() {
-        if i == largest {
-            continue;
-        }
-        *v = stored_component((code >> shift) & ((1 << QUATERNION_BITS) - 1));
+    let others = q.iter_mut().enumerate().filter(|&(i, _)| i != largest);
+    for ((_, v), &b) in others.zip(bits.iter()) {
+        *v = stored_component(b);
         sum += *v * *v;
-        shift += QUATERNION_BITS;
     }
     if let Some(v) = q.get_mut(largest) {
         *v = libm::sqrt((1.0 - sum).max(0.0));
@@ -346,18 +349,13 @@ pub fn rotation_column32(code: u32, j: usize) -> [f32; 3] {
     if code == 0 {
         return unit;
     }
-    let largest = (code & 3) as usize;
+    let (largest, bits) = code_parts(code);
     let mut q = [0.0f32; 4];
-    let mut shift = 2;
     let mut sum = 0.0f32;
-    for (i, v) in q.iter_mut().enumerate() {
-        if i == largest {
-            continue;
-        }
-        let bits = (code >> shift) & ((1 << QUATERNION_BITS) - 1);
-        *v = (bits as f32 / QUATERNION_MAX as f32 * 2.0 - 1.0) * core::f32::consts::FRAC_1_SQRT_2;
+    let others = q.iter_mut().enumerate().filter(|&(i, _)| i != largest);
+    for ((_, v), &b) in others.zip(bits.iter()) {
+        *v = (b as f32 / QUATERNION_MAX as f32 * 2.0 - 1.0) * core::f32::consts::FRAC_1_SQRT_2;
         sum += *v * *v;
-        shift += QUATERNION_BITS;
     }
     if let Some(v) = q.get_mut(largest) {
         *v = libm::sqrtf((1.0 - sum).max(0.0));

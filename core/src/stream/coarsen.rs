@@ -72,7 +72,7 @@ const TOUCHED: usize = 3 * 4;
 impl Coarsening {
     pub(super) const fn new() -> Self {
         Self {
-            pending: ClosestPairs::new_const(LISTED),
+            pending: ClosestPairs::new(LISTED),
             next: 0,
             row: 0,
             empty_rows: 0,
@@ -127,18 +127,20 @@ fn area(e: &FrozenEntity) -> Option<f32> {
     if !w.iter().all(|&w| w > 0.0 && w.is_finite()) {
         return None;
     }
-    // The two smallest weights are the two longest semi-axes.
-    let [a, b, c] = w;
-    let largest = a.max(b).max(c);
-    let (lo, mid) = if largest == a {
-        (b, c)
-    } else if largest == b {
-        (a, c)
-    } else {
-        (a, b)
-    };
+    let (_, lo, mid) = thin_axis(w);
     let area = (1.0 / libm::sqrtf(lo)) * (1.0 / libm::sqrtf(mid));
     (area > 0.0 && area.is_finite()).then_some(area)
+}
+
+/// The shortest semi-axis (the largest weight), and the weights of the two longer ones.
+fn thin_axis([a, b, c]: [f32; 3]) -> (usize, f32, f32) {
+    if a >= b && a >= c {
+        (0, b, c)
+    } else if b >= c {
+        (1, a, c)
+    } else {
+        (2, a, b)
+    }
 }
 
 /// A frozen shell as its plane, in single precision: what ranking a pair needs.
@@ -154,16 +156,8 @@ struct Plane {
 impl Plane {
     fn of(e: &FrozenEntity, tangent_scale: f32) -> Option<Self> {
         let area = area(e)?;
-        let w = e.entity.weights;
-        let [a, b, c] = w;
-        let (thin, others) = if a >= b && a >= c {
-            (0, b.recip() + c.recip())
-        } else if b >= c {
-            (1, a.recip() + c.recip())
-        } else {
-            (2, a.recip() + b.recip())
-        };
-        let tangent = 0.5 * others / (tangent_scale * tangent_scale);
+        let (thin, lo, mid) = thin_axis(e.entity.weights);
+        let tangent = 0.5 * (lo.recip() + mid.recip()) / (tangent_scale * tangent_scale);
         tangent.is_finite().then_some(Self {
             center: e.entity.center,
             normal: rotation_column32(e.rotation, thin),
@@ -302,7 +296,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         }
         if self.coarsening.spent() {
-            self.scan_frozen_pairs();
+            self.scan_frozen_pairs(params.tangent_scale as f32);
         }
         while let Some(&(_, a, b)) = self.coarsening.pending.as_slice().get(self.coarsening.next) {
             self.coarsening.next += 1;
@@ -334,17 +328,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Lists the cheapest candidate pairs of up to [`MOST_MEASURED`] distances, from the row
-    /// where the last scan stopped.
-    fn scan_frozen_pairs(&mut self) {
+    /// where the last scan stopped, for shells of tangent scale `tangent_scale`.
+    fn scan_frozen_pairs(&mut self, tangent_scale: f32) {
         let len = self.frozen.len();
         let mut pending = ClosestPairs::<LISTED>::new(LISTED);
         let reach = self.coarsening.reach * self.radius;
         // Before the radius has grown (coincident points merged first), nothing is in reach.
         let reach2 = reach * reach;
-        let tangent_scale = match self.params.model {
-            StreamModel::Shells(p) => p.tangent_scale as f32,
-            StreamModel::Paper => return,
-        };
         let (mut a, mut rows, mut measured) = (self.coarsening.row, 0, 0);
         while rows < len && measured < MOST_MEASURED {
             a = if a >= len { 0 } else { a };

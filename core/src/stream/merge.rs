@@ -183,12 +183,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
         }
         self.stats.merges += count as u64;
-        let cell = if self.radius * 2.0 > self.grid.cell() {
-            self.stats.grid_rebuilds += 1;
-            (self.radius * 2.0).max(f32::MIN_POSITIVE)
-        } else {
-            self.grid.cell()
-        };
+        let cell = self.outgrown_cell().unwrap_or(self.grid.cell());
         // Indices moved and the radius may have outgrown the cells: refile every centre.
         self.grid
             .rebuild(cell, self.clusters.iter().map(|c| c.center));

@@ -338,12 +338,19 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return;
         }
         self.radius = r;
-        if self.radius * 2.0 > self.grid.cell() {
-            self.stats.grid_rebuilds += 1;
-            let cell = (self.radius * 2.0).max(f32::MIN_POSITIVE);
+        if let Some(cell) = self.outgrown_cell() {
             self.grid
                 .rebuild(cell, self.clusters.iter().map(|c| c.center));
         }
+    }
+
+    /// The cell two join radii need, counted as a grid rebuild, once the radius has outgrown
+    /// the grid's cells; `None` while they still hold it.
+    fn outgrown_cell(&mut self) -> Option<f32> {
+        (self.radius * 2.0 > self.grid.cell()).then(|| {
+            self.stats.grid_rebuilds += 1;
+            (self.radius * 2.0).max(f32::MIN_POSITIVE)
+        })
     }
 
     fn nearest_within_radius(&self, p: Point3) -> Option<usize> {

@@ -13,12 +13,8 @@ pub(super) struct ClosestPairs<const N: usize = MAX_MERGE_BATCH> {
 }
 
 impl<const N: usize> ClosestPairs<N> {
-    pub(super) fn new(wanted: usize) -> Self {
-        Self::new_const(wanted)
-    }
-
-    /// [`ClosestPairs::new`] for a `const fn` (a mapper built in a static).
-    pub(super) const fn new_const(wanted: usize) -> Self {
+    /// A `const fn`: a mapper built in a static holds one.
+    pub(super) const fn new(wanted: usize) -> Self {
         let wanted = if wanted < 1 {
             1
         } else if wanted > N {
