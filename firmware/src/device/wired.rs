@@ -5,7 +5,7 @@
 use mema_core::link::downlink::{DownFrame, REASON_LISTENING, SessionStatus};
 
 use super::{Clock, Device, Feed, Out, answer};
-use crate::{Carving, RX_CAPACITY, Request};
+use crate::{Carving, Request};
 
 impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G, F, C> {
     /// A pass fed by a sensor: the listener's requests, then the line's bytes into the
@@ -28,13 +28,17 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
             self.backlog = false;
             return;
         }
+        let (mut frame_done, mut blocked);
         loop {
-            let moved = clock.other(|| self.pass_on(start));
+            clock.other(|| self.pass_on(start));
+            // Bytes left on the line now found the ring full; those that come during the
+            // tick are part of a frame whose delimiter will wake the loop.
+            blocked = !self.line.is_empty();
             if start.is_some() {
                 return;
             }
             let firmware = &mut *self.firmware;
-            let mut frame_done = false;
+            frame_done = false;
             clock.tick(|| firmware.tick(|_| frame_done = true));
             if self.feed == Feed::Open && firmware.decoder_stats().accepted > 0 {
                 // A sensor's frame: the line is the sensor's, and a listener that came after
@@ -42,13 +46,18 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
                 self.feed = Feed::Sensor;
                 self.announce = true;
             }
-            let waiting = !self.line.is_empty() && self.map.len() < RX_CAPACITY;
-            if frame_done || !(moved || waiting || firmware.mapping()) {
+            if frame_done || !(blocked || firmware.mapping()) {
                 break;
             }
         }
-        // Bytes left for the next pass, which no new delimiter may come to wake.
-        self.backlog = !self.line.is_empty() || self.firmware.busy();
+        // Work left for the next pass, which no new delimiter may come to wake: the line's bytes
+        // the ring had no room for, a frame part-mapped, or more whole frames after the one
+        // just mapped. Part of a frame waits for its delimiter: passes that moved its bytes as
+        // they came would tick once a byte, at a tick's cost each (up to a tenth of car6's
+        // instructions a point, as often as the line's timing made it).
+        self.backlog = blocked
+            || self.firmware.mapping()
+            || (frame_done && (self.firmware.busy() || !self.line.is_empty()));
         let firmware = &mut *self.firmware;
         clock.other(|| firmware.send_downlink(&mut *to_listener));
         if firmware.stats().end_of_stream {
@@ -64,10 +73,9 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
 
     /// Moves the line's bytes into the mapper's ring, as many as it has room for (the rest
     /// wait in the line's ring); while the line is open, the carrier watches them for a host's
-    /// start request, and the move stops at one. Whether any moved.
-    fn pass_on(&mut self, start: &mut Option<(u32, u32)>) -> bool {
+    /// start request, and the move stops at one.
+    fn pass_on(&mut self, start: &mut Option<(u32, u32)>) {
         let (map, open) = (self.map, self.feed == Feed::Open);
-        let mut moved = false;
         loop {
             let carrier = &mut self.carrier;
             let n = self.line.consume_front(|front| {
@@ -80,9 +88,8 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
                 }
                 n
             });
-            moved |= n > 0;
             if n == 0 || start.is_some() {
-                return moved;
+                return;
             }
         }
     }

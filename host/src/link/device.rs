@@ -368,7 +368,13 @@ impl MapFrames {
                 self.counts.device_refused = self.counts.device_refused.max(refused);
                 self.counts.device_frames = frames;
             }
-            DownFrame::Timing(t) => self.timing = Some(t),
+            DownFrame::Timing(t) => {
+                self.timing = Some(t);
+                // Asked for again, it comes after the end it should have preceded.
+                if let Some(end) = self.end {
+                    self.counts.instructions = Instructions::of(&t, end.points);
+                }
+            }
             // A listener hears what map it is getting whenever the device says it.
             DownFrame::Session { layout, .. } => {
                 if self.listening {
@@ -427,6 +433,12 @@ impl MapFrames {
     /// Whether the device has sent its end.
     pub fn ended(&self) -> bool {
         self.end.is_some()
+    }
+
+    /// Whether the end came without the timing frame a device sends just before it: lost on
+    /// the line.
+    pub fn lacks_timing(&self) -> bool {
+        self.end.is_some() && self.timing.is_none()
     }
 
     /// Forgets every entity received, so all are asked for again: the copy was found stale.
