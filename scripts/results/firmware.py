@@ -135,9 +135,10 @@ def firmware(logs):
     rows = [[capture, model, n(s["host"][0]), n(s["host"][1]),
              n(s["sensor"][0]) if "sensor" in s else "-"]
             for (capture, model), s in sessions.items()]
-    out += ["The board's instructions a point and longest tick vary by a fraction of a percent "
-            "from run to run with QEMU's timing of the line (acknowledgements when it goes quiet, "
-            "frames sent again): one run's, not asserted beyond check.sh's 10,000 a point.", ""]
+    out += ["The board's instructions a point and longest tick vary from run to run with QEMU's "
+            "timing of the line, by a few per cent in a host's session (the carrier's passes and "
+            "acknowledgements follow how the frames arrive) and by a fraction of a percent with a "
+            "sensor on USART1: one run's, not asserted beyond check.sh's 10,000 a point.", ""]
     out += block("times-board-cost", [logs.machine("check"), ""] + table(
         ["capture", "model", "instructions a point", "longest tick",
          "with a sensor on USART1"], rows))
