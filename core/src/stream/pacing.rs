@@ -47,6 +47,13 @@ impl Pacing {
         burst: 120,
     };
 
+    /// Whether the radius may follow the credit ([`super::PACED_GROWTH`],
+    /// [`super::IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
+    /// the merges that set the radius.
+    pub(super) fn follows_credit(&self, frozen: usize) -> bool {
+        self.burst > 0 && frozen > 0
+    }
+
     /// The credit after one more point.
     pub(super) fn earn(&self, credit: u32) -> u32 {
         credit.saturating_add(1).min(self.burst)
@@ -54,6 +61,13 @@ impl Pacing {
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Whether this point found the credit at its cap, unspent, in a layout whose radius follows
+    /// the credit.
+    pub(super) fn credit_idle(&self) -> bool {
+        let pacing = self.params.pacing;
+        pacing.follows_credit(self.params.max_frozen.min(F)) && self.credit >= pacing.burst
+    }
+
     /// Frees a working slot by a freeze, else a merge pass, as far as the pacing's credit
     /// pays; false if it could not. Out of line: at most once a point, and the image's flash
     /// is short.
