@@ -1,10 +1,13 @@
-//! `mema bench --only fidelity`: every shared cloud at each byte budget, three maps side by side,
+//! `mema bench --only fidelity`: every shared cloud at each byte budget, four maps side by side,
 //! each scored two ways (`crate::analysis::fidelity`) as read back from the file it was written to:
 //!
 //! - **default**: the shell model filling the budget (`mema map --model shells --bytes B`);
 //! - **paper**: the paper's method at the same budget (`mema map --bytes B --paper`);
 //! - **GMM**: a converged full-covariance Gaussian mixture of `B / 40` components
-//!   (scikit-learn, `scripts/gmm_fit.py`), each component its 2-sigma shell ([`super::gmm`]).
+//!   (scikit-learn, `scripts/gmm_fit.py`), each component its 2-sigma shell ([`super::gmm`]);
+//! - **streamed**: the map a robot gets of the same cloud, sent as `mema scanner-sim` sends it
+//!   and mapped by the streaming mapper (`mema map --stream -k K`, shells, K = B / 14), at most
+//!   [`MAX_CLUSTERS`] entities.
 //!
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
@@ -19,8 +22,11 @@ use super::write_npy;
 use crate::analysis::eval::{FileBytes, points_in_map_frame};
 use crate::analysis::fidelity::{FidelityScore, two_way_score};
 use crate::batch::map_cloud_with;
+use crate::io::bag::BagOptions;
 use crate::io::cloud::{LocalCloud, load_cloud_in_metres};
 use crate::io::mapfile::HostMap;
+use crate::link::scanner::scans_of_input;
+use crate::link::stream::{Capacity, MAX_CLUSTERS, link_params, stream_scans};
 use crate::mapping::options::{
     EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel,
 };
@@ -48,18 +54,24 @@ pub struct FidelityOptions {
     pub gmm_cache: Option<PathBuf>,
 }
 
-/// The three maps of one row.
+/// The four maps of one row.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     Default,
     Paper,
     Gmm,
+    Streamed,
 }
 
 impl Method {
     /// The methods in the order of a row's cells.
-    pub const ALL: [Method; 3] = [Method::Default, Method::Paper, Method::Gmm];
+    pub const ALL: [Method; 4] = [
+        Method::Default,
+        Method::Paper,
+        Method::Gmm,
+        Method::Streamed,
+    ];
 
     /// The method's name in the tables.
     pub fn name(self) -> &'static str {
@@ -67,6 +79,7 @@ impl Method {
             Method::Default => "default",
             Method::Paper => "paper",
             Method::Gmm => "GMM",
+            Method::Streamed => "streamed",
         }
     }
 
@@ -74,7 +87,7 @@ impl Method {
     pub fn entities(self, budget: usize) -> usize {
         budget
             / match self {
-                Method::Default => Model::Shells.bytes_per_entity(),
+                Method::Default | Method::Streamed => Model::Shells.bytes_per_entity(),
                 Method::Paper => Model::Paper.bytes_per_entity(),
                 Method::Gmm => gmm::BYTES_PER_COMPONENT,
             }
@@ -159,6 +172,8 @@ pub struct Stages {
     pub npy_s: f64,
     pub default_map_s: f64,
     pub paper_map_s: f64,
+    /// Sending each cloud as scanner-sim does and mapping it as `mema stream` does.
+    pub streamed_map_s: f64,
     /// The Python processes, start to finish (EM itself is each summary's `fit_s`).
     pub gmm_fit_s: f64,
     /// Shells of the components.
@@ -263,6 +278,7 @@ pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
         for (name, cloud, npy) in &clouds {
             let case = Case {
                 opts,
+                path: &opts.data.join(name),
                 cloud,
                 dir: &scratch.0,
                 npy,
@@ -335,6 +351,8 @@ fn describe(cell: &Cell) -> String {
 /// One cloud's inputs, shared by its cells.
 struct Case<'a> {
     opts: &'a FidelityOptions,
+    /// The cloud's file, which the streamed map is sent from as a sensor would send it.
+    path: &'a Path,
     cloud: &'a LocalCloud,
     dir: &'a Path,
     npy: &'a Path,
@@ -423,6 +441,23 @@ impl Case<'_> {
                 map.write(&path)?;
                 stages.write_read_s += w.elapsed().as_secs_f64();
             }
+            Method::Streamed => {
+                // As `mema map --stream --bytes` would: one cluster per MIN_POINTS_PER_ENTITY
+                // points at most, and the host's stream holds MAX_CLUSTERS.
+                let most = (points / MIN_POINTS_PER_ENTITY).clamp(1, MAX_CLUSTERS);
+                let capacity = Capacity::checked(asked.min(most), None, false)?;
+                let config = PipelineConfig {
+                    k: capacity.k,
+                    ..self.opts.base
+                };
+                let scans = scans_of_input(self.path, None, &BagOptions::default())?;
+                let params = link_params(&config, capacity, None, Model::Shells);
+                let (_, _, map) = stream_scans(&scans, params, false)?;
+                stages.streamed_map_s += t.elapsed().as_secs_f64();
+                let w = Instant::now();
+                map.write(&path)?;
+                stages.write_read_s += w.elapsed().as_secs_f64();
+            }
         }
         let build_s = t.elapsed().as_secs_f64();
         let io = Instant::now();
@@ -474,6 +509,11 @@ pub struct Summary {
     pub versus_paper: usize,
     pub default_beats_paper: usize,
     pub chamfer_ratio_paper: Option<f64>,
+    /// Clouds with both a streamed and a default map, and the streamed map's Chamfer over the
+    /// default's: geometric mean and largest (above 1: the robot's map is the farther).
+    pub versus_streamed: usize,
+    pub streamed_ratio: Option<f64>,
+    pub streamed_ratio_max: Option<f64>,
 }
 
 pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
@@ -492,6 +532,12 @@ pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
             };
             let (versus_gmm, default_beats_gmm, chamfer_ratio_gmm) = of(Method::Gmm);
             let (versus_paper, default_beats_paper, chamfer_ratio_paper) = of(Method::Paper);
+            let streamed: Vec<f64> = rows
+                .iter()
+                .filter(|r| r.budget == budget)
+                .filter_map(|r| Some((r.cell(Method::Streamed)?, r.cell(Method::Default)?)))
+                .map(|(s, d)| s.score.chamfer / d.score.chamfer)
+                .collect();
             Summary {
                 budget,
                 versus_gmm,
@@ -500,6 +546,9 @@ pub fn summaries(rows: &[Row], budgets: &[usize]) -> Vec<Summary> {
                 versus_paper,
                 default_beats_paper,
                 chamfer_ratio_paper,
+                versus_streamed: streamed.len(),
+                streamed_ratio: geometric_mean(&streamed),
+                streamed_ratio_max: streamed.iter().copied().reduce(f64::max),
             }
         })
         .collect()

@@ -444,7 +444,7 @@ fn fidelity_bench(args: &BenchOptions) -> Result<()> {
     writeln!(out)?;
     writeln!(
         out,
-        "5. fidelity: default (shells), paper and GMM (2-sigma shells) maps at equal bytes, two-way score as read back"
+        "5. fidelity: default (shells), paper, GMM (2-sigma shells) and streamed maps at equal bytes, two-way score as read back"
     )?;
     fidelity_report::print_tables(&report, out)?;
     if args.json {
