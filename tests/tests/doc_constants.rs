@@ -346,6 +346,11 @@ const STATED: &[(&str, &str)] = &[
     ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_0} bytes**"),
     ("docs/fidelity.md", "**B = {FIDELITY_BUDGET_2} bytes**"),
     (
+        "docs/fidelity.md",
+        "shells, K = B / {QUANTIZED_LEN} entities of {QUANTIZED_LEN} bytes; at most \
+         {STREAM_MAX_CLUSTERS} entities, the host stream's bound, so at {FIDELITY_BUDGET_2} bytes",
+    ),
+    (
         "docs/map-format.md",
         "| 0..{MAGIC_END} | magic `MEMA` | | {MAGIC_END}..{VERSION_END} | version, u16: 1 or 2 | \
          | {VERSION_END}..{FLAGS_END} | flags, u16:",
@@ -496,6 +501,7 @@ fn value(name: &str) -> String {
         "FIDELITY_BUDGET_0" => count(DEFAULT_BUDGETS[0]),
         "FIDELITY_BUDGET_1" => count(DEFAULT_BUDGETS[1]),
         "FIDELITY_BUDGET_2" => count(DEFAULT_BUDGETS[2]),
+        "STREAM_MAX_CLUSTERS" => count(mema::link::stream::MAX_CLUSTERS),
         // The header's fields in order: magic, version u16, flags u16, origin 3 x f64, count.
         "MAGIC_END" => count(MAGIC.len()),
         "VERSION_END" => count(MAGIC.len() + 2),
