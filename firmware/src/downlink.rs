@@ -158,13 +158,17 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
         // The file's own checksum, its last four bytes (the CRC-32 of every byte before them:
         // `downlink::map_checksum`), read as the map streams past.
         let mut last = [0u8; 4];
-        let len = self.send_map(|piece| {
-            for &b in piece {
-                last = [last[1], last[2], last[3], b];
-            }
-        })?;
+        // One pass over the shells for the layout, one to write them: each is a shell made
+        // again per working cluster.
         let layout = self.mapper.layout();
-        let count = self.mapper.entities().count();
+        let len = self
+            .mapper
+            .encode_pieces_in(layout, self.receiver.origin(), |piece| {
+                for &b in piece {
+                    last = [last[1], last[2], last[3], b];
+                }
+            })?;
+        let count = self.mapper.entity_count();
         let end = MapEnd {
             entities: u32::try_from(count).map_err(|_| EncodeError::TooManyEntities)?,
             layout,

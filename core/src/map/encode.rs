@@ -132,6 +132,26 @@ pub fn encode_pieces_with<'b, I, J>(
     origin: [f64; 3],
     entities: I,
     images: J,
+    sink: impl FnMut(&[u8]),
+) -> Result<usize, EncodeError>
+where
+    I: Iterator<Item = MapEntity> + Clone,
+    J: Iterator<Item = (Geometry, &'b [u8])> + Clone,
+{
+    let len = entities.clone().count();
+    encode_pieces_counted(layout, origin, len, entities, images, sink)
+}
+
+/// [`encode_pieces_with`] of `len` entities, for a caller that knows how many `entities`
+/// yields without going through them (a streaming mapper's shells are computed as the
+/// iterator yields them: on a device, a pass over them is a tenth of a second). `len` must be
+/// what `entities` yields.
+pub fn encode_pieces_counted<'b, I, J>(
+    layout: Layout,
+    origin: [f64; 3],
+    len: usize,
+    entities: I,
+    images: J,
     mut sink: impl FnMut(&[u8]),
 ) -> Result<usize, EncodeError>
 where
@@ -145,7 +165,6 @@ where
             free_space_part::part_len(images.clone()).ok_or(EncodeError::InvalidFreeSpace)?
         }
     };
-    let len = entities.clone().count();
     let count = u32::try_from(len).map_err(|_| EncodeError::TooManyEntities)?;
     if layout == Layout::AxisAligned
         && let Some(index) = entities

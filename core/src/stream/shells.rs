@@ -12,7 +12,7 @@
 use super::{StreamCluster, StreamMapper, StreamModel};
 use crate::geometry::Entity;
 use crate::map::record::Quantization;
-use crate::map::{EncodeError, Layout, MapEntity, encode_as, encode_pieces_as};
+use crate::map::{EncodeError, Layout, MapEntity, encode_as, encode_pieces_counted};
 use crate::moments::FixedMoments;
 use crate::shell::{ShellParams, shell};
 
@@ -183,7 +183,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Bytes of the map's `.mema` file as it stands.
     pub fn encoded_len(&self) -> usize {
-        self.layout().encoded_len(self.entities().count())
+        self.layout().encoded_len(self.entity_count())
+    }
+
+    /// Entities in the map, frozen and working: what [`StreamMapper::entities`] yields, without
+    /// making a shell.
+    pub fn entity_count(&self) -> usize {
+        self.frozen.len() + self.clusters.len()
     }
 
     /// The map's `.mema` bytes (in [`StreamMapper::layout`]) into `out`, returning their length;
@@ -205,11 +211,23 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         origin: [f64; 3],
         sink: impl FnMut(&[u8]),
     ) -> Result<usize, EncodeError> {
-        let layout = self.layout();
-        encode_pieces_as(
+        self.encode_pieces_in(self.layout(), origin, sink)
+    }
+
+    /// [`StreamMapper::encode_pieces`] in `layout`, which must be [`StreamMapper::layout`]: for
+    /// a caller that has it already (each is a pass over the shells).
+    pub fn encode_pieces_in(
+        &self,
+        layout: Layout,
+        origin: [f64; 3],
+        sink: impl FnMut(&[u8]),
+    ) -> Result<usize, EncodeError> {
+        encode_pieces_counted(
             layout,
             self.file_origin(origin, layout),
+            self.entity_count(),
             self.stored_entities(layout),
+            core::iter::empty(),
             sink,
         )
     }
