@@ -53,7 +53,7 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
         // Work left for the next pass, which no new delimiter may come to wake: the line's bytes
         // the ring had no room for, a frame part-mapped, or more whole frames after the one
         // just mapped. Part of a frame waits for its delimiter: passes that moved its bytes as
-        // they came would tick once a byte, at a tick's cost each (up to a tenth of car6's
+        // they came would tick once a byte, at a tick's cost each (up to a sixth of car6's
         // instructions a point, as often as the line's timing made it).
         self.backlog = blocked
             || self.firmware.mapping()
