@@ -24,8 +24,9 @@ def span(values, fmt="{:.2f}"):
 def readme(text):
     b = blocks(text)
     fid = rows(b["fidelity-9600"])
-    gmm = [float(r[5]) for r in fid]
-    paper = [float(r[6]) for r in fid]
+    header = [c.strip() for c in b["fidelity-9600"].splitlines()[0].strip("|").split("|")]
+    gmm = [float(r[header.index("default / GMM")]) for r in fid]
+    paper = [float(r[header.index("default / paper")]) for r in fid]
     py = rows(b["times-bench-python"])
     ratios = {r[0]: float(r[-1].rstrip("x")) for r in py}
     low, high = min(ratios, key=ratios.get), max(ratios, key=ratios.get)
