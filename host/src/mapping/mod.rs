@@ -7,6 +7,7 @@ pub mod carve;
 pub mod filter;
 pub mod options;
 pub mod pipeline;
+pub mod ray_shaping;
 pub mod shells;
 pub mod surface_clusters;
 pub mod tolerance;

@@ -222,6 +222,10 @@ pub struct ShellModel {
     /// scan's range image, within the byte budget. Off by default while its cost to the
     /// surface at equal bytes is weighed (issue 29).
     pub free_space: bool,
+    /// Shape the shells to the input's rays where it says where its sensor was
+    /// ([`crate::mapping::ray_shaping`]), keeping the shaped map only if it scores no worse
+    /// both ways against the points.
+    pub ray_shaping: bool,
 }
 
 impl Default for ShellModel {
@@ -230,6 +234,7 @@ impl Default for ShellModel {
             shell: ShellParams::default(),
             surface_rounds: DEFAULT_ROUNDS,
             free_space: false,
+            ray_shaping: true,
         }
     }
 }

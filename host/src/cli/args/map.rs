@@ -82,6 +82,12 @@ pub struct MapArgs {
     /// range image, within --bytes, so `mema query` tells free from unknown (docs/queries.md).
     #[arg(long)]
     pub free_space: bool,
+    /// Shells: keep the shells as their clusters made them. By default, where the input says
+    /// where its sensor was, each shell's axes, place along its normal and tilt are shaped so
+    /// that the input's own rays meet the map where they ended, and the shaped map is kept if
+    /// it scores no worse both ways against the points (docs/queries.md).
+    #[arg(long)]
+    pub no_ray_shaping: bool,
     /// The paper's method exactly: axis-aligned entities fitted by Differential Evolution (DE)
     /// on eq. 12, the paper's measure of how badly an ellipsoid fits its points (F 1.2, CR
     /// 0.7, 10 x 50, alpha 0.8), Tables 2 and 4 with the spherical comparison. Same as

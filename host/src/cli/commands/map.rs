@@ -28,6 +28,7 @@ fn shell_model(args: &MapArgs) -> Result<ShellModel> {
         },
         surface_rounds: args.surface_rounds,
         free_space: args.free_space,
+        ray_shaping: !args.no_ray_shaping,
     };
     model.check()?;
     Ok(model)
@@ -336,6 +337,9 @@ fn print_map_report(r: &MapReport, units: &Units, json: bool) -> Result<()> {
             f.bytes
         );
     }
+    if let Some(s) = r.ray_shaping {
+        println!("{}", ray_shaping_line(&s));
+    }
     println!(
         "Table 2: memory (12 bytes per point, {} per entity)",
         r.memory.map_bytes / r.memory.entities.max(1)
@@ -423,6 +427,28 @@ fn points_line(
         ));
     }
     line
+}
+
+/// What shaping the shells to the rays did, and whether the map kept it.
+fn ray_shaping_line(s: &mema::batch::RayShapingReport) -> String {
+    let share = |n: usize| 100.0 * n as f64 / s.rays.max(1) as f64;
+    format!(
+        "ray shaping: {} of {} sampled rays agree within {:.1} mm and {} stop early as made; shaped ({} shells changed): {} agree, {} stop early; Chamfer {:.6} -> {:.6} m, {}",
+        format_args!("{:.1}%", share(s.agree[0])),
+        s.rays,
+        1e3 * s.tolerance,
+        format_args!("{:.1}%", share(s.early[0])),
+        s.changed,
+        format_args!("{:.1}%", share(s.agree[1])),
+        format_args!("{:.1}%", share(s.early[1])),
+        s.chamfer[0],
+        s.chamfer[1],
+        if s.kept {
+            "kept"
+        } else {
+            "not kept (--no-ray-shaping is the same map)"
+        }
+    )
 }
 
 /// Whether the points were rays: where they were seen from, or that no free space was recorded.
