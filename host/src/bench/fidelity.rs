@@ -14,6 +14,7 @@
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
+use std::cell::OnceCell;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -25,7 +26,7 @@ use crate::batch::map_cloud_with;
 use crate::io::bag::BagOptions;
 use crate::io::cloud::{LocalCloud, load_cloud_in_metres};
 use crate::io::mapfile::HostMap;
-use crate::link::scanner::scans_of_input;
+use crate::link::scanner::{SensorScan, scans_of_input};
 use crate::link::stream::{Capacity, MAX_CLUSTERS, link_params, stream_scans};
 use crate::mapping::options::{
     EntityChoice, MIN_POINTS_PER_ENTITY, Model, PipelineConfig, ShellModel,
@@ -274,11 +275,14 @@ pub fn run(opts: &FidelityOptions) -> Result<FidelityReport> {
         });
     }
     let mut rows = Vec::new();
+    // Each cloud's scans as scanner-sim sends them, read once for all its budgets.
+    let scans: Vec<OnceCell<Vec<SensorScan>>> = clouds.iter().map(|_| OnceCell::new()).collect();
     for &budget in &opts.budgets {
-        for (name, cloud, npy) in &clouds {
+        for ((name, cloud, npy), scans) in clouds.iter().zip(&scans) {
             let case = Case {
                 opts,
                 path: &opts.data.join(name),
+                scans,
                 cloud,
                 dir: &scratch.0,
                 npy,
@@ -353,6 +357,8 @@ struct Case<'a> {
     opts: &'a FidelityOptions,
     /// The cloud's file, which the streamed map is sent from as a sensor would send it.
     path: &'a Path,
+    /// The file's scans, once the streamed map has read them.
+    scans: &'a OnceCell<Vec<SensorScan>>,
     cloud: &'a LocalCloud,
     dir: &'a Path,
     npy: &'a Path,
@@ -450,9 +456,13 @@ impl Case<'_> {
                     k: capacity.k,
                     ..self.opts.base
                 };
-                let scans = scans_of_input(self.path, None, &BagOptions::default())?;
+                if self.scans.get().is_none() {
+                    let read = scans_of_input(self.path, None, &BagOptions::default())?;
+                    let _ = self.scans.set(read);
+                }
+                let scans = self.scans.get().map_or(&[][..], |s| &s[..]);
                 let params = link_params(&config, capacity, None, Model::Shells);
-                let (_, _, map) = stream_scans(&scans, params, false)?;
+                let (_, _, map) = stream_scans(scans, params, false)?;
                 stages.streamed_map_s += t.elapsed().as_secs_f64();
                 let w = Instant::now();
                 map.write(&path)?;

@@ -15,15 +15,9 @@ fn resend_end(to: Address) -> Vec<u8> {
     out[..n].to_vec()
 }
 
-/// A faulty line can take the timing frame a device sends just before its end: the end alone
-/// asks for both again, a few times, and a timing that comes after the end still gives the
-/// session its cost.
-#[test]
-fn an_end_without_its_timing_asks_for_the_end_again() {
-    let from = Address {
-        session: 0,
-        boot: 1,
-    };
+/// A listener that has heard an empty map's end (10 points, 1 frame) and nothing before it,
+/// from `FROM`.
+fn ended_without_timing() -> MapFrames {
     let end = DownFrame::End(MapEnd {
         entities: 0,
         layout: Layout::AxisAligned,
@@ -35,7 +29,21 @@ fn an_end_without_its_timing_asks_for_the_end_again() {
         frames: 1,
     });
     let mut frames = MapFrames::listening();
-    frames.feed(&encoded(from, 0, &end));
+    frames.feed(&encoded(FROM, 0, &end));
+    frames
+}
+
+const FROM: Address = Address {
+    session: 0,
+    boot: 1,
+};
+
+/// A faulty line can take the timing frame a device sends just before its end: the end alone
+/// asks for both again, a few times, and a timing that comes after the end still gives the
+/// session its cost.
+#[test]
+fn an_end_without_its_timing_asks_for_the_end_again() {
+    let mut frames = ended_without_timing();
     assert!(frames.ended() && frames.lacks_timing());
 
     let (mut asked, mut asks) = (None, 0);
@@ -53,7 +61,7 @@ fn an_end_without_its_timing_asks_for_the_end_again() {
         calib_insns: 2,
         ..DeviceTiming::default()
     });
-    frames.feed(&encoded(from, 1, &timing));
+    frames.feed(&encoded(FROM, 1, &timing));
     assert!(!frames.lacks_timing());
     let per_point = frames.counts.instructions.map(|i| i.per_point);
     assert_eq!(
@@ -70,22 +78,7 @@ fn an_end_without_its_timing_asks_for_the_end_again() {
 /// A device that never sends its timing costs the session TIMING_ASKS asks, then the map.
 #[test]
 fn a_timing_that_never_comes_is_asked_for_a_bounded_number_of_times() {
-    let from = Address {
-        session: 0,
-        boot: 1,
-    };
-    let end = DownFrame::End(MapEnd {
-        entities: 0,
-        layout: Layout::AxisAligned,
-        shift: [0.0; 3],
-        origin: [0.0; 3],
-        map_len: 0,
-        map_crc: 0,
-        points: 10,
-        frames: 1,
-    });
-    let mut frames = MapFrames::listening();
-    frames.feed(&encoded(from, 0, &end));
+    let mut frames = ended_without_timing();
     let mut asks = 0;
     let mut port = Vec::new();
     for _ in 0..TIMING_ASKS {
