@@ -143,7 +143,7 @@ type ReadCloud<'py> = (
 /// `stream=True` maps as `mema map --stream` does: the streaming mapper, fed the bytes
 /// `mema scanner-sim` would send (`working=` as `--working`).
 /// `free_space=True` keeps each scan's range image as `--free-space` does, within `bytes`, for
-/// `Map.state` to tell free from unknown. `ray_shaping=False` keeps the shells as their
+/// `Map.state` to tell free from unknown. `no_ray_shaping=True` keeps the shells as their
 /// clusters made them, as `--no-ray-shaping` does. The GIL is released while
 /// mapping.
 #[pyfunction(name = "map")]
@@ -154,7 +154,7 @@ type ReadCloud<'py> = (
     alpha = 0.8, threshold = 4.0, sphere_tolerance = 0.01, bounds = "spread",
     out_of_bounds = "clamp", volume = "exact", init = "seeded", generations = 50,
     max_iterations = 100, crop = None, voxel = None, stream = false, working = None,
-    free_space = false, ray_shaping = true
+    free_space = false, no_ray_shaping = false
 ))]
 // One keyword an option, as Python callers expect (and as `mema map` has them).
 #[allow(clippy::too_many_arguments)]
@@ -187,7 +187,7 @@ fn map_points<'py>(
     stream: bool,
     working: Option<i64>,
     free_space: bool,
-    ray_shaping: bool,
+    no_ray_shaping: bool,
 ) -> PyResult<Map> {
     let k = k.map(|k| count::<usize>("k", k)).transpose()?;
     let bytes = bytes.map(|b| count::<usize>("bytes", b)).transpose()?;
@@ -226,7 +226,7 @@ fn map_points<'py>(
             },
             surface_rounds: count("surface_rounds", surface_rounds)?,
             free_space,
-            ray_shaping,
+            ray_shaping: !no_ray_shaping,
         },
         fit: FitOptions {
             alpha,
