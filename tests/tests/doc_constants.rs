@@ -39,8 +39,7 @@ use mema_firmware::{
 };
 use mema_firmware_sim::pacing::LINK_BYTES_PER_S;
 
-use crate::guides::{each_says, thousands, word};
-use crate::util::mema_bin;
+use crate::guides::{cli_default, each_says, thousands, word};
 
 /// (guide, template)
 const STATED: &[(&str, &str)] = &[
@@ -570,30 +569,6 @@ fn value(name: &str) -> String {
         "MERGE_NEIGHBOURS" => mema::mapping::tolerance::MERGE_NEIGHBOURS.to_string(),
         "CARVE_DEGREES" => format!("{:.3}", CARVE_COLUMN.to_degrees()),
         _ => panic!("no constant {name}"),
-    }
-}
-
-/// The default `mema command --help` gives `flag`, as the guides write it (a count with its
-/// thousands separated).
-fn cli_default(command: &str, flag: &str) -> String {
-    let out = std::process::Command::new(mema_bin())
-        .args([command, "--help"])
-        .output()
-        .expect("mema runs");
-    let help = String::from_utf8(out.stdout).expect("text");
-    let at = help
-        .lines()
-        .position(|l| l.trim_start().starts_with(flag) || l.contains(&format!(", {flag} ")))
-        .unwrap_or_else(|| panic!("`mema {command} --help` has no {flag}"));
-    let rest: String = help.lines().skip(at).collect::<Vec<_>>().join("\n");
-    let value = rest
-        .split("[default: ")
-        .nth(1)
-        .and_then(|v| v.split(']').next())
-        .unwrap_or_else(|| panic!("`mema {command} --help`: no default for {flag}"));
-    match value.parse::<u64>() {
-        Ok(n) => thousands(n),
-        Err(_) => value.to_string(),
     }
 }
 

@@ -188,6 +188,30 @@ pub fn says(file: &str, sentence: &str) {
     );
 }
 
+/// The default `mema command --help` gives `flag`, as the guides write it (a count with its
+/// thousands separated).
+pub fn cli_default(command: &str, flag: &str) -> String {
+    let out = std::process::Command::new(crate::util::mema_bin())
+        .args([command, "--help"])
+        .output()
+        .expect("mema runs");
+    let help = String::from_utf8(out.stdout).expect("text");
+    let at = help
+        .lines()
+        .position(|l| l.trim_start().starts_with(flag) || l.contains(&format!(", {flag} ")))
+        .unwrap_or_else(|| panic!("`mema {command} --help` has no {flag}"));
+    let rest: String = help.lines().skip(at).collect::<Vec<_>>().join("\n");
+    let value = rest
+        .split("[default: ")
+        .nth(1)
+        .and_then(|v| v.split(']').next())
+        .unwrap_or_else(|| panic!("`mema {command} --help`: no default for {flag}"));
+    match value.parse::<u64>() {
+        Ok(n) => thousands(n),
+        Err(_) => value.to_string(),
+    }
+}
+
 #[test]
 fn thousands_are_separated_as_the_script_separates_them() {
     assert_eq!(thousands(0), "0");
