@@ -17,6 +17,7 @@
 use mema_core::Entity;
 use mema_core::query::ray_entity;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use crate::io::cloud::LocalCloud;
 
@@ -27,6 +28,9 @@ pub const MAX_RAYS: usize = 60_000;
 /// entities, so 24 rounds try each parameter twice for every entity. Measured on the Ouster
 /// sweeps, the score stops moving by then.
 pub const ROUNDS: usize = 24;
+/// The most (ray, shell) pairs shaping holds, 8 bytes each with the lists turned around: 256 MB.
+/// The shared sweeps' 38,400-byte maps make about 350,000.
+const MAX_PAIRS: usize = 32_000_000;
 /// Points whose nearest-neighbour spacing sets the tolerance.
 const SPACING_SAMPLE: usize = 4_000;
 
@@ -69,8 +73,8 @@ struct Ray {
 }
 
 /// Shapes `entities` (the map's frame, `cloud.origin`'s) to the rays of `cloud`, whose points'
-/// clusters are `labels`; `None` when the cloud has no sensor origins, no entities, or no point
-/// spacing to judge on.
+/// clusters are `labels`; `None` when the cloud has no sensor origins, no entities, no point
+/// spacing to judge on, or more ray and shell pairs than [`MAX_PAIRS`].
 pub fn shape(cloud: &LocalCloud, labels: &[u32], entities: &[Entity]) -> Option<Shaped> {
     if cloud.sensors.is_empty() || entities.is_empty() {
         return None;
@@ -80,7 +84,7 @@ pub fn shape(cloud: &LocalCloud, labels: &[u32], entities: &[Entity]) -> Option<
     if rays.is_empty() || !(tolerance > 0.0 && tolerance.is_finite()) {
         return None;
     }
-    let near = rays_near(entities, &rays, tolerance);
+    let near = rays_near(entities, &rays, tolerance, MAX_PAIRS)?;
     let through = Through::of(&near, rays.len());
     let mut shapes = vec![UNCHANGED; entities.len()];
     let first = first_hits(entities, &shapes, &through, &rays, tolerance);
@@ -379,11 +383,22 @@ fn median_spacing(cloud: &LocalCloud, labels: &[u32]) -> f64 {
 /// For each entity, the rays whose segment (to its end and the tolerance past it) passes
 /// within the reach of every candidate shape: directions binned per scan, so an entity reads
 /// only the bins its reach subtends.
-fn rays_near(entities: &[Entity], rays: &[Ray], tolerance: f64) -> Vec<Vec<u32>> {
+fn rays_near(
+    entities: &[Entity],
+    rays: &[Ray],
+    tolerance: f64,
+    max_pairs: usize,
+) -> Option<Vec<Vec<u32>>> {
     let bins = DirectionBins::of(rays);
-    entities
+    // Shells that each reach across most of the rays (a map of a few huge shells around its
+    // sensor) would make rays x shells pairs; past `max_pairs` the map is left unshaped.
+    let pairs = AtomicUsize::new(0);
+    let near: Vec<Vec<u32>> = entities
         .par_iter()
         .map(|e| {
+            if pairs.load(Ordering::Relaxed) > max_pairs {
+                return Vec::new();
+            }
             let c = e.center.to_f64();
             let reach = reach_of(e);
             let mut near = Vec::new();
@@ -394,9 +409,11 @@ fn rays_near(entities: &[Entity], rays: &[Ray], tolerance: f64) -> Vec<Vec<u32>>
                 }
             });
             near.sort_unstable();
+            pairs.fetch_add(near.len(), Ordering::Relaxed);
             near
         })
-        .collect()
+        .collect();
+    (pairs.into_inner() <= max_pairs).then_some(near)
 }
 
 fn reach_of(e: &Entity) -> f64 {

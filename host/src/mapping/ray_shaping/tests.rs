@@ -140,7 +140,7 @@ fn the_bins_miss_no_ray_near_an_entity() {
     })
     .collect();
     let tolerance = 0.1;
-    let near = rays_near(&entities, &rays, tolerance);
+    let near = rays_near(&entities, &rays, tolerance, usize::MAX).expect("no bound");
     for (e, found) in entities.iter().zip(&near) {
         let (c, reach) = (e.center.to_f64(), reach_of(e));
         let every: Vec<u32> = (0..rays.len() as u32)
@@ -149,4 +149,22 @@ fn the_bins_miss_no_ray_near_an_entity() {
         assert!(!every.is_empty(), "a sphere no ray passes tests nothing");
         assert_eq!(found, &every);
     }
+}
+
+/// Shells that each reach every ray (spheres around the sensor) make rays x shells pairs: past
+/// the bound, no lists and no shaping, rather than memory in proportion to their product.
+#[test]
+fn shells_around_the_sensor_past_the_pair_bound_are_not_shaped() {
+    let cloud = wall();
+    let rays = rays_of(&cloud);
+    let degeneration = Degeneration {
+        threshold: f64::INFINITY,
+        ..Degeneration::default()
+    };
+    let o = cloud.origin;
+    let around = Point3::new(-o[0] as f32, -o[1] as f32, -o[2] as f32);
+    let shells = vec![Entity::from_semi_axes(around, [20.0, 20.0, 20.0], &degeneration); 8];
+    let every = rays_near(&shells, &rays, 0.04, usize::MAX).expect("no bound");
+    assert!(every.iter().all(|near| near.len() == rays.len()));
+    assert_eq!(rays_near(&shells, &rays, 0.04, 3 * rays.len()), None);
 }
