@@ -30,7 +30,7 @@ pub const MAX_RAYS: usize = 60_000;
 pub const ROUNDS: usize = 24;
 /// The most (ray, shell) pairs shaping holds, 8 bytes each with the lists turned around: 256 MB.
 /// The shared sweeps' 38,400-byte maps make about 350,000.
-const MAX_PAIRS: usize = 32_000_000;
+pub const MAX_PAIRS: usize = 32_000_000;
 /// Points whose nearest-neighbour spacing sets the tolerance.
 const SPACING_SAMPLE: usize = 4_000;
 
