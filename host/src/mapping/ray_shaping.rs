@@ -19,6 +19,7 @@ use mema_core::query::ray_entity;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+use super::pipeline::Members;
 use crate::io::cloud::LocalCloud;
 
 /// Rays taken from the input, evenly through it: enough for every entity of a 38,400-byte
@@ -343,19 +344,7 @@ fn rays_of(cloud: &LocalCloud) -> Vec<Ray> {
 /// see the few at borders that are not, and a search in clusters needs no tree beside the cloud.
 fn median_spacing(cloud: &LocalCloud, labels: &[u32]) -> f64 {
     let clusters = labels.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
-    let mut starts = vec![0u32; clusters + 1];
-    for &l in labels {
-        starts[l as usize + 1] += 1;
-    }
-    for c in 1..starts.len() {
-        starts[c] += starts[c - 1];
-    }
-    let mut fill = starts.clone();
-    let mut members = vec![0u32; labels.len()];
-    for (i, &l) in labels.iter().enumerate() {
-        members[fill[l as usize] as usize] = i as u32;
-        fill[l as usize] += 1;
-    }
+    let members = Members::of(labels, clusters);
     let n = labels.len().min(cloud.points.len());
     let step = n.div_ceil(SPACING_SAMPLE).max(1);
     let mut spacings: Vec<f64> = (0..n)
@@ -365,7 +354,8 @@ fn median_spacing(cloud: &LocalCloud, labels: &[u32]) -> f64 {
         .filter_map(|&i| {
             let l = labels[i] as usize;
             let p = cloud.points[i].to_f64();
-            members[starts[l] as usize..starts[l + 1] as usize]
+            members
+                .of_cluster(l)
                 .iter()
                 .filter(|&&j| j as usize != i)
                 .map(|&j| {
