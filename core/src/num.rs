@@ -36,6 +36,50 @@ pub(crate) fn insertion_sort_by<T: Copy>(v: &mut [T], before: impl Fn(&T, &T) ->
     }
 }
 
+/// Sorts `v` by `before` (a strict total order) in O(n log n) compares, in place and without
+/// recursion: the coarsening's sweep sorts a whole frozen store at every scan, where an
+/// insertion sort's n^2 / 4 moves would cost a few dozen fits.
+pub(crate) fn heap_sort_by<T: Copy>(v: &mut [T], before: impl Fn(&T, &T) -> bool) {
+    // Moves element `at` down a max-heap of the first `end` elements.
+    let sift = |v: &mut [T], mut at: usize, end: usize| {
+        loop {
+            let left = 2 * at + 1;
+            if left >= end {
+                break;
+            }
+            let right = left + 1;
+            let child = match (v.get(left), v.get(right)) {
+                (Some(l), Some(r)) if right < end && before(l, r) => right,
+                _ => left,
+            };
+            let (Some(&parent), Some(&larger)) = (v.get(at), v.get(child)) else {
+                break;
+            };
+            if !before(&parent, &larger) {
+                break;
+            }
+            swap_within(v, at, child);
+            at = child;
+        }
+    };
+    let n = v.len();
+    for start in (0..n / 2).rev() {
+        sift(v, start, n);
+    }
+    for end in (1..n).rev() {
+        swap_within(v, 0, end);
+        sift(v, 0, end);
+    }
+}
+
+/// `v.swap(i, j)` where both are in range, else nothing: the check in sight lets the compiler
+/// drop `swap`'s panic.
+fn swap_within<T>(v: &mut [T], i: usize, j: usize) {
+    if i < v.len() && j < v.len() {
+        v.swap(i, j);
+    }
+}
+
 /// `v.swap_remove(i)` without its `assert!`: removes element `i`, moving the last one into its
 /// place, and returns false (changing nothing) if `i` is out of range. The callers' own range
 /// checks do not always reach heapless's assert at opt-level "s", which then keeps a panic.
@@ -80,6 +124,25 @@ mod tests {
         assert_eq!(v, [(3, 'a'), (3, 'c'), (2, 'd'), (1, 'b'), (1, 'e')]);
         let mut w: [usize; 0] = [];
         insertion_sort_by(&mut w, |a, b| a < b);
+    }
+
+    #[test]
+    fn heap_sort_sorts_as_the_insertion_sort() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for n in [0usize, 1, 2, 3, 7, 64, 551] {
+            let mut v = [(0u8, 0u16); 551];
+            for (i, x) in v.iter_mut().enumerate().take(n) {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                // Few distinct keys, so ties are common and broken by the index.
+                *x = ((state % 7) as u8, i as u16);
+            }
+            let mut expected = v;
+            insertion_sort_by(&mut expected[..n], |a, b| a < b);
+            heap_sort_by(&mut v[..n], |a, b| a < b);
+            assert_eq!(v, expected, "n = {n}");
+        }
     }
 
     #[test]

@@ -319,7 +319,7 @@ fn text(r: &RunReport, board: &Board, capture: &str) -> String {
          \x20 delivered  {} chunks, {} ticks, ring peak {} bytes, ring overruns {}\n\
          \x20 frames     {} accepted, {} rejected (crc {}, cobs {}, length {}, oversize {}), {} lost, {} repeated\n\
          \x20 faults     {} noise bytes, {} overruns ({} bytes), {} truncations ({} bytes), {} resets\n\
-         \x20 mapper     {} points, {} clusters (peak {}), {} merges, {} refits, {} paced joins, {} restarts\n\
+         \x20 mapper     {} points, {} clusters (peak {}), {} merges, {} refits, {} paced joins, {} shed, {} restarts\n\
          \x20 statics    {} bytes ({})\n\
          \x20 map        {} bytes, CRC-32 {:08x}, end of stream: {}\n",
         r.deliveries,
@@ -346,6 +346,7 @@ fn text(r: &RunReport, board: &Board, capture: &str) -> String {
         r.mapper.merges,
         r.mapper.refits,
         r.mapper.paced_joins,
+        r.mapper.paced_shed,
         r.firmware.restarts,
         board.static_bytes(),
         board
@@ -368,7 +369,7 @@ fn json(r: &RunReport, board: &Board) -> String {
          \"frames_accepted\":{},\"frames_rejected\":{},\"frames_lost\":{},\"frames_repeated\":{},\
          \"held_frames\":{},\"restarts\":{},\"resets\":{},\"noise_bytes\":{},\"overruns\":{},\
          \"truncations\":{},\"ring_overruns\":{},\"ring_peak\":{},\"peak_clusters\":{},\
-         \"ticks\":{},\"deliveries\":{},\"static_bytes\":{},\"paced_joins\":{}}}",
+         \"ticks\":{},\"deliveries\":{},\"static_bytes\":{},\"paced_joins\":{},\"paced_shed\":{}}}",
         r.map.len(),
         crc_of(&r.map),
         entities_of(&r.map),
@@ -391,5 +392,6 @@ fn json(r: &RunReport, board: &Board) -> String {
         r.deliveries,
         board.static_bytes(),
         r.mapper.paced_joins,
+        r.mapper.paced_shed,
     )
 }

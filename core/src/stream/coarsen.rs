@@ -29,8 +29,9 @@ use crate::geometry::{Entity, Point3};
 use crate::map::record::{rotation_column32, rotation_of_code};
 use crate::shell::{ShellParams, shell};
 
-/// Most pair distances one scan measures, about a shell fit's work (a scan is priced as one):
-/// a whole store of 550 (the board's) is 151,000.
+/// Most pair distances one scan measures, about a shell fit's work; with the sort before it a
+/// scan is priced as two fits ([`super::Pacing`]). Along the sweep's order the board's whole
+/// store of 550 usually takes a few thousand, where all its pairs are 151,000.
 pub const MOST_MEASURED: usize = 8_000;
 
 /// Candidates lie within this many join radii of each other.
@@ -49,7 +50,7 @@ pub(super) struct Coarsening {
     pending: ClosestPairs<LISTED>,
     /// The next candidate of `pending` to try.
     next: usize,
-    /// The row the next scan starts from.
+    /// The place in the sweep's order the next scan starts from.
     row: usize,
     /// Rows scanned since a scan last found a candidate.
     empty_rows: usize,
@@ -58,16 +59,14 @@ pub(super) struct Coarsening {
     reach: f32,
     /// Scans so far (wrapping), for the pacing to price the ones that ran.
     scans: u32,
-    /// Slots changed since the scan ([`Coarsening::touch`]); `usize::MAX` unused.
-    touched: [usize; TOUCHED],
 }
 
-/// Candidate pairs a scan lists.
-const LISTED: usize = 12;
-
-/// Changed slots a list follows: three a merge, so a list yields at most four merges before it
-/// is stale (a fifth listed pair would need its slots followed too).
-const TOUCHED: usize = 3 * 4;
+/// Candidate pairs a scan lists. A list serves until its pairs are spent, each pair skipped
+/// once a merge or carving has changed either slot (the slots' marks), so the more it lists
+/// the fewer scans the freezes pay for: on the board's layout (K = 700), 12 listed left
+/// bun000's map 1.34 times the batch map's Chamfer distance at the same bytes, 24 1.32, 48
+/// 1.16 (`scripts/board-fidelity.sh`; docs/streaming.md).
+const LISTED: usize = 48;
 
 impl Coarsening {
     pub(super) const fn new() -> Self {
@@ -78,7 +77,6 @@ impl Coarsening {
             empty_rows: 0,
             reach: REACH_RADII,
             scans: 0,
-            touched: [usize::MAX; TOUCHED],
         }
     }
 
@@ -90,33 +88,6 @@ impl Coarsening {
 
     pub(super) fn scans(&self) -> u32 {
         self.scans
-    }
-
-    /// Slots whose entities changed since the scan: a listed pair with either is skipped.
-    pub(super) fn touch(&mut self, slots: [usize; 3]) {
-        for slot in slots {
-            if let Some(t) = self
-                .touched
-                .iter_mut()
-                .find(|t| **t == usize::MAX || **t == slot)
-            {
-                *t = slot;
-            } else {
-                // More changes than the list can follow: the rest of the list is stale.
-                self.next = self.pending.len;
-            }
-        }
-    }
-
-    /// Whether pair (a, b) holds other entities than when it was listed (a pair with a slot
-    /// past the store's end is gone by itself).
-    fn moved(&self, a: usize, b: usize) -> bool {
-        self.touched.iter().any(|&t| t == a || t == b)
-    }
-
-    /// A carving removed a frozen entity: the listed pairs may name moved slots.
-    pub(super) fn forget(&mut self) {
-        self.next = self.pending.len;
     }
 }
 
@@ -298,10 +269,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         if self.coarsening.spent() {
             self.scan_frozen_pairs(params.tangent_scale as f32);
         }
-        while let Some(&(_, a, b)) = self.coarsening.pending.as_slice().get(self.coarsening.next) {
+        while let Some((_, a, b)) = self.coarsening.pending.get(self.coarsening.next) {
             self.coarsening.next += 1;
             let last = self.frozen.len().saturating_sub(1);
-            if self.coarsening.moved(a, b) {
+            if self.marks.touched(a) || self.marks.touched(b) {
                 continue;
             }
             let (Some(ea), Some(eb)) = (self.frozen.get(a), self.frozen.get(b)) else {
@@ -318,8 +289,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if crate::num::swap_remove(&mut self.frozen, b) {
                 self.marks.swap_removed(b, last);
             }
+            // After the marks moved: the listed pairs name these slots as they were.
+            for slot in [a, b, last] {
+                self.marks.touch(slot);
+            }
             observer.coarsened(a, b);
-            self.coarsening.touch([a, b, last]);
             self.stats.coarsened += 1;
             self.widen_radius(RADIUS_SHARE * libm::sqrtf(d2));
             return true;
@@ -327,21 +301,55 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         false
     }
 
-    /// Lists the cheapest candidate pairs of up to [`MOST_MEASURED`] distances, from the row
-    /// where the last scan stopped, for shells of tangent scale `tangent_scale`.
+    /// Lists the cheapest candidate pairs within reach, sweeping the store sorted along the
+    /// longest side of its centres' box: each entity meets only those after it in that order
+    /// and no farther along it than the reach, so the distances a scan measures are the pairs
+    /// that could be candidates, wherever in the store they lie. At most [`MOST_MEASURED`]
+    /// distances, from the place in the order where the last scan stopped.
     fn scan_frozen_pairs(&mut self, tangent_scale: f32) {
         let len = self.frozen.len();
+        let axis = self.longest_axis();
+        let key = |e: &FrozenEntity| match axis {
+            0 => e.entity.center.x,
+            1 => e.entity.center.y,
+            _ => e.entity.center.z,
+        };
+        let order = self.sweep.get_mut(..len).unwrap_or(&mut []);
+        for (i, slot) in order.iter_mut().enumerate() {
+            *slot = i as u16;
+        }
+        let frozen = &self.frozen;
+        let key_of = |i: u16| frozen.get(usize::from(i)).map_or(0.0, key);
+        // Ties by index: a total order, so the same store sorts the same on every target.
+        crate::num::heap_sort_by(order, |&a, &b| {
+            let (ka, kb) = (key_of(a), key_of(b));
+            ka < kb || (ka == kb && a < b)
+        });
         let mut pending = ClosestPairs::<LISTED>::new(LISTED);
         let reach = self.coarsening.reach * self.radius;
         // Before the radius has grown (coincident points merged first), nothing is in reach.
         let reach2 = reach * reach;
-        let (mut a, mut rows, mut measured) = (self.coarsening.row, 0, 0);
+        let (mut at, mut rows, mut measured) = (self.coarsening.row, 0, 0);
         while rows < len && measured < MOST_MEASURED {
-            a = if a >= len { 0 } else { a };
-            if let Some((ea, rest)) = self.frozen.get(a..).and_then(|s| s.split_first()) {
+            at = if at >= len { 0 } else { at };
+            let Some((&ia, after)) = order.get(at..).and_then(|s| s.split_first()) else {
+                break;
+            };
+            let a = usize::from(ia);
+            if let Some(ea) = frozen.get(a) {
+                let ka = key(ea);
                 // Its plane once, when a first pair is within reach.
                 let mut plane_a = None;
-                for (offset, eb) in rest.iter().enumerate() {
+                for &ib in after {
+                    let b = usize::from(ib);
+                    let Some(eb) = frozen.get(b) else {
+                        continue;
+                    };
+                    measured += 1;
+                    // Sorted: every entity from here on is farther along the axis.
+                    if !(key(eb) - ka <= reach) {
+                        break;
+                    }
                     let d2 = ea.entity.center.distance_squared(eb.entity.center);
                     if d2 > reach2 {
                         continue;
@@ -354,15 +362,14 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                         continue;
                     };
                     if let Some(c) = cost(pa, &pb, d2) {
-                        pending.offer(a, a + 1 + offset, c);
+                        pending.offer(a.min(b), a.max(b), c);
                     }
                 }
-                measured += rest.len();
             }
-            a += 1;
+            at += 1;
             rows += 1;
         }
-        self.coarsening.row = a;
+        self.coarsening.row = at;
         if pending.len == 0 {
             self.coarsening.empty_rows += rows;
             if self.coarsening.empty_rows >= len {
@@ -374,8 +381,31 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
         self.coarsening.pending = pending;
         self.coarsening.next = 0;
-        self.coarsening.touched = [usize::MAX; TOUCHED];
+        self.marks.untouch_all();
         self.coarsening.scans = self.coarsening.scans.wrapping_add(1);
+    }
+
+    /// The axis (0, 1, 2 for x, y, z) along which the frozen centres spread widest.
+    fn longest_axis(&self) -> usize {
+        let mut lo = [f32::INFINITY; 3];
+        let mut hi = [f32::NEG_INFINITY; 3];
+        for e in self.frozen.iter() {
+            let c = e.entity.center;
+            for (j, v) in [c.x, c.y, c.z].into_iter().enumerate() {
+                if let (Some(l), Some(h)) = (lo.get_mut(j), hi.get_mut(j)) {
+                    *l = l.min(v);
+                    *h = h.max(v);
+                }
+            }
+        }
+        let side = |j: usize| hi.get(j).zip(lo.get(j)).map_or(0.0, |(h, l)| h - l);
+        if side(0) >= side(1) && side(0) >= side(2) {
+            0
+        } else if side(1) >= side(2) {
+            1
+        } else {
+            2
+        }
     }
 }
 

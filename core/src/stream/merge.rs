@@ -130,16 +130,16 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
         // Each pair's tolerance check once (each costs a small solve).
         let mut allowed = [false; MAX_MERGE_BATCH];
-        for (ok, &(_, a, b)) in allowed.iter_mut().zip(pairs.as_slice()) {
+        for (ok, (_, a, b)) in allowed.iter_mut().zip(pairs.iter()) {
             *ok = self.within_tolerance(a, b);
         }
         let forced = if force && !allowed.iter().any(|&ok| ok) {
             self.stats.forced_merges += u64::from(self.params.tolerance > 0.0);
-            pairs.as_slice().first().map(|&(_, a, b)| (a, b))
+            pairs.get(0).map(|(_, a, b)| (a, b))
         } else {
             None
         };
-        for (&(_, a, b), &ok) in pairs.as_slice().iter().zip(allowed.iter()) {
+        for ((_, a, b), &ok) in pairs.iter().zip(allowed.iter()) {
             if touched.contains(&a) || touched.contains(&b) || !(ok || forced == Some((a, b))) {
                 continue;
             }

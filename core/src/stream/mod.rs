@@ -82,6 +82,14 @@ pub const MAX_SUMMARY: usize = 8192;
 /// its 95th percentile range error tripled).
 pub const PACED_GROWTH: f32 = 1.005;
 
+/// A point the pacing's credit cannot pay room for joins its nearest centre within this many
+/// join radii, and is shed beyond: a single point far from its cluster's surface moves the
+/// cluster's plane and thickens its shell (on the board's layout, K = 700, joining at any
+/// distance left five_people's map 1.30 times the batch map's Chamfer distance at the same
+/// bytes, lamppost's 1.40; within 3 radii, 1.21 and 1.27; docs/streaming.md). A shed point is
+/// counted ([`StreamStats::paced_shed`]) and a carver still takes its ray.
+pub const PACED_REACH: f32 = 3.0;
+
 /// In a layout that freezes, the join radius shrinks by this factor at every point that finds
 /// the pacing's credit at its cap, unspent: room is affordable there, so the map may be finer.
 /// With [`PACED_GROWTH`] the radius follows what the credit pays for both ways; growing only,
@@ -166,6 +174,9 @@ pub struct StreamStats {
     /// Points that joined their nearest centre beyond the join radius because the pacing's
     /// credit could not pay for room ([`pacing`]).
     pub paced_joins: u64,
+    /// Points the pacing's credit could not pay room for, with no centre within
+    /// [`PACED_REACH`] join radii: left out of the clusters ([`pacing`]).
+    pub paced_shed: u64,
     /// Pairs of frozen entities merged to make room for another ([`coarsen`]).
     pub coarsened: u64,
     /// Working clusters carved: seen through by later scans ([`carve`]).
@@ -181,6 +192,8 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     /// Each frozen slot's marks, moved with its entity.
     marks: slots::SlotMarks<F>,
     coarsening: coarsen::Coarsening,
+    /// The frozen slots in the coarsening's sweep order, sorted again at each scan.
+    sweep: [u16; F],
     grid: CentreGrid<K, G>,
     radius: f32,
     /// The cluster the last point went to: a scan's next point is likely nearest to it, and
@@ -220,11 +233,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     // Inlined so a caller can build the mapper in place (the firmware image, in a static).
     #[inline(always)]
     pub const fn new(params: StreamParams) -> Self {
+        const { assert!(F < u16::MAX as usize, "frozen indices are u16") };
         Self {
             clusters: heapless::Vec::new(),
             frozen: heapless::Vec::new(),
             marks: slots::SlotMarks::new(),
             coarsening: coarsen::Coarsening::new(),
+            sweep: [0; F],
             grid: CentreGrid::new(f32::MIN_POSITIVE),
             radius: 0.0,
             recent: 0,
@@ -240,6 +255,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 forced_merges: 0,
                 frozen: 0,
                 paced_joins: 0,
+                paced_shed: 0,
                 coarsened: 0,
                 carved: 0,
             },
@@ -309,7 +325,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let join = match self.nearest_within_radius(p) {
             Some(i) => Some(i),
             None if full && !self.make_room(observer) => {
-                self.stats.paced_joins += 1;
                 if self
                     .params
                     .pacing
@@ -317,7 +332,18 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 {
                     self.widen_radius(self.radius * PACED_GROWTH);
                 }
-                self.nearest_within(p, f32::INFINITY)
+                let reach = PACED_REACH * self.radius;
+                match self.nearest_within(p, reach * reach) {
+                    Some(i) => {
+                        self.stats.paced_joins += 1;
+                        Some(i)
+                    }
+                    None => {
+                        self.stats.paced_shed += 1;
+                        observer.shed();
+                        return false;
+                    }
+                }
             }
             None => None,
         };
@@ -372,8 +398,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.nearest_within(p, self.radius * self.radius)
     }
 
-    /// The nearest centre within `sqrt(r2)` (ties: the lowest index); `r2` infinite: at any
-    /// distance, for a point the pacing could not make room for.
+    /// The nearest centre within `sqrt(r2)` (ties: the lowest index); `r2` past the grid's
+    /// half cell (infinite: at any distance): within [`PACED_REACH`] radii, for a point the
+    /// pacing could not make room for.
     #[inline(never)]
     fn nearest_within(&self, p: Point3, r2: f32) -> Option<usize> {
         // The best so far, (index, squared distance); starting from (none, r2) makes "within
@@ -387,11 +414,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
             best.1
         };
-        if r2 == 0.0 || r2 == f32::INFINITY {
+        let half_cell = 0.5 * self.grid.cell();
+        if r2 == 0.0 || r2 > half_cell * half_cell {
             // Until the first merge the radius is 0 and the cells so small that every centre
             // is filed in one saturated cell: the grid would walk that whole chain 8 times, so
             // one pass over the centres is cheaper, and finds the same (coincident) centres.
-            // At any distance, the cells do not bound the search: the same pass.
+            // Past half a cell, the cells do not bound the search: the same pass.
             for (i, c) in self.clusters.iter().enumerate() {
                 offer(i, c);
             }
@@ -541,7 +569,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let removed = crate::num::swap_remove(&mut self.frozen, index);
         if removed {
             self.marks.swap_removed(index, last);
-            self.coarsening.forget();
+            // The coarsening's listed pairs with either slot now name other entities.
+            self.marks.touch(index);
+            self.marks.touch(last);
         }
         self.stats.carved += u64::from(removed);
         removed

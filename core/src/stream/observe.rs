@@ -9,6 +9,8 @@ pub trait Observer {
     fn joined(&mut self, _index: usize) {}
     /// The point opened a new working cluster at `index`, the end of the working set.
     fn opened(&mut self, _index: usize) {}
+    /// The point joined no cluster: the pacing shed it ([`super::PACED_REACH`]).
+    fn shed(&mut self) {}
     /// Cluster `from`'s points joined cluster `into`; `from` is [`Observer::removed`] later.
     fn merged(&mut self, _into: usize, _from: usize) {}
     /// Cluster `index` became the last frozen entity; it is [`Observer::removed`] next.

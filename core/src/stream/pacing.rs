@@ -75,9 +75,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     pub(super) fn make_room(&mut self, observer: &mut impl Observer) -> bool {
         let pacing = self.params.pacing;
         // A freeze into a full store of shells first merges two frozen shells, a shell's fit
-        // like the freeze's own, and scans for candidates when the last scan's are spent, a
-        // fit's price more ([`coarsen::MOST_MEASURED`]).
-        let scan = pacing.freeze;
+        // like the freeze's own, and scans for candidates when the last scan's are spent: a
+        // sort of the store and up to [`super::MOST_MEASURED`] distances, two fits' price more.
+        let scan = pacing.freeze.saturating_mul(2);
         let freeze = match (
             self.store_full() && self.coarsens(),
             self.coarsening.spent(),

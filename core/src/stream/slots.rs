@@ -1,6 +1,7 @@
 //! Marks on the frozen slots, kept beside the frozen entities they describe: each slot's count
-//! of scans in a row that saw through its entity ([`super::carve`]), and whether the slot holds
-//! another entity than the one a downlink last sent from it.
+//! of scans in a row that saw through its entity ([`super::carve`]), whether the slot holds
+//! another entity than the one a downlink last sent from it, and whether it changed since the
+//! coarsening's last scan ([`super::coarsen`]).
 //!
 //! Why in the mapper and not in the carver: a slot's entity changes wherever the frozen store
 //! changes (a carving removes one, [`super::coarsen`] merges two), and a mark must move with
@@ -9,6 +10,14 @@
 /// A slot's byte: its count in the low bits, and this bit once the slot holds another entity
 /// than the one the downlink last sent from it.
 const CHANGED: u8 = 0x80;
+
+/// This bit once the slot's entity changed since the coarsening's last scan, whose listed pairs
+/// name slots as they were then (a bit a slot, where a list of changed slots would bound the
+/// merges a scan can give).
+const TOUCHED: u8 = 0x40;
+
+/// The count's bits: [`super::carve::SEEN_THROUGH`] is far below them.
+const COUNT: u8 = !(CHANGED | TOUCHED);
 
 /// The marks of `F` frozen slots.
 #[derive(Clone, Debug)]
@@ -32,13 +41,32 @@ impl<const F: usize> SlotMarks<F> {
 
     /// Slot `i`'s count of scans that saw through its entity (0 past the store).
     pub(super) fn count(&self, i: usize) -> u8 {
-        self.marks.get(i).map_or(0, |m| m & !CHANGED)
+        self.marks.get(i).map_or(0, |m| m & COUNT)
     }
 
-    /// Sets slot `i`'s count, keeping its changed mark.
+    /// Sets slot `i`'s count, keeping its other marks.
     pub(super) fn set_count(&mut self, i: usize, count: u8) {
         if let Some(m) = self.marks.get_mut(i) {
-            *m = (*m & CHANGED) | (count & !CHANGED);
+            *m = (*m & !COUNT) | (count & COUNT);
+        }
+    }
+
+    /// Slot `i` changed since the coarsening's last scan.
+    pub(super) fn touch(&mut self, i: usize) {
+        if let Some(m) = self.marks.get_mut(i) {
+            *m |= TOUCHED;
+        }
+    }
+
+    /// Whether slot `i` changed since the coarsening's last scan.
+    pub(super) fn touched(&self, i: usize) -> bool {
+        self.marks.get(i).is_some_and(|m| m & TOUCHED != 0)
+    }
+
+    /// A new scan: no slot has changed since.
+    pub(super) fn untouch_all(&mut self) {
+        for m in self.marks.iter_mut() {
+            *m &= !TOUCHED;
         }
     }
 

@@ -243,6 +243,26 @@ fn shells_give_the_same_map_whatever_the_batching() {
     assert!(whole.entities().eq(pieces.entities()));
 }
 
+/// What became of each point: joined, opened a cluster, or shed by the pacing.
+#[derive(Default)]
+struct Fates {
+    joined: u64,
+    opened: u64,
+    shed: u64,
+}
+
+impl Observer for Fates {
+    fn joined(&mut self, _: usize) {
+        self.joined += 1;
+    }
+    fn opened(&mut self, _: usize) {
+        self.opened += 1;
+    }
+    fn shed(&mut self) {
+        self.shed += 1;
+    }
+}
+
 /// Points that are all new ground: along a line, each step 1% longer than the last, so no
 /// point lies within the join radius that merging the earlier ones gave.
 fn receding_line() -> [Point3; 3000] {
@@ -267,9 +287,10 @@ fn pacing_bounds_the_costly_steps_by_the_points() {
         let mut passes = 0u64;
         let mut worst = 0u64;
         let (mut window, mut window_points) = (0u64, 0u64);
+        let mut fates = Fates::default();
         for &p in &pts {
             let (frozen, merges) = (m.stats().frozen, m.stats().merges);
-            m.add(p);
+            m.add_observed(p, &mut fates);
             let pass = u64::from(m.stats().merges > merges);
             passes += pass;
             // Credits spent in each stretch of 100 points, against what it earned plus the burst.
@@ -281,10 +302,13 @@ fn pacing_bounds_the_costly_steps_by_the_points() {
                 (window, window_points) = (0, 0);
             }
         }
+        // Every point joined a cluster, opened one or was shed, and the shed ones are counted.
+        assert_eq!(fates.joined + fates.opened + fates.shed, pts.len() as u64);
+        assert_eq!(fates.shed, m.stats().paced_shed);
         (
             m.stats().frozen,
             passes,
-            m.stats().paced_joins,
+            m.stats().paced_joins + m.stats().paced_shed,
             worst,
             m.stats().points,
         )
@@ -305,9 +329,35 @@ fn pacing_bounds_the_costly_steps_by_the_points() {
         "{spent}"
     );
     assert!(worst <= 100 + u64::from(device.burst), "{worst}");
-    // The points the credit could not make room for joined clusters; none was dropped.
+    // The points the credit could not make room for joined a cluster within reach or were shed.
     assert!(joins > 100, "{joins}");
     assert_eq!(points, pts.len() as u64);
+}
+
+/// A point the credit cannot make room for joins a centre within [`PACED_REACH`] join radii,
+/// and is shed beyond them, counted, leaving every cluster as it was.
+#[test]
+fn a_point_past_the_paced_reach_is_shed_and_counted() -> crate::test_support::TestResult {
+    use crate::test_support::OrFail;
+    let mut m = StreamMapper::<2, 64>::new(StreamParams {
+        pacing: Pacing::DEVICE,
+        ..params(2)
+    });
+    m.add(Point3::new(0.0, 0.0, 0.0));
+    m.add(Point3::new(10.0, 0.0, 0.0));
+    m.radius = 1.0;
+    let mut fates = Fates::default();
+    // 2.5 radii from the first centre, and the credit (3 points) short of a merge pass.
+    m.add_observed(Point3::new(2.5, 0.0, 0.0), &mut fates);
+    assert_eq!((fates.joined, m.stats().paced_joins), (1, 1));
+    let before = *m.clusters().first().or_fail("cluster")?;
+    // 3.5 radii from both: shed.
+    m.add_observed(Point3::new(6.5, 0.0, 0.0), &mut fates);
+    assert_eq!((fates.shed, m.stats().paced_shed), (1, 1));
+    assert_eq!(m.clusters().len(), 2);
+    assert_eq!(m.clusters().first(), Some(&before));
+    assert_eq!(m.stats().points, 4);
+    Ok(())
 }
 
 /// A mapper started again in place (a device's, when a glitched first pose is outvoted) maps

@@ -200,3 +200,57 @@ fn coarsening_gives_the_same_map_whatever_the_batching() {
     assert!(whole.stats().coarsened > 0);
     assert!(whole.entities().eq(pieces.entities()));
 }
+
+/// The sweep lists the pairs a search of every pair lists: the same cheapest candidates within
+/// reach, in the same order, from a store scattered in 3D with shells of every orientation
+/// (the three axes each in turn the thin one) and centres in no order along any axis, spread
+/// along y so that one scan's distances take in the whole store.
+#[test]
+fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
+    let mut m = StreamMapper::<8, 64, 600>::new(params(StreamModel::shells(0.01), 8, 600));
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    for i in 0..550 {
+        let center = Point3::new(5.0 * next(), 100.0 * next(), 2.0 * next());
+        let mut weights = [
+            1.0 / (0.3 + next()).powi(2),
+            1.0 / (0.3 + next()).powi(2),
+            0.0,
+        ];
+        weights[2] = 1.0 / (0.01 + 0.05 * next()).powi(2);
+        weights.rotate_left(i % 3);
+        let e = FrozenEntity {
+            entity: crate::geometry::AxisEntity { center, weights },
+            rotation: 0,
+        };
+        m.frozen.push(e).map_err(|_| "room")?;
+    }
+    m.radius = 0.4;
+    m.scan_frozen_pairs(2.0);
+    // The whole store in one scan, along y, the longest side.
+    assert_eq!(m.coarsening.row, 550);
+    let reach = m.coarsening.reach * m.radius;
+    let mut every = ClosestPairs::<LISTED>::new(LISTED);
+    for (a, ea) in m.frozen.iter().enumerate() {
+        for (b, eb) in m.frozen.iter().enumerate().skip(a + 1) {
+            let d2 = ea.entity.center.distance_squared(eb.entity.center);
+            if d2 > reach * reach {
+                continue;
+            }
+            let (Some(pa), Some(pb)) = (Plane::of(ea, 2.0), Plane::of(eb, 2.0)) else {
+                continue;
+            };
+            if let Some(c) = cost(&pa, &pb, d2) {
+                every.offer(a, b, c);
+            }
+        }
+    }
+    assert_eq!(every.len, LISTED);
+    assert!(m.coarsening.pending.iter().eq(every.iter()));
+    Ok(())
+}

@@ -165,6 +165,10 @@ pub struct StreamSummary {
     /// pacing could not pay for room (docs/firmware.md, "Longest tick, the link and pacing"): where the map is coarser than the
     /// points asked for.
     pub paced_joins: u64,
+    /// Points the pacing could not pay room for, with no cluster within three join radii:
+    /// left out of the map (a single far point would thicken its cluster's shell), their rays
+    /// still carved.
+    pub paced_shed: u64,
     /// Pairs of frozen entities merged to make room (a device's layout).
     pub coarsened: u64,
     /// Clusters carved with `--free-space`: later scans saw through them.
@@ -238,6 +242,7 @@ fn summary(
             0.0
         },
         paced_joins: link.mapper.stats().paced_joins,
+        paced_shed: link.mapper.stats().paced_shed,
         coarsened: link.mapper.stats().coarsened,
         carved: link.mapper.stats().carved,
     }
@@ -262,6 +267,13 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
         extra.push_str(&format!(
             ", {} points joined beyond the radius (paced)",
             s.paced_joins
+        ));
+    }
+    if s.paced_shed > 0 {
+        extra.push_str(&format!(
+            ", {} shed (paced, no cluster within {} radii)",
+            s.paced_shed,
+            mema_core::stream::PACED_REACH
         ));
     }
     if s.coarsened > 0 {
