@@ -7,6 +7,9 @@
 #
 #   scripts/board-fidelity.sh [K ...]        (default: 400 700, today's image and the board)
 #
+# The last line is the geometric mean of the ratios: one cloud's ratio moves by a tenth with
+# small changes to the stream (docs/design.md, "A device's layout"), so levers are judged on it.
+#
 # MEMA=path/to/mema uses that build; the clouds are read from ../shared/data in place.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -21,6 +24,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 chamfer() { "$MEMA" eval "$1" "$2" --json --samples 50000 | python3 -c 'import json, sys; print("%.4f" % (1000 * json.load(sys.stdin)["chamfer"]))'; }
 printf '%-16s %6s %8s %9s %15s %15s %6s\n' cloud K bytes entities "board (mm)" "batch (mm)" ratio
+ratios=()
 for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd five_people.pcd; do
   "$MEMA" scanner-sim --port "$work/$cloud.bin" "$data/$cloud" 2>/dev/null
   for k in "${ks[@]}"; do
@@ -36,5 +40,7 @@ for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd f
     b=$(chamfer "$data/$cloud" "$board")
     h=$(chamfer "$data/$cloud" "$batch")
     printf '%-16s %6s %8s %9s %15s %15s %6.2f\n' "$cloud" "$k" "$bytes" "$entities" "$b" "$h" "$(python3 -c "print($b / $h)")"
+    ratios+=("$b/$h")
   done
 done
+python3 -c "import math, sys; r = [float(x.split('/')[0]) / float(x.split('/')[1]) for x in sys.argv[1:]]; print('geometric mean of %d ratios: %.3f' % (len(r), math.exp(sum(map(math.log, r)) / len(r))))" "${ratios[@]}"

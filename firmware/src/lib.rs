@@ -90,11 +90,12 @@ pub const BOARD_CARVE_PIXELS: usize = BOARD_CARVE_IMAGE[0] as usize * BOARD_CARV
 /// [`mema_core::link::receiver::DEFAULT_REACH`]): a layout for a robot that stays closer to its
 /// first point can refuse more.
 pub const IMAGE_REACH: f32 = mema_core::link::receiver::DEFAULT_REACH;
-/// The image's centre-hash buckets: 1.7 per working cluster keeps chains short. The map does not
-/// depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 buys back the
-/// 512 bytes of RAM that the frozen entities' rotation codes and the shell model's parameters
-/// cost, so the layout stays under 64 KiB beside an 8 KiB stack.
-pub const IMAGE_BUCKETS: usize = 256;
+/// The image's centre-hash buckets: 0.85 per working cluster keeps chains short. The map does
+/// not depend on it (the host maps with 4,096 to the same bytes); 256 rather than 512 bought
+/// back the 512 bytes of RAM that the frozen entities' rotation codes and the shell model's
+/// parameters cost, and 128 rather than 256 half of the 564 that the coarsening's sweep order
+/// and longer candidate list cost, so static RAM and the stack stay under 64 KiB.
+pub const IMAGE_BUCKETS: usize = 128;
 
 /// Most points one tick maps: with at most one fit or merge pass on top, the tick's length is
 /// bounded whatever the ring holds (a frame carries up to 128).

@@ -17,11 +17,14 @@
 //! patches of one surface merge first; only pairs within two join radii are candidates, since
 //! the cost favours coplanar pairs, which would otherwise join patches of a floor far apart.
 //!
-//! A device's budget: a scan over the pairs measures at most [`MOST_MEASURED`] distances, going
-//! on from the row where the last one stopped, and keeps the cheapest dozen pairs; each freeze
-//! into a full store merges the next of them whose slots no merge or carving has changed since,
-//! priced as a fit, and a scan runs only once the list is spent, priced as a fit again
-//! ([`super::Pacing`]).
+//! A device's budget: a scan sorts the store along the longest side of its centres' box and
+//! sweeps it, measuring at most [`MOST_MEASURED`] distances from the place in that order where
+//! the last scan stopped, and keeps the cheapest 32 pairs (`LISTED`); each freeze into a full store
+//! merges the next of them whose slots no merge or carving has changed since, priced as a fit,
+//! and a scan runs only once the list is spent, priced as two fits more ([`super::Pacing`]).
+//! Sorted, the distances a scan measures are the pairs that can be within reach wherever in the
+//! store they lie: a scan of rows in store order saw a slice of the store, and merged the
+//! cheapest pair of that slice.
 
 use super::pairs::ClosestPairs;
 use super::{FrozenEntity, PLANAR_WARD, StreamMapper, StreamModel};
@@ -62,11 +65,10 @@ pub(super) struct Coarsening {
 }
 
 /// Candidate pairs a scan lists. A list serves until its pairs are spent, each pair skipped
-/// once a merge or carving has changed either slot (the slots' marks), so the more it lists
-/// the fewer scans the freezes pay for: on the board's layout (K = 700), 12 listed left
-/// bun000's map 1.34 times the batch map's Chamfer distance at the same bytes, 24 1.32, 48
-/// 1.16 (`scripts/board-fidelity.sh`; docs/streaming.md).
-const LISTED: usize = 48;
+/// once a merge or carving has changed either slot (a bit in the slots' marks), so the more it
+/// lists the fewer scans the freezes pay for; past 32 the board's maps gained nothing
+/// (docs/design.md, "A device's layout"), and each pair costs the 64 KiB image 8 bytes.
+const LISTED: usize = 32;
 
 impl Coarsening {
     pub(super) const fn new() -> Self {

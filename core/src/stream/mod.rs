@@ -83,11 +83,10 @@ pub const MAX_SUMMARY: usize = 8192;
 pub const PACED_GROWTH: f32 = 1.005;
 
 /// A point the pacing's credit cannot pay room for joins its nearest centre within this many
-/// join radii, and is shed beyond: a single point far from its cluster's surface moves the
-/// cluster's plane and thickens its shell (on the board's layout, K = 700, joining at any
-/// distance left five_people's map 1.30 times the batch map's Chamfer distance at the same
-/// bytes, lamppost's 1.40; within 3 radii, 1.21 and 1.27; docs/streaming.md). A shed point is
-/// counted ([`StreamStats::paced_shed`]) and a carver still takes its ray.
+/// join radii, and is shed beyond: a single point far from its cluster's surface tilts the
+/// cluster's plane and thickens its shell, a phantom surface across the gap (docs/design.md, "A
+/// device's layout", has what each choice scored). A shed point is counted
+/// ([`StreamStats::paced_shed`]) and a carver still takes its ray.
 pub const PACED_REACH: f32 = 3.0;
 
 /// In a layout that freezes, the join radius shrinks by this factor at every point that finds
