@@ -397,9 +397,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.nearest_within(p, self.radius * self.radius)
     }
 
-    /// The nearest centre within `sqrt(r2)` (ties: the lowest index); `r2` past the grid's
-    /// half cell (infinite: at any distance): within [`PACED_REACH`] radii, for a point the
-    /// pacing could not make room for.
+    /// The nearest centre within `sqrt(r2)` (ties: the lowest index): within the join radius,
+    /// or within [`PACED_REACH`] radii for a point the pacing could not make room for, which is
+    /// past the grid's half cell.
     #[inline(never)]
     fn nearest_within(&self, p: Point3, r2: f32) -> Option<usize> {
         // The best so far, (index, squared distance); starting from (none, r2) makes "within
