@@ -32,6 +32,8 @@ struct Members {
     frozen: Vec<Vec<[f64; 3]>>,
     /// Whether each frozen entity came of a coarsening.
     coarsened: Vec<bool>,
+    /// Points the pacing shed.
+    shed: usize,
 }
 
 impl Observer for Members {
@@ -42,6 +44,10 @@ impl Observer for Members {
     fn opened(&mut self, index: usize) {
         assert_eq!(index, self.working.len(), "a new cluster opens at the end");
         self.working.push(vec![self.point]);
+    }
+
+    fn shed(&mut self) {
+        self.shed += 1;
     }
 
     fn merged(&mut self, into: usize, from: usize) {
@@ -143,10 +149,11 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
     assert_eq!(members.frozen.len(), mapper.frozen().len());
     let held: usize = clusters.iter().map(|c| c.len()).sum();
     assert_eq!(
-        held,
+        held + members.shed,
         points.len(),
-        "{cloud}: every point in exactly one cluster"
+        "{cloud}: every point in exactly one cluster, or shed"
     );
+    assert_eq!(members.shed as u64, mapper.stats().paced_shed, "{cloud}");
     // The smallest-three code keeps a frozen entity's rotation within a quarter of a degree; a
     // rotation by theta moves the shape by at most 2 sin(theta) r_max^2.
     let code_bound = 2.0 * 0.25f64.to_radians().sin();
