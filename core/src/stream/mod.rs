@@ -37,7 +37,7 @@ pub use coarsen::{MOST_MEASURED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;
 pub use merge::PLANAR_WARD;
 pub use observe::Observer;
-pub use pacing::Pacing;
+pub use pacing::{IDLE_SHRINK, PACED_GROWTH, PACED_REACH, Pacing};
 pub use pairs::MAX_MERGE_BATCH;
 
 /// How a cluster becomes its entity.
@@ -73,29 +73,6 @@ pub const SUMMARY_FACTOR: usize = 8;
 
 /// Most working clusters a summary keeps ([`summary_layout`]): 2.4 MB of clusters.
 pub const MAX_SUMMARY: usize = 8192;
-
-/// In a layout that freezes, the join radius grows by this factor at every point the pacing
-/// could not make room for: the radius then settles where the room the points ask for is the
-/// room the credit pays for. Freezes make room without the merges that grow the radius, so
-/// without this it kept its first, finest value; a layout that only merges grows it by its
-/// merges (and a drive's map mapped that way, `mema demo --moving`, lost range accuracy to it:
-/// its 95th percentile range error tripled).
-pub const PACED_GROWTH: f32 = 1.005;
-
-/// A point the pacing's credit cannot pay room for joins its nearest centre within this many
-/// join radii, and is shed beyond: a single point far from its cluster's surface tilts the
-/// cluster's plane and thickens its shell, a phantom surface across the gap (docs/design.md, "A
-/// device's layout", has what each choice scored). A shed point is counted
-/// ([`StreamStats::paced_shed`]) and a carver still takes its ray.
-pub const PACED_REACH: f32 = 3.0;
-
-/// In a layout that freezes, the join radius shrinks by this factor at every point that finds
-/// the pacing's credit at its cap, unspent: room is affordable there, so the map may be finer.
-/// With [`PACED_GROWTH`] the radius follows what the credit pays for both ways; growing only,
-/// it kept the widest it had needed (bun000 at the board's layout: 1.54 times the batch map's
-/// Chamfer distance, 1.31 with the shrink; five_people 1.52 and 1.30). Twice this shrink left
-/// finer frozen pieces of a walker than two scans' carving finds (`tests/walker.rs`).
-pub const IDLE_SHRINK: f32 = 0.99995;
 
 /// Working clusters and the final count for a map of `k` entities of which `frozen` are frozen
 /// entities: with none frozen, the finer summary of [`SUMMARY_FACTOR`] clusters per entity (at
@@ -323,27 +300,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let full = self.clusters.len() >= self.limit();
         let join = match self.nearest_within_radius(p) {
             Some(i) => Some(i),
-            None if full && !self.make_room(observer) => {
-                if self
-                    .params
-                    .pacing
-                    .follows_credit(self.params.max_frozen.min(F))
-                {
-                    self.widen_radius(self.radius * PACED_GROWTH);
-                }
-                let reach = PACED_REACH * self.radius;
-                match self.nearest_within(p, reach * reach) {
-                    Some(i) => {
-                        self.stats.paced_joins += 1;
-                        Some(i)
-                    }
-                    None => {
-                        self.stats.paced_shed += 1;
-                        observer.shed();
-                        return false;
-                    }
-                }
-            }
+            None if full && !self.make_room(observer) => match self.paced_join(p, observer) {
+                Some(i) => Some(i),
+                None => return false,
+            },
             None => None,
         };
         match join {
@@ -373,7 +333,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Grows the join radius to `r` if that is wider, with the grid's cells (a cell is two
     /// radii, so the nearest centre within the radius is found within half a cell).
-    fn widen_radius(&mut self, r: f32) {
+    pub(super) fn widen_radius(&mut self, r: f32) {
         if !(r > self.radius) {
             return;
         }
@@ -401,7 +361,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// or within [`PACED_REACH`] radii for a point the pacing could not make room for, which is
     /// past the grid's half cell.
     #[inline(never)]
-    fn nearest_within(&self, p: Point3, r2: f32) -> Option<usize> {
+    pub(super) fn nearest_within(&self, p: Point3, r2: f32) -> Option<usize> {
         // The best so far, (index, squared distance); starting from (none, r2) makes "within
         // r, and nearer, or as near at a lower index" one comparison.
         let mut best = (usize::MAX, r2);

@@ -16,6 +16,29 @@
 
 use super::{Observer, StreamMapper};
 
+/// In a layout that freezes, the join radius grows by this factor at every point the pacing
+/// could not make room for: the radius then settles where the room the points ask for is the
+/// room the credit pays for. Freezes make room without the merges that grow the radius, so
+/// without this it kept its first, finest value; a layout that only merges grows it by its
+/// merges (and a drive's map mapped that way, `mema demo --moving`, lost range accuracy to it:
+/// its 95th percentile range error tripled).
+pub const PACED_GROWTH: f32 = 1.005;
+
+/// A point the pacing's credit cannot pay room for joins its nearest centre within this many
+/// join radii, and is shed beyond: a single point far from its cluster's surface tilts the
+/// cluster's plane and thickens its shell, a phantom surface across the gap (docs/design.md, "A
+/// device's layout", has what each choice scored). A shed point is counted
+/// ([`super::StreamStats::paced_shed`]) and a carver still takes its ray.
+pub const PACED_REACH: f32 = 3.0;
+
+/// In a layout that freezes, the join radius shrinks by this factor at every point that finds
+/// the pacing's credit at its cap, unspent: room is affordable there, so the map may be finer.
+/// With [`PACED_GROWTH`] the radius follows what the credit pays for both ways; growing only,
+/// it kept the widest it had needed (bun000 at the board's layout: 1.54 times the batch map's
+/// Chamfer distance, 1.31 with the shrink; five_people 1.52 and 1.30). Twice this shrink left
+/// finer frozen pieces of a walker than two scans' carving finds (`tests/walker.rs`).
+pub const IDLE_SHRINK: f32 = 0.99995;
+
 /// Prices in points of credit, and the most credit that can be saved.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Pacing {
@@ -47,8 +70,8 @@ impl Pacing {
         burst: 120,
     };
 
-    /// Whether the radius may follow the credit ([`super::PACED_GROWTH`],
-    /// [`super::IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
+    /// Whether the radius may follow the credit ([`PACED_GROWTH`],
+    /// [`IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
     /// the merges that set the radius.
     pub(super) fn follows_credit(&self, frozen: usize) -> bool {
         self.burst > 0 && frozen > 0
@@ -61,6 +84,32 @@ impl Pacing {
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
+    /// Where a point goes that wants room the credit cannot pay for: its nearest centre within
+    /// [`PACED_REACH`] join radii, else nowhere (shed, counted). Either way, in a layout whose
+    /// radius follows the credit, the radius widens.
+    pub(super) fn paced_join(
+        &mut self,
+        p: crate::geometry::Point3,
+        observer: &mut impl Observer,
+    ) -> Option<usize> {
+        if self
+            .params
+            .pacing
+            .follows_credit(self.params.max_frozen.min(F))
+        {
+            self.widen_radius(self.radius * PACED_GROWTH);
+        }
+        let reach = PACED_REACH * self.radius;
+        let near = self.nearest_within(p, reach * reach);
+        if near.is_some() {
+            self.stats.paced_joins += 1;
+        } else {
+            self.stats.paced_shed += 1;
+            observer.shed();
+        }
+        near
+    }
+
     /// Whether this point found the credit at its cap, unspent, in a layout whose radius follows
     /// the credit.
     pub(super) fn credit_idle(&self) -> bool {
