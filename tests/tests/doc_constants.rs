@@ -100,7 +100,13 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/firmware.md",
-        "when it must scan for the pair (at most {MOST_MEASURED} distances, about a fit's work)",
+        "when it must scan for pairs (a sort of the store and at most {MOST_MEASURED} distances) \
+         two fits' price more",
+    ),
+    (
+        "docs/streaming.md",
+        "its distances (at most {MOST_MEASURED}) are the pairs that could be within reach wherever \
+         in the store they lie, and it lists the cheapest {LISTED};",
     ),
     (
         "docs/streaming.md",
@@ -453,6 +459,7 @@ fn value(name: &str) -> String {
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "MOST_MEASURED" => count(MOST_MEASURED),
+        "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),
         "REFIT_INTERVAL" => count(REFIT_INTERVAL as usize),
         "SUMMARY_FACTOR" => count(SUMMARY_FACTOR),
         "MAX_SUMMARY" => count(MAX_SUMMARY),

@@ -157,7 +157,7 @@ const STATED: &[(&str, &str)] = &[
     (
         "docs/streaming.md",
         "each point earns a credit, a freeze costs {PACING_FREEZE} (twice that when it coarsens, \
-         three times when it must also scan for a pair) and a merge pass {PACING_MERGE}",
+         four times when it must also scan for a pair) and a merge pass {PACING_MERGE}",
     ),
     (
         "docs/streaming.md",

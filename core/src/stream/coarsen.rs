@@ -68,7 +68,7 @@ pub(super) struct Coarsening {
 /// once a merge or carving has changed either slot (a bit in the slots' marks), so the more it
 /// lists the fewer scans the freezes pay for; past 32 the board's maps gained nothing
 /// (docs/design.md, "A device's layout"), and each pair costs the 64 KiB image 8 bytes.
-const LISTED: usize = 32;
+pub const LISTED: usize = 32;
 
 impl Coarsening {
     pub(super) const fn new() -> Self {
