@@ -15,6 +15,22 @@ pub struct Point3 {
     pub z: f32,
 }
 
+/// The box of `points`' finite coordinates, (lowest, highest) on each axis; an axis with none
+/// has lowest > highest.
+pub(crate) fn finite_box(points: impl IntoIterator<Item = Point3>) -> ([f32; 3], [f32; 3]) {
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in points {
+        for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(p.to_array()) {
+            if v.is_finite() {
+                *l = l.min(v);
+                *h = h.max(v);
+            }
+        }
+    }
+    (lo, hi)
+}
+
 impl Point3 {
     pub const fn new(x: f32, y: f32, z: f32) -> Self {
         Self { x, y, z }

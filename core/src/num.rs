@@ -128,15 +128,12 @@ mod tests {
 
     #[test]
     fn heap_sort_sorts_as_the_insertion_sort() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rng = crate::rng::stream_rng(7, 0);
         for n in [0usize, 1, 2, 3, 7, 64, 551] {
             let mut v = [(0u8, 0u16); 551];
             for (i, x) in v.iter_mut().enumerate().take(n) {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
                 // Few distinct keys, so ties are common and broken by the index.
-                *x = ((state % 7) as u8, i as u16);
+                *x = (crate::rng::index_below(&mut rng, 7) as u8, i as u16);
             }
             let mut expected = v;
             insertion_sort_by(&mut expected[..n], |a, b| a < b);

@@ -389,21 +389,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// The axis (0, 1, 2 for x, y, z) along which the frozen centres spread widest.
     fn longest_axis(&self) -> usize {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
-        for e in self.frozen.iter() {
-            let c = e.entity.center;
-            for (j, v) in [c.x, c.y, c.z].into_iter().enumerate() {
-                if let (Some(l), Some(h)) = (lo.get_mut(j), hi.get_mut(j)) {
-                    *l = l.min(v);
-                    *h = h.max(v);
-                }
-            }
-        }
-        let side = |j: usize| hi.get(j).zip(lo.get(j)).map_or(0.0, |(h, l)| h - l);
-        if side(0) >= side(1) && side(0) >= side(2) {
+        let (lo, hi) = crate::geometry::finite_box(self.frozen.iter().map(|e| e.entity.center));
+        let side = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+        if side[0] >= side[1] && side[0] >= side[2] {
             0
-        } else if side(1) >= side(2) {
+        } else if side[1] >= side[2] {
             1
         } else {
             2

@@ -15,6 +15,7 @@
 //! target, at any speed, and the host's replay of a capture is the device's map.
 
 use super::{Observer, StreamMapper};
+use crate::geometry::Point3;
 
 /// In a layout that freezes, the join radius grows by this factor at every point the pacing
 /// could not make room for: the radius then settles where the room the points ask for is the
@@ -87,11 +88,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Where a point goes that wants room the credit cannot pay for: its nearest centre within
     /// [`PACED_REACH`] join radii, else nowhere (shed, counted). Either way, in a layout whose
     /// radius follows the credit, the radius widens.
-    pub(super) fn paced_join(
-        &mut self,
-        p: crate::geometry::Point3,
-        observer: &mut impl Observer,
-    ) -> Option<usize> {
+    pub(super) fn paced_join(&mut self, p: Point3, observer: &mut impl Observer) -> Option<usize> {
         if self
             .params
             .pacing

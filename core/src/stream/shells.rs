@@ -124,17 +124,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// centre of the entities' box (a shell's centre is its cluster's mean), without making a
     /// shell. Any shift near the middle serves: the grid is fitted to the shifted entities.
     fn box_centre(&self) -> [f32; 3] {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
         let frozen = self.frozen.iter().map(|f| f.entity.center);
-        for c in frozen.chain(self.clusters.iter().map(|c| c.center)) {
-            for ((l, h), v) in lo.iter_mut().zip(hi.iter_mut()).zip(c.to_array()) {
-                if v.is_finite() {
-                    *l = l.min(v);
-                    *h = h.max(v);
-                }
-            }
-        }
+        let (lo, hi) =
+            crate::geometry::finite_box(frozen.chain(self.clusters.iter().map(|c| c.center)));
         // Halves first: the sum of two large centres cannot overflow.
         core::array::from_fn(|j| {
             let (l, h) = (lo[j], hi[j]);

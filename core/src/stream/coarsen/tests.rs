@@ -208,13 +208,8 @@ fn coarsening_gives_the_same_map_whatever_the_batching() {
 #[test]
 fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
     let mut m = StreamMapper::<8, 64, 600>::new(params(StreamModel::shells(0.01), 8, 600));
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut rng = crate::rng::stream_rng(7, 0);
+    let mut next = move || crate::rng::uniform(&mut rng) as f32;
     for i in 0..550 {
         let center = Point3::new(5.0 * next(), 100.0 * next(), 2.0 * next());
         let mut weights = [

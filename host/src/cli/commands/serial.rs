@@ -165,7 +165,8 @@ pub struct StreamSummary {
     /// pacing could not pay for room (docs/firmware.md, "Longest tick, the link and pacing"): where the map is coarser than the
     /// points asked for.
     pub paced_joins: u64,
-    /// Points the pacing could not pay room for, with no cluster within three join radii:
+    /// Points the pacing could not pay room for, with no cluster within
+    /// [`mema_core::stream::PACED_REACH`] join radii:
     /// left out of the map (a single far point would thicken its cluster's shell), their rays
     /// still carved.
     pub paced_shed: u64,
