@@ -127,7 +127,9 @@ pub struct StreamCluster {
     /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes (shells are
     /// computed from the moments instead, and leave the sphere the cluster opened with).
     pub entity: AxisEntity,
-    /// Points added since the last fit; `u32::MAX` when never fitted.
+    /// Points added since the last fit; `u32::MAX` when never fitted. Shells are never refitted:
+    /// once the stream is finished, this holds the final shell's rotation code, `entity` the rest
+    /// of it.
     pub stale: u32,
     /// The stream's point count (mod 2^32) when the cluster last received a point.
     pub last_point: u32,
@@ -181,6 +183,8 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     /// While the final reduction runs, merges are ranked by [`merge`]'s planar cost and kept
     /// within this squared distance; `INFINITY` otherwise.
     reduce_limit2: f32,
+    /// Whether the working clusters hold their final shells ([`StreamMapper::finish`]).
+    final_shells: bool,
     params: StreamParams,
     stats: StreamStats,
 }
@@ -221,6 +225,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             recent: 0,
             credit: 0,
             reduce_limit2: f32::INFINITY,
+            final_shells: false,
             params,
             stats: StreamStats {
                 points: 0,
@@ -251,6 +256,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.recent = 0;
         self.credit = 0;
         self.reduce_limit2 = f32::INFINITY;
+        self.final_shells = false;
         self.stats = StreamStats::default();
     }
 
@@ -293,6 +299,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return false;
         }
         self.stats.points += 1;
+        self.final_shells = false;
         self.credit = self.params.pacing.earn(self.credit);
         if self.credit_idle() {
             self.radius *= IDLE_SHRINK;
@@ -565,6 +572,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             self.reduce_to(self.params.final_clusters, observer);
         }
         if self.is_shells() {
+            self.keep_final_shells();
             return;
         }
         for i in 0..self.clusters.len() {

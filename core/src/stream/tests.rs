@@ -204,16 +204,39 @@ fn tilted_swept_shells() -> [Point3; 2000] {
 fn shells_are_the_shells_of_the_moments_with_no_refit() -> crate::test_support::TestResult {
     use crate::test_support::OrFail;
     let mut m = StreamMapper::<6, 64, 12>::new(shells_params(6, 12));
-    m.add_all(&tilted_swept_shells());
+    let points = tilted_swept_shells();
+    let (last, most) = points.split_last().or_fail("points")?;
+    m.add_all(most);
+    // Mid-stream, working entities are the shells of the moments as they stand, to the bit.
+    let shells_now = |m: &StreamMapper<6, 64, 12>| -> crate::test_support::TestResult {
+        let frozen = m.frozen().len();
+        for (e, c) in m.entities().skip(frozen).zip(m.clusters()) {
+            let want = shells::shell_of(&c.moments, &ShellParams::DEFAULT).or_fail("finite")?;
+            assert_eq!(e.entity, want);
+        }
+        Ok(())
+    };
+    shells_now(&m)?;
+    // Finished, they are the final moments' shells kept as a frozen entity is: the rotation to
+    // its code, all else to the bit; a point after the finish makes them from the moments again.
+    m.finish();
+    let frozen = m.frozen().len();
+    let kept: heapless::Vec<_, 6> = m
+        .clusters()
+        .iter()
+        .map(|c| shells::shell_of(&c.moments, &ShellParams::DEFAULT).map(|s| FrozenEntity::of(&s)))
+        .collect();
+    for (e, k) in m.entities().skip(frozen).zip(&kept) {
+        assert_eq!(Some(e.entity), k.map(|k| k.to_entity()));
+    }
+    assert!(kept.iter().flatten().any(|k| k.rotation != 0));
+    let mut again = m.clone();
+    again.add(*last);
+    shells_now(&again)?;
+    m.add(*last);
     m.finish();
     assert_eq!(m.stats().refits, 0);
-    let frozen = m.frozen().len();
-    assert!(frozen > 0 && m.entities().count() == frozen + m.clusters().len());
-    // Working entities: the shell of the final moments, to the bit.
-    for (e, c) in m.entities().skip(frozen).zip(m.clusters()) {
-        let want = shells::shell_of(&c.moments, &ShellParams::DEFAULT).or_fail("finite")?;
-        assert_eq!(e.entity, want);
-    }
+    assert!(frozen > 0 && m.entities().count() == m.frozen().len() + m.clusters().len());
     // The shells turn: the sweep's clusters are tilted in x-y.
     assert!(m.entities().any(|e| !e.entity.rotation.is_identity()));
     // Frozen ones keep their rotation to the code's quarter degree, and it survives the file.
