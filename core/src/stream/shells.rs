@@ -3,7 +3,7 @@
 //! A shell is a function of the cluster's mean and covariance, which the moments hold exactly at
 //! every point, so a working cluster's shell is computed when the map is read: no refit
 //! schedule, no stored fit, and a snapshot is always current. A frozen cluster keeps its shell
-//! as a [`super::FrozenEntity`].
+//! as a [`super::FrozenEntity`], and so does a working one once the stream is finished.
 //!
 //! Shells are written quantized (14 bytes an entity, as `mema map` writes them), and the mapper
 //! hands out its entities already on that grid, so a host's map in memory, its file read back
