@@ -95,7 +95,7 @@ impl Coarsening {
 
 /// The area a frozen shell stands for, its two longest semi-axes' product; `None` for a shell
 /// with an axis that does not close (never merged: it has no patch to weigh).
-fn area(e: &FrozenEntity) -> Option<f32> {
+pub(super) fn area(e: &FrozenEntity) -> Option<f32> {
     let w = e.entity.weights;
     if !w.iter().all(|&w| w > 0.0 && w.is_finite()) {
         return None;
@@ -117,7 +117,7 @@ fn thin_axis([a, b, c]: [f32; 3]) -> (usize, f32, f32) {
 }
 
 /// A frozen shell as its plane, in single precision: what ranking a pair needs.
-struct Plane {
+pub(super) struct Plane {
     center: Point3,
     /// The unit normal: the direction of the shortest semi-axis.
     normal: [f32; 3],
@@ -127,7 +127,7 @@ struct Plane {
 }
 
 impl Plane {
-    fn of(e: &FrozenEntity, tangent_scale: f32) -> Option<Self> {
+    pub(super) fn of(e: &FrozenEntity, tangent_scale: f32) -> Option<Self> {
         let area = area(e)?;
         let (thin, lo, mid) = thin_axis(e.entity.weights);
         let tangent = 0.5 * (lo.recip() + mid.recip()) / (tangent_scale * tangent_scale);
@@ -150,7 +150,7 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 /// its own plane), plus [`PLANAR_WARD`] of Ward's cost. Two patches of one surface cost next to
 /// nothing, two walls across a corner a great deal. `None` if either shell has no area or the
 /// cost is not finite.
-fn cost(a: &Plane, b: &Plane, d2: f32) -> Option<f32> {
+pub(super) fn cost(a: &Plane, b: &Plane, d2: f32) -> Option<f32> {
     let (wa, wb) = (a.area, b.area);
     let total = wa + wb;
     let nb = if dot(a.normal, b.normal) < 0.0 {

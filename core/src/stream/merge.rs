@@ -143,24 +143,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if touched.contains(&a) || touched.contains(&b) || !(ok || forced == Some((a, b))) {
                 continue;
             }
-            let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+            let d2 = match (self.clusters.get(a), self.clusters.get(b)) {
+                (Some(ca), Some(cb)) => ca.center.distance_squared(cb.center),
+                _ => continue,
+            };
+            if !self.absorb(a, b, observer) {
                 continue;
-            };
-            let (moments, d2) = (cb.moments, ca.center.distance_squared(cb.center));
-            // Either cluster reached by a scan is evidence the merged one is there.
-            let seen_through = ca.seen_through.min(cb.seen_through);
-            let last_point = if self.idle(cb) < self.idle(ca) {
-                cb.last_point
-            } else {
-                ca.last_point
-            };
-            observer.merged(a, b);
-            if let Some(ca) = self.clusters.get_mut(a) {
-                ca.moments.merge(&moments);
-                ca.center = center_of(&ca.moments);
-                ca.stale = u32::MAX;
-                ca.last_point = last_point;
-                ca.seen_through = seen_through;
             }
             if let (Some(slot), Some(pair)) = (
                 absorbed.get_mut(count),
@@ -172,8 +160,39 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
             self.radius = self.radius.max(libm::sqrtf(d2));
         }
+        self.remove_absorbed(absorbed.get_mut(..count).unwrap_or(&mut []), observer);
+        count
+    }
+
+    /// Cluster `b`'s points join cluster `a` (`b` stays until [`Self::remove_absorbed`]).
+    /// False if either is missing.
+    pub(super) fn absorb(&mut self, a: usize, b: usize, observer: &mut impl Observer) -> bool {
+        let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
+            return false;
+        };
+        let moments = cb.moments;
+        // Either cluster reached by a scan is evidence the merged one is there.
+        let seen_through = ca.seen_through.min(cb.seen_through);
+        let last_point = if self.idle(cb) < self.idle(ca) {
+            cb.last_point
+        } else {
+            ca.last_point
+        };
+        observer.merged(a, b);
+        if let Some(ca) = self.clusters.get_mut(a) {
+            ca.moments.merge(&moments);
+            ca.center = center_of(&ca.moments);
+            ca.stale = u32::MAX;
+            ca.last_point = last_point;
+            ca.seen_through = seen_through;
+        }
+        true
+    }
+
+    /// Removes the clusters `absorbed` (each merged into another), counts the merges and
+    /// refiles every centre.
+    pub(super) fn remove_absorbed(&mut self, absorbed: &mut [usize], observer: &mut impl Observer) {
         // Remove from the highest index down, so swap_remove never moves a slot still to go.
-        let absorbed = absorbed.get_mut(..count).unwrap_or(&mut []);
         crate::num::insertion_sort_by(absorbed, |x, y| x > y);
         for &b in absorbed.iter() {
             // In range by construction.
@@ -182,12 +201,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 crate::num::swap_remove(&mut self.clusters, b);
             }
         }
-        self.stats.merges += count as u64;
+        self.stats.merges += absorbed.len() as u64;
         let cell = self.outgrown_cell().unwrap_or(self.grid.cell());
         // Indices moved and the radius may have outgrown the cells: refile every centre.
         self.grid
             .rebuild(cell, self.clusters.iter().map(|c| c.center));
-        count
     }
 
     /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next

@@ -23,6 +23,7 @@ use crate::moments::FixedMoments;
 use crate::rng::stream_rng;
 use crate::shell::ShellParams;
 
+mod balance;
 pub mod carve;
 pub mod coarsen;
 pub mod freeze;
@@ -573,6 +574,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
         if self.is_shells() {
             self.keep_final_shells();
+            self.balance_working(observer);
             return;
         }
         for i in 0..self.clusters.len() {

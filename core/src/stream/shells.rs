@@ -22,6 +22,15 @@ pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> 
     shell(mean, covariance, params)
 }
 
+/// A working cluster's shell as [`StreamMapper::finish`] kept it: `entity` and the rotation code
+/// in `stale`, which shells never use for refits.
+pub(super) fn kept_shell(c: &StreamCluster) -> FrozenEntity {
+    FrozenEntity {
+        entity: c.entity,
+        rotation: c.stale,
+    }
+}
+
 /// A quantized file's centre step that is fine whatever the shells' thickness: the grid moves a
 /// centre by at most half a step, 0.125 mm, under a depth camera's noise (a millimetre and more)
 /// and a quarter of the rounding of a stream sent in millimetres. A shell thinner than a few such
@@ -57,11 +66,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         match self.params.model {
             StreamModel::Paper => Entity::from(c.entity),
             // Points are finite, so only an overflowing sum leaves the opening sphere in place.
-            StreamModel::Shells(_) if self.final_shells => FrozenEntity {
-                entity: c.entity,
-                rotation: c.stale,
-            }
-            .to_entity(),
+            StreamModel::Shells(_) if self.final_shells => kept_shell(c).to_entity(),
             StreamModel::Shells(p) => shell_of(&c.moments, &p).unwrap_or(Entity::from(c.entity)),
         }
     }
@@ -75,16 +80,26 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let StreamModel::Shells(params) = self.params.model else {
             return;
         };
-        for c in self.clusters.iter_mut() {
-            if let Some(shell) = shell_of(&c.moments, &params) {
-                let kept = FrozenEntity::of(&shell);
-                c.entity = kept.entity;
-                c.stale = kept.rotation;
-            } else {
-                c.stale = 0;
-            }
+        for i in 0..self.clusters.len() {
+            self.keep_shell(i, &params);
         }
         self.final_shells = true;
+    }
+
+    /// Working cluster `i`'s shell made from its moments and kept (the sphere it opened with,
+    /// unturned, if its sums overflowed).
+    pub(super) fn keep_shell(&mut self, i: usize, params: &ShellParams) {
+        if let Some(c) = self.clusters.get_mut(i) {
+            let kept = shell_of(&c.moments, params).map_or(
+                FrozenEntity {
+                    entity: c.entity,
+                    rotation: 0,
+                },
+                |s| FrozenEntity::of(&s),
+            );
+            c.entity = kept.entity;
+            c.stale = kept.rotation;
+        }
     }
 
     /// How the map is written: the paper's axis-aligned fits in version 1; shells quantized
