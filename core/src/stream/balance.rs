@@ -33,7 +33,9 @@ const MOST_WIDENINGS: u32 = 16;
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Merges working shells while more than half of them are finer than the store's median
     /// shell. Runs after [`StreamMapper::keep_final_shells`], whose kept shells it ranks and
-    /// keeps current.
+    /// keeps current. Out of line: its frame (a pair list and the merges' bookkeeping) is on
+    /// the stack only while it runs, not in every caller's (the 64 KiB image's RAM is short).
+    #[inline(never)]
     pub(super) fn balance_working(&mut self, observer: &mut impl Observer) {
         let StreamModel::Shells(params) = self.params.model else {
             return;

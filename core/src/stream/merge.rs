@@ -165,7 +165,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Cluster `b`'s points join cluster `a` (`b` stays until [`Self::remove_absorbed`]).
-    /// False if either is missing.
+    /// False if either is missing. Inlined: out of line, its copy of the moments is a frame
+    /// of its own on the stack of every merge pass.
+    #[inline(always)]
     pub(super) fn absorb(&mut self, a: usize, b: usize, observer: &mut impl Observer) -> bool {
         let (Some(ca), Some(cb)) = (self.clusters.get(a), self.clusters.get(b)) else {
             return false;
