@@ -75,7 +75,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// cluster as a frozen entity is kept (the rotation to its code's quarter degree, which is
     /// all a quantized file stores). Why: writing a map reads every shell twice (the layout,
     /// then the records), and an eigen-solve in software f64 costs a device about 100,000
-    /// instructions: making 150 of them twice was a third of the 64 KiB image's whole run.
+    /// instructions: making 150 of them a second time was an eighth of the 64 KiB image's
+    /// whole run on car6.
     pub(super) fn keep_final_shells(&mut self) {
         let StreamModel::Shells(params) = self.params.model else {
             return;
