@@ -95,6 +95,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 break;
             }
             self.remove_absorbed(absorbed.get_mut(..count).unwrap_or(&mut []), observer);
+            self.stats.balanced += count as u64;
         }
     }
 
@@ -220,6 +221,7 @@ mod tests {
             .count();
         assert!(2 * finer <= left, "{finer} of {left} finer than the store");
         assert_eq!(m.stats().merges, 16 - left as u64);
+        assert_eq!(m.stats().balanced, 16 - left as u64);
         // Merged exactly, from their moments: every point is still counted, and each working
         // entity is its moments' shell as a finished mapper keeps it.
         let points: u64 = m.clusters().iter().map(|c| c.moments.count()).sum();
@@ -237,6 +239,7 @@ mod tests {
         m.finish();
         assert_eq!(m.clusters().len(), 16);
         assert_eq!(m.stats().merges, 0);
+        assert_eq!(m.stats().balanced, 0);
         Ok(())
     }
 }

@@ -128,9 +128,8 @@ pub struct StreamCluster {
     /// The latest fit: the paper's axis-aligned entity, kept in its 24 bytes (shells are
     /// computed from the moments instead, and leave the sphere the cluster opened with).
     pub entity: AxisEntity,
-    /// Points added since the last fit; `u32::MAX` when never fitted. Shells are never refitted:
-    /// once the stream is finished, this holds the final shell's rotation code, `entity` the rest
-    /// of it.
+    /// Points added since the last fit; `u32::MAX` when never fitted. Shells, never refitted,
+    /// keep their final shell's rotation code here at the finish (`entity` the rest of it).
     pub stale: u32,
     /// The stream's point count (mod 2^32) when the cluster last received a point.
     pub last_point: u32,
@@ -160,6 +159,8 @@ pub struct StreamStats {
     pub coarsened: u64,
     /// Working clusters carved: seen through by later scans ([`carve`]).
     pub carved: u64,
+    /// Working clusters merged at the finish, finer than a coarsened store ([`balance`]).
+    pub balanced: u64,
 }
 
 /// The streaming mapper with capacity `K`, a `G`-bucket spatial hash over the centres, and room
@@ -190,8 +191,6 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     stats: StreamStats,
 }
 
-/// The centre the clustering uses (nearest-centre search, merges): the f32 mean, computed in f32
-/// ([`FixedMoments::mean32`]); the map's entities take theirs from the f64 fit.
 /// A cluster's count as f32, the same value as `count as f32`: through u32 when it fits, which the
 /// FPU converts in one instruction where u64 takes a software routine. The compiler sees that
 /// both arms agree and folds them back into the routine (a software conversion every point on
@@ -204,6 +203,8 @@ fn count32(m: &FixedMoments) -> f32 {
     }
 }
 
+/// The centre the clustering uses (nearest-centre search, merges): the f32 mean, computed in f32
+/// ([`FixedMoments::mean32`]); the map's entities take theirs from the f64 fit.
 fn center_of(m: &FixedMoments) -> Point3 {
     let c = m.mean32().unwrap_or([0.0; 3]);
     Point3::new(c[0], c[1], c[2])
@@ -240,6 +241,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 paced_shed: 0,
                 coarsened: 0,
                 carved: 0,
+                balanced: 0,
             },
         }
     }

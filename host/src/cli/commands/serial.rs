@@ -174,6 +174,9 @@ pub struct StreamSummary {
     pub coarsened: u64,
     /// Clusters carved with `--free-space`: later scans saw through them.
     pub carved: u64,
+    /// Working clusters merged at the finish because they were finer than the coarsened
+    /// store (a device's layout): why such a map holds fewer entities than `-k`.
+    pub balanced: u64,
 }
 
 /// When the mapper's points first and last grew: the window a rate is measured over.
@@ -246,6 +249,7 @@ fn summary(
         paced_shed: link.mapper.stats().paced_shed,
         coarsened: link.mapper.stats().coarsened,
         carved: link.mapper.stats().carved,
+        balanced: link.mapper.stats().balanced,
     }
 }
 
@@ -279,6 +283,12 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     }
     if s.coarsened > 0 {
         extra.push_str(&format!(", {} merges of frozen entities", s.coarsened));
+    }
+    if s.balanced > 0 {
+        extra.push_str(&format!(
+            ", {} merged at the end (working clusters finer than the store)",
+            s.balanced
+        ));
     }
     if s.carved > 0 {
         extra.push_str(&format!(
