@@ -159,7 +159,7 @@ pub struct StreamStats {
     pub coarsened: u64,
     /// Working clusters carved: seen through by later scans ([`carve`]).
     pub carved: u64,
-    /// Working clusters merged at the finish, finer than a coarsened store ([`balance`]).
+    /// Working clusters the finish merged, finer than a coarsened store ([`StreamMapper::finish`]).
     pub balanced: u64,
 }
 
