@@ -2,10 +2,9 @@
 //!
 //! Why: coarsening keeps a full store at the resolution its capacity affords, while the working
 //! clusters the stream ends with are as fine as the join radius made them. On office1 at the
-//! board's layout the last eighth of the frame's rows held 181 entities against the batch map's
-//! 70, and the first three-eighths about half the batch map's count, coarsened over and over.
-//! A map is judged at its bytes, so entities spent on the end of the stream are missing
-//! everywhere else. So at the finish of a stream whose store was coarsened, while more than
+//! board's layout the last eighth of the frame's rows held 141 entities against the batch map's
+//! 70, and every other eighth fewer than the batch map's. A map is judged at its bytes, so
+//! entities spent on the end of the stream are missing everywhere else. So at the finish of a stream whose store was coarsened, while more than
 //! half of the working shells are smaller (by area, as coarsening weighs a shell) than the
 //! store's median shell, the cheapest pairs of working shells merge, ranked by coarsening's
 //! planar cost and joined from their moments exactly. The map ends with fewer entities, at
