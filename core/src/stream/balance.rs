@@ -17,7 +17,7 @@
 //! its store (bun000) pays for a sort of the store and one count.
 
 use super::coarsen::{LISTED, Plane, area, cost};
-use super::pairs::ClosestPairs;
+use super::pairs::{ClosestPairs, Disjoint};
 use super::shells::kept_shell;
 use super::{Observer, StreamCluster, StreamMapper, StreamModel};
 
@@ -63,14 +63,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 widenings += 1;
                 continue;
             }
-            let mut absorbed = [0usize; LISTED];
-            let mut count = 0;
-            let mut touched = [usize::MAX; 2 * LISTED];
+            let mut merged = Disjoint::<LISTED>::new();
             for (_, a, b) in pairs.iter() {
-                if 2 * finer_count <= self.clusters.len() - count {
+                if 2 * finer_count <= self.clusters.len() - merged.len() {
                     break;
                 }
-                if touched.contains(&a) || touched.contains(&b) {
+                if !merged.free(a, b) {
                     continue;
                 }
                 let was = usize::from(self.clusters.get(a).is_some_and(finer))
@@ -81,20 +79,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 self.keep_shell(a, &params);
                 let now = usize::from(self.clusters.get(a).is_some_and(finer));
                 finer_count = finer_count.saturating_sub(was) + now;
-                if let (Some(slot), Some(pair)) = (
-                    absorbed.get_mut(count),
-                    touched.get_mut(2 * count..2 * count + 2),
-                ) {
-                    *slot = b;
-                    pair.copy_from_slice(&[a, b]);
-                    count += 1;
-                }
+                merged.push(a, b);
             }
-            if count == 0 {
+            if merged.len() == 0 {
                 break;
             }
-            self.remove_absorbed(absorbed.get_mut(..count).unwrap_or(&mut []), observer);
-            self.stats.balanced += count as u64;
+            self.stats.balanced += merged.len() as u64;
+            self.remove_absorbed(merged.absorbed(), observer);
         }
     }
 

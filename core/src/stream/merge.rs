@@ -3,7 +3,7 @@
 //! offers, and a pass merges the cheapest disjoint ones at once, so the search is paid once
 //! per batch of far points.
 
-use super::pairs::{ClosestPairs, MAX_MERGE_BATCH};
+use super::pairs::{ClosestPairs, Disjoint, MAX_MERGE_BATCH};
 use super::{Observer, StreamMapper, center_of, count32};
 use crate::fit::surface_error_estimate;
 use crate::moments::FixedMoments;
@@ -125,9 +125,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         force: bool,
         observer: &mut impl Observer,
     ) -> usize {
-        let mut absorbed = [0usize; MAX_MERGE_BATCH];
-        let mut count = 0;
-        let mut touched = [usize::MAX; 2 * MAX_MERGE_BATCH];
+        let mut merged = Disjoint::<MAX_MERGE_BATCH>::new();
         // Each pair's tolerance check once (each costs a small solve).
         let mut allowed = [false; MAX_MERGE_BATCH];
         for (ok, (_, a, b)) in allowed.iter_mut().zip(pairs.iter()) {
@@ -140,7 +138,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             None
         };
         for ((_, a, b), &ok) in pairs.iter().zip(allowed.iter()) {
-            if touched.contains(&a) || touched.contains(&b) || !(ok || forced == Some((a, b))) {
+            if !merged.free(a, b) || !(ok || forced == Some((a, b))) {
                 continue;
             }
             let d2 = match (self.clusters.get(a), self.clusters.get(b)) {
@@ -150,18 +148,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if !self.absorb(a, b, observer) {
                 continue;
             }
-            if let (Some(slot), Some(pair)) = (
-                absorbed.get_mut(count),
-                touched.get_mut(2 * count..2 * count + 2),
-            ) {
-                *slot = b;
-                pair.copy_from_slice(&[a, b]);
-                count += 1;
-            }
+            merged.push(a, b);
             self.radius = self.radius.max(libm::sqrtf(d2));
         }
-        self.remove_absorbed(absorbed.get_mut(..count).unwrap_or(&mut []), observer);
-        count
+        self.remove_absorbed(merged.absorbed(), observer);
+        merged.len()
     }
 
     /// Cluster `b`'s points join cluster `a` (`b` stays until [`Self::remove_absorbed`]).

@@ -83,3 +83,52 @@ impl<const N: usize> ClosestPairs<N> {
         (0..self.len).filter_map(|i| self.get(i))
     }
 }
+
+/// The pairs one pass merges: each cluster in at most one of them, and the absorbed side of
+/// each to remove once the pass is over (indices move at every removal).
+pub(super) struct Disjoint<const N: usize = MAX_MERGE_BATCH> {
+    absorbed: [usize; N],
+    touched: [usize; N],
+    touched_too: [usize; N],
+    len: usize,
+}
+
+impl<const N: usize> Disjoint<N> {
+    pub(super) const fn new() -> Self {
+        Self {
+            absorbed: [0; N],
+            touched: [usize::MAX; N],
+            touched_too: [usize::MAX; N],
+            len: 0,
+        }
+    }
+
+    /// Whether neither cluster is in a pair already.
+    pub(super) fn free(&self, a: usize, b: usize) -> bool {
+        let taken = |i: &usize| self.touched.contains(i) || self.touched_too.contains(i);
+        !taken(&a) && !taken(&b)
+    }
+
+    /// Notes `b` merged into `a` (dropped when the pass is full).
+    pub(super) fn push(&mut self, a: usize, b: usize) {
+        if let (Some(slot), Some(ta), Some(tb)) = (
+            self.absorbed.get_mut(self.len),
+            self.touched.get_mut(self.len),
+            self.touched_too.get_mut(self.len),
+        ) {
+            *slot = b;
+            *ta = a;
+            *tb = b;
+            self.len += 1;
+        }
+    }
+
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The absorbed clusters, to remove.
+    pub(super) fn absorbed(&mut self) -> &mut [usize] {
+        self.absorbed.get_mut(..self.len).unwrap_or(&mut [])
+    }
+}
