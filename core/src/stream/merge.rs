@@ -4,7 +4,7 @@
 //! per batch of far points.
 
 use super::pairs::{ClosestPairs, Disjoint, MAX_MERGE_BATCH};
-use super::{Observer, StreamMapper, center_of, count32};
+use super::{Observer, StreamCluster, StreamMapper, center_of, count32};
 use crate::fit::surface_error_estimate;
 use crate::moments::FixedMoments;
 
@@ -21,20 +21,79 @@ fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
 pub const PLANAR_WARD: f32 = 0.01;
 
 /// The final reduction's merge cost: the growth of the summed squared distances from the points
-/// to their cluster's best plane (a cluster's least covariance eigenvalue times its count),
+/// to their cluster's best plane (a cluster's least covariance eigenvalue times its weight),
 /// which a shell's error follows, plus a little of Ward's cost. Merging two patches of one
 /// surface costs nothing but Ward's share, so the clusters the map keeps follow the surfaces
 /// as the batch map's surface rounds make them.
-fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
-    let spread = |m: &FixedMoments| {
-        m.covariance().map_or(0.0, |(_, c)| {
-            let (values, _) = crate::shell::symmetric_eigen(c);
-            values[2].max(0.0) * m.count() as f64
-        })
-    };
+///
+/// A cluster weighs its points and its area: the two-way Chamfer distance is half the points'
+/// mean distance to the map and half the map's mean distance to the points, taken over its
+/// area. Weighed by points only, a few sparse, far returns merged into thick shells of tens of
+/// square metres cost next to nothing, and that area is phantom surface (ouster_os1.conf at
+/// k = 150: 16,700 m^2 of shells against the batch map's 6,300). `density` (points per square
+/// metre of the summary) puts the two in one unit.
+///
+/// `spreads` holds the clusters' own [`spread`]s, which a pass computes once for all its pairs.
+fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32, density: f64, spreads: [f64; 2]) -> f32 {
     let mut merged = *a;
     merged.merge(b);
-    (spread(&merged) - spread(a) - spread(b)) as f32 + PLANAR_WARD * ward(a, b, d2)
+    (spread(&merged, density) - spreads[0] - spreads[1]) as f32 + PLANAR_WARD * ward(a, b, d2)
+}
+
+/// A cluster's summed squared distance to its best plane, weighed by its points and its area
+/// at `density` ([`planar`]).
+fn spread(m: &FixedMoments, density: f64) -> f64 {
+    m.covariance().map_or(0.0, |(_, c)| {
+        let (values, _) = crate::shell::symmetric_eigen(c);
+        values[2].max(0.0) * (m.count() as f64 + density * patch_area(values))
+    })
+}
+
+/// The area of a patch whose in-plane variances are the two largest of `values` (descending):
+/// a uniform disc of variance `s^2` along a line has radius `2 s`, so `4 pi s1 s2`.
+fn patch_area(values: [f64; 3]) -> f64 {
+    4.0 * core::f64::consts::PI * libm::sqrt(values[0].max(0.0) * values[1].max(0.0))
+}
+
+/// A cluster's [`patch_area`] (0 without a covariance).
+fn area_of(m: &FixedMoments) -> f64 {
+    m.covariance()
+        .map_or(0.0, |(_, c)| patch_area(crate::shell::symmetric_eigen(c).0))
+}
+
+/// The final reduction's pairs lie within this many of the summary's median nearest-centre
+/// distances at first, and the reach widens by a quarter whenever none is left. Not the join
+/// radius, which is the widest merge of the stream: strays merged across a gap set it (see
+/// [`STRAY_SHARE`]), and the reach followed them. On ouster_os1.conf at k = 100 to 300 the
+/// worst ratio to the batch map was 1.45, 1.52, 1.19, 1.25 and 1.40 at 2, 3, 4, 6 and 8
+/// spacings.
+pub const REDUCE_SPACINGS: f32 = 4.0;
+
+/// In the summary's layout ([`super::summary_layout`]) a merge widens the join radius only when
+/// its smaller cluster holds at least this share of the mean cluster's points. The cheapest
+/// merges by Ward's cost join a stray return or two across metres of empty space, and the
+/// widest of them set the radius for the rest of the stream, and with it where points open
+/// clusters (ouster_os1.conf at k = 150: clusters of 4 and 3 points, 5.3 m apart, against 3.8 m
+/// at k = 180). On ouster_os1.conf at k = 100 to 300 the streamed map's worst ratio to the batch
+/// map was 1.43 with every merge widening, 1.24, 1.20, 1.19 and 1.22 at shares 0.02, 0.04, 0.1
+/// and 0.25 (docs/design.md). A device's layout keeps every merge: its radius follows the
+/// pacing's credit as well.
+pub const STRAY_SHARE: f32 = 0.1;
+
+/// Where the final reduction stands: pairs within `limit2` (squared), and the summary's points
+/// per square metre of area its cost weighs the two by ([`planar`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Reduction {
+    limit2: f32,
+    density: f32,
+}
+
+impl Reduction {
+    /// Not reducing: the stream's merges, ranked by Ward's cost.
+    pub(super) const IDLE: Self = Self {
+        limit2: f32::INFINITY,
+        density: 0.0,
+    };
 }
 
 /// [`ward`] from the clusters' counts (as f32), the same in either order.
@@ -45,6 +104,36 @@ fn ward_of(na: f32, nb: f32, d2: f32) -> f32 {
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// The `wanted` cheapest neighbour pairs by Ward's criterion.
     fn candidate_pairs(&self, wanted: usize) -> ClosestPairs {
+        self.cheapest_pairs(wanted, |_, ca, _, cb, d| ward(&ca.moments, &cb.moments, d))
+    }
+
+    /// The final reduction's candidates: the `wanted` cheapest pairs within its reach by
+    /// [`planar`] cost, each cluster's own [`spread`] from `spreads` (by index). Out of line, so
+    /// its frame is not on a device's stack, which never reduces.
+    #[inline(never)]
+    fn reduction_pairs(&self, wanted: usize, spreads: &[f64]) -> ClosestPairs {
+        let density = f64::from(self.reduction.density);
+        let own = |i: usize, m: &FixedMoments| {
+            spreads
+                .get(i)
+                .copied()
+                .unwrap_or_else(|| spread(m, density))
+        };
+        self.cheapest_pairs(wanted, |a, ca, b, cb, d| {
+            let spreads = [own(a, &ca.moments), own(b, &cb.moments)];
+            planar(&ca.moments, &cb.moments, d, density, spreads)
+        })
+    }
+
+    /// The `wanted` cheapest pairs by `cost` (of each pair's indices, clusters and squared
+    /// distance) among the neighbours the centre grid offers, within the reduction's reach while
+    /// it runs; every pair when the grid offers none, unless a reach is what kept them out.
+    #[inline(always)]
+    fn cheapest_pairs(
+        &self,
+        wanted: usize,
+        cost: impl Fn(usize, &StreamCluster, usize, &StreamCluster, f32) -> f32,
+    ) -> ClosestPairs {
         let mut closest = ClosestPairs::new(wanted);
         let cell2 = self.grid.cell() * self.grid.cell();
         // Before the join radius has grown, the cell is so small that its square is 0 and no
@@ -56,7 +145,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             &[]
         };
         for (a, ca) in near.iter().enumerate() {
-            let na = count32(&ca.moments);
             self.grid.for_each_ahead(ca.center, |b, own| {
                 // Pairs in one cell come up from both centres: take them once, as (a, b > a).
                 if own && b <= a {
@@ -69,28 +157,18 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 // the same either way round.
                 let d = ca.center.distance_squared(cb.center);
                 // Only pairs closer than a cell are all seen by the neighbour queries.
-                if d < cell2 && d <= self.reduce_limit2 {
-                    let cost = if self.reducing() {
-                        planar(&ca.moments, &cb.moments, d)
-                    } else {
-                        ward_of(na, count32(&cb.moments), d)
-                    };
-                    closest.offer(a.min(b), a.max(b), cost);
+                if d < cell2 && d <= self.reduction.limit2 {
+                    closest.offer(a.min(b), a.max(b), cost(a, ca, b, cb, d));
                 }
             });
         }
         // While reducing within a reach, an empty answer widens the reach (`reduce_to`).
-        if closest.len == 0 && !(self.reducing() && self.reduce_limit2 < f32::MAX) {
+        if closest.len == 0 && !(self.reducing() && self.reduction.limit2 < f32::MAX) {
             // Centres sparser than the grid: the exhaustive search, rare by construction.
             for (a, ca) in self.clusters.iter().enumerate() {
                 for (b, cb) in self.clusters.iter().enumerate().skip(a + 1) {
                     let d = ca.center.distance_squared(cb.center);
-                    let cost = if self.reducing() {
-                        planar(&ca.moments, &cb.moments, d)
-                    } else {
-                        ward(&ca.moments, &cb.moments, d)
-                    };
-                    closest.offer(a, b, cost);
+                    closest.offer(a, b, cost(a, ca, b, cb, d));
                 }
             }
         }
@@ -99,7 +177,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Whether the final reduction is running ([`StreamMapper::reduce_to`]).
     fn reducing(&self) -> bool {
-        self.reduce_limit2 < f32::INFINITY
+        self.reduction.limit2 < f32::INFINITY
     }
 
     /// Whether merging clusters `a` and `b` respects the tolerance (always, without one).
@@ -126,6 +204,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         observer: &mut impl Observer,
     ) -> usize {
         let mut merged = Disjoint::<MAX_MERGE_BATCH>::new();
+        // In the summary's layout every point is in a working cluster (a shed one aside), so
+        // the points over the clusters are the mean cluster's count.
+        let stray_below = if self.params.final_clusters > 0 && !self.reducing() {
+            STRAY_SHARE * self.stats.points as f32 / self.clusters.len().max(1) as f32
+        } else {
+            0.0
+        };
         // Each pair's tolerance check once (each costs a small solve).
         let mut allowed = [false; MAX_MERGE_BATCH];
         for (ok, (_, a, b)) in allowed.iter_mut().zip(pairs.iter()) {
@@ -141,15 +226,20 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             if !merged.free(a, b) || !(ok || forced == Some((a, b))) {
                 continue;
             }
-            let d2 = match (self.clusters.get(a), self.clusters.get(b)) {
-                (Some(ca), Some(cb)) => ca.center.distance_squared(cb.center),
+            let (d2, smaller) = match (self.clusters.get(a), self.clusters.get(b)) {
+                (Some(ca), Some(cb)) => (
+                    ca.center.distance_squared(cb.center),
+                    count32(&ca.moments).min(count32(&cb.moments)),
+                ),
                 _ => continue,
             };
             if !self.absorb(a, b, observer) {
                 continue;
             }
             merged.push(a, b);
-            self.radius = self.radius.max(libm::sqrtf(d2));
+            if smaller >= stray_below {
+                self.radius = self.radius.max(libm::sqrtf(d2));
+            }
         }
         self.remove_absorbed(merged.absorbed(), observer);
         merged.len()
@@ -209,37 +299,90 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.merge_pairs(&pairs, true, observer);
     }
 
-    /// The final reduction: merges the cheapest pairs by [`planar`] cost until at most `n`
-    /// clusters remain. Pairs are taken within twice the join radius, as the stream's own merges
-    /// are, and the reach widens by a quarter only when no pair is left within it: a cost that
-    /// favours coplanar pairs would otherwise join patches of a ground plane far apart.
-    pub(super) fn reduce_to(&mut self, n: usize, observer: &mut impl Observer) {
-        let mut reach = 2.0 * self.radius;
-        self.reduce_limit2 = if reach > 0.0 && (reach * reach).is_finite() {
-            reach * reach
-        } else {
-            f32::MAX
+    /// Pairs within `reach` are the reduction's candidates; the centres are refiled in cells
+    /// that hold it, since the neighbour queries see only pairs within a cell.
+    fn reach_to(&mut self, reach: f32) {
+        let finite = reach > 0.0 && (reach * reach).is_finite();
+        self.reduction.limit2 = if finite { reach * reach } else { f32::MAX };
+        if finite && reach > self.grid.cell() {
+            self.stats.grid_rebuilds += 1;
+            self.grid
+                .rebuild(reach, self.clusters.iter().map(|c| c.center));
+        }
+    }
+
+    /// The median distance from a working centre to its nearest other centre (0 with fewer than
+    /// two). Brute force, once at the end: a summary of 8,192 clusters is 34 million distances.
+    pub(super) fn median_spacing(&self) -> f32 {
+        let mut nearest = [0.0f32; K];
+        let centres = self.clusters.as_slice();
+        for (slot, (i, a)) in nearest.iter_mut().zip(centres.iter().enumerate()) {
+            let d2 = centres
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, b)| a.center.distance_squared(b.center))
+                .fold(f32::INFINITY, f32::min);
+            *slot = libm::sqrtf(d2);
+        }
+        let Some(found) = nearest.get_mut(..centres.len()) else {
+            return 0.0;
         };
+        crate::num::insertion_sort_by(found, |x, y| x < y);
+        found
+            .get(found.len() / 2)
+            .copied()
+            .filter(|d| d.is_finite())
+            .unwrap_or(0.0)
+    }
+
+    /// The final reduction: merges the cheapest pairs by [`planar`] cost until at most `n`
+    /// clusters remain. Pairs are taken within [`REDUCE_SPACINGS`] of the summary's spacings,
+    /// and the reach widens by a quarter only when no pair is left within it: a cost that
+    /// favours coplanar pairs would otherwise join patches of a ground plane far apart. Out of
+    /// line: its arrays would otherwise sit in every frame of a device's main, which never
+    /// reduces.
+    #[inline(never)]
+    pub(super) fn reduce_to(&mut self, n: usize, observer: &mut impl Observer) {
+        let (points, area) = self.clusters.iter().fold((0.0, 0.0), |(n, a), c| {
+            (n + c.moments.count() as f64, a + area_of(&c.moments))
+        });
+        self.reduction.density = if area > 0.0 {
+            (points / area) as f32
+        } else {
+            0.0
+        };
+        let spacing = REDUCE_SPACINGS * self.median_spacing();
+        // Centres all coincide at the median: the stream's own reach, twice the join radius.
+        let mut reach = if spacing > 0.0 {
+            spacing
+        } else {
+            2.0 * self.radius
+        };
+        self.reach_to(reach);
+        // Each cluster's own spread, once a pass rather than once a pair.
+        let mut spreads = [0.0f64; K];
         while self.clusters.len() > n.max(1) {
-            let pairs = self.candidate_pairs((self.clusters.len() - n).min(MAX_MERGE_BATCH));
+            let density = f64::from(self.reduction.density);
+            for (slot, c) in spreads.iter_mut().zip(self.clusters.iter()) {
+                *slot = spread(&c.moments, density);
+            }
+            let own = spreads.get(..self.clusters.len()).unwrap_or(&[]);
+            let pairs = self.reduction_pairs((self.clusters.len() - n).min(MAX_MERGE_BATCH), own);
             if pairs.len == 0 {
                 // Past f32, or before any merge (radius 0): every pair is a candidate.
-                if self.reduce_limit2 == f32::MAX {
+                if self.reduction.limit2 == f32::MAX {
                     break;
                 }
                 reach *= 1.25;
-                self.reduce_limit2 = if reach > 0.0 && (reach * reach).is_finite() {
-                    reach * reach
-                } else {
-                    f32::MAX
-                };
+                self.reach_to(reach);
                 continue;
             }
             if self.merge_pairs(&pairs, true, observer) == 0 {
                 break;
             }
         }
-        self.reduce_limit2 = f32::INFINITY;
+        self.reduction = Reduction::IDLE;
     }
 
     /// Tolerance mode's last step: neighbours keep merging while the merged estimate stays
@@ -256,3 +399,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -183,8 +183,8 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     /// Pacing credit saved, in points.
     credit: u32,
     /// While the final reduction runs, merges are ranked by [`merge`]'s planar cost and kept
-    /// within this squared distance; `INFINITY` otherwise.
-    reduce_limit2: f32,
+    /// within a distance.
+    reduction: merge::Reduction,
     /// Whether the working clusters hold their final shells ([`StreamMapper::finish`]).
     final_shells: bool,
     params: StreamParams,
@@ -226,7 +226,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             radius: 0.0,
             recent: 0,
             credit: 0,
-            reduce_limit2: f32::INFINITY,
+            reduction: merge::Reduction::IDLE,
             final_shells: false,
             params,
             stats: StreamStats {
@@ -258,7 +258,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.radius = 0.0;
         self.recent = 0;
         self.credit = 0;
-        self.reduce_limit2 = f32::INFINITY;
+        self.reduction = merge::Reduction::IDLE;
         self.final_shells = false;
         self.stats = StreamStats::default();
     }
