@@ -268,9 +268,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         if !self.coarsens() {
             return false;
         }
-        if self.coarsening.spent() {
-            self.scan_frozen_pairs(params.tangent_scale as f32);
-        }
+        let scanned = self.coarsening.spent();
+        let widened = scanned && self.scan_frozen_pairs(params.tangent_scale as f32);
         while let Some((_, a, b)) = self.coarsening.pending.get(self.coarsening.next) {
             self.coarsening.next += 1;
             let last = self.frozen.len().saturating_sub(1);
@@ -300,6 +299,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             self.widen_radius(RADIUS_SHARE * libm::sqrtf(d2));
             return true;
         }
+        // A list spent on changed slots, or a scan of part of the store that found nothing in
+        // reach, is no reason to merge working clusters: the next scan (from the next rows, or
+        // wider once a whole store had nothing) may well find a pair.
+        self.freeze_failed = scanned && (widened || self.coarsening.pending.len > 0);
         false
     }
 
@@ -308,7 +311,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// and no farther along it than the reach, so the distances a scan measures are the pairs
     /// that could be candidates, wherever in the store they lie. At most [`MOST_MEASURED`]
     /// distances, from the place in the order where the last scan stopped.
-    fn scan_frozen_pairs(&mut self, tangent_scale: f32) {
+    fn scan_frozen_pairs(&mut self, tangent_scale: f32) -> bool {
         let len = self.frozen.len();
         let axis = self.longest_axis();
         let key = |e: &FrozenEntity| match axis {
@@ -372,11 +375,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             rows += 1;
         }
         self.coarsening.row = at;
+        let mut widened = false;
         if pending.len == 0 {
             self.coarsening.empty_rows += rows;
             if self.coarsening.empty_rows >= len {
                 self.coarsening.reach *= WIDEN;
                 self.coarsening.empty_rows = 0;
+                widened = true;
             }
         } else {
             self.coarsening.empty_rows = 0;
@@ -385,6 +390,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.coarsening.next = 0;
         self.marks.untouch_all();
         self.coarsening.scans = self.coarsening.scans.wrapping_add(1);
+        widened
     }
 
     /// The axis (0, 1, 2 for x, y, z) along which the frozen centres spread widest.

@@ -62,12 +62,17 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         (self.stats.points as u32).wrapping_sub(cluster.last_point)
     }
 
+    /// Whether this layout freezes clusters: it has a store, and no refits to wait for.
+    pub(super) fn freezes(&self) -> bool {
+        self.params.max_frozen.min(F) > 0 && self.params.tolerance <= 0.0
+    }
+
     /// Frees a working slot by freezing the longest-idle cluster, if there is room for another
     /// frozen entity (a full store of shells makes one, [`super::coarsen`]) and that cluster
     /// has been idle for [`IDLE_TURNOVERS`] turnovers. Returns whether a slot was freed;
     /// otherwise the caller merges.
     pub(super) fn freeze_one(&mut self, observer: &mut impl Observer) -> bool {
-        if self.params.max_frozen.min(F) == 0 || self.params.tolerance > 0.0 {
+        if !self.freezes() {
             return false;
         }
         let mut pick: Option<(usize, u32)> = None;
@@ -78,6 +83,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 pick = Some((i, idle));
             }
         }
+        self.freeze_failed = true;
         let Some((i, idle)) = pick else {
             return false;
         };
@@ -108,6 +114,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         observer.frozen(i);
         self.remove_working(i, observer);
         self.stats.frozen += 1;
+        self.freeze_failed = false;
         true
     }
 }

@@ -33,6 +33,7 @@ pub mod pacing;
 mod pairs;
 pub mod shells;
 mod slots;
+mod stats;
 pub use carve::Carver;
 pub use coarsen::{MOST_MEASURED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;
@@ -40,6 +41,7 @@ pub use merge::PLANAR_WARD;
 pub use observe::Observer;
 pub use pacing::{IDLE_SHRINK, PACED_GROWTH, PACED_REACH, Pacing};
 pub use pairs::MAX_MERGE_BATCH;
+pub use stats::StreamStats;
 
 /// How a cluster becomes its entity.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -137,32 +139,6 @@ pub struct StreamCluster {
     pub seen_through: u8,
 }
 
-/// Counters a caller reports.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StreamStats {
-    pub points: u64,
-    pub non_finite: u64,
-    pub merges: u64,
-    pub refits: u64,
-    pub grid_rebuilds: u64,
-    /// Tolerance mode: merges forced by the capacity although over the tolerance.
-    pub forced_merges: u64,
-    /// Clusters frozen into fitted entities.
-    pub frozen: u64,
-    /// Points that joined their nearest centre beyond the join radius because the pacing's
-    /// credit could not pay for room ([`pacing`]).
-    pub paced_joins: u64,
-    /// Points the pacing's credit could not pay room for, with no centre within
-    /// [`PACED_REACH`] join radii: left out of the clusters ([`pacing`]).
-    pub paced_shed: u64,
-    /// Pairs of frozen entities merged to make room for another ([`coarsen`]).
-    pub coarsened: u64,
-    /// Working clusters carved: seen through by later scans ([`carve`]).
-    pub carved: u64,
-    /// Working clusters the finish merged, finer than a coarsened store ([`StreamMapper::finish`]).
-    pub balanced: u64,
-}
-
 /// The streaming mapper with capacity `K`, a `G`-bucket spatial hash over the centres, and room
 /// for `F` frozen entities.
 #[derive(Clone, Debug)]
@@ -182,6 +158,9 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     recent: usize,
     /// Pacing credit saved, in points.
     credit: u32,
+    /// Whether the last freeze tried could not be made (no cluster idle long enough, no pair
+    /// to coarsen in the whole store's reach): a merge pass need not wait for its credit.
+    freeze_failed: bool,
     /// While the final reduction runs, merges are ranked by [`merge`]'s planar cost and kept
     /// within a distance.
     reduction: merge::Reduction,
@@ -226,6 +205,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             radius: 0.0,
             recent: 0,
             credit: 0,
+            freeze_failed: false,
             reduction: merge::Reduction::IDLE,
             final_shells: false,
             params,
@@ -258,6 +238,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.radius = 0.0;
         self.recent = 0;
         self.credit = 0;
+        self.freeze_failed = false;
         self.reduction = merge::Reduction::IDLE;
         self.final_shells = false;
         self.stats = StreamStats::default();

@@ -249,3 +249,42 @@ fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
     assert!(m.coarsening.pending.iter().eq(every.iter()));
     Ok(())
 }
+
+/// Once the store is full, a freeze that must scan for pairs first is dearer than a merge pass.
+/// A point that wants room with its credit between the two waits for the freeze (it joins near,
+/// paced) rather than run the merge pass, which would widen the join radius for good.
+#[test]
+fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
+    let mut m = Small::new(StreamParams {
+        pacing: Pacing::DEVICE,
+        ..params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16)
+    });
+    let pacing = Pacing::DEVICE;
+    let dearest = 4 * pacing.freeze;
+    assert!(dearest > pacing.merge_pass);
+    let mut waited = 0;
+    let pts = long_sweep();
+    let pts_len = pts.len() as u64;
+    for &p in &pts {
+        let credit = pacing.earn(m.credit);
+        let in_gap = m.store_full()
+            && !m.freeze_failed
+            && m.coarsening.spent()
+            && (pacing.merge_pass..dearest).contains(&credit);
+        let (merges, paced) = (
+            m.stats().merges,
+            m.stats().paced_joins + m.stats().paced_shed,
+        );
+        m.add(p);
+        if in_gap {
+            assert_eq!(m.stats().merges, merges, "a merge pass at credit {credit}");
+            waited += m.stats().paced_joins + m.stats().paced_shed - paced;
+        }
+    }
+    assert!(waited > 0, "no point wanted room in the gap");
+    // A freeze that cannot be made still gives way to a merge pass: the radius, nothing at the
+    // start, grows, and the points keep finding clusters (waiting for good, every point after
+    // the store filled was shed).
+    assert!(m.stats().coarsened > 0 && m.stats().merges > 0);
+    assert!(m.stats().paced_shed < pts_len / 10, "{:?}", m.stats());
+}
