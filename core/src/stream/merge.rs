@@ -11,7 +11,8 @@ use crate::moments::FixedMoments;
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
 /// favours small neighbours over big ones, as k-means' objective would.
 fn ward(a: &FixedMoments, b: &FixedMoments, d2: f32) -> f32 {
-    ward_of(count32(a), count32(b), d2)
+    let (na, nb) = (count32(a), count32(b));
+    na * nb / (na + nb) * d2
 }
 
 /// Ward's share in the final reduction's cost (the planes' cost, `planar`): enough to keep two
@@ -43,10 +44,15 @@ fn planar(a: &FixedMoments, b: &FixedMoments, d2: f32, density: f64, spreads: [f
 /// A cluster's summed squared distance to its best plane, weighed by its points and its area
 /// at `density` ([`planar`]).
 fn spread(m: &FixedMoments, density: f64) -> f64 {
-    m.covariance().map_or(0.0, |(_, c)| {
-        let (values, _) = crate::shell::symmetric_eigen(c);
+    variances(m).map_or(0.0, |values| {
         values[2].max(0.0) * (m.count() as f64 + density * patch_area(values))
     })
+}
+
+/// A cluster's variances along its principal axes, largest first (`None` without a covariance).
+fn variances(m: &FixedMoments) -> Option<[f64; 3]> {
+    m.covariance()
+        .map(|(_, c)| crate::shell::symmetric_eigen(c).0)
 }
 
 /// The area of a patch whose in-plane variances are the two largest of `values` (descending):
@@ -57,8 +63,7 @@ fn patch_area(values: [f64; 3]) -> f64 {
 
 /// A cluster's [`patch_area`] (0 without a covariance).
 fn area_of(m: &FixedMoments) -> f64 {
-    m.covariance()
-        .map_or(0.0, |(_, c)| patch_area(crate::shell::symmetric_eigen(c).0))
+    variances(m).map_or(0.0, patch_area)
 }
 
 /// The final reduction's pairs lie within this many of the summary's median nearest-centre
@@ -94,11 +99,6 @@ impl Reduction {
         limit2: f32::INFINITY,
         density: 0.0,
     };
-}
-
-/// [`ward`] from the clusters' counts (as f32), the same in either order.
-fn ward_of(na: f32, nb: f32, d2: f32) -> f32 {
-    na * nb / (na + nb) * d2
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
