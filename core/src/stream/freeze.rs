@@ -70,7 +70,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Frees a working slot by freezing the longest-idle cluster, if there is room for another
     /// frozen entity (a full store of shells makes one, [`super::coarsen`]) and that cluster
     /// has been idle for [`IDLE_TURNOVERS`] turnovers. Returns whether a slot was freed;
-    /// otherwise the caller merges.
+    /// otherwise `freeze_failed` says whether the freeze could not be made (the caller then
+    /// merges) or waits for the next scan of the store.
     pub(super) fn freeze_one(&mut self, observer: &mut impl Observer) -> bool {
         if !self.freezes() {
             return false;

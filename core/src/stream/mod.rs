@@ -158,8 +158,9 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     recent: usize,
     /// Pacing credit saved, in points.
     credit: u32,
-    /// Whether the last freeze tried could not be made (no cluster idle long enough, no pair
-    /// to coarsen in the whole store's reach): a merge pass need not wait for its credit.
+    /// Whether the last freeze tried could not be made (no cluster idle long enough, a fit
+    /// that failed, no pair to coarsen within the whole store's reach, or none that merged):
+    /// a merge pass then need not wait for the freeze's credit.
     freeze_failed: bool,
     /// While the final reduction runs, merges are ranked by [`merge`]'s planar cost and kept
     /// within a distance.

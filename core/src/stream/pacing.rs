@@ -142,14 +142,18 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 self.credit -= scan.min(self.credit);
             }
         }
-        // A merge pass widens the join radius to its widest merge for good, so it stands in for
-        // a freeze that could not be made, never for one the credit is a few points short of:
-        // the point joins near (paced) and the freeze waits. A full store's freeze with a scan
-        // (96 credits) is the one dearer than a merge pass (80): on bun000 the board's map ran
-        // two passes in that gap as its store filled, and the radius went from 2.6 to 4.1 mm
-        // for the rest of the scan (1.27 times the batch map's Chamfer distance at K = 700;
-        // 1.19 waiting). A freeze that could not be made says so (`freeze_failed`).
-        let waits = self.freezes() && !self.freeze_failed && self.credit < freeze;
+        // A merge pass widens the join radius to its widest merge for good, so it does not
+        // stand in for a freeze the credit is short of: a full store's freeze with a scan (96
+        // credits) is the one dearer than a pass (80), and a point that finds the credit between
+        // the two joins near (paced) while the freeze waits. On bun000 the board's map ran two
+        // passes in that gap as its store filled, and the radius went from 2.6 to 4.1 mm for
+        // the rest of the scan (1.27 times the batch map's Chamfer distance at K = 700; 1.19
+        // waiting). Only that gap waits: a freeze tried whose list turned out spent on changed
+        // slots still gives way to a pass, and waiting there too took office1 from 1.18 to 1.35
+        // (its store churned). A freeze that could not be made says so (`freeze_failed`), and
+        // one the burst can never pay for is not waited for.
+        let waits =
+            self.freezes() && !self.freeze_failed && self.credit < freeze && freeze <= pacing.burst;
         if !waits && self.credit >= pacing.merge_pass {
             self.credit -= pacing.merge_pass;
             self.freeze_failed = false;

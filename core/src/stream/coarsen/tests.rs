@@ -288,3 +288,35 @@ fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
     assert!(m.stats().coarsened > 0 && m.stats().merges > 0);
     assert!(m.stats().paced_shed < pts_len / 10, "{:?}", m.stats());
 }
+
+/// Prices whose burst can never pay for a full store's freeze with a scan: that freeze is not
+/// waited for, and a point that wants room gets a merge pass (waiting, none would ever run).
+#[test]
+fn a_freeze_the_burst_cannot_pay_for_is_not_waited_for() -> TestResult {
+    let pacing = Pacing {
+        freeze: 24,
+        merge_pass: 80,
+        burst: 90,
+    };
+    let mut m = Small::new(StreamParams {
+        pacing,
+        ..params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16)
+    });
+    let pts = long_sweep();
+    let mut rest = pts.iter();
+    for &p in rest.by_ref() {
+        m.add(p);
+        if m.store_full() && m.coarsening.spent() {
+            break;
+        }
+    }
+    rest.next()
+        .or_fail("the store filled before the sweep's end")?;
+    // The most credit there can be, and no failed freeze to fall back on.
+    m.credit = pacing.burst - 1;
+    m.freeze_failed = false;
+    let merges = m.stats().merges;
+    m.add(Point3::new(1_000.0, 0.0, 0.0));
+    assert_eq!(m.stats().merges, merges + 1);
+    Ok(())
+}
