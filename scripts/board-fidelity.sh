@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The board's map against the host's batch map at the same bytes (issue 22, docs/board.md,
-# "The board's layout"): each shared cloud encoded as `mema scanner-sim` sends it, mapped as the
+# The board's map against the host's batch map at the same bytes (issues 22 and 31, docs/board.md,
+# "The board's layout"): each shared cloud and registered set encoded as `mema scanner-sim` sends it, mapped as the
 # board maps it (`mema replay -k K --working 150`, carving at K = 700 as the board does, which the board equals byte for byte) at each
 # K given, then `mema map --bytes` of the same cloud at that map's size; both scored by
 # `mema eval` (two-way Chamfer distance, mm, 50,000 surface samples).
@@ -23,10 +23,22 @@ data=../shared/data
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 chamfer() { "$MEMA" eval "$1" "$2" --json --samples 50000 | python3 -c 'import json, sys; print("%.4f" % (1000 * json.load(sys.stdin)["chamfer"]))'; }
-printf '%-16s %6s %8s %9s %15s %15s %6s\n' cloud K bytes entities "board (mm)" "batch (mm)" ratio
+printf '%-18s %6s %8s %9s %15s %15s %6s\n' cloud K bytes entities "board (mm)" "batch (mm)" ratio
 ratios=()
-for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd five_people.pcd; do
-  "$MEMA" scanner-sim --port "$work/$cloud.bin" "$data/$cloud" 2>/dev/null
+# Every shared cloud, then the registered sets, each sent as scanner-sim sends it (a .conf's
+# scans after their poses).
+clouds=(car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd five_people.pcd)
+for path in "$data"/*.ply "$data"/*.pcd "$data"/*.las "$data"/*.laz; do
+  name=$(basename "$path")
+  [[ " ${clouds[*]} " == *" $name "* ]] || clouds+=("$name")
+done
+clouds+=(bun.conf ouster_os1.conf)
+for cloud in "${clouds[@]}"; do
+  if [[ $cloud == *.conf ]]; then
+    "$MEMA" scanner-sim --port "$work/$cloud.bin" --conf "$data/$cloud" 2>/dev/null
+  else
+    "$MEMA" scanner-sim --port "$work/$cloud.bin" "$data/$cloud" 2>/dev/null
+  fi
   for k in "${ks[@]}"; do
     board="$work/$cloud.$k.board.mema"
     batch="$work/$cloud.$k.batch.mema"
@@ -39,7 +51,7 @@ for cloud in car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd f
     entities=$("$MEMA" info "$board" --json | python3 -c 'import json, sys; print(json.load(sys.stdin)["entities"])')
     b=$(chamfer "$data/$cloud" "$board")
     h=$(chamfer "$data/$cloud" "$batch")
-    printf '%-16s %6s %8s %9s %15s %15s %6.2f\n' "$cloud" "$k" "$bytes" "$entities" "$b" "$h" "$(python3 -c "print($b / $h)")"
+    printf '%-18s %6s %8s %9s %15s %15s %6.2f\n' "$cloud" "$k" "$bytes" "$entities" "$b" "$h" "$(python3 -c "print($b / $h)")"
     ratios+=("$b/$h")
   done
 done

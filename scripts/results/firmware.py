@@ -158,12 +158,12 @@ def pacing(logs):
 
 def board_fidelity(logs):
     out = ["## The board's layout against the batch map", "",
-           "`scripts/board-fidelity.sh`: each cloud encoded as `mema scanner-sim` sends it, mapped "
-           "as the board maps it (`mema replay -k K --working 150`, and at K = 700 `--carve "
-           "124x512 --carve-every 2`, which the board equals byte for byte; a single cloud is one "
-           "scan, which carving leaves whole), then `mema map --bytes` of the same cloud at that "
-           "map's size; both scored by `mema eval --samples 50000`, two-way Chamfer distance in "
-           "mm. "
+           "`scripts/board-fidelity.sh`: each shared cloud and registered set encoded as `mema "
+           "scanner-sim` sends it, mapped as the board maps it (`mema replay -k K --working "
+           "150`, and at K = 700 `--carve 124x512 --carve-every 2`, which the board equals byte "
+           "for byte; a single cloud is one scan, which carving leaves whole, and a set's scans "
+           "carve each other), then `mema map --bytes` of the same cloud or set at that map's "
+           "size; both scored by `mema eval --samples 50000`, two-way Chamfer distance in mm. "
            + logs.source("board-fidelity"), ""]
     runs = {}
     for line in logs.lines("board-fidelity"):
@@ -175,7 +175,8 @@ def board_fidelity(logs):
     rows = []
     for cloud, r in runs.items():
         a, b = r[400], r[700]
-        rows.append([cloud.split(".")[0], sig(a["board"]), sig(b["board"]), n(b["entities"]),
+        name = cloud if cloud.endswith(".conf") else cloud.split(".")[0]
+        rows.append([name, sig(a["board"]), sig(b["board"]), n(b["entities"]),
                      n(b["bytes"]), sig(b["batch"]), b["ratio"],
                      f"{b['board'] / a['board']:.2f}"])
     out += block("board-fidelity", table(
