@@ -28,6 +28,7 @@ ratios=()
 # Every shared cloud, then the registered sets, each sent as scanner-sim sends it (a .conf's
 # scans after their poses).
 clouds=(car6.pcd bun000.ply lamppost.pcd milk.pcd cturtle.pcd office1.pcd five_people.pcd)
+shopt -s nullglob
 for path in "$data"/*.ply "$data"/*.pcd "$data"/*.las "$data"/*.laz; do
   name=$(basename "$path")
   [[ " ${clouds[*]} " == *" $name "* ]] || clouds+=("$name")

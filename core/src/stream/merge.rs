@@ -68,14 +68,15 @@ fn area_of(m: &FixedMoments) -> f64 {
 
 /// The final reduction's pairs lie within this many of the summary's median nearest-centre
 /// distances at first, and the reach widens by a quarter whenever none is left. Not the join
-/// radius, which is the widest merge of the stream: strays merged across a gap set it (see
-/// [`STRAY_SHARE`]), and the reach followed them. On ouster_os1.conf at k = 100 to 300 the
+/// radius, the widest merge of the stream: before [`STRAY_SHARE`], strays merged across a gap
+/// set it, and the reach followed them. On ouster_os1.conf at k = 100 to 300 the
 /// worst ratio to the batch map was 1.45, 1.52, 1.19, 1.25 and 1.40 at 2, 3, 4, 6 and 8
 /// spacings.
 pub const REDUCE_SPACINGS: f32 = 4.0;
 
 /// A merge widens the join radius only when its smaller cluster holds at least this share of
-/// the mean working cluster's points. The cheapest merges by Ward's cost join a stray return or
+/// the mean working cluster's points (the final reduction's merges aside, whose reach is its
+/// own). The cheapest merges by Ward's cost join a stray return or
 /// two across metres of empty space, and the widest of them set the radius for the rest of the
 /// stream, and with it where points open clusters (ouster_os1.conf at k = 150 in the summary's
 /// layout: clusters of 4 and 3 points, 5.3 m apart, against 3.8 m at k = 180). On
@@ -85,7 +86,9 @@ pub const REDUCE_SPACINGS: f32 = 4.0;
 /// grew to the far returns' spacing: its near ground, where most points are, was a quarter of
 /// the batch map's entities, and the board's map of ouster_os1.conf scored 2.26 times the
 /// batch map's Chamfer distance (1.17 gated; shares 0.01, 0.02, 0.05 and 0.2 over every shared
-/// input: geometric means 1.27, 1.21, 1.19 and 1.18 against 1.18).
+/// input: geometric means 1.27, 1.21, 1.19 and 1.18 against 1.18 at 0.1, the summary's value,
+/// kept). In the tolerance mode its merges are gated too: cturtle's streamed k at the tolerance
+/// of docs/tolerance.md went from 331 to 362.
 pub const STRAY_SHARE: f32 = 0.1;
 
 /// Where the final reduction stands: pairs within `limit2` (squared), and the summary's points
@@ -246,10 +249,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         merged.len()
     }
 
-    /// The mean point count of the working clusters, [`STRAY_SHARE`]'s yardstick. In the
-    /// summary's layout every point is in a working cluster (a shed one aside), so the points
-    /// over the clusters; a layout that freezes sums its working clusters' counts (once a merge
-    /// pass, which is priced as dear as a fit).
+    /// The mean point count of the working clusters, [`STRAY_SHARE`]'s yardstick. The summary's
+    /// layout takes the points so far over the clusters (shed and carved points counted too),
+    /// as it did when the rule was tuned on it, so its maps stay as they were; every other
+    /// layout sums its working clusters' counts, a loop over K once a merge pass, which costs
+    /// far more.
     fn mean_working_count(&self) -> f32 {
         let clusters = self.clusters.len().max(1) as f32;
         if self.params.final_clusters > 0 {
@@ -311,7 +315,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
     /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
-    /// of far points. The join radius widens to the largest merged distance.
+    /// of far points. The join radius widens to the largest merged distance of a pair that is
+    /// not a stray ([`STRAY_SHARE`]).
     pub(super) fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
         let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
         self.merge_pairs(&pairs, true, observer);

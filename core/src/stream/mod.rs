@@ -2,8 +2,9 @@
 //!
 //! Each point joins its nearest centre if one lies within the join radius `r`, else it opens a
 //! new cluster. When all K slots are taken, the two closest clusters merge (their moments merge
-//! exactly) and `r` grows to their distance: the radius adapts to what K can cover, as in the
-//! doubling algorithm for incremental clustering, so no scale has to be known in advance.
+//! exactly) and `r` grows to their distance, unless the smaller is a stray ([`STRAY_SHARE`]):
+//! the radius adapts to what K can cover, as in the doubling algorithm for incremental
+//! clustering, so no scale has to be known in advance.
 //! Semi-axes are refitted by DE under a per-point budget (one cluster every `refit_interval`
 //! points), scheduled by points ingested and never by time: the same points give the same map
 //! whatever the chunking or timing. [`StreamMapper::finish`] refits every cluster.

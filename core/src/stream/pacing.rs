@@ -150,8 +150,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // the rest of the scan (1.27 times the batch map's Chamfer distance at K = 700; 1.19
         // waiting). Only that gap waits: a freeze tried whose list turned out spent on changed
         // slots still gives way to a pass, and waiting there too took office1 from 1.18 to 1.35
-        // (its store churned). A freeze that could not be made says so (`freeze_failed`), and
-        // one the burst can never pay for is not waited for.
+        // (its store churned). Measured before stray merges stopped setting the radius
+        // ([`super::STRAY_SHARE`]); since, the waits are worth little (over every shared input
+        // the board's geometric mean is 1.183 with them, 1.187 without). A freeze that could
+        // not be made says so (`freeze_failed`), and one the burst can never pay for is not
+        // waited for.
         let waits =
             self.freezes() && !self.freeze_failed && self.credit < freeze && freeze <= pacing.burst;
         if !waits && self.credit >= pacing.merge_pass {
