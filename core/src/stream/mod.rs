@@ -2,7 +2,7 @@
 //!
 //! Each point joins its nearest centre if one lies within the join radius `r`, else it opens a
 //! new cluster. When all K slots are taken, the two closest clusters merge (their moments merge
-//! exactly) and `r` grows to their distance, unless the smaller is a stray ([`STRAY_SHARE`]):
+//! exactly) and `r` grows to their distance, unless the smaller is a stray (`merge::STRAY_SHARE`):
 //! the radius adapts to what K can cover, as in the doubling algorithm for incremental
 //! clustering, so no scale has to be known in advance.
 //! Semi-axes are refitted by DE under a per-point budget (one cluster every `refit_interval`

@@ -151,7 +151,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // waiting). Only that gap waits: a freeze tried whose list turned out spent on changed
         // slots still gives way to a pass, and waiting there too took office1 from 1.18 to 1.35
         // (its store churned). Measured before stray merges stopped setting the radius
-        // ([`super::STRAY_SHARE`]); since, the waits are worth little (over every shared input
+        // (`merge::STRAY_SHARE`); since, the waits are worth little (over every shared input
         // the board's geometric mean is 1.183 with them, 1.187 without). A freeze that could
         // not be made says so (`freeze_failed`), and one the burst can never pay for is not
         // waited for.
