@@ -35,11 +35,9 @@ for path in "$data"/*.ply "$data"/*.pcd "$data"/*.las "$data"/*.laz; do
 done
 clouds+=(bun.conf ouster_os1.conf)
 for cloud in "${clouds[@]}"; do
-  if [[ $cloud == *.conf ]]; then
-    "$MEMA" scanner-sim --port "$work/$cloud.bin" --conf "$data/$cloud" 2>/dev/null
-  else
-    "$MEMA" scanner-sim --port "$work/$cloud.bin" "$data/$cloud" 2>/dev/null
-  fi
+  conf=()
+  [[ $cloud == *.conf ]] && conf=(--conf)
+  "$MEMA" scanner-sim --port "$work/$cloud.bin" "${conf[@]}" "$data/$cloud" 2>/dev/null
   for k in "${ks[@]}"; do
     board="$work/$cloud.$k.board.mema"
     batch="$work/$cloud.$k.batch.mema"
