@@ -392,7 +392,7 @@ impl<const N: usize> Carver<N> {
         if self.sight(far([0.0; 3])) != Sight::Through {
             return false;
         }
-        let (values, vectors) = crate::shell::symmetric_eigen(covariance);
+        let (values, vectors) = crate::shell::symmetric_eigen_single(covariance);
         let axis = |k: usize, sign: f64| {
             let reach =
                 sign * AXIS_REACH * libm::sqrt(values.get(k).copied().unwrap_or(0.0).max(0.0));

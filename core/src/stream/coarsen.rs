@@ -30,7 +30,7 @@ use super::pairs::ClosestPairs;
 use super::{FrozenEntity, PLANAR_WARD, StreamMapper, StreamModel};
 use crate::geometry::{Entity, Point3};
 use crate::map::record::{rotation_column32, rotation_of_code};
-use crate::shell::{ShellParams, shell};
+use crate::shell::{ShellParams, shell_single};
 
 /// Most pair distances one scan measures, about a shell fit's work; with the sort before it a
 /// scan is priced as two fits ([`super::Pacing`]). Along the sweep's order the board's whole
@@ -243,7 +243,7 @@ pub(super) fn merged(a: &FrozenEntity, b: &FrozenEntity, params: &ShellParams) -
     }
     let mean = [0, 1, 2]
         .map(|j| pa.center.get(j).copied().unwrap_or(0.0) + shift.get(j).copied().unwrap_or(0.0));
-    shell(mean, covariance, params)
+    shell_single(mean, covariance, params)
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {

@@ -47,6 +47,9 @@ pub struct Pacing {
     pub freeze: u32,
     /// Credits a merge pass spends.
     pub merge_pass: u32,
+    /// Credits a scan of the frozen store for pairs to coarsen spends, on top of the freeze
+    /// ([`super::coarsen`]).
+    pub scan: u32,
     /// The cap on saved credit: the largest burst of costly steps back to back. At least the
     /// dearer price, or that step never runs (every point short of room then joins).
     pub burst: u32,
@@ -57,6 +60,7 @@ impl Pacing {
     pub const NONE: Self = Self {
         freeze: 0,
         merge_pass: 0,
+        scan: 0,
         burst: 0,
     };
 
@@ -64,12 +68,31 @@ impl Pacing {
     /// proportion to what each step costs the Cortex-M4F (the prices of the pacing test,
     /// `tests/tests/pacing.rs`, on its four captures), so a point costs on average its own work
     /// and at most a credit's worth of a fit or merge pass (docs/firmware.md, "Longest tick, the
-    /// link and pacing"). The burst is five freezes.
+    /// link and pacing"). The burst is five of the paper's fits.
     pub const DEVICE: Self = Self {
         freeze: 24,
         merge_pass: 80,
+        scan: 48,
         burst: 120,
     };
+
+    /// [`Pacing::DEVICE`] for shells: a shell's freeze is an eigen-solve in f32 with its
+    /// eigenvalues in f64 ([`crate::shell::symmetric_eigen_single`]), a third of the paper's
+    /// fit, and is priced so. The cheaper a freeze, the more often a stream makes room rather
+    /// than joining far, and the closer the device's map to the batch map (docs/design.md, "A
+    /// device's layout"). A scan costs what it did: a sort and distances, no eigen-solve.
+    pub const DEVICE_SHELLS: Self = Self {
+        freeze: 8,
+        ..Self::DEVICE
+    };
+
+    /// The device's prices for `model`'s freezes.
+    pub const fn device(model: &super::StreamModel) -> Self {
+        match model {
+            super::StreamModel::Paper => Self::DEVICE,
+            super::StreamModel::Shells(_) => Self::DEVICE_SHELLS,
+        }
+    }
 
     /// Whether the radius may follow the credit ([`PACED_GROWTH`],
     /// [`IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
@@ -122,8 +145,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         let pacing = self.params.pacing;
         // A freeze into a full store of shells first merges two frozen shells, a shell's fit
         // like the freeze's own, and scans for candidates when the last scan's are spent: a
-        // sort of the store and up to [`super::MOST_MEASURED`] distances, two fits' price more.
-        let scan = pacing.freeze.saturating_mul(2);
+        // sort of the store and up to [`super::MOST_MEASURED`] distances, at its own price.
+        let scan = pacing.scan;
         let freeze = match (
             self.store_full() && self.coarsens(),
             self.coarsening.spent(),

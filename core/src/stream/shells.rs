@@ -14,12 +14,12 @@ use crate::geometry::Entity;
 use crate::map::record::Quantization;
 use crate::map::{EncodeError, Layout, MapEntity, encode_as, encode_pieces_counted};
 use crate::moments::FixedMoments;
-use crate::shell::{ShellParams, shell};
+use crate::shell::{ShellParams, shell_single};
 
 /// The shell of a cluster's moments; `None` for an empty cluster or a non-finite covariance.
 pub fn shell_of(moments: &FixedMoments, params: &ShellParams) -> Option<Entity> {
     let (mean, covariance) = moments.covariance()?;
-    shell(mean, covariance, params)
+    shell_single(mean, covariance, params)
 }
 
 /// A working cluster's shell as [`StreamMapper::finish`] kept it: `entity` and the rotation code

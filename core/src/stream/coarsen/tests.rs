@@ -72,7 +72,7 @@ fn a_merged_pair_is_the_shell_of_both_patches_points() -> TestResult {
         direct.add_f64(*p);
     }
     let (mean, covariance) = direct.covariance().or_fail("covariance")?;
-    let expected = shell(mean, covariance, &ShellParams::DEFAULT).or_fail("shell")?;
+    let expected = crate::shell::shell(mean, covariance, &ShellParams::DEFAULT).or_fail("shell")?;
     let extent = semi_axes(&expected)[0];
     for (got, want) in merged
         .center
@@ -296,6 +296,7 @@ fn a_freeze_the_burst_cannot_pay_for_is_not_waited_for() -> TestResult {
     let pacing = Pacing {
         freeze: 24,
         merge_pass: 80,
+        scan: 48,
         burst: 90,
     };
     let mut m = Small::new(StreamParams {
