@@ -77,12 +77,15 @@ impl Pacing {
     };
 
     /// [`Pacing::DEVICE`] for shells: a shell's freeze is an eigen-solve in f32 with its
-    /// eigenvalues in f64 ([`crate::shell::symmetric_eigen_single`]), a third of the paper's
-    /// fit, and is priced so. The cheaper a freeze, the more often a stream makes room rather
-    /// than joining far, and the closer the device's map to the batch map (docs/design.md, "A
-    /// device's layout"). A scan costs what it did: a sort and distances, no eigen-solve.
+    /// eigenvalues in f64 ([`crate::shell::symmetric_eigen_single`]), 37,000 instructions on the
+    /// 64 KiB image against 88,000 in f64, and is priced lower: the cheaper a freeze, the more
+    /// often a stream makes room rather than joining far, and the closer the device's map is to
+    /// the batch map (docs/design.md, "A device's layout"). Not as low as its cost alone: the
+    /// freezes it buys fill the store, whose coarsening and scans then run, and car6's whole run
+    /// on the image must stay under 10,000 instructions a point (9,316 at 16 credits, 10,249 at
+    /// 12). A scan costs what it did: a sort and distances, no eigen-solve.
     pub const DEVICE_SHELLS: Self = Self {
-        freeze: 8,
+        freeze: 16,
         ..Self::DEVICE
     };
 
@@ -166,16 +169,15 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
         }
         // A merge pass widens the join radius to its widest merge for good, so it does not
-        // stand in for a freeze the credit is short of: a full store's freeze with a scan (96
-        // credits) is the one dearer than a pass (80), and a point that finds the credit between
-        // the two joins near (paced) while the freeze waits. On bun000 the board's map ran two
-        // passes in that gap as its store filled, and the radius went from 2.6 to 4.1 mm for
-        // the rest of the scan (1.27 times the batch map's Chamfer distance at K = 700; 1.19
-        // waiting). Only that gap waits: a freeze tried whose list turned out spent on changed
-        // slots still gives way to a pass, and waiting there too took office1 from 1.18 to 1.35
-        // (its store churned). Measured before stray merges stopped setting the radius
-        // (`merge::STRAY_SHARE`); since, the waits are worth little (over every shared input
-        // the board's geometric mean is 1.183 with them, 1.187 without). A freeze that could
+        // stand in for a freeze the credit is short of: where a full store's freeze with a scan
+        // is dearer than a pass, a point that finds the credit between the two joins near
+        // (paced) while the freeze waits. At shells' first price (24 a freeze, 96 with a
+        // scan) bun000's board map ran two passes in that gap as its store filled, and the
+        // radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch map's
+        // Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried whose
+        // list turned out spent on changed slots still gives way to a pass (waiting there too
+        // took office1 from 1.18 to 1.35: its store churned). At [`Pacing::DEVICE_SHELLS`]
+        // a freeze with a scan costs what a pass does and no point waits. A freeze that could
         // not be made says so (`freeze_failed`), and one the burst can never pay for is not
         // waited for.
         let waits =
