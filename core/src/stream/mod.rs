@@ -417,7 +417,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
 
     /// A new cluster of `p` at the end (dropped, as the point is, if no room was made).
     fn open(&mut self, p: Point3, observer: &mut impl Observer) {
-        let mut moments = FixedMoments::new();
+        // Shells read the mean and covariance only; the tolerance mode's merges read eq. 12.
+        let mut moments = if self.is_shells() && self.params.tolerance <= 0.0 {
+            FixedMoments::second_order()
+        } else {
+            FixedMoments::new()
+        };
         moments.add(p);
         let cluster = StreamCluster {
             moments,

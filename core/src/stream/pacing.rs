@@ -85,7 +85,7 @@ impl Pacing {
     /// on the image must stay under 10,000 instructions a point (9,316 at 16 credits, 10,249 at
     /// 12). A scan costs what it did: a sort and distances, no eigen-solve.
     pub const DEVICE_SHELLS: Self = Self {
-        freeze: 16,
+        freeze: 8,
         ..Self::DEVICE
     };
 
