@@ -432,11 +432,19 @@ impl FixedMoments {
         (shift + px * qx + py * qy + pz * qz).clamp(-1022, 1023)
     }
 
+    /// Whether slot `i` is kept: every slot, or those of orders 1 and 2 ([`FixedMoments::second_order`]).
+    fn kept(&self, i: usize) -> bool {
+        !self.second_order || if i < 12 { i % 4 < 2 } else { i.is_multiple_of(4) }
+    }
+
     /// The same sums as f64 power sums about the anchor: each mantissa rounded once to 53 bits.
     pub fn to_moments(&self) -> Moments {
         let mut out = Moments::with_shift(self.anchor.map(f64::from));
         out.count = self.count;
         for (i, &m) in self.sums.iter().enumerate() {
+            if !self.kept(i) {
+                continue;
+            }
             let value = scaled_by_pow2(m as f64, self.unit_exponent(i));
             let (row, col) = ((i % 12) / 4, i % 4);
             let target = if i < 12 { &mut out.axis } else { &mut out.pair };
@@ -449,14 +457,18 @@ impl FixedMoments {
 
     /// f64 power sums about `anchor` (their shift) as integers on the grids `quantum`: each
     /// slot's exponent is the smallest that keeps its mantissa under 2^62.
-    fn from_moments(m: &Moments, anchor: [f32; 3], quantum: [i8; 3]) -> Self {
+    fn from_moments(m: &Moments, anchor: [f32; 3], quantum: [i8; 3], second_order: bool) -> Self {
         let mut out = Self {
             anchor,
             count: m.count,
             quantum,
+            second_order,
             ..Self::new()
         };
         for i in 0..SLOTS {
+            if !out.kept(i) {
+                continue;
+            }
             let (row, col) = ((i % 12) / 4, i % 4);
             let source = if i < 12 { &m.axis } else { &m.pair };
             let value = source
@@ -489,8 +501,13 @@ impl FixedMoments {
             return;
         }
         // `Moments::merge` keeps the first one's shift: this anchor.
+        let second_order = self.second_order || other.second_order;
         let mut sum = self.to_moments();
-        sum.merge(&other.to_moments());
+        if second_order {
+            sum.merge_second_order(&other.to_moments());
+        } else {
+            sum.merge(&other.to_moments());
+        }
         // Each axis on a grid that holds every merged offset within the limit: this cluster's
         // offsets reach 2^24 steps of its pitch, the other's as far again from its own anchor.
         let reach = |q: i8| {
@@ -516,9 +533,7 @@ impl FixedMoments {
                 *q += 1;
             }
         }
-        let second_order = self.second_order || other.second_order;
-        *self = Self::from_moments(&sum, self.anchor, quantum);
-        self.second_order = second_order;
+        *self = Self::from_moments(&sum, self.anchor, quantum, second_order);
     }
 
     /// The mean in single precision: the anchor plus the mean offset, all in f32 operations

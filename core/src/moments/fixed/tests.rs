@@ -367,3 +367,52 @@ fn exponent_moves_are_the_multiplications_they_replace() {
         assert_eq!(shift_below_2_61(x), shift, "{x:e}");
     }
 }
+
+/// A stream of shells keeps the sums of orders 1 and 2 only: through adds and merges of tilted
+/// clusters far from the origin, its mean and covariance are the two-pass f64 ones of the same
+/// points (the independent check) and the full sums' bit for bit, and it has no central
+/// moments to give.
+#[test]
+fn second_order_sums_keep_the_covariance() -> TestResult {
+    let tilt = |p: Point3| Point3::new(p.x + 0.5 * p.y, p.y - 0.3 * p.z, p.z + 0.2 * p.x);
+    let a = shell_points(300, 5, [1000.0, -250.0, 30.0], [0.3, 0.2, 0.05]);
+    let b = shell_points(200, 6, [1000.6, -250.2, 30.1], [0.2, 0.3, 0.02]);
+    let (mut full, mut second) = (FixedMoments::new(), FixedMoments::second_order());
+    let (mut full_b, mut second_b) = (FixedMoments::new(), FixedMoments::second_order());
+    let mut all = [[0.0f64; 3]; 500];
+    for (i, p) in a[..300].iter().map(|&p| tilt(p)).enumerate() {
+        full.add(p);
+        second.add(p);
+        all[i] = p.to_f64();
+    }
+    for (i, p) in b[..200].iter().map(|&p| tilt(p)).enumerate() {
+        full_b.add(p);
+        second_b.add(p);
+        all[300 + i] = p.to_f64();
+    }
+    full.merge(&full_b);
+    second.merge(&second_b);
+    let (mean, covariance) = second.covariance().or_fail("points")?;
+    assert_eq!(Some((mean, covariance)), full.covariance());
+    assert!(second.central().is_none() && full.central().is_some());
+    let n = all.len() as f64;
+    let want_mean = [0, 1, 2].map(|j| all.iter().map(|p| p[j]).sum::<f64>() / n);
+    let scale = libm::sqrt(covariance[0][0] + covariance[1][1] + covariance[2][2]);
+    for j in 0..3 {
+        assert!(libm::fabs(mean[j] - want_mean[j]) <= GRID * scale);
+        for k in 0..3 {
+            let want = all
+                .iter()
+                .map(|p| (p[j] - want_mean[j]) * (p[k] - want_mean[k]))
+                .sum::<f64>()
+                / n;
+            let off = libm::fabs(covariance[j][k] - want);
+            assert!(
+                off <= GRID * scale * scale,
+                "{j}{k}: {} against {want}",
+                covariance[j][k]
+            );
+        }
+    }
+    Ok(())
+}
