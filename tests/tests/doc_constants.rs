@@ -96,12 +96,18 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/firmware.md",
-        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes",
+        "with shells a freeze spends {PACING_FREEZE_SHELLS} and up to {PACING_BURST_SHELLS} credits are \
+         saved (`Pacing::DEVICE_SHELLS`",
     ),
     (
         "docs/firmware.md",
-        "when it must scan for pairs (a sort of the store and at most {MOST_MEASURED} distances) \
-         two fits' price more",
+        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` of the \
+         paper's fits",
+    ),
+    (
+        "docs/firmware.md",
+        "when it must scan for pairs (a sort of the store and at most {MOST_MEASURED} distances, \
+         each pair in reach ranked) {PACING_SCAN} credits more",
     ),
     (
         "docs/streaming.md",
@@ -457,6 +463,9 @@ fn value(name: &str) -> String {
         "BOARD_FROZEN" => count(BOARD_FROZEN),
         "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
+        "PACING_FREEZE_SHELLS" => Pacing::DEVICE_SHELLS.freeze.to_string(),
+        "PACING_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
+        "PACING_BURST_SHELLS" => Pacing::DEVICE_SHELLS.burst.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "MOST_MEASURED" => count(MOST_MEASURED),
         "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),

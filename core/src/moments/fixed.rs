@@ -434,7 +434,12 @@ impl FixedMoments {
 
     /// Whether slot `i` is kept: every slot, or those of orders 1 and 2 ([`FixedMoments::second_order`]).
     fn kept(&self, i: usize) -> bool {
-        !self.second_order || if i < 12 { i % 4 < 2 } else { i.is_multiple_of(4) }
+        !self.second_order
+            || if i < 12 {
+                i % 4 < 2
+            } else {
+                i.is_multiple_of(4)
+            }
     }
 
     /// The same sums as f64 power sums about the anchor: each mantissa rounded once to 53 bits.

@@ -21,7 +21,7 @@
 //! sweeps it, measuring at most [`MOST_MEASURED`] distances from the place in that order where
 //! the last scan stopped, and keeps the cheapest 32 pairs (`LISTED`); each freeze into a full store
 //! merges the next of them whose slots no merge or carving has changed since, priced as a fit,
-//! and a scan runs only once the list is spent, priced as two fits more ([`super::Pacing`]).
+//! and a scan runs only once the list is spent, at its own price ([`super::Pacing::scan`]).
 //! Sorted, the distances a scan measures are the pairs that can be within reach wherever in the
 //! store they lie: a scan of rows in store order saw a slice of the store, and merged the
 //! cheapest pair of that slice.
@@ -32,8 +32,11 @@ use crate::geometry::{Entity, Point3};
 use crate::map::record::{rotation_column32, rotation_of_code};
 use crate::shell::{ShellParams, shell_single};
 
-/// Most pair distances one scan measures, about a shell fit's work; with the sort before it a
-/// scan is priced as two fits ([`super::Pacing`]). Along the sweep's order the board's whole
+/// Most pair distances one scan measures, each pair within reach also ranked by its planar
+/// cost: a scan costs about twenty shells' freezes, and is priced so ([`super::Pacing::scan`]).
+/// Fewer are cheaper but see less of the store: at 4,000, priced at its cost, the board's maps
+/// scored a geometric mean of 1.09 times the batch map's Chamfer distance over every shared
+/// input, against 1.08 at 8,000; at 1,000 (a scan then as cheap as it had been priced) 1.14. Along the sweep's order the board's whole
 /// store of 550 usually takes a few thousand, where all its pairs are 151,000.
 pub const MOST_MEASURED: usize = 8_000;
 

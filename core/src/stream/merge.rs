@@ -95,8 +95,8 @@ pub const STRAY_SHARE: f32 = 0.1;
 /// clusters keep the sums of orders 1 and 2 only, so a pair's merge costs the 64 KiB image about
 /// 22,000 instructions against the search's 260,000, and a pass of 9 pairs costs what one of 4
 /// did with every sum (460,000 instructions, `Pacing::DEVICE_SHELLS`'s 80 credits). Over every
-/// shared input the board's maps scored a geometric mean of 1.058 times the batch map's Chamfer
-/// distance, against 1.074 at 1/32 (docs/design.md).
+/// shared input the board's maps scored a geometric mean of 1.08 times the batch map's Chamfer
+/// distance, against 1.14 at 1/32 (docs/design.md).
 pub const DEVICE_SHELLS_BATCH: usize = 16;
 
 /// Where the final reduction stands: pairs within `limit2` (squared), and the summary's points

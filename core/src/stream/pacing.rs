@@ -48,7 +48,12 @@ pub struct Pacing {
     /// Credits a merge pass spends.
     pub merge_pass: u32,
     /// Credits a scan of the frozen store for pairs to coarsen spends, on top of the freeze
-    /// ([`super::coarsen`]).
+    /// ([`super::coarsen`]): its sort and up to [`super::MOST_MEASURED`] pairs' distances and
+    /// costs, about 2 million instructions on the 64 KiB image (car6's run: 8 scans, 15.7
+    /// million), priced as the merge pass is, at about 5,600 a credit. Priced at two fits (48)
+    /// while car6 never filled the store, it was under a seventh of its cost; only the paper's
+    /// model of the link (`tests/tests/pacing.rs`) tests the prices, and the paper's stream
+    /// never coarsens.
     pub scan: u32,
     /// The cap on saved credit: the largest burst of costly steps back to back. At least the
     /// dearer price, or that step never runs (every point short of room then joins).
@@ -72,7 +77,7 @@ impl Pacing {
     pub const DEVICE: Self = Self {
         freeze: 24,
         merge_pass: 80,
-        scan: 48,
+        scan: 360,
         burst: 120,
     };
 
@@ -80,12 +85,13 @@ impl Pacing {
     /// eigenvalues in f64 ([`crate::shell::symmetric_eigen_single`]), 37,000 instructions on the
     /// 64 KiB image against 88,000 in f64, and is priced lower: the cheaper a freeze, the more
     /// often a stream makes room rather than joining far, and the closer the device's map is to
-    /// the batch map (docs/design.md, "A device's layout"). Not as low as its cost alone: the
-    /// freezes it buys fill the store, whose coarsening and scans then run, and car6's whole run
-    /// on the image must stay under 10,000 instructions a point (9,316 at 16 credits, 10,249 at
-    /// 12). A scan costs what it did: a sort and distances, no eigen-solve.
+    /// the batch map (docs/design.md, "A device's layout"). The freezes it buys fill the store,
+    /// whose coarsening and scans then run (and scans, priced at their cost, [`Pacing::scan`],
+    /// are what limits a full store now: freezes at 4 or 6 scored as 8 does). The burst pays
+    /// for a freeze with a scan.
     pub const DEVICE_SHELLS: Self = Self {
         freeze: 8,
+        burst: 400,
         ..Self::DEVICE
     };
 

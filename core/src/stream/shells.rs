@@ -74,9 +74,10 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Makes each working cluster's shell once, at the end of the stream, and keeps it in the
     /// cluster as a frozen entity is kept (the rotation to its code's quarter degree, which is
     /// all a quantized file stores). Why: writing a map reads every shell twice (the layout,
-    /// then the records), and an eigen-solve in software f64 costs a device about 100,000
-    /// instructions: making 150 of them a second time was an eighth of the 64 KiB image's
-    /// whole run on car6.
+    /// then the records), and with its eigen-solve in software f64 a shell cost a device about
+    /// 100,000 instructions: making 150 of them a second time was an eighth of the 64 KiB
+    /// image's whole run on car6 (in f32, [`crate::shell::symmetric_eigen_single`], still a
+    /// fraction of it).
     pub(super) fn keep_final_shells(&mut self) {
         let StreamModel::Shells(params) = self.params.model else {
             return;
