@@ -48,9 +48,10 @@ pub struct Pacing {
     /// Credits a merge pass spends.
     pub merge_pass: u32,
     /// Credits a scan of the frozen store for pairs to coarsen spends, on top of the freeze
-    /// ([`super::coarsen`]): its sort and up to [`super::MOST_MEASURED`] pairs' distances and
-    /// costs, about 2 million instructions on the 64 KiB image (car6's run: 8 scans, 15.7
-    /// million), priced as the merge pass is, at about 5,600 a credit. Priced at two fits (48)
+    /// ([`super::coarsen`]): its sort, up to [`super::MOST_MEASURED`] pairs' distances and up
+    /// to `MOST_RANKED` pairs' costs, about 1.75 million instructions on the 64 KiB image
+    /// (car6's run: 4 scans, the longest 1.94 million), priced at under 5,600 a credit as the
+    /// merge pass is. Priced at two fits (48)
     /// while car6 never filled the store, it was under a seventh of its cost; only the paper's
     /// model of the link (`tests/tests/pacing.rs`) tests the prices, and the paper's stream
     /// never coarsens.
@@ -182,8 +183,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch map's
         // Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried whose
         // list turned out spent on changed slots still gives way to a pass (waiting there too
-        // took office1 from 1.18 to 1.35: its store churned). At [`Pacing::DEVICE_SHELLS`]
-        // a freeze with a scan costs what a pass does and no point waits. A freeze that could
+        // took office1 from 1.18 to 1.35: its store churned). At [`Pacing::DEVICE_SHELLS`],
+        // a scan priced at its cost, the gap is most of the burst. A freeze that could
         // not be made says so (`freeze_failed`), and one the burst can never pay for is not
         // waited for.
         let waits =

@@ -255,13 +255,13 @@ fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
 /// paced) rather than run the merge pass, which would widen the join radius for good.
 #[test]
 fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
+    let pacing = Pacing::DEVICE_SHELLS;
     let mut m = Small::new(StreamParams {
-        pacing: Pacing::DEVICE,
+        pacing,
         ..params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16)
     });
-    let pacing = Pacing::DEVICE;
-    let dearest = 4 * pacing.freeze;
-    assert!(dearest > pacing.merge_pass);
+    let dearest = 2 * pacing.freeze + pacing.scan;
+    assert!(dearest > pacing.merge_pass && dearest <= pacing.burst);
     let mut waited = 0;
     let pts = long_sweep();
     let pts_len = pts.len() as u64;
