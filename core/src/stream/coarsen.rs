@@ -43,7 +43,8 @@ pub const MOST_MEASURED: usize = 8_000;
 /// Most pairs one scan ranks by their planar cost (those within reach of the distances it measures):
 /// a ranked pair costs the image some 900 instructions, a measured one some 40, and a board's
 /// store of 550 had thousands in reach, one tick of 4.2 million instructions on the demo drive,
-/// more than the receive ring takes to fill at the line's rate. At 1,500 the board's maps
+/// more than the receive ring takes to fill at the line's rate (2.5 million capped: a scan is
+/// still the longest tick, docs/results.md). At 1,500 the board's maps
 /// scored as they did uncapped (a geometric mean of 1.077 times the batch map's Chamfer
 /// distance over every shared input, against 1.080).
 pub const MOST_RANKED: usize = 1_500;
