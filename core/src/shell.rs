@@ -159,8 +159,8 @@ pub fn symmetric_eigen(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
 ///
 /// Why: in software f64 the eigen-solve was most of a shell's freeze on a Cortex-M4F (the 64 KiB
 /// image's freezes cost 88,000 instructions with it, 37,000 with this one), and the price of a
-/// freeze decides how often a stream can make room ([`crate::stream::Pacing::DEVICE_SHELLS`];
-/// docs/design.md, "A device's layout"). An f32
+/// freeze decides how often a stream could make room (docs/design.md, "A device's layout").
+/// An f32
 /// vector is within about 1e-7 rad of the true one, and a Rayleigh quotient's error is the
 /// square of that times the spread of the eigenvalues: the thinnest shell the floor allows
 /// (a variance 1e-6 of the largest) keeps its semi-axis to 1e-7 of itself, as f64 rotations

@@ -96,13 +96,7 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/firmware.md",
-        "with shells a freeze spends {PACING_FREEZE_SHELLS} and up to {PACING_BURST_SHELLS} credits are \
-         saved (`Pacing::DEVICE_SHELLS`",
-    ),
-    (
-        "docs/firmware.md",
-        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` of the \
-         paper's fits",
+        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes",
     ),
     (
         "docs/firmware.md",
@@ -463,9 +457,7 @@ fn value(name: &str) -> String {
         "BOARD_FROZEN" => count(BOARD_FROZEN),
         "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
-        "PACING_FREEZE_SHELLS" => Pacing::DEVICE_SHELLS.freeze.to_string(),
-        "PACING_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
-        "PACING_BURST_SHELLS" => Pacing::DEVICE_SHELLS.burst.to_string(),
+        "PACING_SCAN" => Pacing::DEVICE.scan.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "MOST_MEASURED" => count(MOST_MEASURED),
         "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),

@@ -33,20 +33,17 @@ use crate::map::record::{rotation_column32, rotation_of_code};
 use crate::shell::{ShellParams, shell_single};
 
 /// Most pair distances one scan measures, each pair within reach also ranked by its planar
-/// cost: a scan costs about twenty shells' freezes, and is priced so ([`super::Pacing::scan`]).
-/// Fewer are cheaper but see less of the store: at 4,000, priced at its cost, the board's maps
-/// scored a geometric mean of 1.09 times the batch map's Chamfer distance over every shared
-/// input, against 1.08 at 8,000; at 1,000 (a scan then as cheap as it had been priced) 1.14. Along the sweep's order the board's whole
-/// store of 550 usually takes a few thousand, where all its pairs are 151,000.
+/// cost (at most [`MOST_RANKED`]). Fewer see less of the store: with a shell's freeze priced
+/// at 8, at 1,000 the board's maps scored a geometric mean of 1.14 times the batch map's
+/// Chamfer distance over every shared input where 8,000 scored 1.07.
 pub const MOST_MEASURED: usize = 8_000;
 
-/// Most pairs one scan ranks by their planar cost (those within reach of the distances it measures):
-/// a ranked pair costs the image some 900 instructions, a measured one some 40, and a board's
-/// store of 550 had thousands in reach, one tick of 4.2 million instructions on the demo drive,
-/// more than the receive ring takes to fill at the line's rate (2.5 million capped: a scan is
-/// still the longest tick, docs/results.md). At 1,500 the board's maps
-/// scored as they did uncapped (a geometric mean of 1.077 times the batch map's Chamfer
-/// distance over every shared input, against 1.080).
+/// Most pairs one scan ranks by their planar cost (those within reach of the distances it
+/// measures): a ranked pair costs the 64 KiB image some 900 instructions, a measured one some
+/// 40, and a board's store of 550 had thousands in reach, a tick of 4.2 million instructions on
+/// the demo drive with cheaper freezes, more than the receive ring takes to fill at the line's
+/// rate (2.5 million capped). The board's maps scored as uncapped (over every shared input a
+/// geometric mean of 1.190 times the batch map's Chamfer distance, against 1.193).
 pub const MOST_RANKED: usize = 1_500;
 
 /// Candidates lie within this many join radii of each other.

@@ -91,14 +91,6 @@ pub const REDUCE_SPACINGS: f32 = 4.0;
 /// of docs/tolerance.md went from 331 to 362.
 pub const STRAY_SHARE: f32 = 0.1;
 
-/// A device's layout of shells merges up to 1/16 of its working set a pass, not 1/32: its
-/// clusters keep the sums of orders 1 and 2 only, so a pair's merge costs the 64 KiB image about
-/// 22,000 instructions against the search's 260,000, and a pass of 9 pairs costs what one of 4
-/// did with every sum (460,000 instructions, `Pacing::DEVICE_SHELLS`'s 80 credits). Over every
-/// shared input the board's maps scored a geometric mean of 1.08 times the batch map's Chamfer
-/// distance, against 1.14 at 1/32 (docs/design.md).
-pub const DEVICE_SHELLS_BATCH: usize = 16;
-
 /// Where the final reduction stands: pairs within `limit2` (squared), and the summary's points
 /// per square metre of area its cost weighs the two by ([`planar`]).
 #[derive(Clone, Copy, Debug)]
@@ -322,17 +314,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
-    /// cheapest disjoint pairs up to 1/32 of the capacity (1/16 in a device's layout of shells,
-    /// [`DEVICE_SHELLS_BATCH`]), so the search is paid once per batch of far points. The join
-    /// radius widens to the largest merged distance of a pair that is not a stray
-    /// ([`STRAY_SHARE`]).
+    /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
+    /// of far points. The join radius widens to the largest merged distance of a pair that is
+    /// not a stray ([`STRAY_SHARE`]).
     pub(super) fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
-        let share = if self.freezes() && self.is_shells() {
-            DEVICE_SHELLS_BATCH
-        } else {
-            MAX_MERGE_BATCH
-        };
-        let pairs = self.candidate_pairs(self.limit() / share);
+        let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
         self.merge_pairs(&pairs, true, observer);
     }
 

@@ -36,7 +36,7 @@ pub mod shells;
 mod slots;
 mod stats;
 pub use carve::Carver;
-pub use coarsen::{MOST_MEASURED, RADIUS_SHARE};
+pub use coarsen::{MOST_MEASURED, MOST_RANKED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;
 pub use merge::PLANAR_WARD;
 pub use observe::Observer;

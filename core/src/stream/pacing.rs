@@ -48,13 +48,12 @@ pub struct Pacing {
     /// Credits a merge pass spends.
     pub merge_pass: u32,
     /// Credits a scan of the frozen store for pairs to coarsen spends, on top of the freeze
-    /// ([`super::coarsen`]): its sort, up to [`super::MOST_MEASURED`] pairs' distances and up
-    /// to `MOST_RANKED` pairs' costs, about 1.75 million instructions on the 64 KiB image
-    /// (car6's run: 4 scans, the longest 1.94 million), priced at under 5,600 a credit as the
-    /// merge pass is. Priced at two fits (48)
-    /// while car6 never filled the store, it was under a seventh of its cost; only the paper's
-    /// model of the link (`tests/tests/pacing.rs`) tests the prices, and the paper's stream
-    /// never coarsens.
+    /// ([`super::coarsen`]). Priced at two fits, as a scan of [`super::MOST_MEASURED`]
+    /// distances was estimated to cost; measured on the 64 KiB image it is about 1.75 million
+    /// instructions (car6's run with cheaper freezes: 4 scans, the longest 1.94 million, with
+    /// [`super::MOST_RANKED`]), several times its price. Priced at its cost the burst cannot
+    /// pay for it, and the prices that could (a burst of 400) kept the board from carving a
+    /// walker (docs/design.md, "A device's layout"): open.
     pub scan: u32,
     /// The cap on saved credit: the largest burst of costly steps back to back. At least the
     /// dearer price, or that step never runs (every point short of room then joins).
@@ -78,31 +77,9 @@ impl Pacing {
     pub const DEVICE: Self = Self {
         freeze: 24,
         merge_pass: 80,
-        scan: 360,
+        scan: 48,
         burst: 120,
     };
-
-    /// [`Pacing::DEVICE`] for shells: a shell's freeze is an eigen-solve in f32 with its
-    /// eigenvalues in f64 ([`crate::shell::symmetric_eigen_single`]), 37,000 instructions on the
-    /// 64 KiB image against 88,000 in f64, and is priced lower: the cheaper a freeze, the more
-    /// often a stream makes room rather than joining far, and the closer the device's map is to
-    /// the batch map (docs/design.md, "A device's layout"). The freezes it buys fill the store,
-    /// whose coarsening and scans then run (and scans, priced at their cost, [`Pacing::scan`],
-    /// are what limits a full store now: freezes at 4 or 6 scored as 8 does). The burst pays
-    /// for a freeze with a scan.
-    pub const DEVICE_SHELLS: Self = Self {
-        freeze: 8,
-        burst: 400,
-        ..Self::DEVICE
-    };
-
-    /// The device's prices for `model`'s freezes.
-    pub const fn device(model: &super::StreamModel) -> Self {
-        match model {
-            super::StreamModel::Paper => Self::DEVICE,
-            super::StreamModel::Shells(_) => Self::DEVICE_SHELLS,
-        }
-    }
 
     /// Whether the radius may follow the credit ([`PACED_GROWTH`],
     /// [`IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
@@ -183,8 +160,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch map's
         // Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried whose
         // list turned out spent on changed slots still gives way to a pass (waiting there too
-        // took office1 from 1.18 to 1.35: its store churned). At [`Pacing::DEVICE_SHELLS`],
-        // a scan priced at its cost, the gap is most of the burst. A freeze that could
+        // took office1 from 1.18 to 1.35: its store churned). A freeze that could
         // not be made says so (`freeze_failed`), and one the burst can never pay for is not
         // waited for.
         let waits =

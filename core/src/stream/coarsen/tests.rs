@@ -255,7 +255,7 @@ fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
 /// paced) rather than run the merge pass, which would widen the join radius for good.
 #[test]
 fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
-    let pacing = Pacing::DEVICE_SHELLS;
+    let pacing = Pacing::DEVICE;
     let mut m = Small::new(StreamParams {
         pacing,
         ..params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16)
