@@ -72,37 +72,29 @@ trait Real:
     fn copysign(self, sign: Self) -> Self;
 }
 
-impl Real for f64 {
-    const ZERO: Self = 0.0;
-    const ONE: Self = 1.0;
-    const TWO: Self = 2.0;
-    const CONVERGED: Self = 1e-30;
-    fn sqrt(self) -> Self {
-        libm::sqrt(self)
-    }
-    fn abs(self) -> Self {
-        libm::fabs(self)
-    }
-    fn copysign(self, sign: Self) -> Self {
-        libm::copysign(self, sign)
-    }
+/// `Real` for a float type by its libm routines.
+macro_rules! real {
+    ($t:ty, $converged:expr, $sqrt:path, $abs:path, $copysign:path) => {
+        impl Real for $t {
+            const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
+            const TWO: Self = 2.0;
+            const CONVERGED: Self = $converged;
+            fn sqrt(self) -> Self {
+                $sqrt(self)
+            }
+            fn abs(self) -> Self {
+                $abs(self)
+            }
+            fn copysign(self, sign: Self) -> Self {
+                $copysign(self, sign)
+            }
+        }
+    };
 }
 
-impl Real for f32 {
-    const ZERO: Self = 0.0;
-    const ONE: Self = 1.0;
-    const TWO: Self = 2.0;
-    const CONVERGED: Self = 1e-13;
-    fn sqrt(self) -> Self {
-        libm::sqrtf(self)
-    }
-    fn abs(self) -> Self {
-        libm::fabsf(self)
-    }
-    fn copysign(self, sign: Self) -> Self {
-        libm::copysignf(self, sign)
-    }
-}
+real!(f64, 1e-30, libm::sqrt, libm::fabs, libm::copysign);
+real!(f32, 1e-13, libm::sqrtf, libm::fabsf, libm::copysignf);
 
 /// Cyclic Jacobi rotations of a symmetric 3 x 3 matrix: its diagonal once converged and the
 /// accumulated rotation (eigenvectors in its columns), in no order.

@@ -155,8 +155,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // A merge pass widens the join radius to its widest merge for good, so it does not
         // stand in for a freeze the credit is short of: where a full store's freeze with a scan
         // is dearer than a pass, a point that finds the credit between the two joins near
-        // (paced) while the freeze waits. At shells' first price (24 a freeze, 96 with a
-        // scan) bun000's board map ran two passes in that gap as its store filled, and the
+        // (paced) while the freeze waits. At the device's prices (24 a freeze, 96 into a full
+        // store with a scan) bun000's board map ran two passes in that gap as its store filled, and the
         // radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch map's
         // Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried whose
         // list turned out spent on changed slots still gives way to a pass (waiting there too
