@@ -109,6 +109,9 @@ impl QemuReport {
         let longest_unit = ins("tick_unit_max_ticks")?.max(ins("tick_merge_max_ticks")?);
         let prices = self.prices()?;
         let (fits, passes) = (self.get("unit_ticks")?, self.get("merge_ticks")?);
+        let scans = self.get("scan_ticks").unwrap_or(0);
+        let longest_scan = ins("tick_scan_max_ticks").unwrap_or(0.0);
+        let longest_unit = longest_unit.max(longest_scan);
         let per_byte = ins("ingest_ticks")? / self.get("bytes")?.max(1) as f64;
         let fill_s = RX_CAPACITY as f64 / crate::pacing::LINK_BYTES_PER_S;
         let fill = fill_s * crate::pacing::CPU_HZ / 1.5;
@@ -116,7 +119,8 @@ impl QemuReport {
         Some(format!(
             "  ticks: {}; longest {plain:.0} instructions mapping points only (at most {}), {longest_unit:.0} with a fit or a merge pass ({fits} fit ticks, {passes} merge-pass ticks)\n\
              \x20 the {RX_CAPACITY}-byte ring fills in {:.1} ms at 921,600 baud: {fill:.0} instructions at 168 MHz and 1.5 cycles each, {:.1}x the longest tick\n\
-             \x20 per point (point-only ticks) {:.0} instructions, per fit (freeze or refit) {:.0}, per merge pass {:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n",
+             \x20 per point (point-only ticks) {:.0} instructions, per fit (freeze or refit) {:.0}, per merge pass {:.0}, per wire byte over the run {per_byte:.0} (the link leaves {cycles_per_byte:.0} cycles a byte at 168 MHz)\n\
+             \x20 per scan of the frozen store for pairs to coarsen (its freezes included) {:.0}, longest {longest_scan:.0} ({scans} scan ticks)\n",
             self.get("ticks")?,
             mema_firmware::TICK_POINTS,
             fill_s * 1e3,
@@ -124,6 +128,7 @@ impl QemuReport {
             prices.per_point,
             prices.per_fit,
             prices.per_merge_pass,
+            prices.per_scan,
         ))
     }
 
@@ -143,6 +148,8 @@ impl QemuReport {
             per_point,
             per_fit: unit("unit", "unit_ticks")?,
             per_merge_pass: unit("merge", "merge_ticks")?,
+            // A report of an image before scans were timed apart has none.
+            per_scan: unit("scan", "scan_ticks").unwrap_or(0.0),
         })
     }
 

@@ -15,12 +15,15 @@ pub const LINK_BYTES_PER_S: f64 = 92_160.0;
 pub const CPU_HZ: f64 = 168e6;
 
 /// Instructions a tick costs on the target: per point mapped, and per fit (a freeze or a
-/// refit) or merge pass on top.
+/// refit), merge pass or scan on top. A scan is a freeze into a full store of shells that
+/// first scanned the store for pairs to coarsen: its price is the whole step's, freeze and
+/// coarsening merge included (the image times those ticks apart).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TickCost {
     pub per_point: f64,
     pub per_fit: f64,
     pub per_merge_pass: f64,
+    pub per_scan: f64,
 }
 
 /// The link and the processor behind it.
@@ -39,6 +42,8 @@ pub struct PacedReport {
     /// Most bytes the ring held when a tick began.
     pub ring_peak: usize,
     pub ticks: u64,
+    /// Scans of the frozen store for pairs to coarsen.
+    pub scans: u64,
     /// The longest tick, and the time the ring takes to fill from empty, in seconds.
     pub longest_tick_s: f64,
     pub ring_fill_s: f64,
@@ -68,13 +73,15 @@ pub fn run_paced<const K: usize, const G: usize, const F: usize>(
             ring_peak = ring_peak.max(firmware.pending());
             let work = |f: &Firmware<K, G, F>| {
                 let s = f.mapper_stats();
-                (s.points, s.merges, s.frozen + s.refits)
+                (s.points, s.merges, s.frozen + s.refits, s.scans)
             };
-            let (points, merges, fits) = work(firmware);
+            let (points, merges, fits, scans) = work(firmware);
             firmware.tick(|_| {});
-            let (points_after, merges_after, fits_after) = work(firmware);
+            let (points_after, merges_after, fits_after, scans_after) = work(firmware);
             let unit = if merges_after != merges {
                 link.cost.per_merge_pass
+            } else if scans_after != scans {
+                link.cost.per_scan
             } else if fits_after != fits {
                 link.cost.per_fit
             } else {
@@ -94,6 +101,7 @@ pub fn run_paced<const K: usize, const G: usize, const F: usize>(
             break;
         }
     }
+    let scans = firmware.mapper_stats().scans;
     firmware.finish();
     let mut map = vec![0u8; firmware.mapper().encoded_len()];
     let len = firmware.encode_map(&mut map)?;
@@ -102,6 +110,7 @@ pub fn run_paced<const K: usize, const G: usize, const F: usize>(
         overruns: firmware.stats().ring_overruns,
         ring_peak,
         ticks,
+        scans,
         longest_tick_s: longest,
         ring_fill_s: mema_firmware::RX_CAPACITY as f64 / link.bytes_per_s,
         link_s: capture.len() as f64 / link.bytes_per_s,

@@ -53,14 +53,15 @@ fn receding_capture() -> Vec<u8> {
 
 /// Issue 13: the receive ring against the link's clock. Each capture is played back to back at
 /// 921,600 baud (the most the link can deliver) into the image's layout (K = 400: 150 working +
-/// 250 frozen, paper model), every tick taking what its work costs on the target: its points,
-/// and its fit (freeze or refit) or merge pass, at the prices the image measured under QEMU
-/// (`mema-firmware-sim budget` on each capture, rounded up: car6's are at least what
-/// `firmware-sim/check.sh` measured, docs/results.md's `firmware-ticks`). Four captures: car6
-/// and the demo drive as scanned, car6's points in a shuffled order (no point near the last:
-/// the worst order for the join search), and a receding line, new ground at every point (room
-/// wanted at 9 points in 10: the pacing's credit all spent, and a scan of every centre for
-/// each point it could not pay for).
+/// 250 frozen), every tick taking what its work costs on the target: its points, and its fit
+/// (freeze or refit), merge pass or scan of the frozen store, at the prices the image measured
+/// under QEMU (`mema-firmware-sim budget` on each capture, rounded up: car6's are at least what
+/// `firmware-sim/check.sh` measured, docs/results.md's `firmware-ticks`). Six captures, four in
+/// the paper's model: car6 and the demo drive as scanned, car6's points in a shuffled order (no
+/// point near the last: the worst order for the join search), and a receding line, new ground
+/// at every point (room wanted at 9 points in 10: the pacing's credit all spent, and a scan of
+/// every centre for each point it could not pay for); and two in shells whose store fills (the
+/// demo drive and bun000), so their freezes coarsen and scan the store (car6 never fills it).
 ///
 /// A 168 MHz Cortex-M4F at 1.5 cycles an instruction (112 M instructions/s) loses no byte on
 /// any of them, the map is the unpaced one, and the longest tick is under a third of the
@@ -78,32 +79,56 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         .run()
         .assert_ok();
     let demo = std::fs::read(dir.join("demo.bin")).expect("demo capture");
-    let params = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, StreamModel::Paper);
-    let cost = |per_point, per_fit, per_merge_pass| TickCost {
+    let paper = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, StreamModel::Paper);
+    let shells = model_params(0, IMAGE_WORKING, IMAGE_FROZEN, mema_firmware::SHELLS);
+    // The paper's fits never coarsen, so never scan.
+    let cost = |per_point, per_fit, per_merge_pass, per_scan| TickCost {
         per_point,
         per_fit,
         per_merge_pass,
+        per_scan,
     };
     // While scripts/results.sh writes docs/results.md, its `firmware-ticks` may not be there yet.
     let measured = (!regenerating()).then(car6_prices_measured);
     let mut rows = Vec::new();
     let mut slowest = 0.0f64;
-    for (name, capture, cost) in [
+    for (name, capture, params, cost) in [
         (
             "car6",
             capture_of("car6.pcd"),
-            cost(4_700.0, 118_000.0, 480_000.0),
+            paper,
+            cost(4_700.0, 118_000.0, 480_000.0, 0.0),
         ),
-        ("demo drive", demo, cost(4_600.0, 149_000.0, 450_000.0)),
+        (
+            "demo drive",
+            demo.clone(),
+            paper,
+            cost(4_600.0, 149_000.0, 450_000.0, 0.0),
+        ),
         (
             "car6, points shuffled (the worst order for the join search)",
             shuffled_capture_of("car6.pcd"),
-            cost(4_000.0, 115_000.0, 480_000.0),
+            paper,
+            cost(4_000.0, 115_000.0, 480_000.0, 0.0),
         ),
         (
             "a receding line (`receding_capture`: new ground at every point)",
             receding_capture(),
-            cost(6_800.0, 107_000.0, 320_000.0),
+            paper,
+            cost(6_800.0, 107_000.0, 320_000.0, 0.0),
+        ),
+        // Shells fill the image's store on these two, so their freezes coarsen and scan.
+        (
+            "demo drive, shells",
+            demo,
+            shells,
+            cost(3_000.0, 51_000.0, 540_000.0, 1_000_000.0),
+        ),
+        (
+            "bun000, shells",
+            capture_of("bun000.ply"),
+            shells,
+            cost(2_800.0, 83_000.0, 400_000.0, 980_000.0),
         ),
     ] {
         if let (Some(measured), "car6") = (measured, name) {
@@ -124,6 +149,13 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         };
         let unpaced = play(1e15);
         assert_eq!(unpaced.overruns, 0);
+        assert_eq!(
+            unpaced.scans > 0,
+            cost.per_scan > 0.0,
+            "{name}: {} scans of the store, priced {}",
+            unpaced.scans,
+            cost.per_scan
+        );
         let m4f = play(168e6 / 1.5);
         assert_eq!(m4f.overruns, 0, "{name}: a 168 MHz part loses bytes");
         assert_eq!(m4f.map, unpaced.map, "{name}: pacing changed the map");
@@ -131,8 +163,10 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         // The construction's bound: a point's own work, plus at most the dearest instructions a
         // credit buys (each point earns one), plus its share of the periodic refit.
         let pacing = params.pacing;
+        let scan_credits = pacing.scan + 2 * pacing.freeze;
         let per_credit = (cost.per_fit / f64::from(pacing.freeze))
-            .max(cost.per_merge_pass / f64::from(pacing.merge_pass));
+            .max(cost.per_merge_pass / f64::from(pacing.merge_pass))
+            .max(cost.per_scan / f64::from(scan_credits));
         let per_point_bound =
             cost.per_point + per_credit + cost.per_fit / f64::from(mema_firmware::REFIT_INTERVAL);
         let points = unpaced_points(&capture);
@@ -163,10 +197,15 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         );
         let price = |x: f64| thousands(x as u64);
         rows.push(format!(
-            "| {name} | {}, {}, {} | {fast:.0} M/s | {:.0} M/s | {} B | {:.1} ms |",
+            "| {name} | {}, {}, {}, {} | {fast:.0} M/s | {:.0} M/s | {} B | {:.1} ms |",
             price(cost.per_point),
             price(cost.per_fit),
             price(cost.per_merge_pass),
+            if cost.per_scan > 0.0 {
+                price(cost.per_scan)
+            } else {
+                "none".to_string()
+            },
             bound / 1e6,
             thousands(m4f.ring_peak as u64),
             m4f.longest_tick_s * 1e3
@@ -174,7 +213,7 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
         slowest = slowest.max(fast);
     }
     let mut block = vec![
-        "| capture | prices (point, fit, merge pass) | keeps up from | the bound | ring peak at 112 M/s | longest tick |".to_string(),
+        "| capture | prices (point, fit, merge pass, scan) | keeps up from | the bound | ring peak at 112 M/s | longest tick |".to_string(),
         "|---|---|---|---|---|---|".to_string(),
     ];
     block.extend(rows);

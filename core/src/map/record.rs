@@ -358,7 +358,7 @@ pub fn rotation_column32(code: u32, j: usize) -> [f32; 3] {
         sum += *v * *v;
     }
     if let Some(v) = q.get_mut(largest) {
-        *v = libm::sqrtf((1.0 - sum).max(0.0));
+        *v = crate::num::square_root((1.0 - sum).max(0.0));
     }
     let n2: f32 = q.iter().map(|v| v * v).sum();
     if !(n2 > 0.0) {

@@ -30,6 +30,7 @@ use super::pairs::ClosestPairs;
 use super::{FrozenEntity, PLANAR_WARD, StreamMapper, StreamModel};
 use crate::geometry::{Entity, Point3};
 use crate::map::record::{rotation_column32, rotation_of_code};
+use crate::num::square_root;
 use crate::shell::{ShellParams, shell_single};
 
 /// Most pair distances one scan measures, each pair within reach also ranked by its planar
@@ -39,12 +40,13 @@ use crate::shell::{ShellParams, shell_single};
 pub const MOST_MEASURED: usize = 8_000;
 
 /// Most pairs one scan ranks by their planar cost (those within reach of the distances it
-/// measures): a ranked pair costs the 64 KiB image some 900 instructions, a measured one some
-/// 40, and a board's store of 550 had thousands in reach, a tick of 4.2 million instructions on
-/// the demo drive with cheaper freezes, more than the receive ring takes to fill at the line's
-/// rate (2.5 million capped). The board's maps scored as uncapped (over every shared input a
-/// geometric mean of 1.190 times the batch map's Chamfer distance, against 1.193).
-pub const MOST_RANKED: usize = 1_500;
+/// measures): a ranked pair costs the 64 KiB image some 700 instructions, a measured one some
+/// 40, and a store has thousands in reach. At 800 the image's longest scan (the demo drive with
+/// shells) is 1.12 million instructions, under a third of the receive ring's fill time at the
+/// line's rate (3.8 million at 168 MHz); at 1,500 it was 1.69 million. Over every shared input
+/// the board's maps scored a geometric mean of 1.19 times the batch map's Chamfer distance
+/// either way (docs/design.md, "A device's layout").
+pub const MOST_RANKED: usize = 800;
 
 /// Candidates lie within this many join radii of each other.
 const REACH_RADII: f32 = 2.0;
@@ -69,8 +71,6 @@ pub(super) struct Coarsening {
     /// The reach in join radii: [`REACH_RADII`], widened by [`WIDEN`] whenever a whole store
     /// had no pair within it.
     reach: f32,
-    /// Scans so far (wrapping), for the pacing to price the ones that ran.
-    scans: u32,
 }
 
 /// Candidate pairs a scan lists. A list serves until its pairs are spent, each pair skipped
@@ -87,7 +87,6 @@ impl Coarsening {
             row: 0,
             empty_rows: 0,
             reach: REACH_RADII,
-            scans: 0,
         }
     }
 
@@ -95,10 +94,6 @@ impl Coarsening {
     /// scans first).
     pub(super) fn spent(&self) -> bool {
         self.next >= self.pending.len
-    }
-
-    pub(super) fn scans(&self) -> u32 {
-        self.scans
     }
 }
 
@@ -110,7 +105,7 @@ pub(super) fn area(e: &FrozenEntity) -> Option<f32> {
         return None;
     }
     let (_, lo, mid) = thin_axis(w);
-    let area = (1.0 / libm::sqrtf(lo)) * (1.0 / libm::sqrtf(mid));
+    let area = 1.0 / square_root(lo * mid);
     (area > 0.0 && area.is_finite()).then_some(area)
 }
 
@@ -170,11 +165,13 @@ pub(super) fn cost(a: &Plane, b: &Plane, d2: f32) -> Option<f32> {
     let sum = [0, 1, 2].map(|j| {
         wa * a.normal.get(j).copied().unwrap_or(0.0) + wb * nb.get(j).copied().unwrap_or(0.0)
     });
-    let length = libm::sqrtf(dot(sum, sum));
-    let normal = if length > 0.0 {
-        sum.map(|v| v / length)
+    // The merged plane's normal is `sum` over its length; the cost wants only squares of its
+    // dot products, so the length is never taken.
+    let length2 = dot(sum, sum);
+    let (normal, length2) = if length2 > 0.0 {
+        (sum, length2)
     } else {
-        a.normal
+        (a.normal, 1.0)
     };
     let d = [
         b.center.x - a.center.x,
@@ -184,10 +181,10 @@ pub(super) fn cost(a: &Plane, b: &Plane, d2: f32) -> Option<f32> {
     let off = dot(normal, d);
     let tilt = |n: [f32; 3]| {
         let c = dot(normal, n);
-        (1.0 - c * c).max(0.0)
+        (1.0 - c * c / length2).max(0.0)
     };
     let ward = wa * wb / total;
-    let cost = ward * off * off
+    let cost = ward * off * off / length2
         + wa * a.tangent * tilt(a.normal)
         + wb * b.tangent * tilt(nb)
         + PLANAR_WARD * ward * d2;
@@ -305,7 +302,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             }
             observer.coarsened(a, b);
             self.stats.coarsened += 1;
-            self.widen_radius(RADIUS_SHARE * libm::sqrtf(d2));
+            self.widen_radius(RADIUS_SHARE * square_root(d2));
             return true;
         }
         // A list spent on changed slots, or a scan of part of the store that found nothing in
@@ -399,7 +396,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.coarsening.pending = pending;
         self.coarsening.next = 0;
         self.marks.untouch_all();
-        self.coarsening.scans = self.coarsening.scans.wrapping_add(1);
+        self.stats.scans += 1;
         widened
     }
 

@@ -222,6 +222,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 paced_joins: 0,
                 paced_shed: 0,
                 coarsened: 0,
+                scans: 0,
                 carved: 0,
                 balanced: 0,
             },

@@ -47,13 +47,9 @@ pub struct Pacing {
     pub freeze: u32,
     /// Credits a merge pass spends.
     pub merge_pass: u32,
-    /// Credits a scan of the frozen store for pairs to coarsen spends, on top of the freeze
-    /// ([`super::coarsen`]). Priced at two fits, as a scan of [`super::MOST_MEASURED`]
-    /// distances was estimated to cost; measured on the 64 KiB image it is about 1.75 million
-    /// instructions (car6's run with cheaper freezes: 4 scans, the longest 1.94 million, with
-    /// [`super::MOST_RANKED`]), several times its price. Priced at its cost the burst cannot
-    /// pay for it, and the prices that could (a burst of 400) kept the board from carving a
-    /// walker (docs/design.md, "A device's layout"): open.
+    /// Credits a scan of the frozen store for pairs to coarsen spends, on top of its freeze
+    /// into a full store (two fits' worth: the freeze, and the merge of a frozen pair it makes
+    /// room by, [`super::coarsen`]).
     pub scan: u32,
     /// The cap on saved credit: the largest burst of costly steps back to back. At least the
     /// dearer price, or that step never runs (every point short of room then joins).
@@ -71,14 +67,16 @@ impl Pacing {
 
     /// The firmware's (and the host's stream, so a replay is the device's map): prices in
     /// proportion to what each step costs the Cortex-M4F (the prices of the pacing test,
-    /// `tests/tests/pacing.rs`, on its four captures), so a point costs on average its own work
-    /// and at most a credit's worth of a fit or merge pass (docs/firmware.md, "Longest tick, the
-    /// link and pacing"). The burst is five of the paper's fits.
+    /// `tests/tests/pacing.rs`, on its six captures), so a point costs on average its own work
+    /// and at most a credit's worth of a fit, merge pass or scan, about 6,250 instructions
+    /// (docs/firmware.md, "Longest tick, the link and pacing"). A scan with its two fits (1.0
+    /// million instructions on the image, its mean over the demo drive's and bun000's) is the
+    /// dearest step, and the burst pays for one.
     pub const DEVICE: Self = Self {
         freeze: 24,
         merge_pass: 80,
-        scan: 48,
-        burst: 120,
+        scan: 112,
+        burst: 160,
     };
 
     /// Whether the radius may follow the credit ([`PACED_GROWTH`],
@@ -143,12 +141,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             (true, true) => pacing.freeze.saturating_mul(2).saturating_add(scan),
         };
         if self.credit >= freeze {
-            let scans = self.coarsening.scans();
+            let scans = self.stats.scans;
             if self.freeze_one(observer) {
                 self.credit -= freeze;
                 return true;
             }
-            if self.coarsening.scans() != scans {
+            if self.stats.scans != scans {
                 self.credit -= scan.min(self.credit);
             }
         }

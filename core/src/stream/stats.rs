@@ -20,6 +20,8 @@ pub struct StreamStats {
     pub paced_shed: u64,
     /// Pairs of frozen entities merged to make room for another ([`super::coarsen`]).
     pub coarsened: u64,
+    /// Scans of the frozen store for pairs to coarsen, each a device's costliest step.
+    pub scans: u64,
     /// Working clusters carved: seen through by later scans ([`super::carve`]).
     pub carved: u64,
     /// Working clusters the finish merged, finer than a coarsened store ([`super::StreamMapper::finish`]).

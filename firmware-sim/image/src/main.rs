@@ -108,15 +108,17 @@ fn run() -> Result<(), &'static str> {
         io::SemihostingUart::open(b"capture.bin\0", SEED).ok_or("cannot open capture.bin")?;
 
     let mut chunk = [0u8; 256];
-    // Ticks that only mapped points, ticks that also fitted (a freeze or a refit) and ticks that
-    // also ran a merge pass (at most one of those per tick): the longest, and the sums the
-    // per-point, per-fit and per-merge-pass prices come from.
-    let (mut plain, mut unit, mut merge) = (
+    // Ticks that only mapped points, ticks that also fitted (a freeze or a refit), ticks that
+    // also ran a merge pass (at most one of those per tick) and ticks whose freeze scanned the
+    // frozen store for pairs to coarsen: the longest, and the sums the per-point, per-fit,
+    // per-merge-pass and per-scan prices come from.
+    let (mut plain, mut unit, mut merge, mut scan) = (
+        TickTimes::default(),
         TickTimes::default(),
         TickTimes::default(),
         TickTimes::default(),
     );
-    let work = |s: &mema_core::stream::StreamStats| (s.frozen, s.merges, s.refits);
+    let work = |s: &mema_core::stream::StreamStats| (s.frozen, s.merges, s.refits, s.scans);
     let t0 = now();
     loop {
         match uart.deliver(&mut chunk) {
@@ -134,6 +136,8 @@ fn run() -> Result<(), &'static str> {
                         &mut plain
                     } else if after.1 != before.1 {
                         &mut merge
+                    } else if after.3 != before.3 {
+                        &mut scan
                     } else {
                         &mut unit
                     };
@@ -172,7 +176,7 @@ fn run() -> Result<(), &'static str> {
     let fw = firmware.stats();
     let mapper = firmware.mapper_stats();
     let decoder = firmware.decoder_stats();
-    let fields: [(&[u8], u64); 31] = [
+    let fields: [(&[u8], u64); 35] = [
         (b"k", (K + F) as u64),
         (b"shells", u64::from(model != StreamModel::Paper)),
         (b"points", mapper.points),
@@ -202,6 +206,10 @@ fn run() -> Result<(), &'static str> {
         (b"tick_merge_sum_ticks", merge.sum),
         (b"tick_merge_points", merge.points),
         (b"merge_ticks", merge.ticks),
+        (b"tick_scan_max_ticks", scan.max),
+        (b"tick_scan_sum_ticks", scan.sum),
+        (b"tick_scan_points", scan.points),
+        (b"scan_ticks", scan.ticks),
         (b"ticks", fw.ticks),
         (b"tick_points_peak", fw.tick_points_peak as u64),
     ];

@@ -6,6 +6,7 @@
 
 use crate::free_space::Geometry;
 use crate::geometry::Point3;
+pub(crate) use crate::num::square_root;
 use core::f32::consts::{FRAC_PI_2, PI};
 
 /// The pixel of `p` in an image of `geometry` and its range (metres), as [`Geometry::pixel`]
@@ -22,23 +23,6 @@ pub(super) fn pixel(geometry: &Geometry, p: Point3) -> Option<(usize, f32)> {
     let elevation = arctangent(d[2], square_root(across));
     let index = geometry.pixel_of(elevation, arctangent(d[1], d[0]))?;
     Some((index, r))
-}
-
-/// `sqrt(x)` within 10^-6 of it: three Newton steps from the exponent halved; 0 for 0, NaN
-/// for a negative or NaN `x`, infinity for infinity.
-pub(super) fn square_root(x: f32) -> f32 {
-    if !(x > 0.0 && x.is_finite()) {
-        return if x == 0.0 || x == f32::INFINITY {
-            x
-        } else {
-            f32::NAN
-        };
-    }
-    let mut y = f32::from_bits(0x1fbd_1df5 + (x.to_bits() >> 1));
-    for _ in 0..3 {
-        y = 0.5 * (y + x / y);
-    }
-    y
 }
 
 /// `atan2(y, x)` within 10^-5 radians: a polynomial on the first octant, the others by
