@@ -41,9 +41,10 @@ pub const MOST_MEASURED: usize = 8_000;
 
 /// Most pairs one scan ranks by their planar cost (those within reach of the distances it
 /// measures): a ranked pair costs the 64 KiB image some 700 instructions, a measured one some
-/// 40, and a store has thousands in reach. At 800 the image's longest scan (the demo drive with
-/// shells) is 1.12 million instructions, under a third of the receive ring's fill time at the
-/// line's rate (3.8 million at 168 MHz); at 1,500 it was 1.69 million. Over every shared input
+/// 40, and a store has thousands in reach. At 800 the image's longest scan (bun000 in shells)
+/// is 1.25 million instructions with its freezes, under a third of the receive ring's fill
+/// time at the line's rate (3.8 million at 168 MHz); at 1,500 the demo drive's was 1.69
+/// million. Over every shared input
 /// the board's maps scored a geometric mean of 1.19 times the batch map's Chamfer distance
 /// either way (docs/design.md, "A device's layout").
 pub const MOST_RANKED: usize = 800;
@@ -105,7 +106,7 @@ pub(super) fn area(e: &FrozenEntity) -> Option<f32> {
         return None;
     }
     let (_, lo, mid) = thin_axis(w);
-    let area = 1.0 / square_root(lo * mid);
+    let area = (1.0 / square_root(lo)) * (1.0 / square_root(mid));
     (area > 0.0 && area.is_finite()).then_some(area)
 }
 

@@ -68,9 +68,9 @@ impl Pacing {
     /// The firmware's (and the host's stream, so a replay is the device's map): prices in
     /// proportion to what each step costs the Cortex-M4F (the prices of the pacing test,
     /// `tests/tests/pacing.rs`, on its six captures), so a point costs on average its own work
-    /// and at most a credit's worth of a fit, merge pass or scan, about 6,250 instructions
-    /// (docs/firmware.md, "Longest tick, the link and pacing"). A scan with its two fits (1.0
-    /// million instructions on the image, its mean over the demo drive's and bun000's) is the
+    /// and at most a credit's worth of a fit, merge pass or scan, about 6,000 to 7,000
+    /// instructions (docs/firmware.md, "Longest tick, the link and pacing"). A scan with its two
+    /// fits (1.1 million instructions on the image, the demo drive's and bun000's mean) is the
     /// dearest step, and the burst pays for one.
     pub const DEVICE: Self = Self {
         freeze: 24,

@@ -285,7 +285,11 @@ fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
     // A freeze that cannot be made still gives way to a merge pass: the radius, nothing at the
     // start, grows, and the points keep finding clusters (waiting for good, every point after
     // the store filled was shed).
-    assert!(m.stats().coarsened > 0 && m.stats().merges > 0);
+    assert!(
+        m.stats().coarsened > 0 && m.stats().merges > 0,
+        "{:?}",
+        m.stats()
+    );
     assert!(m.stats().paced_shed < pts_len / 10, "{:?}", m.stats());
 }
 
