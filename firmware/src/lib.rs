@@ -404,6 +404,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
     fn decode_next(&mut self) -> bool {
         loop {
             let (mut empty, mut accepted, mut restart) = (false, false, false);
+            let mut unit = 0.0f64;
             let receiver = &mut self.receiver;
             self.rx.borrow().consume_front(|front| {
                 empty = front.is_empty();
@@ -419,7 +420,12 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                         restart = true;
                         (front.len() - remaining.len(), false)
                     }
-                    Received::Points { remaining, .. } => (front.len() - remaining.len(), true),
+                    Received::Points {
+                        frame, remaining, ..
+                    } => {
+                        unit = frame.unit_scale();
+                        (front.len() - remaining.len(), true)
+                    }
                 };
                 accepted = points;
                 taken
@@ -428,6 +434,7 @@ impl<const K: usize, const G: usize, const F: usize, R: Borrow<Ring<RX_CAPACITY>
                 self.start_map_again();
             }
             if accepted {
+                self.mapper.note_resolution(unit as f32);
                 self.cursor = Some(0);
                 return true;
             }

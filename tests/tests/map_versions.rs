@@ -165,18 +165,31 @@ fn paper_and_shell_maps_keep_within_their_bytes_in_their_versions() {
 }
 
 /// A streamed map whose extent takes a coarse grid and most of whose shells are thinner than
-/// four of its steps (simple.las, 2.3 km across: 7 cm steps; at --working 150 many shells
-/// froze with few points) is written in f32; `mema info` says why, with the count, which is held
-/// here to the map's own shells and extent. five_people at --working 150, whose single-point
-/// frozen shells are as thin but whose steps are under 0.25 mm, is quantized and says nothing
-/// of the kind.
+/// four of its steps is written in f32; `mema info` says why, with the count, which is held here
+/// to the map's own shells and extent: two patches of a millimetre's relief 2 km apart (3 cm
+/// steps), sent in millimetres. Where the wire's own unit is four steps or more, the shells
+/// thinner than the grid are thinner than their points' rounding, and the map is quantized:
+/// simple.las (4.6 km across, 7 cm steps, sent in 10 m units for its 63 m spacing), and
+/// five_people at --working 150, whose single-point frozen shells are as thin but whose steps
+/// are under 0.25 mm.
 #[test]
 fn info_says_why_a_streamed_map_is_not_quantized() {
     let dir = Dir::new("not-quantized");
+    let mut patches = String::from("x,y,z\n");
+    for x0 in [0.0, 2000.0] {
+        for i in 0..60 {
+            for j in 0..60 {
+                let relief = 0.0005 * f64::from((i * 7 + j * 3) % 5);
+                let (x, y) = (x0 + f64::from(i) * 0.01, f64::from(j) * 0.01);
+                patches += &format!("{x:.4},{y:.4},{relief:.4}\n");
+            }
+        }
+    }
+    let patches = dir.write("patches.csv", patches.as_bytes());
     // `cloud` streamed at the board's working set; `mema info --json` of the map in `out`.
-    let streamed_info = |cloud: &str, out: &str| {
+    let streamed_info = |cloud: &std::path::Path, out: &str| {
         MemaCommand::new(&dir)
-            .args(["map", &shared(cloud).display().to_string()])
+            .args(["map", &cloud.display().to_string()])
             .args(["-k", "400", "--stream", "--working", "150", "-o", out])
             .run()
             .assert_ok();
@@ -186,7 +199,7 @@ fn info_says_why_a_streamed_map_is_not_quantized() {
             .assert_ok()
             .json()
     };
-    let info = streamed_info("simple.las", "f32.mema");
+    let info = streamed_info(&patches, "f32.mema");
     assert_eq!(info["layout"], "version 2, oriented f32", "{info}");
     let why = info["not_quantized"].as_str().expect("a reason");
     let map = HostMap::read(&dir.join("f32.mema")).expect("the map");
@@ -216,8 +229,11 @@ fn info_says_why_a_streamed_map_is_not_quantized() {
         )),
         "{why}"
     );
-    let info = streamed_info("five_people.pcd", "quantized.mema");
-    assert!(info["not_quantized"].is_null(), "{info}");
+    for cloud in ["simple.las", "five_people.pcd"] {
+        let info = streamed_info(&shared(cloud), "quantized.mema");
+        assert!(info["not_quantized"].is_null(), "{cloud}: {info}");
+        assert_eq!(info["layout"], "version 2, oriented, quantized", "{cloud}");
+    }
 }
 
 /// docs/map-format.md's precision of the quantized grid, from the grids the code makes: the

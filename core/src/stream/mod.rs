@@ -168,6 +168,9 @@ pub struct StreamMapper<const K: usize, const G: usize, const F: usize = 0> {
     reduction: merge::Reduction,
     /// Whether the working clusters hold their final shells ([`StreamMapper::finish`]).
     final_shells: bool,
+    /// The finest unit (metres) the points mapped so far were rounded to on their wire; 0 when
+    /// no wire said ([`StreamMapper::note_resolution`]).
+    resolution: f32,
     params: StreamParams,
     stats: StreamStats,
 }
@@ -210,6 +213,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             freeze_failed: false,
             reduction: merge::Reduction::IDLE,
             final_shells: false,
+            resolution: 0.0,
             params,
             stats: StreamStats {
                 points: 0,
@@ -244,6 +248,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.freeze_failed = false;
         self.reduction = merge::Reduction::IDLE;
         self.final_shells = false;
+        self.resolution = 0.0;
         self.stats = StreamStats::default();
     }
 

@@ -404,3 +404,46 @@ fn a_mapper_started_again_is_a_new_mapper() {
         assert_eq!(again.stats(), new.stats());
     }
 }
+
+/// Points on a coarse wire lattice (10 m units) over kilometres, on one layer of it: their
+/// shells are thinner than four of the grid's steps (the lattice flattens them), so without the
+/// wire's unit the map is kept in f32, and with it, quantized; the finest unit noted holds, and
+/// a restart forgets it.
+#[test]
+fn shells_thinner_than_their_wire_unit_are_quantized() {
+    let lattice = |i: u32| {
+        let (a, b) = (i % 37, i / 37);
+        Point3::new(
+            10.0 * (a * 17 % 41) as f32 + 400.0 * (b % 5) as f32,
+            10.0 * (a * 5 % 13) as f32 + 300.0 * (b / 5) as f32,
+            0.0,
+        )
+    };
+    let streamed = |unit: Option<f32>| {
+        let mut m = StreamMapper::<64, 128, 64>::new(shells_params(16, 48));
+        if let Some(unit) = unit {
+            m.note_resolution(unit);
+        }
+        for i in 0..1_000 {
+            m.add(lattice(i));
+        }
+        m.finish();
+        m
+    };
+    assert!(!matches!(
+        streamed(None).layout(),
+        crate::map::Layout::Quantized(_)
+    ));
+    assert!(matches!(
+        streamed(Some(10.0)).layout(),
+        crate::map::Layout::Quantized(_)
+    ));
+    let mut m = streamed(Some(10.0));
+    // A finer unit noted later holds; a coarser one or nonsense does not.
+    for unit in [1e-3, 100.0, f32::NAN, -1.0, 0.0] {
+        m.note_resolution(unit);
+    }
+    assert!(!matches!(m.layout(), crate::map::Layout::Quantized(_)));
+    m.restart();
+    assert_eq!(m.resolution, 0.0);
+}

@@ -281,6 +281,7 @@ impl Link {
             chunk,
             |frame, placement| {
                 let (mapper, carving, lag) = &mut *link.borrow_mut();
+                mapper.note_resolution(frame.unit_scale() as f32);
                 let sensor = placement.place([0, 0, 0]);
                 match lag {
                     Some(lag) => {

@@ -76,7 +76,7 @@ fn not_quantized(map: &HostMap) -> Option<String> {
             shortest < THIN_STEPS * step
         })
         .count();
-    (!quantizes(step, thin, map.entities.len())).then(|| {
+    (!quantizes(step, thin, map.entities.len(), 0.0)).then(|| {
         format!(
             "{thin} of {} shells are thinner than {THIN_STEPS} steps of the grid this map's extent takes ({:.3e} m a step): on it they would move off their surfaces, so they are kept in f32",
             map.entities.len(),
