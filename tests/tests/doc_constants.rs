@@ -32,7 +32,7 @@ use mema_core::link::wire::{HEADER_LEN_V1, QUATERNION_ONE};
 use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN, MAGIC};
-use mema_core::stream::{MAX_SUMMARY, MOST_MEASURED, Pacing, SUMMARY_FACTOR};
+use mema_core::stream::{MAX_SUMMARY, MOST_MEASURED, MOST_RANKED, Pacing, SUMMARY_FACTOR};
 use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, REFIT_INTERVAL,
     TICK_POINTS,
@@ -100,8 +100,17 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/firmware.md",
-        "when it must scan for pairs (a sort of the store and at most {MOST_MEASURED} distances, \
-         each pair in reach ranked) {PACING_SCAN} credits more",
+        "when it must scan for pairs (a sort of the store, at most {MOST_MEASURED} distances \
+         measured and {MOST_RANKED} pairs in reach ranked) {PACING_SCAN} credits more: the scan \
+         with its two fits, {PACING_SCAN_STEP} credits, is the dearest step",
+    ),
+    (
+        "docs/design.md",
+        "a scan ranks at most {MOST_RANKED} pairs (`MOST_RANKED`)",
+    ),
+    (
+        "docs/design.md",
+        "({PACING_SCAN} credits on top of its two fits, a burst of {PACING_BURST})",
     ),
     (
         "docs/streaming.md",
@@ -458,8 +467,10 @@ fn value(name: &str) -> String {
         "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
         "PACING_SCAN" => Pacing::DEVICE.scan.to_string(),
+        "PACING_SCAN_STEP" => (Pacing::DEVICE.scan + 2 * Pacing::DEVICE.freeze).to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "MOST_MEASURED" => count(MOST_MEASURED),
+        "MOST_RANKED" => count(MOST_RANKED),
         "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),
         "REFIT_INTERVAL" => count(REFIT_INTERVAL as usize),
         "SUMMARY_FACTOR" => count(SUMMARY_FACTOR),

@@ -113,7 +113,14 @@ fn the_mappers_bounds_are_the_codes() {
     let step_mm = QUANTIZED_STEP_ALWAYS * 1e3;
     says(
         "docs/streaming.md",
-        &format!("grid (and a step is over {step_mm} mm), the grid would move them"),
+        &format!(
+            "grid (and a step is over {step_mm} mm and over a quarter of the unit the link sent \
+             the points in), the grid would move them"
+        ),
+    );
+    says(
+        "docs/streaming.md",
+        &format!("instead; `mema info` says so, with the count. Below {step_mm} mm, half a step"),
     );
 }
 

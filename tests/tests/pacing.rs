@@ -97,7 +97,7 @@ fn the_ring_keeps_up_with_the_link_on_a_168_mhz_part() {
             "car6",
             capture_of("car6.pcd"),
             paper,
-            cost(4_700.0, 118_000.0, 480_000.0, 0.0),
+            cost(4_700.0, 120_000.0, 495_000.0, 0.0),
         ),
         (
             "demo drive",
