@@ -159,7 +159,7 @@ pub fn symmetric_eigen(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
 /// do. Every step is IEEE-rounded in a fixed order, so host and device agree bit for bit.
 pub fn symmetric_eigen_single(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
     let (_, v) = jacobi(a.map(|row| row.map(|x| x as f32)));
-    let v = v.map(|row| row.map(f64::from));
+    let v = orthonormal_columns(v.map(|row| row.map(f64::from)));
     let rayleigh = |k: usize| {
         let u = [0, 1, 2].map(|i| v.get(i).and_then(|r| r.get(k)).copied().unwrap_or(0.0));
         let mut quotient = 0.0;
@@ -172,6 +172,26 @@ pub fn symmetric_eigen_single(a: [[f64; 3]; 3]) -> ([f64; 3], [[f64; 3]; 3]) {
         if norm > 0.0 { quotient / norm } else { 0.0 }
     };
     descending([rayleigh(0), rayleigh(1), rayleigh(2)], v)
+}
+
+/// `v`'s columns made orthonormal in f64 (Gram-Schmidt, in column order). Why: f32 rotations
+/// leave them orthonormal to a few times 1e-7, and after many rotations past the 1e-6 that
+/// [`Rotation::from_matrix`] allows: the shell then lost its rotation for the identity, a
+/// stream's thin shell turned to the axes (bun000's stream at k = 400 had one).
+fn orthonormal_columns(v: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let column = |j: usize| [v[0][j], v[1][j], v[2][j]];
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |a: [f64; 3]| {
+        let n = libm::sqrt(dot(a, a));
+        if n > 0.0 { a.map(|x| x / n) } else { a }
+    };
+    let minus =
+        |a: [f64; 3], b: [f64; 3], k: f64| [a[0] - k * b[0], a[1] - k * b[1], a[2] - k * b[2]];
+    let x = unit(column(0));
+    let y = unit(minus(column(1), x, dot(x, column(1))));
+    let z = minus(column(2), x, dot(x, column(2)));
+    let z = unit(minus(z, y, dot(y, z)));
+    [[x[0], y[0], z[0]], [x[1], y[1], z[1]], [x[2], y[2], z[2]]]
 }
 
 /// Eigenpairs ordered by value, largest first, the third vector the cross product of the first
@@ -313,6 +333,49 @@ mod tests {
                     let cosine = dot.abs() / libm::sqrt(norm);
                     assert!(1.0 - cosine < 1e-12, "{variances:?}: axis {k} at {cosine}");
                 }
+            }
+        }
+    }
+
+    /// Over many turned, thin covariances, the f32 rotations' vectors are a rotation (the
+    /// shell keeps its turn: before they were made orthonormal in f64, some were off by more
+    /// than `is_rotation` allows and their shells fell back to the axes), with the f64
+    /// solver's thin axis where it is ten times thinner than the next.
+    #[test]
+    fn single_precision_vectors_are_always_a_rotation() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for case in 0..20_000 {
+            let q = [next() - 0.5, next() - 0.5, next() - 0.5, next() - 0.5];
+            let Some(r) = Rotation::from_quaternion(q) else {
+                continue;
+            };
+            let r = r.matrix();
+            let variances = [
+                1.0,
+                10f64.powf(-3.0 * next()),
+                10f64.powf(-6.0 * next() - 1.0),
+            ];
+            let mut a = [[0.0; 3]; 3];
+            for i in 0..3 {
+                for j in 0..3 {
+                    a[i][j] = (0..3).map(|k| r[i][k] * variances[k] * r[j][k]).sum();
+                }
+            }
+            let (_, got_v) = symmetric_eigen_single(a);
+            assert!(
+                crate::rotation::is_rotation(&got_v),
+                "case {case}: {got_v:?}"
+            );
+            if variances[2] < 0.1 * variances[1] {
+                let (_, want_v) = symmetric_eigen(a);
+                let thin: f64 = (0..3).map(|i| got_v[i][2] * want_v[i][2]).sum();
+                assert!(1.0 - thin.abs() < 1e-6, "case {case}: thin axis at {thin}");
             }
         }
     }
