@@ -100,8 +100,7 @@ pub(crate) fn swap_remove<T, const N: usize>(v: &mut heapless::Vec<T, N>, i: usi
 /// `sqrt(x)` within 10^-6 of it, in a dozen instructions where the Cortex-M4F's libm takes
 /// a software routine of a hundred (the core cannot reach its VSQRT without `unsafe`): three
 /// Newton steps from the exponent halved, IEEE single operations only, so the same bits on
-/// every target; 0 for 0, NaN
-/// for a negative or NaN `x`, infinity for infinity.
+/// every target; 0 for 0, NaN for a negative or NaN `x`, infinity for infinity.
 pub(crate) fn square_root(x: f32) -> f32 {
     if !(x > 0.0 && x.is_finite()) {
         return if x == 0.0 || x == f32::INFINITY {

@@ -343,13 +343,8 @@ mod tests {
     /// solver's thin axis where it is ten times thinner than the next.
     #[test]
     fn single_precision_vectors_are_always_a_rotation() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::rng::stream_rng(7, 0);
+        let mut next = || crate::rng::uniform(&mut rng);
         for case in 0..20_000 {
             let q = [next() - 0.5, next() - 0.5, next() - 0.5, next() - 0.5];
             let Some(r) = Rotation::from_quaternion(q) else {

@@ -44,9 +44,8 @@ pub const MOST_MEASURED: usize = 8_000;
 /// 40, and a store has thousands in reach. At 800 the image's longest scan (bun000 in shells)
 /// is 1.25 million instructions with its freezes, under a third of the receive ring's fill
 /// time at the line's rate (3.8 million at 168 MHz); at 1,500 the demo drive's was 1.69
-/// million. Over every shared input
-/// the board's maps scored a geometric mean of 1.19 times the batch map's Chamfer distance
-/// either way (docs/design.md, "A device's layout").
+/// million. Over every shared input the board's maps scored a geometric mean of 1.19 times
+/// the batch map's Chamfer distance either way (docs/design.md, "A device's layout").
 pub const MOST_RANKED: usize = 800;
 
 /// Candidates lie within this many join radii of each other.

@@ -6,7 +6,7 @@
 
 use crate::free_space::Geometry;
 use crate::geometry::Point3;
-pub(crate) use crate::num::square_root;
+use crate::num::square_root;
 use core::f32::consts::{FRAC_PI_2, PI};
 
 /// The pixel of `p` in an image of `geometry` and its range (metres), as [`Geometry::pixel`]

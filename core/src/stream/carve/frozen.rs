@@ -11,9 +11,9 @@
 //! changed, so a downlink that sent the slot sends it again
 //! ([`StreamMapper::take_changed`]).
 
-use super::direction::square_root;
 use super::{Carver, SEEN_THROUGH, Sight};
 use crate::geometry::Point3;
+use crate::num::square_root;
 use crate::stream::{FrozenEntity, StreamMapper};
 
 /// Axis ends tested, as a fraction of the semi-axis.

@@ -252,7 +252,8 @@ fn codes_by_bisection_are_the_largest_not_past_the_return() -> TestResult {
 /// over every octant, and its pixels are [`Geometry::pixel`]'s but for directions at an edge.
 #[test]
 fn a_carver_pixel_is_the_geometry_pixel_but_at_edges() -> TestResult {
-    use super::direction::{arctangent, pixel, square_root};
+    use super::direction::{arctangent, pixel};
+    use crate::num::square_root;
     let mut worst_angle = 0.0_f32;
     for i in 0..20_000 {
         let turn = i as f32 / 20_000.0 * core::f32::consts::TAU;
