@@ -425,3 +425,46 @@ fn a_frozen_entity_across_a_corner_stays() -> TestResult {
     );
     Ok(())
 }
+
+/// A frozen piece of someone standing on the floor (a leg, 70 cm tall) has the lower end of its
+/// long axis at the floor: at the board's pixels (1.45 degrees a row) the row below that end
+/// meets the floor nearer than it, so that one end always looks seen. Two scans that see
+/// through the rest of it, to the floor and the wall behind, take it out (with every end asked,
+/// it stayed).
+#[test]
+fn a_frozen_piece_standing_on_the_floor_is_carved() -> TestResult {
+    let leg = crate::stream::FrozenEntity::of(&crate::geometry::Entity::from_semi_axes(
+        Point3::new(5.0, 0.0, 0.35),
+        [0.03, 0.1, 0.35],
+        &crate::geometry::Degeneration::default(),
+    ));
+    let floor_and_wall = || {
+        let floor = (0..90 * 60).map(|i| {
+            Point3::new(
+                1.0 + (i / 60) as f32 * 0.1,
+                -3.0 + (i % 60) as f32 * 0.1,
+                0.0,
+            )
+        });
+        let wall = (0..60 * 20)
+            .map(|i| Point3::new(10.0, -3.0 + (i % 60) as f32 * 0.1, (i / 60) as f32 * 0.1));
+        floor.chain(wall)
+    };
+    let mut m = StreamMapper::<4, 8, 16>::new(StreamParams {
+        max_clusters: 4,
+        max_frozen: 16,
+        ..mapper().params
+    });
+    m.frozen.push(leg).or_fail("room")?;
+    let mut carver = Carver::<{ 124 * 512 }>::whole_sphere(124, 512).or_fail("carver")?;
+    let [a, b, _, _] = sensors();
+    for sensor in [a, b] {
+        carver.sensor_at(Point3::new(sensor.x, sensor.y, 0.6), &mut m, &mut ());
+        for p in floor_and_wall() {
+            carver.add_return(p);
+        }
+    }
+    carver.end_scan(&mut m, &mut ());
+    assert!(m.frozen().is_empty(), "the leg stayed: {:?}", m.frozen());
+    Ok(())
+}
