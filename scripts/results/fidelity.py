@@ -21,12 +21,14 @@ def fidelity(logs):
     report = logs.json("fidelity")
     out = ["## Fidelity at equal bytes", "",
            "`scripts/bench.sh --only fidelity --gmm-cache target/gmm-cache --json`: every shared "
-           "PLY, PCD, LAS and LAZ cloud (its finite points, in metres) at each budget B, as the "
+           "PLY, PCD, LAS and LAZ cloud (its finite points, in metres) and registered set (`.conf`: "
+           "its scans in their common frame) at each budget B, as the "
            "default map (`mema map --bytes B`), the paper's (`--bytes B --paper`) and a "
            "converged Gaussian mixture of B / 40 components drawn as 2-sigma shells, each "
            "written, read back and scored by `mema eval`'s two-way score (Chamfer distance in "
            "metres, phantom share of the map's area), and the streamed map a robot gets of the same "
-           "cloud (sent as `mema scanner-sim` sends it, mapped by `mema map --stream -k B / 14`, "
+           "input (sent as `mema scanner-sim` sends it, a set scan by scan with its poses, mapped by "
+           "`mema map --stream -k B / 14`, "
            "at most 2,048 entities). " + logs.source("fidelity"), ""]
     pairs = wins_gmm = wins_paper = 0
     streamed_all = []
@@ -71,14 +73,14 @@ def fidelity(logs):
              "streamed: entities, bytes, Chamfer, phantom", "default / GMM", "default / paper",
              "streamed / default"],
             rows) + ["", f"At {n(budget)} bytes: the default's Chamfer is at or below the GMM's "
-                     f"on {below_gmm} of {clouds} clouds (geometric mean of default / GMM "
+                     f"on {below_gmm} of {clouds} inputs (geometric mean of default / GMM "
                      f"{mean:.2f}), below the paper's on {below_paper} of {clouds}; on the {big} "
-                     f"clouds of at least 10,000 points it is at or below the GMM's on {big_gmm} "
+                     f"inputs of at least 10,000 points it is at or below the GMM's on {big_gmm} "
                      f"and its phantom fraction below the paper's on {big_phantom}."
                      + streamed_sentence(streamed, budget)])
     over = sum(q > 1.2 for q, _ in streamed_all)
     out += block("fidelity-summary", [
-        f"Over the {pairs} (cloud, budget) pairs the default's Chamfer distance is at or below "
+        f"Over the {pairs} (input, budget) pairs the default's Chamfer distance is at or below "
         f"the GMM's on {wins_gmm} and below the paper's on {wins_paper}"
         + (f"; the streamed map's is within 1.2 times the default's on "
            f"{len(streamed_all) - over} of {len(streamed_all)}." if streamed_all else ".")])
@@ -92,7 +94,7 @@ def streamed_sentence(streamed, budget):
     mean = math.exp(sum(math.log(q) for q, _ in streamed) / len(streamed))
     worst, cloud = max(streamed)
     return (f" The streamed map's Chamfer is {mean:.2f} times the default's (geometric mean "
-            f"over {len(streamed)} clouds; at most {worst:.2f}, `{cloud}`).")
+            f"over {len(streamed)} inputs; at most {worst:.2f}, `{cloud}`).")
 
 
 def free_space(logs):
