@@ -43,7 +43,8 @@ def readme(text):
            "README.md's table of results, computed from the blocks below (the speed row is a "
            "time ratio: it varies with the machine).", ""]
     out += block("readme", [line.replace("|  |", "| |", 1) for line in table(["", "result"], [
-        [f"fidelity per byte, 9,600-byte maps of {len(fid)} real clouds and sets",
+        [f"fidelity per byte, 9,600-byte maps of {len(fid)} real clouds"
+         + (" and registered sets" if any(r[0].endswith(".conf`") for r in fid) else ""),
          f"Chamfer distance {span(gmm)}x a converged Gaussian mixture's, {span(paper)}x the "
          "paper's"],
         ["speed, read + k-means + fit",
