@@ -4,7 +4,7 @@
 //! its two longest axes (three quarters of each, as a working cluster's 1.5 deviations are of
 //! a shell's two) moved to its far side along the ray (its support in the ray's direction), as
 //! [`Carver::sees_through`] judges a cluster, except that one of the four ends may look seen
-//! ([`SHORT_ENDS`]). A scan that saw through it counts; one whose
+//! (`SHORT_ENDS`). A scan that saw through it counts; one whose
 //! nearest return lies at or before its centre (its surface, or something in front) starts the
 //! count again; one with no return near it, or with two axis ends it did not see through,
 //! leaves the count as it is. [`SEEN_THROUGH`]
