@@ -1,14 +1,15 @@
 //! `mema bench --only fidelity`: every shared cloud and registered set (`.conf`) at each byte
-//! budget, four maps side by side,
-//! each scored two ways (`crate::analysis::fidelity`) as read back from the file it was written to:
+//! budget, four maps side by side, each scored two ways (`crate::analysis::fidelity`) as read
+//! back from the file it was written to:
 //!
 //! - **default**: the shell model filling the budget (`mema map --model shells --bytes B`);
 //! - **paper**: the paper's method at the same budget (`mema map --bytes B --paper`);
 //! - **GMM**: a converged full-covariance Gaussian mixture of `B / 40` components
 //!   (scikit-learn, `scripts/gmm_fit.py`), each component its 2-sigma shell ([`super::gmm`]);
 //! - **streamed**: the map a robot gets of the same cloud, sent as `mema scanner-sim` sends it
-//!   (a set scan by scan with its poses, as `scanner-sim --conf` does) and mapped by the streaming mapper (`mema map --stream -k K`, shells, K = B / 14), at most
-//!   [`MAX_CLUSTERS`] entities.
+//!   (a set scan by scan with its poses, as `scanner-sim --conf` does) and mapped by the
+//!   streaming mapper (`mema map --stream -k K`, shells, K = B / 14), at most [`MAX_CLUSTERS`]
+//!   entities.
 //!
 //! A cloud the readers refuse, or a map a budget cannot make (more entities than points), is
 //! reported and the run goes on.
