@@ -25,7 +25,8 @@ const AXIS_REACH: f32 = 0.75;
 /// (1.45 degrees a row on the board) the row below that end meets the floor nearer than the end
 /// does; asking all four ends kept two to three such pieces of the walking drive's walker in the
 /// board's map, 9.0 % of the walker's points (5.3 % with one end let go; `tests/walker.rs`).
-/// An entity across an inside corner has two ends on the walls, and stays.
+/// An entity across an inside corner has its ends on the walls (three of the four in
+/// `a_frozen_entity_across_a_corner_stays`), and stays.
 const SHORT_ENDS: usize = 1;
 
 /// What a scan saw of a frozen entity.

@@ -356,6 +356,17 @@ fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> Test
     Ok(())
 }
 
+/// A device's layout holding `frozen` alone in its store.
+fn holding(frozen: crate::stream::FrozenEntity) -> Result<StreamMapper<4, 8, 16>, &'static str> {
+    let mut m = StreamMapper::new(StreamParams {
+        max_clusters: 4,
+        max_frozen: 16,
+        ..mapper().params
+    });
+    m.frozen.push(frozen).or_fail("room")?;
+    Ok(m)
+}
+
 /// A frozen entity across an inside corner has its centre in free space: later scans that see
 /// both walls from elsewhere see through its centre, but not past its axis ends, on the walls,
 /// and it stays.
@@ -388,12 +399,7 @@ fn a_frozen_entity_across_a_corner_stays() -> TestResult {
     if !(centre.x < 5.5 && centre.y < 5.5 && whole.clusters().len() == 1) {
         return Err("not one entity centred in the corner's free space");
     }
-    let mut m = StreamMapper::<4, 8, 16>::new(StreamParams {
-        max_clusters: 4,
-        max_frozen: 16,
-        ..mapper().params
-    });
-    m.frozen.push(frozen).or_fail("room")?;
+    let mut m = holding(frozen)?;
     let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
     for sensor in sensors() {
         carver.sensor_at(sensor, &mut m, &mut ());
@@ -404,12 +410,7 @@ fn a_frozen_entity_across_a_corner_stays() -> TestResult {
     carver.end_scan(&mut m, &mut ());
     assert_eq!(m.frozen(), &[frozen], "the corner was carved");
     // And the same entity where no wall stands behind it is seen through and carved.
-    let mut open = StreamMapper::<4, 8, 16>::new(StreamParams {
-        max_clusters: 4,
-        max_frozen: 16,
-        ..mapper().params
-    });
-    open.frozen.push(frozen).or_fail("room")?;
+    let mut open = holding(frozen)?;
     let mut carver = Carver::<8192>::whole_sphere(64, 128).or_fail("carver")?;
     for sensor in sensors() {
         carver.sensor_at(sensor, &mut open, &mut ());
@@ -450,12 +451,7 @@ fn a_frozen_piece_standing_on_the_floor_is_carved() -> TestResult {
             .map(|i| Point3::new(10.0, -3.0 + (i % 60) as f32 * 0.1, (i / 60) as f32 * 0.1));
         floor.chain(wall)
     };
-    let mut m = StreamMapper::<4, 8, 16>::new(StreamParams {
-        max_clusters: 4,
-        max_frozen: 16,
-        ..mapper().params
-    });
-    m.frozen.push(leg).or_fail("room")?;
+    let mut m = holding(leg)?;
     let mut carver = Carver::<{ 124 * 512 }>::whole_sphere(124, 512).or_fail("carver")?;
     let [a, b, _, _] = sensors();
     for sensor in [a, b] {
