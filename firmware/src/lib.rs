@@ -149,7 +149,7 @@ pub const fn model_params(
         refit_interval: REFIT_INTERVAL,
         tolerance: 0.0,
         model,
-        pacing: Pacing::DEVICE,
+        pacing: Pacing::device(&model),
         final_clusters: summary_layout(max_clusters + max_frozen, max_frozen).1,
     }
 }

@@ -96,12 +96,18 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/firmware.md",
-        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes",
+        "a shell's freeze, which costs the image half the paper's fit, spends \
+         {PACING_SHELLS_FREEZE} (`Pacing::DEVICE_SHELLS`).",
+    ),
+    (
+        "docs/firmware.md",
+        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes of \
+         the paper's fits",
     ),
     (
         "docs/firmware.md",
         "when it must scan for pairs (a sort of the store, at most {MOST_MEASURED} distances \
-         measured and {MOST_RANKED} pairs in reach ranked) {PACING_SCAN} credits more: the scan \
+         measured and {MOST_RANKED} pairs in reach ranked) {PACING_SHELLS_SCAN} credits more: the scan \
          with its two fits, {PACING_SCAN_STEP} credits, is the dearest step",
     ),
     (
@@ -110,7 +116,7 @@ const STATED: &[(&str, &str)] = &[
     ),
     (
         "docs/design.md",
-        "({PACING_SCAN} credits on top of its two fits, a burst of {PACING_BURST})",
+        "(the scan and its two fits {PACING_SCAN_STEP} credits together, a burst of {PACING_BURST})",
     ),
     (
         "docs/streaming.md",
@@ -466,8 +472,12 @@ fn value(name: &str) -> String {
         "BOARD_FROZEN" => count(BOARD_FROZEN),
         "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
-        "PACING_SCAN" => Pacing::DEVICE.scan.to_string(),
-        "PACING_SCAN_STEP" => (Pacing::DEVICE.scan + 2 * Pacing::DEVICE.freeze).to_string(),
+        "PACING_SCAN_STEP" => {
+            let shells = Pacing::DEVICE_SHELLS;
+            (shells.scan + 2 * shells.freeze).to_string()
+        }
+        "PACING_SHELLS_FREEZE" => Pacing::DEVICE_SHELLS.freeze.to_string(),
+        "PACING_SHELLS_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "MOST_MEASURED" => count(MOST_MEASURED),
         "MOST_RANKED" => count(MOST_RANKED),

@@ -156,8 +156,9 @@ const STATED: &[(&str, &str)] = &[
     ("docs/board.md", "so the USART runs at {BAUD} either way."),
     (
         "docs/streaming.md",
-        "each point earns a credit, a freeze costs {PACING_FREEZE} (twice that when it coarsens, \
-         and {PACING_SCAN} more when it must also scan for a pair) and a merge pass {PACING_MERGE}",
+        "each point earns a credit, a freeze costs {PACING_FREEZE}, a shell's \
+         {PACING_SHELLS_FREEZE} (twice that when it coarsens, and {PACING_SHELLS_SCAN} more when \
+         it must also scan for a pair) and a merge pass {PACING_MERGE}",
     ),
     (
         "docs/streaming.md",
@@ -372,7 +373,8 @@ fn value(name: &str) -> String {
             ((IMAGE_WORKING + IMAGE_FROZEN) * 24 * size_of::<f64>()) as f64 / 1024.0
         ),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
-        "PACING_SCAN" => Pacing::DEVICE.scan.to_string(),
+        "PACING_SHELLS_FREEZE" => Pacing::DEVICE_SHELLS.freeze.to_string(),
+        "PACING_SHELLS_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
         "IDLE_TURNOVERS" => IDLE_TURNOVERS.to_string(),
         "TANGENT_SCALE" => format!("{:.1}", ShellParams::DEFAULT.tangent_scale),

@@ -61,7 +61,7 @@ fn receding_capture() -> Vec<u8> {
 /// point near the last: the worst order for the join search), and a receding line, new ground
 /// at every point (room wanted at 9 points in 10: the pacing's credit all spent, and a scan of
 /// every centre for each point it could not pay for); and two in shells whose store fills (the
-/// demo drive and bun000), so their freezes coarsen and scan the store (car6 never fills it).
+/// demo drive and bun000), so their freezes coarsen and scan the store (car6 in the paper's model never does).
 ///
 /// A 168 MHz Cortex-M4F at 1.5 cycles an instruction (112 M instructions/s) loses no byte on
 /// any of them, the map is the unpaced one, and the longest tick is under a third of the

@@ -176,8 +176,8 @@ fn the_readme_memory_claim_is_table_2s() {
 
 /// firmware.md's two claims on the firmware's measured cost: car6's whole run under a round
 /// bound with either model (`firmware-cost`), and the most a pacing credit costs, a fit's, a merge
-/// pass's or a scan's price over the credits it spends (`pacing`, `Pacing::DEVICE`; a scan
-/// spends its own and its two fits').
+/// pass's or a scan's price over the credits it spends (`pacing`, `Pacing::DEVICE`, and
+/// `Pacing::DEVICE_SHELLS` on the rows in shells; a scan spends its own and its two fits').
 #[test]
 fn the_firmware_guides_claims_are_the_measured_costs() {
     let results = results();
@@ -201,10 +201,14 @@ fn the_firmware_guides_claims_are_the_measured_costs() {
             thousands(bound)
         ),
     );
-    let pacing = mema_core::stream::Pacing::DEVICE;
     let most = table_rows(&results["pacing"])
         .iter()
         .flat_map(|r| {
+            let pacing = if r[0].ends_with("shells") {
+                mema_core::stream::Pacing::DEVICE_SHELLS
+            } else {
+                mema_core::stream::Pacing::DEVICE
+            };
             // The paper's captures never scan: their scan price is `none`.
             let prices: Vec<u64> = r[1]
                 .split(", ")
@@ -226,5 +230,36 @@ fn the_firmware_guides_claims_are_the_measured_costs() {
     says(
         "docs/firmware.md",
         &format!("plus ~{about} for the credit it earns"),
+    );
+}
+
+/// board.md's reading of its `board-fidelity` table: the clouds whose map does not fill K = 400
+/// (K = 700 scores the same), and those further behind the batch map than a quarter.
+#[test]
+fn the_board_guides_reading_is_its_fidelity_table() {
+    let results = results();
+    let rows = table_rows(&results["board-fidelity"]);
+    let names = |keep: &dyn Fn(&Vec<String>) -> bool| -> String {
+        let picked: Vec<&str> = rows
+            .iter()
+            .filter(|r| keep(r))
+            .map(|r| r[0].as_str())
+            .collect();
+        picked.join(", ")
+    };
+    let ratio = |cell: &str| cell.parse::<f64>().expect("a ratio");
+    says(
+        "docs/board.md",
+        &format!(
+            "those that do not fill it ({}) map alike.",
+            names(&|r| ratio(&r[7]) == 1.0)
+        ),
+    );
+    says(
+        "docs/board.md",
+        &format!(
+            "Maps further behind than a quarter of the batch map's Chamfer distance: {}.",
+            names(&|r| ratio(&r[6]) > 1.25)
+        ),
     );
 }

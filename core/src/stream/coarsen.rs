@@ -227,6 +227,54 @@ impl Patch {
     }
 }
 
+/// A coarsening's merged shell may be at most this many times as thick (its thinnest semi-axis)
+/// as the thicker of the two it replaces, unless it stays flat ([`FLATNESS`]). Two patches that
+/// are not one plane (a table's top and its edge, two walls at a corner) merge into a slab as
+/// thick as they are apart, and a store that coarsens thousands of times stacks such merges:
+/// office1 at the board's layout had its shells' median thinnest semi-axis at 9.9 mm against
+/// the batch map's 5.8, and 1.33 times the batch map's Chamfer distance (1.08 with the bounds
+/// and shells' freezes at [`super::Pacing::DEVICE_SHELLS`]). At 1.5 the bunny scans, curved
+/// everywhere, lost more than office1 gained (docs/design.md, "A device's layout").
+pub const THICKENING: f32 = 3.0;
+
+/// A merged shell whose thinnest semi-axis is at most this share of its longest is a sheet,
+/// whatever its parts' thickness: shells with none (a lone point's, below the shells' floor)
+/// would otherwise never merge, and a curved surface's patches, whose thickness is their sag,
+/// grow four times as thick as they double in size. At 0.03 the board's maps scored a geometric
+/// mean of 1.06 times the batch map's Chamfer distance over every shared input, at 0.12 1.07
+/// (office1 1.29).
+pub const FLATNESS: f32 = 0.03;
+
+/// A shell's thinnest and longest semi-axes, from its largest and smallest weights
+/// (`w = 1 / r^2`); an axis of no weight (a plane pair's) is unbounded.
+fn thinnest_and_longest(weights: &[f32; 3]) -> (f32, f32) {
+    let semi_axis = |w: f32| {
+        if w > 0.0 {
+            1.0 / square_root(w)
+        } else {
+            f32::MAX
+        }
+    };
+    let heaviest = weights.iter().fold(0.0f32, |m, &w| m.max(w));
+    let lightest = weights.iter().fold(f32::MAX, |m, &w| m.min(w));
+    (semi_axis(heaviest), semi_axis(lightest))
+}
+
+/// [`merged`], unless the merged shell is more than [`THICKENING`] times as thick as the thicker
+/// of the two and not flat ([`FLATNESS`]).
+pub(super) fn merged_thin(
+    a: &FrozenEntity,
+    b: &FrozenEntity,
+    params: &ShellParams,
+) -> Option<Entity> {
+    let entity = merged(a, b, params)?;
+    let thicker = thinnest_and_longest(&a.entity.weights)
+        .0
+        .max(thinnest_and_longest(&b.entity.weights).0);
+    let (thin, longest) = thinnest_and_longest(&entity.weights);
+    (thin <= THICKENING * thicker || thin <= FLATNESS * longest).then_some(entity)
+}
+
 /// The shell of two frozen shells' patches together: their area-weighted mean and covariance.
 pub(super) fn merged(a: &FrozenEntity, b: &FrozenEntity, params: &ShellParams) -> Option<Entity> {
     let (pa, pb) = (Patch::of(a, params)?, Patch::of(b, params)?);
@@ -285,7 +333,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             let (Some(ea), Some(eb)) = (self.frozen.get(a), self.frozen.get(b)) else {
                 continue;
             };
-            let Some(entity) = merged(ea, eb, &params) else {
+            let Some(entity) = merged_thin(ea, eb, &params) else {
                 continue;
             };
             let d2 = ea.entity.center.distance_squared(eb.entity.center);

@@ -79,6 +79,30 @@ impl Pacing {
         burst: 160,
     };
 
+    /// [`Self::DEVICE`] for shells: a shell's freeze is its cluster's moments, no DE fit, and
+    /// costs the image half what the paper's fit does (51,000 and 83,000 instructions on the
+    /// demo drive and bun000 against 107,000 to 149,000), so it is priced at half. A scan with
+    /// its two fits is 148 credits, some 7,500 instructions each (1.1 million on the image): at
+    /// 160 the walking drive's board map kept twice the walker it keeps at 148, across its
+    /// test's bound (`tests/walker.rs`; at 136 and at 148 it stayed under: the measure is
+    /// chaotic). Cheaper freezes keep clusters finer where the store has room; with the
+    /// coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored a geometric
+    /// mean of 1.06 times the batch map's Chamfer distance over every shared input, 1.18 at the
+    /// paper's prices (docs/design.md, "A device's layout").
+    pub const DEVICE_SHELLS: Self = Self {
+        freeze: 12,
+        scan: 124,
+        ..Self::DEVICE
+    };
+
+    /// The device's prices for `model`'s fits.
+    pub const fn device(model: &super::StreamModel) -> Self {
+        match model {
+            super::StreamModel::Paper => Self::DEVICE,
+            super::StreamModel::Shells(_) => Self::DEVICE_SHELLS,
+        }
+    }
+
     /// Whether the radius may follow the credit ([`PACED_GROWTH`],
     /// [`IDLE_SHRINK`]): a paced layout that freezes, whose freezes make room without
     /// the merges that set the radius.

@@ -121,7 +121,7 @@ pub fn stream_params(
         pacing: if tolerance > 0.0 {
             Pacing::NONE
         } else {
-            Pacing::DEVICE
+            Pacing::device(&model)
         },
     }
 }

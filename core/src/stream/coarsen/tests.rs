@@ -102,6 +102,45 @@ fn a_merged_pair_is_the_shell_of_both_patches_points() -> TestResult {
     Ok(())
 }
 
+/// Two walls meeting at a corner are not one plane: their merged shell would be a slab as thick
+/// as the walls are wide, so coarsening leaves them apart ([`THICKENING`]); two halves of one
+/// wall merge into a shell as thin as theirs, and two lone points (shells of no thickness to
+/// bound by) merge into a segment ([`FLATNESS`]).
+#[test]
+fn a_corner_is_not_coarsened_into_a_slab() -> TestResult {
+    let wall = |center: [f64; 3], v: [f64; 3]| patch(center, [0.0, 0.0, 1.0], v, 20, 20, 0.01);
+    let (x, y) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+    // Each 19 cm square, about 1 mm thick as a scanner's noise would leave it.
+    let noisy = |mut pts: heapless::Vec<[f64; 3], 1200>, across: usize| {
+        for (i, p) in pts.iter_mut().enumerate() {
+            p[across] += if i % 2 == 0 { 0.001 } else { -0.001 };
+        }
+        pts
+    };
+    let left = frozen_shell(&noisy(wall([0.0, 0.1, 0.0], y), 0)).or_fail("left")?;
+    let right = frozen_shell(&noisy(wall([0.1, 0.0, 0.0], x), 1)).or_fail("right")?;
+    let further = frozen_shell(&noisy(wall([0.0, 0.3, 0.0], y), 0)).or_fail("further")?;
+    let thin = |e: &Entity| semi_axes(e).iter().fold(f64::MAX, |m, &r| m.min(r));
+    let params = ShellParams::DEFAULT;
+    // The merge itself is a slab: the bound, not the merge, keeps the corner apart.
+    let slab = merged(&left, &right, &params).or_fail("slab")?;
+    let walls = [left, right].map(|e| thin(&e.to_entity()));
+    assert!(
+        thin(&slab) > f64::from(THICKENING) * walls[0].max(walls[1]),
+        "{} {walls:?}",
+        thin(&slab)
+    );
+    assert!(merged_thin(&left, &right, &params).is_none());
+    let wall = merged_thin(&left, &further, &params).or_fail("one wall")?;
+    assert!(thin(&wall) < 2.0 * walls[0], "{} {walls:?}", thin(&wall));
+    let lone = [0.0, 0.2].map(|x| frozen_shell(&[[x, 0.0, 0.0]]));
+    let [Some(near), Some(far)] = lone else {
+        return Err("lone points");
+    };
+    assert!(merged_thin(&near, &far, &params).is_some());
+    Ok(())
+}
+
 fn params(model: StreamModel, working: usize, frozen: usize) -> StreamParams {
     StreamParams {
         fit: FitParams::default(),
@@ -255,7 +294,7 @@ fn the_sweep_lists_what_a_search_of_every_pair_lists() -> TestResult {
 /// paced) rather than run the merge pass, which would widen the join radius for good.
 #[test]
 fn a_merge_pass_never_stands_in_for_a_freeze_short_of_credit() {
-    let pacing = Pacing::DEVICE;
+    let pacing = Pacing::DEVICE_SHELLS;
     let mut m = Small::new(StreamParams {
         pacing,
         ..params(StreamModel::Shells(ShellParams::DEFAULT), 8, 16)
