@@ -347,8 +347,11 @@ fn map_frames_give_one_account_and_only_the_devices_map_on_mutated_downlinks() {
             ended += usize::from(got.ended);
         }
     }
+    // Floors of how far the mutations reach, not a property of any one: 864 maps, 1,752 made
+    // right and 6,817 ended with shells' freezes at their own price (1,069, 2,019 and 6,769
+    // before, when the session froze fewer entities and its downlink was shorter).
     assert!(
-        maps > 1_000 && made_right > 1_000 && ended > 3_000,
+        maps > 500 && made_right > 1_000 && ended > 3_000,
         "{maps} maps, {made_right} made right, {ended} ended"
     );
 }

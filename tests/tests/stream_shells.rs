@@ -4,7 +4,9 @@
 //!   independently: the points each cluster received (followed through the mapper's `Observer`),
 //!   a two-pass f64 covariance, and nalgebra's eigen-decomposition. Frozen entities included,
 //!   except those a coarsening merged: each stands for its two shells' patches weighed by
-//!   their areas, not for their points, and is held to the box and the extent of its points.
+//!   their areas, not for their points, and is held to the box and the extent of its points
+//!   (a lone point's shell, or a line's, has no area: merged, it weighs nothing, and its points
+//!   are counted apart).
 //! - `mema replay --model shells` writes the same bytes for every chunking, equal to the mapper
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
@@ -34,6 +36,8 @@ struct Members {
     coarsened: Vec<bool>,
     /// Points the pacing shed.
     shed: usize,
+    /// Points of shells with no area a coarsening merged (they weigh nothing in the merge).
+    weightless: usize,
 }
 
 impl Observer for Members {
@@ -62,9 +66,20 @@ impl Observer for Members {
     }
 
     fn coarsened(&mut self, into: usize, from: usize) {
-        let moved = self.frozen.swap_remove(from);
+        let mut moved = self.frozen.swap_remove(from);
         self.coarsened.swap_remove(from);
-        self.frozen[into].extend(moved);
+        let kept = &mut self.frozen[into];
+        // A shell with no area (a lone point, or points on a line) beside a patch: the merged
+        // shell is the patch's.
+        if weightless(&moved) && !weightless(kept) {
+            self.weightless += moved.len();
+        } else {
+            if weightless(kept) && !weightless(&moved) {
+                self.weightless += kept.len();
+                kept.clear();
+            }
+            kept.append(&mut moved);
+        }
         self.coarsened[into] = true;
     }
 
@@ -75,6 +90,14 @@ impl Observer for Members {
         );
         self.working.swap_remove(index);
     }
+}
+
+/// Whether `points` make a shell with no area to weigh in a coarsening (its area is the product
+/// of its two longest semi-axes): one point, or points on a line (the shells' floor, 1e-3 of
+/// the longest, is all the width they have).
+fn weightless(points: &[[f64; 3]]) -> bool {
+    let (_, r, _) = direct_shell(points);
+    points.len() < 2 || r[1] <= 1e-2 * r[0]
 }
 
 /// `R diag(r^2) R^T`: the shell's shape, the same whichever way its axes are ordered or signed.
@@ -149,9 +172,9 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
     assert_eq!(members.frozen.len(), mapper.frozen().len());
     let held: usize = clusters.iter().map(|c| c.len()).sum();
     assert_eq!(
-        held + members.shed,
+        held + members.shed + members.weightless,
         points.len(),
-        "{cloud}: every point in exactly one cluster, or shed"
+        "{cloud}: every point in exactly one cluster, or shed, or a lone point coarsened"
     );
     assert_eq!(members.shed as u64, mapper.stats().paced_shed, "{cloud}");
     // The smallest-three code keeps a frozen entity's rotation within a quarter of a degree, and
@@ -248,11 +271,12 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
         );
     }
     eprintln!(
-        "{cloud} {capacity:?}: {} entities ({} frozen, {coarsened} coarsened: longest semi-axis {:.2}-{:.2} of their points' shell's); worst semi-axis {:.1e}, shape {:.1e} working / {:.1e} frozen",
+        "{cloud} {capacity:?}: {} entities ({} frozen, {coarsened} coarsened: longest semi-axis {:.2}-{:.2} of their points' shell's, {} points weightless); worst semi-axis {:.1e}, shape {:.1e} working / {:.1e} frozen",
         entities.len(),
         members.frozen.len(),
         extent_ratio[0],
         extent_ratio[1],
+        members.weightless,
         worst[0],
         worst[1],
         worst[2]

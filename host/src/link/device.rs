@@ -186,6 +186,9 @@ pub struct MapFrames {
     last_next: u32,
     end: Option<MapEnd>,
     timing: Option<DeviceTiming>,
+    /// The times the end was asked for again for its timing ([`super::session::TIMING_ASKS`]
+    /// at most): a budget of its own, so entities asked for again do not spend it.
+    pub(super) timing_asks: u32,
     /// Answers to queries, by the query's number: entity, value, ticks.
     answers: std::collections::HashMap<u32, (u32, f64, u32)>,
     pub counts: DownlinkCounts,

@@ -363,7 +363,7 @@ pub(super) fn whole_or_ask(
         // A device sends its timing just before its end, and the end again brings it again:
         // asked for a few times, as the map is whole without it and only its cost would go
         // unsaid (a device that sends none costs a session TIMING_ASKS retries).
-        if frames.lacks_timing() && *asks < TIMING_ASKS {
+        if frames.lacks_timing() && frames.timing_asks < TIMING_ASKS {
             if asked.is_some_and(|t| t.elapsed() <= RETRY) {
                 return None;
             }
@@ -375,7 +375,7 @@ pub(super) fn whole_or_ask(
                 }
                 frames.counts.ends_asked += 1;
             }
-            *asks += 1;
+            frames.timing_asks += 1;
             *asked = Some(Instant::now());
             return None;
         }

@@ -75,6 +75,18 @@ fn an_end_without_its_timing_asks_for_the_end_again() {
     assert!(port.is_empty());
 }
 
+/// A faulty line that cost entities asked for again still leaves the timing its own asks
+/// (`tests/tests/board_sensor.rs` once lost a board's timing so: 13 entity asks had spent them).
+#[test]
+fn entities_asked_again_leave_the_timing_its_asks() {
+    let mut frames = ended_without_timing();
+    let mut asks = 13;
+    let mut port = Vec::new();
+    assert!(whole_or_ask(&mut port, &mut frames, &mut None, &mut asks).is_none());
+    assert_eq!(port, resend_end(frames.address()));
+    assert_eq!((frames.counts.ends_asked, asks), (1, 13));
+}
+
 /// A device that never sends its timing costs the session TIMING_ASKS asks, then the map.
 #[test]
 fn a_timing_that_never_comes_is_asked_for_a_bounded_number_of_times() {
