@@ -32,7 +32,7 @@ use mema_core::link::wire::{HEADER_LEN_V1, QUATERNION_ONE};
 use mema_core::map::free_space_part::GEOMETRY_LEN;
 use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::map::{CRC_LEN as MAP_CRC_LEN, HEADER_LEN as MAP_HEADER_LEN, HEADER_V2_LEN, MAGIC};
-use mema_core::stream::{MAX_SUMMARY, MOST_MEASURED, MOST_RANKED, Pacing, SUMMARY_FACTOR};
+use mema_core::stream::{MAX_SUMMARY, SUMMARY_FACTOR};
 use mema_firmware::{
     BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN, IMAGE_WORKING, REFIT_INTERVAL,
     TICK_POINTS,
@@ -88,40 +88,6 @@ const STATED: &[(&str, &str)] = &[
     (
         "docs/board.md",
         "has room for {BOARD_FROZEN} frozen entities: K = {BOARD_K},",
-    ),
-    (
-        "docs/firmware.md",
-        "point earns one credit, saved up to {PACING_BURST}; a freeze spends {PACING_FREEZE}, a \
-         merge pass {PACING_MERGE} (`Pacing::DEVICE`,",
-    ),
-    (
-        "docs/firmware.md",
-        "a shell's freeze, which costs the image half the paper's fit, spends \
-         {PACING_SHELLS_FREEZE} (`Pacing::DEVICE_SHELLS`).",
-    ),
-    (
-        "docs/firmware.md",
-        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes of \
-         the paper's fits",
-    ),
-    (
-        "docs/firmware.md",
-        "when it must scan for pairs (a sort of the store, at most {MOST_MEASURED} distances \
-         measured and {MOST_RANKED} pairs in reach ranked) {PACING_SHELLS_SCAN} credits more: the scan \
-         with its two fits, {PACING_SCAN_STEP} credits, is the dearest step",
-    ),
-    (
-        "docs/design.md",
-        "a scan ranks at most {MOST_RANKED} pairs (`MOST_RANKED`)",
-    ),
-    (
-        "docs/design.md",
-        "(the scan and its two fits {PACING_SCAN_STEP} credits together, a burst of {PACING_BURST})",
-    ),
-    (
-        "docs/streaming.md",
-        "its distances (at most {MOST_MEASURED}) are the pairs that could be within reach wherever \
-         in the store they lie, and it lists the cheapest {LISTED};",
     ),
     (
         "docs/streaming.md",
@@ -470,18 +436,6 @@ fn value(name: &str) -> String {
         "BOARD_K" => count(BOARD_WORKING + BOARD_FROZEN),
         "BOARD_WORKING" => count(BOARD_WORKING),
         "BOARD_FROZEN" => count(BOARD_FROZEN),
-        "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
-        "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
-        "PACING_SCAN_STEP" => {
-            let shells = Pacing::DEVICE_SHELLS;
-            (shells.scan + 2 * shells.freeze).to_string()
-        }
-        "PACING_SHELLS_FREEZE" => Pacing::DEVICE_SHELLS.freeze.to_string(),
-        "PACING_SHELLS_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
-        "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
-        "MOST_MEASURED" => count(MOST_MEASURED),
-        "MOST_RANKED" => count(MOST_RANKED),
-        "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),
         "REFIT_INTERVAL" => count(REFIT_INTERVAL as usize),
         "SUMMARY_FACTOR" => count(SUMMARY_FACTOR),
         "MAX_SUMMARY" => count(MAX_SUMMARY),

@@ -17,7 +17,7 @@ use mema_core::map::record::{AXIS_ALIGNED_LEN, ORIENTED_LEN, QUANTIZED_LEN};
 use mema_core::moments::fixed::OFFSET_LIMIT;
 use mema_core::shell::ShellParams;
 use mema_core::stream::freeze::IDLE_TURNOVERS;
-use mema_core::stream::{MAX_SUMMARY, Pacing, SUMMARY_FACTOR};
+use mema_core::stream::{MAX_SUMMARY, MOST_MEASURED, MOST_RANKED, Pacing, SUMMARY_FACTOR};
 use mema_firmware::{
     BOARD_CARVE_EVERY, BOARD_CARVE_IMAGE, BOARD_FROZEN, BOARD_WORKING, IMAGE_BUCKETS, IMAGE_FROZEN,
     IMAGE_WORKING,
@@ -154,6 +154,40 @@ const STATED: &[(&str, &str)] = &[
     ),
     ("docs/board.md", "fill time at {BAUD} baud"),
     ("docs/board.md", "so the USART runs at {BAUD} either way."),
+    (
+        "docs/firmware.md",
+        "point earns one credit, saved up to {PACING_BURST}; a freeze spends {PACING_FREEZE}, a \
+         merge pass {PACING_MERGE} (`Pacing::DEVICE`,",
+    ),
+    (
+        "docs/firmware.md",
+        "a shell's freeze, which costs the image half the paper's fit, spends \
+         {PACING_SHELLS_FREEZE} (`Pacing::DEVICE_SHELLS`).",
+    ),
+    (
+        "docs/firmware.md",
+        "a stretch of `n` points runs at most `(n + {PACING_BURST}) / {PACING_FREEZE}` freezes of \
+         the paper's fits",
+    ),
+    (
+        "docs/firmware.md",
+        "when it must scan for pairs (a sort of the store, at most {MOST_MEASURED} distances \
+         measured and {MOST_RANKED} pairs in reach ranked) {PACING_SHELLS_SCAN} credits more: the scan \
+         with its two fits, {PACING_SCAN_STEP} credits, is the dearest step",
+    ),
+    (
+        "docs/design.md",
+        "a scan ranks at most {MOST_RANKED} pairs (`MOST_RANKED`)",
+    ),
+    (
+        "docs/design.md",
+        "(the scan and its two fits {PACING_SCAN_STEP} credits together, a burst of {PACING_BURST})",
+    ),
+    (
+        "docs/streaming.md",
+        "its distances (at most {MOST_MEASURED}) are the pairs that could be within reach wherever \
+         in the store they lie, and it lists the cheapest {LISTED};",
+    ),
     (
         "docs/streaming.md",
         "each point earns a credit, a freeze costs {PACING_FREEZE}, a shell's \
@@ -373,6 +407,14 @@ fn value(name: &str) -> String {
             ((IMAGE_WORKING + IMAGE_FROZEN) * 24 * size_of::<f64>()) as f64 / 1024.0
         ),
         "PACING_FREEZE" => Pacing::DEVICE.freeze.to_string(),
+        "PACING_SCAN_STEP" => {
+            let shells = Pacing::DEVICE_SHELLS;
+            (shells.scan + 2 * shells.freeze).to_string()
+        }
+        "PACING_BURST" => Pacing::DEVICE.burst.to_string(),
+        "MOST_RANKED" => count(MOST_RANKED),
+        "MOST_MEASURED" => count(MOST_MEASURED),
+        "LISTED" => mema_core::stream::coarsen::LISTED.to_string(),
         "PACING_SHELLS_FREEZE" => Pacing::DEVICE_SHELLS.freeze.to_string(),
         "PACING_SHELLS_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),

@@ -255,9 +255,9 @@ fn thinnest_and_longest(weights: &[f32; 3]) -> (f32, f32) {
             f32::MAX
         }
     };
-    let heaviest = weights.iter().fold(0.0f32, |m, &w| m.max(w));
-    let lightest = weights.iter().fold(f32::MAX, |m, &w| m.min(w));
-    (semi_axis(heaviest), semi_axis(lightest))
+    let (thin, lo, mid) = thin_axis(*weights);
+    let heaviest = weights.get(thin).copied().unwrap_or(0.0);
+    (semi_axis(heaviest), semi_axis(lo.min(mid)))
 }
 
 /// [`merged`], unless the merged shell is more than [`THICKENING`] times as thick as the thicker
