@@ -31,6 +31,20 @@ pub(crate) fn finite_box(points: impl IntoIterator<Item = Point3>) -> ([f32; 3],
     (lo, hi)
 }
 
+/// The axis (0, 1, 2 for x, y, z) along which `points` spread widest: sorted along it, a sweep
+/// for close pairs meets the fewest that are not.
+pub(crate) fn longest_axis(points: impl IntoIterator<Item = Point3>) -> usize {
+    let (lo, hi) = finite_box(points);
+    let side = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
+    if side[0] >= side[1] && side[0] >= side[2] {
+        0
+    } else if side[1] >= side[2] {
+        1
+    } else {
+        2
+    }
+}
+
 impl Point3 {
     pub const fn new(x: f32, y: f32, z: f32) -> Self {
         Self { x, y, z }
@@ -38,6 +52,15 @@ impl Point3 {
 
     pub const fn to_array(self) -> [f32; 3] {
         [self.x, self.y, self.z]
+    }
+
+    /// The coordinate on axis 0, 1 or 2 (x, y, z; z for any other).
+    pub(crate) const fn coordinate(self, axis: usize) -> f32 {
+        match axis {
+            0 => self.x,
+            1 => self.y,
+            _ => self.z,
+        }
     }
 
     pub fn to_f64(self) -> [f64; 3] {

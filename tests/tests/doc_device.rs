@@ -162,7 +162,8 @@ const STATED: &[(&str, &str)] = &[
     (
         "docs/firmware.md",
         "a shell's freeze, which costs the image half the paper's fit, spends \
-         {PACING_SHELLS_FREEZE} (`Pacing::DEVICE_SHELLS`).",
+         {PACING_SHELLS_FREEZE} and a merge pass among shells {PACING_SHELLS_MERGE} \
+         (`Pacing::DEVICE_SHELLS`).",
     ),
     (
         "docs/firmware.md",
@@ -192,7 +193,8 @@ const STATED: &[(&str, &str)] = &[
         "docs/streaming.md",
         "each point earns a credit, a freeze costs {PACING_FREEZE}, a shell's \
          {PACING_SHELLS_FREEZE} (twice that when it coarsens, and {PACING_SHELLS_SCAN} more when \
-         it must also scan for a pair) and a merge pass {PACING_MERGE}",
+         it must also scan for a pair) and a merge pass {PACING_MERGE} ({PACING_SHELLS_MERGE} \
+         among shells)",
     ),
     (
         "docs/streaming.md",
@@ -418,6 +420,7 @@ fn value(name: &str) -> String {
         "PACING_SHELLS_FREEZE" => Pacing::DEVICE_SHELLS.freeze.to_string(),
         "PACING_SHELLS_SCAN" => Pacing::DEVICE_SHELLS.scan.to_string(),
         "PACING_MERGE" => Pacing::DEVICE.merge_pass.to_string(),
+        "PACING_SHELLS_MERGE" => Pacing::DEVICE_SHELLS.merge_pass.to_string(),
         "IDLE_TURNOVERS" => IDLE_TURNOVERS.to_string(),
         "TANGENT_SCALE" => format!("{:.1}", ShellParams::DEFAULT.tangent_scale),
         "NORMAL_SCALE" => format!("{:.1}", ShellParams::DEFAULT.normal_scale),

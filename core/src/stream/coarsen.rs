@@ -367,12 +367,8 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// distances, from the place in the order where the last scan stopped.
     fn scan_frozen_pairs(&mut self, tangent_scale: f32) -> bool {
         let len = self.frozen.len();
-        let axis = self.longest_axis();
-        let key = |e: &FrozenEntity| match axis {
-            0 => e.entity.center.x,
-            1 => e.entity.center.y,
-            _ => e.entity.center.z,
-        };
+        let axis = crate::geometry::longest_axis(self.frozen.iter().map(|e| e.entity.center));
+        let key = |e: &FrozenEntity| e.entity.center.coordinate(axis);
         let order = self.sweep.get_mut(..len).unwrap_or(&mut []);
         for (i, slot) in order.iter_mut().enumerate() {
             *slot = i as u16;
@@ -446,19 +442,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         self.marks.untouch_all();
         self.stats.scans += 1;
         widened
-    }
-
-    /// The axis (0, 1, 2 for x, y, z) along which the frozen centres spread widest.
-    fn longest_axis(&self) -> usize {
-        let (lo, hi) = crate::geometry::finite_box(self.frozen.iter().map(|e| e.entity.center));
-        let side = [hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]];
-        if side[0] >= side[1] && side[0] >= side[2] {
-            0
-        } else if side[1] >= side[2] {
-            1
-        } else {
-            2
-        }
     }
 }
 

@@ -4,6 +4,7 @@
 //! per batch of far points.
 
 use super::pairs::{ClosestPairs, Disjoint, MAX_MERGE_BATCH};
+use super::sweep::SortedCentres;
 use super::{Observer, StreamCluster, StreamMapper, center_of, count32};
 use crate::fit::surface_error_estimate;
 use crate::moments::FixedMoments;
@@ -108,9 +109,26 @@ impl Reduction {
 }
 
 impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
-    /// The `wanted` cheapest neighbour pairs by Ward's criterion.
+    /// The `wanted` cheapest pairs by Ward's criterion.
     fn candidate_pairs(&self, wanted: usize) -> ClosestPairs {
-        self.cheapest_pairs(wanted, |_, ca, _, cb, d| ward(&ca.moments, &cb.moments, d))
+        // Ward's cost grows with either count: a cluster of `n` points merges with any other at
+        // no less than `n m / (n + m)` a squared unit of distance, `m` the fewest points of any.
+        let fewest = self
+            .clusters
+            .iter()
+            .map(|c| count32(&c.moments))
+            .fold(f32::INFINITY, f32::min);
+        let floor = |c: &StreamCluster| {
+            let n = count32(&c.moments);
+            if fewest.is_finite() && n + fewest > 0.0 {
+                n * fewest / (n + fewest)
+            } else {
+                0.0
+            }
+        };
+        self.cheapest_pairs(wanted, floor, |_, ca, _, cb, d| {
+            ward(&ca.moments, &cb.moments, d)
+        })
     }
 
     /// The final reduction's candidates: the `wanted` cheapest pairs within its reach by
@@ -125,58 +143,54 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 .copied()
                 .unwrap_or_else(|| spread(m, density))
         };
-        self.cheapest_pairs(wanted, |a, ca, b, cb, d| {
-            let spreads = [own(a, &ca.moments), own(b, &cb.moments)];
-            planar(&ca.moments, &cb.moments, d, density, spreads)
-        })
+        // No floor: two coplanar patches merge at Ward's share of their cost, however far.
+        self.cheapest_pairs(
+            wanted,
+            |_| 0.0,
+            |a, ca, b, cb, d| {
+                let spreads = [own(a, &ca.moments), own(b, &cb.moments)];
+                planar(&ca.moments, &cb.moments, d, density, spreads)
+            },
+        )
     }
 
     /// The `wanted` cheapest pairs by `cost` (of each pair's indices, clusters and squared
-    /// distance) among the neighbours the centre grid offers, within the reduction's reach while
-    /// it runs; every pair when the grid offers none, unless a reach is what kept them out.
+    /// distance) among those closer than a grid cell, within the reduction's reach while it
+    /// runs; among every pair when none is that close, unless a reach is what kept them out.
+    /// `floor`: the least cost a squared unit of distance comes to in any pair of a cluster's
+    /// (0 if none is known), which lets the sweep ([`SortedCentres`]) stop early.
     #[inline(always)]
     fn cheapest_pairs(
         &self,
         wanted: usize,
+        floor: impl Fn(&StreamCluster) -> f32,
         cost: impl Fn(usize, &StreamCluster, usize, &StreamCluster, f32) -> f32,
     ) -> ClosestPairs {
         let mut closest = ClosestPairs::new(wanted);
-        let cell2 = self.grid.cell() * self.grid.cell();
-        // Before the join radius has grown, the cell is so small that its square is 0 and no
-        // pair can qualify: skip the 27-cell queries, which then walk every centre filed in one
-        // saturated cell (27 K^2 steps, the firmware's longest tick).
-        let near = if cell2 > 0.0 {
-            self.clusters.as_slice()
-        } else {
-            &[]
+        let centres = self.clusters.as_slice();
+        let sorted = SortedCentres::<K>::new(centres.iter().map(|c| c.center));
+        let floor = |i: usize| centres.get(i).map_or(0.0, &floor);
+        // A pair's cost, if its squared distance passes `near`.
+        let priced = |a: usize, b: usize, near: &dyn Fn(f32) -> bool| {
+            let (ca, cb) = (centres.get(a)?, centres.get(b)?);
+            let d = ca.center.distance_squared(cb.center);
+            near(d).then(|| cost(a, ca, b, cb, d))
         };
-        for (a, ca) in near.iter().enumerate() {
-            self.grid.for_each_ahead(ca.center, |b, own| {
-                // Pairs in one cell come up from both centres: take them once, as (a, b > a).
-                if own && b <= a {
-                    return;
-                }
-                let Some(cb) = self.clusters.get(b) else {
-                    return;
-                };
-                // Each pair once, as (lower index, higher): the distance and the cost are
-                // the same either way round.
-                let d = ca.center.distance_squared(cb.center);
-                // Only pairs closer than a cell are all seen by the neighbour queries.
-                if d < cell2 && d <= self.reduction.limit2 {
-                    closest.offer(a.min(b), a.max(b), cost(a, ca, b, cb, d));
-                }
-            });
+        let cell = self.grid.cell();
+        let cell2 = cell * cell;
+        // Before the join radius has grown, the cell is so small that its square is 0 and no
+        // pair qualifies.
+        if cell2 > 0.0 {
+            let limit2 = self.reduction.limit2;
+            let near = |d: f32| d < cell2 && d <= limit2;
+            sorted.offer_pairs(&mut closest, cell, floor, |a, b| priced(a, b, &near));
         }
         // While reducing within a reach, an empty answer widens the reach (`reduce_to`).
         if closest.len == 0 && !(self.reducing() && self.reduction.limit2 < f32::MAX) {
-            // Centres sparser than the grid: the exhaustive search, rare by construction.
-            for (a, ca) in self.clusters.iter().enumerate() {
-                for (b, cb) in self.clusters.iter().enumerate().skip(a + 1) {
-                    let d = ca.center.distance_squared(cb.center);
-                    closest.offer(a, b, cost(a, ca, b, cb, d));
-                }
-            }
+            // Centres sparser than the cells (the stream's first pass): every pair.
+            sorted.offer_pairs(&mut closest, f32::INFINITY, floor, |a, b| {
+                priced(a, b, &|_| true)
+            });
         }
         closest
     }

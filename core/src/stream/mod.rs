@@ -35,6 +35,7 @@ mod pairs;
 pub mod shells;
 mod slots;
 mod stats;
+mod sweep;
 pub use carve::Carver;
 pub use coarsen::{MOST_MEASURED, MOST_RANKED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;

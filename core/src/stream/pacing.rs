@@ -85,12 +85,16 @@ impl Pacing {
     /// its two fits is 148 credits, some 7,500 instructions each (1.1 million on the image): at
     /// 160 the walking drive's board map kept twice the walker it keeps at 148, across its
     /// test's bound (`tests/walker.rs`; at 136 and at 148 it stayed under: the measure is
-    /// chaotic). Cheaper freezes keep clusters finer where the store has room; with the
-    /// coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored a geometric
-    /// mean of 1.06 times the batch map's Chamfer distance over every shared input, 1.18 at the
-    /// paper's prices (docs/design.md, "A device's layout").
+    /// chaotic). A merge pass, its pair search a sort and sweep (`core/src/stream/sweep.rs`),
+    /// costs the image 245,000 to 323,000 instructions on bun000, car6 and the demo drive, so
+    /// 48 credits, under 7,000 each. Cheaper freezes keep clusters finer where the store has
+    /// room, and cheaper passes where no cluster idles long enough to freeze (a sparse
+    /// cloud's); with the coarsening's [`super::coarsen::THICKENING`] bound the board's maps
+    /// scored a geometric mean of 1.04 times the batch map's Chamfer distance over every shared
+    /// input, 1.18 at the paper's prices (docs/design.md, "A device's layout").
     pub const DEVICE_SHELLS: Self = Self {
         freeze: 12,
+        merge_pass: 48,
         scan: 124,
         ..Self::DEVICE
     };

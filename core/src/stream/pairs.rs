@@ -70,6 +70,16 @@ impl<const N: usize> ClosestPairs<N> {
         self.len = (self.len + 1).min(self.wanted);
     }
 
+    /// The cost a pair must come under to be kept: the dearest kept once the list is full.
+    pub(super) fn bar(&self) -> f32 {
+        if self.len < self.wanted {
+            return f32::INFINITY;
+        }
+        self.pairs
+            .get(self.len.wrapping_sub(1))
+            .map_or(f32::INFINITY, |worst| worst.0)
+    }
+
     /// Pair `i` in order, cheapest first: (cost, lower index, higher index).
     pub(super) fn get(&self, i: usize) -> Option<(f32, usize, usize)> {
         self.pairs
