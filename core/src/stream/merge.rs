@@ -337,7 +337,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Pairs within `reach` are the reduction's candidates; the centres are refiled in cells
-    /// that hold it, since the neighbour queries see only pairs within a cell.
+    /// that hold it, since the pair search takes only pairs closer than a cell.
     fn reach_to(&mut self, reach: f32) {
         let finite = reach > 0.0 && (reach * reach).is_finite();
         self.reduction.limit2 = if finite { reach * reach } else { f32::MAX };
