@@ -163,7 +163,7 @@ const STATED: &[(&str, &str)] = &[
         "docs/firmware.md",
         "a shell's freeze, which costs the image half the paper's fit, spends \
          {PACING_SHELLS_FREEZE} and a merge pass among shells {PACING_SHELLS_MERGE} \
-         (`Pacing::DEVICE_SHELLS`).",
+         (`Pacing::DEVICE_SHELLS`;",
     ),
     (
         "docs/firmware.md",

@@ -86,15 +86,17 @@ impl Pacing {
     /// 160 the walking drive's board map kept twice the walker it keeps at 148, across its
     /// test's bound (`tests/walker.rs`; at 136 and at 148 it stayed under: the measure is
     /// chaotic). A merge pass, its pair search a sort and sweep (`core/src/stream/sweep.rs`),
-    /// costs the image 245,000 to 323,000 instructions on bun000, car6 and the demo drive, so
-    /// 48 credits, under 7,000 each. Cheaper freezes keep clusters finer where the store has
-    /// room, and cheaper passes where no cluster idles long enough to freeze (a sparse
-    /// cloud's); with the coarsening's [`super::coarsen::THICKENING`] bound the board's maps
-    /// scored a geometric mean of 1.04 times the batch map's Chamfer distance over every shared
-    /// input, 1.18 at the paper's prices (docs/design.md, "A device's layout").
+    /// costs the image 245,000 to 323,000 instructions on bun000, car6 and the demo drive, and
+    /// is priced at 40 credits, 6,100 to 8,100 instructions each, the dearest credit of any
+    /// step: where no cluster idles long enough to freeze (a sparse cloud's), room comes from
+    /// passes alone. At 44 and 48 (the scan's 7,500 a credit) the board kept more of the walker,
+    /// 6 and 15 % (`tests/walker.rs`'s bound is 10), and its maps were farther from the batch
+    /// maps. With the coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored
+    /// a geometric mean of 1.02 times the batch map's Chamfer distance over every shared input,
+    /// 1.18 at the paper's prices (docs/design.md, "A device's layout").
     pub const DEVICE_SHELLS: Self = Self {
         freeze: 12,
-        merge_pass: 48,
+        merge_pass: 40,
         scan: 124,
         ..Self::DEVICE
     };
