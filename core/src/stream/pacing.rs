@@ -89,9 +89,9 @@ impl Pacing {
     /// costs the image 245,000 to 323,000 instructions on bun000, car6 and the demo drive, and
     /// is priced at 40 credits, 6,100 to 8,100 instructions each, the dearest credit of any
     /// step: where no cluster idles long enough to freeze (a sparse cloud's), room comes from
-    /// passes alone. At 44 and 48 (the scan's 7,500 a credit) the board kept more of the walker,
-    /// 6 and 15 % (`tests/walker.rs`'s bound is 10), and its maps were farther from the batch
-    /// maps. With the coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored
+    /// passes alone. At 44 (7,300 a credit, about the scan's) and 48 the board kept more of the
+    /// walker, 6 and 15 % (`tests/walker.rs`'s bound is 10), and its maps were farther from the
+    /// batch maps. With the coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored
     /// a geometric mean of 1.02 times the batch map's Chamfer distance over every shared input,
     /// 1.18 at the paper's prices (docs/design.md, "A device's layout").
     pub const DEVICE_SHELLS: Self = Self {
