@@ -2,9 +2,10 @@
 //! box, each meeting only those after it and near enough along that axis to matter.
 //!
 //! Why not the centre grid's neighbour queries: they visit 14 hashed cells a centre, and with
-//! the pair costs they were most of a device's merge pass. On the image (car6 at the board's
-//! layout, `firmware-sim/check.sh`) the sweep brought a merge pass from 394,000 instructions to
-//! 300,000 in shells and from 490,000 to 410,000 with the paper's fits, the same pairs kept.
+//! the pair costs they were most of a device's merge pass. On the 64 KiB image (car6 at its
+//! layout, K = 400 with 150 working, under QEMU) the sweep brought a merge pass from 394,000
+//! instructions to 299,000 in shells and from 490,000 to 406,000 with the paper's fits, at the
+//! same prices and with the same pairs kept.
 
 use super::pairs::ClosestPairs;
 use crate::geometry::Point3;
