@@ -270,3 +270,67 @@ fn an_older_protocols_frames_are_named_and_never_taken() {
     let said = DeviceError::Version(0x81).to_string();
     assert!(said.contains("0x81") && said.contains("0x83"), "{said}");
 }
+
+/// A port that gives `bytes` once, then nothing (a line gone quiet); what is written to it is
+/// dropped.
+struct QuietLine {
+    bytes: std::io::Cursor<Vec<u8>>,
+}
+
+impl std::io::Read for QuietLine {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match std::io::Read::read(&mut self.bytes, buf)? {
+            0 => {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+                Err(std::io::ErrorKind::WouldBlock.into())
+            }
+            n => Ok(n),
+        }
+    }
+}
+
+impl std::io::Write for QuietLine {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+/// A listener whose device goes quiet before its end says which side of the device the
+/// silence is on: how many of the stream's frames the device's last progress said it had
+/// mapped and refused (none mapped and all refused: the sensor's bytes arrive garbled).
+#[test]
+fn a_quiet_device_is_named_with_its_last_progress() {
+    let from = Address {
+        session: 0,
+        boot: 3,
+    };
+    let mut wire = Vec::new();
+    for (sequence, (frames, refused)) in [(4, 1), (9, 2), (17, 5)].into_iter().enumerate() {
+        let progress = DownFrame::Progress {
+            taken: 1_000 * frames,
+            frames,
+            next: 0,
+            refused,
+        };
+        let mut out = [0u8; MAX_DOWN_FRAME_LEN];
+        let n = downlink::encode(from, sequence as u32, &progress, &mut out).expect("encodes");
+        wire.extend_from_slice(&out[..n]);
+    }
+    let mut line = QuietLine {
+        bytes: std::io::Cursor::new(wire),
+    };
+    let mut frames = MapFrames::listening();
+    let silence = std::time::Duration::from_millis(300);
+    let said = match mema::link::listen::listen(&mut line, &mut frames, silence, |_| {}) {
+        Err(e @ DeviceError::Quiet { .. }) => e.to_string(),
+        other => panic!("not the quiet device: {other:?}"),
+    };
+    assert!(
+        said.contains("3 frames heard, 0 entities, no end")
+            && said.contains("17 stream frames mapped, 5 refused"),
+        "{said}"
+    );
+}

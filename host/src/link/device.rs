@@ -41,12 +41,16 @@ pub enum DeviceError {
         total: usize,
     },
     #[error(
-        "nothing from the device for {seconds} s ({frames} frames heard, {entities} entities, no end): no sensor streams to it, or this is not its map's line"
+        "nothing from the device for {seconds} s ({frames} frames heard, {entities} entities, no end; its last progress: {mapped} stream frames mapped, {refused} refused): no sensor streams to it, or this is not its map's line"
     )]
     Quiet {
         seconds: f64,
         frames: u64,
         entities: usize,
+        /// The stream's frames the device said it had mapped, and refused, in its last
+        /// progress: which side of the device the silence is on.
+        mapped: u32,
+        refused: u32,
     },
     #[error(
         "the device restarted mid-session (boot {from} -> {to}): its map lost what it had mapped"

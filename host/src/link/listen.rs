@@ -77,6 +77,8 @@ pub fn listen(
                 seconds,
                 frames: c.frames,
                 entities: c.entities,
+                mapped: c.device_frames,
+                refused: c.device_refused,
             });
         }
     }
