@@ -158,6 +158,22 @@ fn exact_difference(a: f32, b: f32) -> (f32, f32) {
     (s, e)
 }
 
+/// Offset `d` (a pair summing to it exactly) in steps of `2^q`, rounded to the nearest and
+/// within [`OFFSET_LIMIT`].
+#[inline]
+fn steps_of(q: i32, (d, error): (f32, f32)) -> i32 {
+    // Both scalings by a power of two are exact.
+    let scale = pow2_32(-q);
+    let (x, below) = (d * scale, error * scale);
+    // Round half away from zero; `as` saturates, so an offset near f32's range stays bounded.
+    let n = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32;
+    // What rounding `x` alone left out, plus the subtraction's error: exact but for the
+    // last addition, which matters only at a tie.
+    let rest = (x - n as f32) + below;
+    let n = n + i32::from(rest > 0.5) - i32::from(rest < -0.5);
+    n.clamp(-OFFSET_LIMIT, OFFSET_LIMIT)
+}
+
 /// `m / 2^s`, rounded half up.
 #[inline]
 fn shifted(m: i64, s: u32) -> i64 {
@@ -312,16 +328,7 @@ impl FixedMoments {
             self.coarsen(j, levels);
         }
         let q = self.quantum.get(j).copied().map_or(0, i32::from);
-        // Both scalings by a power of two are exact.
-        let scale = pow2_32(-q);
-        let (x, below) = (d * scale, error * scale);
-        // Round half away from zero; `as` saturates, so an offset near f32's range stays bounded.
-        let n = (x + if x < 0.0 { -0.5 } else { 0.5 }) as i32;
-        // What rounding `x` alone left out, plus the subtraction's error: exact but for the
-        // last addition, which matters only at a tie.
-        let rest = (x - n as f32) + below;
-        let n = n + i32::from(rest > 0.5) - i32::from(rest < -0.5);
-        n.clamp(-OFFSET_LIMIT, OFFSET_LIMIT)
+        steps_of(q, (d, error))
     }
 
     // Rare (a cluster's grid coarsens a few times in its life): out of line, to keep the image
@@ -496,13 +503,20 @@ impl FixedMoments {
     }
 
     /// Merges another cluster's sums into these (about this anchor, each axis on the coarser
-    /// of the two grids). Exact up to the f64 rounding of the merge itself; merges are rare.
+    /// of the two grids). Two shells' sums (orders 1 and 2) merge in integers, rounded once to
+    /// the merged grid (`merge.rs`); sums with orders 3 and 4 through f64, exact up to its
+    /// rounding.
     pub fn merge(&mut self, other: &FixedMoments) {
         if other.count == 0 {
             return;
         }
         if self.count == 0 {
             *self = *other;
+            return;
+        }
+        let quantum = self.merged_quantum(other);
+        if self.second_order && other.second_order {
+            self.merge_second_order(other, quantum);
             return;
         }
         // `Moments::merge` keeps the first one's shift: this anchor.
@@ -513,8 +527,13 @@ impl FixedMoments {
         } else {
             sum.merge(&other.to_moments());
         }
-        // Each axis on a grid that holds every merged offset within the limit: this cluster's
-        // offsets reach 2^24 steps of its pitch, the other's as far again from its own anchor.
+        *self = Self::from_moments(&sum, self.anchor, quantum, second_order);
+    }
+
+    /// The grids of a merge: each axis's holds every merged offset within the limit (this
+    /// cluster's offsets reach 2^24 steps of its pitch, the other's as far again from its own
+    /// anchor).
+    fn merged_quantum(&self, other: &FixedMoments) -> [i8; 3] {
         let reach = |q: i8| {
             if q == NO_PITCH {
                 0.0
@@ -538,7 +557,7 @@ impl FixedMoments {
                 *q += 1;
             }
         }
-        *self = Self::from_moments(&sum, self.anchor, quantum, second_order);
+        quantum
     }
 
     /// The mean in single precision: the anchor plus the mean offset, all in f32 operations
@@ -583,5 +602,6 @@ impl FixedMoments {
     }
 }
 
+mod merge;
 #[cfg(test)]
 mod tests;

@@ -416,3 +416,100 @@ fn second_order_sums_keep_the_covariance() -> TestResult {
     }
     Ok(())
 }
+
+/// Mean and covariance of `m` against the two-pass f64 ones of `all`: the largest error of
+/// the mean in units of the spread, and of the covariance in units of its trace.
+fn covariance_error(m: &FixedMoments, all: &[[f64; 3]]) -> Result<(f64, f64), &'static str> {
+    let (mean, covariance) = m.covariance().or_fail("points")?;
+    let n = all.len() as f64;
+    let want_mean = [0, 1, 2].map(|j| all.iter().map(|p| p[j]).sum::<f64>() / n);
+    let trace = covariance[0][0] + covariance[1][1] + covariance[2][2];
+    let (mut mean_off, mut cov_off) = (0.0f64, 0.0f64);
+    for j in 0..3 {
+        mean_off = mean_off.max(libm::fabs(mean[j] - want_mean[j]) / libm::sqrt(trace));
+        for k in 0..3 {
+            let want = all
+                .iter()
+                .map(|p| (p[j] - want_mean[j]) * (p[k] - want_mean[k]))
+                .sum::<f64>()
+                / n;
+            cov_off = cov_off.max(libm::fabs(covariance[j][k] - want) / trace);
+        }
+    }
+    Ok((mean_off, cov_off))
+}
+
+/// Shells merge in integers: pieces near the origin (anchors between the grid's steps), a
+/// kilometre out, a flat piece (one axis without a pitch) and a chain of forty merges of
+/// small pieces each give the two-pass f64 mean and covariance of all their points, agree
+/// with the f64 route's merge, and keep taking points after.
+#[test]
+fn shells_merge_in_integers_as_their_points_sum() -> TestResult {
+    let tilt = |p: Point3| Point3::new(p.x + 0.5 * p.y, p.y - 0.3 * p.z, p.z + 0.2 * p.x);
+    let flat = |p: Point3| Point3::new(p.x, p.y, 0.75);
+    let cases: [(&str, [f32; 3], [f32; 3], fn(Point3) -> Point3); 3] = [
+        ("near the origin", [0.1, 0.7, -0.2], [0.43, 0.61, -0.19], |p| p),
+        ("a kilometre out", [1000.0, -250.0, 30.0], [1000.6, -250.2, 30.1], |p| p),
+        ("flat and tilted", [3.0, 4.0, 0.0], [3.3, 4.1, 0.0], |p| p),
+    ];
+    for (case, (name, ca, cb, turn)) in cases.into_iter().enumerate() {
+        let a = shell_points(300, 20 + case as u64, ca, [0.3, 0.2, 0.05]);
+        let b = shell_points(200, 30 + case as u64, cb, [0.2, 0.3, 0.02]);
+        let (mut ma, mut mb) = (FixedMoments::second_order(), FixedMoments::second_order());
+        let mut all = [[0.0f64; 3]; 600];
+        for (i, p) in a[..300].iter().map(|&p| turn(tilt(p))).enumerate() {
+            let p = if case == 2 { flat(p) } else { p };
+            ma.add(p);
+            all[i] = p.to_f64();
+        }
+        for (i, p) in b[..200].iter().map(|&p| turn(tilt(p))).enumerate() {
+            mb.add(p);
+            all[300 + i] = p.to_f64();
+        }
+        let mut through_f64 = ma.to_moments();
+        through_f64.merge_second_order(&mb.to_moments());
+        ma.merge(&mb);
+        let (mean, covariance) = ma.covariance().or_fail("points")?;
+        let (f64_mean, f64_covariance) = through_f64.covariance().or_fail("points")?;
+        // The f64 route takes the anchors' difference as it is, this one to the grid: the two
+        // differ by the grid's rounding, no more.
+        let trace = covariance[0][0] + covariance[1][1] + covariance[2][2];
+        for j in 0..3 {
+            let off = libm::fabs(mean[j] - f64_mean[j]) / libm::sqrt(trace);
+            assert!(off <= GRID, "{name}: mean {off}");
+            for k in 0..3 {
+                let off = libm::fabs(covariance[j][k] - f64_covariance[j][k]) / trace;
+                assert!(off <= GRID, "{name}: covariance {off}");
+            }
+        }
+        let (m, c) = covariance_error(&ma, &all[..500])?;
+        assert!(m <= GRID && c <= GRID, "{name}: {m} {c}");
+        let c_points = shell_points(100, 40 + case as u64, ca, [0.1, 0.1, 0.1]);
+        for (i, &p) in c_points[..100].iter().enumerate() {
+            ma.add(p);
+            all[500 + i] = p.to_f64();
+        }
+        let (m, c) = covariance_error(&ma, &all)?;
+        assert!(m <= GRID && c <= GRID, "{name}, points after: {m} {c}");
+    }
+    // Forty pieces of twelve points along a curve, merged one by one into the first.
+    let mut chain = FixedMoments::second_order();
+    let mut all = [[0.0f64; 3]; 480];
+    for piece in 0..40 {
+        let t = piece as f32 * 0.05;
+        let centre = [5.0 + t, -2.0 + t * t, 0.3 * t];
+        let pts = shell_points(12, 60 + piece as u64, centre, [0.02, 0.03, 0.01]);
+        let mut m = FixedMoments::second_order();
+        for (i, &p) in pts[..12].iter().enumerate() {
+            m.add(p);
+            all[12 * piece + i] = p.to_f64();
+        }
+        chain.merge(&m);
+    }
+    if chain.count() != 480 {
+        return Err("chained count");
+    }
+    let (m, c) = covariance_error(&chain, &all)?;
+    assert!(m <= GRID && c <= GRID, "forty merges: {m} {c}");
+    Ok(())
+}

@@ -1,0 +1,161 @@
+//! Two shells' sums (orders 1 and 2) merged in integers. Why: a merge pass of the device's
+//! merges 4 to 10 pairs, and through f64 each converts 18 sums to soft f64 and back on the
+//! Cortex-M4F (16,500 instructions a merge on the image, a fifth of a shells' pass).
+//!
+//! About this anchor, on the merged grids, the other cluster's offsets are its own plus `d`,
+//! the anchors' difference in steps (rounded to the grid: half a step at most, the rounding
+//! every offset already has): `sum (n + d) = S1 + N d`, `sum (n_j + d_j)^2 = S2 + 2 d_j S1_j +
+//! N d_j^2`, `sum (n_j + d_j)(n_k + d_k) = S_jk + d_k S1_j + d_j S1_k + N d_j d_k`. Each term
+//! is an integer times a power of two, summed in 128 bits and rounded once into its slot.
+
+use super::{FixedMoments, NO_PITCH, PAIRS, POWERS, SLOTS, exact_difference, steps_of};
+
+/// `m 2^e`, in a slot's units on the merged grids.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Scaled {
+    m: i128,
+    e: i32,
+}
+
+/// Headroom kept above a term aligned for a sum: two terms of it add without overflow.
+const TOP_BITS: u32 = 125;
+
+impl Scaled {
+    const ZERO: Self = Self { m: 0, e: 0 };
+
+    fn of(m: i64, e: i32) -> Self {
+        Self {
+            m: i128::from(m),
+            e,
+        }
+    }
+
+    /// Times an integer below 2^64 in magnitude (a count, an offset or their product).
+    fn times(self, k: i128) -> Self {
+        Self {
+            m: self.m.saturating_mul(k),
+            e: self.e,
+        }
+    }
+
+    /// The sum, exact while the terms' exponents are within the headroom of each other, else
+    /// the smaller rounded to the larger's last kept bit.
+    fn plus(self, other: Self) -> Self {
+        if other.m == 0 {
+            return self;
+        }
+        if self.m == 0 {
+            return other;
+        }
+        let (high, low) = if self.e >= other.e {
+            (self, other)
+        } else {
+            (other, self)
+        };
+        let gap = high.e.abs_diff(low.e);
+        let bits = 128 - high.m.unsigned_abs().leading_zeros();
+        let up = gap.min(TOP_BITS.saturating_sub(bits));
+        Self {
+            m: (high.m << up).saturating_add(rounded_shift(low.m, gap - up)),
+            e: high.e - up as i32,
+        }
+    }
+
+    /// The slot's mantissa and exponent: the smallest exponent in `0..=63` that keeps the
+    /// mantissa under 2^61, as `from_moments` chooses it, rounded half up.
+    fn into_slot(self) -> (i64, u8) {
+        const LIMIT: i128 = 1 << 61;
+        let bits = (128 - self.m.unsigned_abs().leading_zeros()) as i32;
+        let shift = (bits + self.e - 61).clamp(0, 63);
+        let down = shift - self.e;
+        let m = if down > 0 {
+            rounded_shift(self.m, down as u32)
+        } else {
+            // Below 2^61 after the move, by the choice of `shift`.
+            self.m << (-down).min(126) as u32
+        };
+        (m.clamp(-LIMIT, LIMIT) as i64, shift as u8)
+    }
+}
+
+/// `m / 2^s` rounded half up (0 past the width).
+fn rounded_shift(m: i128, s: u32) -> i128 {
+    match s {
+        0 => m,
+        1..=126 => (m >> s) + ((m >> (s - 1)) & 1),
+        _ => 0,
+    }
+}
+
+impl FixedMoments {
+    /// Slot `i`'s value on the grids `quantum` (each at least as coarse as this one's).
+    fn scaled_to(&self, i: usize, quantum: [i8; 3]) -> Scaled {
+        let (Some(&m), Some(&shift), Some(powers)) =
+            (self.sums.get(i), self.shift.get(i), POWERS.get(i))
+        else {
+            return Scaled::ZERO;
+        };
+        let mut e = i32::from(shift);
+        for ((&p, &mine), &merged) in powers.iter().zip(&self.quantum).zip(&quantum) {
+            // An axis without a pitch has only zero offsets: its slots hold zeros.
+            if p > 0 && mine != NO_PITCH && merged != NO_PITCH {
+                e += i32::from(p) * (i32::from(mine) - i32::from(merged));
+            }
+        }
+        Scaled::of(m, e)
+    }
+
+    /// Merges `other`'s sums (both of orders 1 and 2 only, both non-empty) into these, about
+    /// this anchor, on the grids `quantum` (`FixedMoments::merged_quantum`).
+    pub(super) fn merge_second_order(&mut self, other: &FixedMoments, quantum: [i8; 3]) {
+        // The anchors' difference in steps of each merged grid.
+        let mut d = [0i128; 3];
+        for (j, slot) in d.iter_mut().enumerate() {
+            let (Some(&a), Some(&b), Some(&q)) =
+                (self.anchor.get(j), other.anchor.get(j), quantum.get(j))
+            else {
+                continue;
+            };
+            if a != b && q != NO_PITCH {
+                *slot = i128::from(steps_of(i32::from(q), exact_difference(b, a)));
+            }
+        }
+        let n = i128::from(other.count);
+        let first = |j: usize| other.scaled_to(4 * j, quantum);
+        let offset = |j: usize| d.get(j).copied().unwrap_or(0);
+        let mut merged = [Scaled::ZERO; SLOTS];
+        for (i, slot) in merged.iter_mut().enumerate() {
+            if !self.kept(i) {
+                continue;
+            }
+            let both = self.scaled_to(i, quantum).plus(other.scaled_to(i, quantum));
+            let moved = if i < 12 {
+                let j = i / 4;
+                let dj = offset(j);
+                if i % 4 == 0 {
+                    Scaled { m: n * dj, e: 0 }
+                } else {
+                    first(j)
+                        .times(2 * dj)
+                        .plus(Scaled { m: n * dj * dj, e: 0 })
+                }
+            } else {
+                let (j, k) = PAIRS.get((i - 12) / 4).copied().unwrap_or((0, 0));
+                let (dj, dk) = (offset(j), offset(k));
+                first(j)
+                    .times(dk)
+                    .plus(first(k).times(dj))
+                    .plus(Scaled {
+                        m: n * dj * dk,
+                        e: 0,
+                    })
+            };
+            *slot = both.plus(moved);
+        }
+        for ((sum, shift), value) in self.sums.iter_mut().zip(self.shift.iter_mut()).zip(merged) {
+            (*sum, *shift) = value.into_slot();
+        }
+        self.count = self.count.saturating_add(other.count);
+        self.quantum = quantum;
+    }
+}
