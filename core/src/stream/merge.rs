@@ -4,6 +4,16 @@
 //! per batch of far points.
 
 use super::pairs::{ClosestPairs, Disjoint, MAX_MERGE_BATCH};
+
+/// A merge pass merges up to one pair in this many working clusters (at most
+/// [`MAX_MERGE_BATCH`]): five at the board's 150. With shells' merges in integers a pair costs
+/// the image a few thousand instructions of a pass's quarter million, so a pass pays its search
+/// for more room. Measured at the board's layout over the 21 shared inputs against 32 (one in
+/// 32, four pairs; docs/design.md, "A merge pass's share"): the sparse `simple.las`, whose room
+/// comes from passes alone, 1.36 -> 1.23 times the batch map's Chamfer distance; one in 24 or
+/// 20 mapped it finer still (1.17, 1.12) but kept 10.5 and 8.5 % of `tests/walker.rs`'s walker
+/// (its bound is 10), one in 28 keeps 4.7 %.
+pub const PASS_SHARE: usize = 28;
 use super::sweep::SortedCentres;
 use super::{Observer, StreamCluster, StreamMapper, center_of, count32};
 use crate::fit::surface_error_estimate;
@@ -328,11 +338,11 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     }
 
     /// Makes room: merges the cheapest pair of clusters by Ward's criterion, and with it the next
-    /// cheapest disjoint pairs up to 1/32 of the capacity, so the search is paid once per batch
-    /// of far points. The join radius widens to the largest merged distance of a pair that is
-    /// not a stray ([`STRAY_SHARE`]).
+    /// cheapest disjoint pairs up to [`PASS_SHARE`] of the capacity, so the search is paid once
+    /// per batch of far points. The join radius widens to the largest merged distance of a pair
+    /// that is not a stray ([`STRAY_SHARE`]).
     pub(super) fn merge_closest_pairs(&mut self, observer: &mut impl Observer) {
-        let pairs = self.candidate_pairs(self.limit() / MAX_MERGE_BATCH);
+        let pairs = self.candidate_pairs(self.limit() / PASS_SHARE);
         self.merge_pairs(&pairs, true, observer);
     }
 

@@ -448,8 +448,18 @@ fn shells_merge_in_integers_as_their_points_sum() -> TestResult {
     let tilt = |p: Point3| Point3::new(p.x + 0.5 * p.y, p.y - 0.3 * p.z, p.z + 0.2 * p.x);
     let flat = |p: Point3| Point3::new(p.x, p.y, 0.75);
     let cases: [(&str, [f32; 3], [f32; 3], fn(Point3) -> Point3); 3] = [
-        ("near the origin", [0.1, 0.7, -0.2], [0.43, 0.61, -0.19], |p| p),
-        ("a kilometre out", [1000.0, -250.0, 30.0], [1000.6, -250.2, 30.1], |p| p),
+        (
+            "near the origin",
+            [0.1, 0.7, -0.2],
+            [0.43, 0.61, -0.19],
+            |p| p,
+        ),
+        (
+            "a kilometre out",
+            [1000.0, -250.0, 30.0],
+            [1000.6, -250.2, 30.1],
+            |p| p,
+        ),
         ("flat and tilted", [3.0, 4.0, 0.0], [3.3, 4.1, 0.0], |p| p),
     ];
     for (case, (name, ca, cb, turn)) in cases.into_iter().enumerate() {
