@@ -14,8 +14,9 @@
 //! rounding of the offset itself), far below any scanner's noise; the comparison with the f64 reference on every shared cloud bounds its effect on the
 //! fits (`mema-firmware-sim reference`).
 //!
-//! Everything else (central moments, merging, covariance) goes through the f64 [`Moments`] the
-//! sums convert to, once per fit or merge rather than once per point.
+//! Central moments, covariance and the merge of sums with orders 3 and 4 go through the f64
+//! [`Moments`] the sums convert to, once per fit or merge rather than once per point; two
+//! shells' sums (orders 1 and 2) merge in integers (`merge.rs`).
 
 use super::{CentralMoments, Moments};
 use crate::geometry::Point3;
