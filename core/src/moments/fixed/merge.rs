@@ -106,7 +106,9 @@ impl FixedMoments {
     }
 
     /// Merges `other`'s sums (both of orders 1 and 2 only, both non-empty) into these, about
-    /// this anchor, on the grids `quantum` (`FixedMoments::merged_quantum`).
+    /// this anchor, on the grids `quantum` (`FixedMoments::merged_quantum`). Out of line: the
+    /// paper's merges, through f64, need none of its frame.
+    #[inline(never)]
     pub(super) fn merge_second_order(&mut self, other: &FixedMoments, quantum: [i8; 3]) {
         // The anchors' difference in steps of each merged grid.
         let mut d = [0i128; 3];
@@ -123,8 +125,9 @@ impl FixedMoments {
         let n = i128::from(other.count);
         let first = |j: usize| other.scaled_to(4 * j, quantum);
         let offset = |j: usize| d.get(j).copied().unwrap_or(0);
-        let mut merged = [Scaled::ZERO; SLOTS];
-        for (i, slot) in merged.iter_mut().enumerate() {
+        // Each slot's merged value needs only its own two sums and the other's first orders,
+        // so it is written in place (an array of the 24 would be 768 bytes of the image's stack).
+        for i in 0..SLOTS {
             if !self.kept(i) {
                 continue;
             }
@@ -135,23 +138,24 @@ impl FixedMoments {
                 if i % 4 == 0 {
                     Scaled { m: n * dj, e: 0 }
                 } else {
-                    first(j).times(2 * dj).plus(Scaled {
-                        m: n * dj * dj,
-                        e: 0,
-                    })
+                    first(j)
+                        .times(2 * dj)
+                        .plus(Scaled { m: n * dj * dj, e: 0 })
                 }
             } else {
                 let (j, k) = PAIRS.get((i - 12) / 4).copied().unwrap_or((0, 0));
                 let (dj, dk) = (offset(j), offset(k));
-                first(j).times(dk).plus(first(k).times(dj)).plus(Scaled {
-                    m: n * dj * dk,
-                    e: 0,
-                })
+                first(j)
+                    .times(dk)
+                    .plus(first(k).times(dj))
+                    .plus(Scaled {
+                        m: n * dj * dk,
+                        e: 0,
+                    })
             };
-            *slot = both.plus(moved);
-        }
-        for ((sum, shift), value) in self.sums.iter_mut().zip(self.shift.iter_mut()).zip(merged) {
-            (*sum, *shift) = value.into_slot();
+            if let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) {
+                (*sum, *shift) = both.plus(moved).into_slot();
+            }
         }
         self.count = self.count.saturating_add(other.count);
         self.quantum = quantum;
