@@ -415,9 +415,16 @@ pub mod brute_force {
     use super::*;
 
     pub fn nearest(entities: &[Entity], p: [f64; 3]) -> Option<Nearest> {
+        nearest_of(entities.iter().copied(), p)
+    }
+
+    /// [`nearest`] over entities as they come: a device answers from its mapper's entities,
+    /// with no copy of the map to scan.
+    pub fn nearest_of(entities: impl IntoIterator<Item = Entity>, p: [f64; 3]) -> Option<Nearest> {
         let mut best: Option<(f64, usize)> = None;
         let mut inside = false;
-        for (i, e) in entities.iter().enumerate() {
+        for (i, e) in entities.into_iter().enumerate() {
+            let e = &e;
             inside |= contains(e, p);
             let d = surface_distance(e, p);
             if closer((d, i), best) {
@@ -435,10 +442,20 @@ pub mod brute_force {
     }
 
     pub fn ray_cast(entities: &[Entity], o: [f64; 3], d: [f64; 3], t_max: f64) -> Option<RayHit> {
+        ray_cast_of(entities.iter().copied(), o, d, t_max)
+    }
+
+    /// [`ray_cast`] over entities as they come.
+    pub fn ray_cast_of(
+        entities: impl IntoIterator<Item = Entity>,
+        o: [f64; 3],
+        d: [f64; 3],
+        t_max: f64,
+    ) -> Option<RayHit> {
         let d = normalised(d)?;
         let mut best: Option<(f64, usize)> = None;
-        for (i, e) in entities.iter().enumerate() {
-            if let Some(t) = ray_entity(e, o, d, t_max)
+        for (i, e) in entities.into_iter().enumerate() {
+            if let Some(t) = ray_entity(&e, o, d, t_max)
                 && closer((t, i), best)
             {
                 best = Some((t, i));

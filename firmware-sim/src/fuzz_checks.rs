@@ -12,7 +12,6 @@
 //! and read by `uplink::decode`, then the protocol's rules (PROTOCOL.md, "Host to device").
 
 use mema_core::fuzz_checks::{crcs_made_right, plain_blocks};
-use mema_core::geometry::{Entity, Point3};
 use mema_core::link::cobs::{cobs_decode_in_place, cobs_encode};
 use mema_core::link::downlink::{self, DeviceLayout, DownFrame, MAX_DOWN_FRAME_LEN, MapEnd};
 use mema_core::link::frame::Address;
@@ -283,13 +282,12 @@ fn run_boot(boot: Boot, phases: &[&[u8]], downlink: &mut Vec<u8>) -> Option<(u32
     let params = model_params(0, SEED_WORKING, SEED_FROZEN, SHELLS);
     let mut firmware: Box<Firmware<SEED_WORKING, SEED_BUCKETS, SEED_FROZEN, _>> =
         Box::new(Firmware::with_ring(params, IMAGE_REACH, &map));
-    let mut entities = vec![Entity::sphere(Point3::default(), 1.0); SEED_WORKING + SEED_FROZEN];
     let layout = DeviceLayout {
         capacity: (SEED_WORKING + SEED_FROZEN) as u32,
         working: SEED_WORKING as u32,
         model: 1,
     };
-    let mut device = Device::new(&mut firmware, (&line, &map), boot, layout, &mut entities);
+    let mut device = Device::new(&mut firmware, (&line, &map), boot, layout);
     let mut delimiters = 0u32;
     let mut send = |_: Out, b: &[u8]| downlink.extend_from_slice(b);
     for phase in phases {

@@ -17,7 +17,6 @@
 
 use core::borrow::Borrow;
 
-use mema_core::geometry::Entity;
 use mema_core::link::downlink::{DeviceLayout, DeviceTiming, DownFrame, SessionStatus};
 use mema_core::link::frame::Address;
 use mema_core::query::brute_force;
@@ -119,9 +118,8 @@ pub struct Device<'a, const K: usize, const G: usize, const F: usize, C = ()> {
     /// A session frame is due (at boot, and again when the host asks to start the session the
     /// device is in: its answer may have been lost).
     announce: bool,
-    /// The finished map's entities, for queries, and the timing frame sent with the end.
-    entities: &'a mut [Entity],
-    finished: Option<(DownFrame, usize)>,
+    /// The timing frame sent with the end, once the map is finished.
+    finished: Option<DownFrame>,
     feed: Feed,
     /// A sensor-fed pass stopped after a frame with bytes left: the next pass is due without a
     /// new delimiter.
@@ -132,14 +130,14 @@ pub struct Device<'a, const K: usize, const G: usize, const F: usize, C = ()> {
 
 impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, K, G, F, C> {
     /// A device in boot `boot` (`session`: the one it booted into, `0` for none), mapping into
-    /// `firmware` from `map`, the line's bytes coming into `line`; `entities` holds the finished
-    /// map for queries (up to its length).
+    /// `firmware` from `map`, the line's bytes coming into `line`. Queries of the finished map
+    /// scan the mapper's entities as it gives them: a copy of the map to scan would take a
+    /// board 28 KB of RAM at K = 700.
     pub fn new(
         firmware: &'a mut Firmware<K, G, F, &'a Ring<RX_CAPACITY>, C>,
         (line, map): (&'a Ring<RX_CAPACITY>, &'a Ring<RX_CAPACITY>),
         boot: Boot,
         layout: DeviceLayout,
-        entities: &'a mut [Entity],
     ) -> Self {
         firmware.set_link_address(boot.address, boot.first_sequence);
         Self {
@@ -150,7 +148,6 @@ impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, 
             layout,
             delimiters: 0,
             announce: true,
-            entities,
             finished: None,
             feed: Feed::Carried,
             backlog: false,
@@ -276,12 +273,11 @@ impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, 
             carrier,
             line,
             map,
-            entities,
             finished,
             ..
         } = self;
         while let Some((r, session)) = clock.other(|| carrier.pump(line, map)) {
-            if let Some(s) = answer(firmware, r, session, finished, entities, clock, send) {
+            if let Some(s) = answer(firmware, r, session, finished, clock, send) {
                 *start = Some(s);
             }
         }
@@ -311,8 +307,7 @@ impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, 
     }
 
     /// Once the stream's end has been mapped: the map finished, what the stream cost, then the
-    /// rest of the map entity by entity (the device holds no copy of the file), and the
-    /// entities kept for queries.
+    /// rest of the map entity by entity (the device holds no copy of the file).
     fn finish_if_ended(&mut self, clock: &mut impl Clock, send: &mut impl FnMut(&[u8])) {
         let firmware = &mut *self.firmware;
         if !firmware.stats().end_of_stream || self.finished.is_some() {
@@ -323,12 +318,7 @@ impl<'a, const K: usize, const G: usize, const F: usize, C: Carving> Device<'a, 
         let timing = DownFrame::Timing(clock.timing());
         firmware.send_frame(&timing, &mut *send);
         let _ = firmware.send_end(&mut *send);
-        let mut n = 0;
-        for (slot, e) in self.entities.iter_mut().zip(firmware.mapper().entities()) {
-            *slot = e.entity;
-            n += 1;
-        }
-        self.finished = Some((timing, n));
+        self.finished = Some(timing);
     }
 }
 
@@ -345,15 +335,14 @@ fn answer<
     firmware: &mut Firmware<K, G, F, R, C>,
     request: Request,
     session: u32,
-    finished: &Option<(DownFrame, usize)>,
-    entities: &[Entity],
+    finished: &Option<DownFrame>,
     clock: &mut impl Clock,
     send: &mut impl FnMut(&[u8]),
 ) -> Option<(u32, u32)> {
     match (request, finished) {
         (Request::Start { first }, _) => return Some((session, first)),
         (Request::Resend { first, count }, _) => firmware.resend(first, count, &mut *send),
-        (Request::ResendEnd, Some((timing, _))) => {
+        (Request::ResendEnd, Some(timing)) => {
             firmware.send_frame(timing, &mut *send);
             let _ = firmware.send_end_again(&mut *send);
         }
@@ -364,16 +353,16 @@ fn answer<
                 point,
                 direction,
             },
-            Some((_, n)),
+            Some(_),
         ) => {
-            let map = entities.get(..*n).unwrap_or(&[]);
             let ((entity, value), ticks) = clock.query(|| {
+                let map = firmware.mapper().entities().map(|e| e.entity);
                 let p = point.map(f64::from);
                 if ray {
-                    brute_force::ray_cast(map, p, direction.map(f64::from), RAY_REACH)
+                    brute_force::ray_cast_of(map, p, direction.map(f64::from), RAY_REACH)
                         .map_or((u32::MAX, f64::INFINITY), |h| (h.entity as u32, h.t))
                 } else {
-                    brute_force::nearest(map, p).map_or((u32::MAX, f64::INFINITY), |n| {
+                    brute_force::nearest_of(map, p).map_or((u32::MAX, f64::INFINITY), |n| {
                         (n.entity as u32, n.signed_distance)
                     })
                 }

@@ -13,7 +13,6 @@ use std::time::Duration;
 
 use mema::link::device::MapFrames;
 use mema::link::session::{SILENCE, SessionLimits, send_and_receive};
-use mema_core::geometry::{Entity, Point3};
 use mema_core::link::downlink::{DeviceLayout, RING_BYTES};
 use mema_core::link::frame::Address;
 use mema_firmware::device::{Boot, Device, NoClock, Out, Poll};
@@ -121,19 +120,12 @@ fn run_carving_device<const F: usize, C: Carving>(
         let params = model_params(0, IMAGE_WORKING, F, SHELLS);
         let mut firmware: Box<Firmware<IMAGE_WORKING, IMAGE_BUCKETS, F, _, C>> =
             Box::new(Firmware::carving(params, IMAGE_REACH, &map_ring, carving()));
-        let mut entities = vec![Entity::sphere(Point3::default(), 1.0); IMAGE_WORKING + F];
         let start = Boot {
             address: Address { session, boot },
             first_carry,
             first_sequence,
         };
-        let mut device = Device::new(
-            &mut firmware,
-            (&line_ring, &map_ring),
-            start,
-            layout,
-            &mut entities,
-        );
+        let mut device = Device::new(&mut firmware, (&line_ring, &map_ring), start, layout);
         let mut delimiters = first_delimiters;
         let mut sent = Vec::new();
         let reset = loop {

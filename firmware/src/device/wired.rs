@@ -101,7 +101,6 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
         let Self {
             firmware,
             map,
-            entities,
             finished,
             layout,
             listener,
@@ -124,10 +123,10 @@ impl<const K: usize, const G: usize, const F: usize, C: Carving> Device<'_, K, G
                 }
                 Request::ResendEnd if finished.is_some() => {
                     firmware.send_frame(&about(SessionStatus::Booted), &mut *send);
-                    let _ = answer(firmware, request, session, finished, entities, clock, send);
+                    let _ = answer(firmware, request, session, finished, clock, send);
                 }
                 _ => {
-                    let _ = answer(firmware, request, session, finished, entities, clock, send);
+                    let _ = answer(firmware, request, session, finished, clock, send);
                 }
             }
         }

@@ -40,7 +40,6 @@ mod watchdog;
 use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m_rt::entry;
-use mema_core::geometry::Entity;
 use mema_core::link::downlink::{DeviceLayout, DeviceTiming};
 use mema_core::link::frame::Address;
 use mema_core::stream::{Carver, StreamModel};
@@ -87,9 +86,6 @@ static FIRMWARE: StaticCell<BoardFirmware> = StaticCell::new();
 /// zeroed, so it is built at boot, once).
 #[unsafe(link_section = ".ccmram")]
 static mut CARVER: core::mem::MaybeUninit<BoardCarver> = core::mem::MaybeUninit::uninit();
-/// The finished map's entities, for the host's queries: scanned whole (28 KB at K = 700; the
-/// core's index over them would take 109 KB beside the mapper's 62 KB).
-static QUERY_MAP: StaticCell<[Entity; K + F]> = StaticCell::new();
 
 /// Builds the state in its static (out of line, so it is built in place, not on the stack).
 #[inline(never)]
@@ -122,23 +118,6 @@ fn carver() -> &'static mut BoardCarver {
     carver.look(rows, columns);
     carver.sample(BOARD_CARVE_EVERY);
     carver
-}
-
-/// The query map's storage, zeroed in place (an entity of zeros is a valid value; a
-/// `[Entity; 700]` built as a value would be a 28 KB temporary on the stack).
-#[inline(never)]
-fn query_storage() -> &'static mut [Entity] {
-    match QUERY_MAP.try_uninit() {
-        Some(slot) => {
-            // SAFETY: all-zero bytes are a valid `[Entity; N]` (plain f32s), written before
-            // the array is read.
-            unsafe {
-                core::ptr::write_bytes(slot.as_mut_ptr(), 0, 1);
-                slot.assume_init_mut()
-            }
-        }
-        None => &mut [],
-    }
 }
 
 #[interrupt]
@@ -271,7 +250,7 @@ fn main() -> ! {
         first_sequence: 0,
     };
     let mut device =
-        Device::new(firmware, (&LINE, &MAP), boot, layout, query_storage()).wired(&LISTENER);
+        Device::new(firmware, (&LINE, &MAP), boot, layout).wired(&LISTENER);
     let mut clock = BoardClock {
         work: timing::Work::default(),
         calibration,
