@@ -138,20 +138,18 @@ impl FixedMoments {
                 if i % 4 == 0 {
                     Scaled { m: n * dj, e: 0 }
                 } else {
-                    first(j)
-                        .times(2 * dj)
-                        .plus(Scaled { m: n * dj * dj, e: 0 })
+                    first(j).times(2 * dj).plus(Scaled {
+                        m: n * dj * dj,
+                        e: 0,
+                    })
                 }
             } else {
                 let (j, k) = PAIRS.get((i - 12) / 4).copied().unwrap_or((0, 0));
                 let (dj, dk) = (offset(j), offset(k));
-                first(j)
-                    .times(dk)
-                    .plus(first(k).times(dj))
-                    .plus(Scaled {
-                        m: n * dj * dk,
-                        e: 0,
-                    })
+                first(j).times(dk).plus(first(k).times(dj)).plus(Scaled {
+                    m: n * dj * dk,
+                    e: 0,
+                })
             };
             if let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) {
                 (*sum, *shift) = both.plus(moved).into_slot();
