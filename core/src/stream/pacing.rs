@@ -85,15 +85,16 @@ impl Pacing {
     /// its two fits is 148 credits, some 7,500 instructions each (1.1 million on the image): at
     /// 160 the walking drive's board map kept twice the walker it keeps at 148, across its
     /// test's bound (`tests/walker.rs`; at 136 and at 148 it stayed under: the measure is
-    /// chaotic). A merge pass, its pair search a sort and sweep (`core/src/stream/sweep.rs`),
-    /// costs the image 245,000 to 323,000 instructions on bun000, car6 and the demo drive, and
-    /// is priced at 40 credits, 6,100 to 8,100 instructions each, the dearest credit of any
-    /// step: where no cluster idles long enough to freeze (a sparse cloud's), room comes from
-    /// passes alone. At 44 (7,300 a credit, about the scan's) and 48 the board kept more of the
-    /// walker, 6 and 15 % (`tests/walker.rs`'s bound is 10), and its maps were farther from the
-    /// batch maps. With the coarsening's [`super::coarsen::THICKENING`] bound the board's maps scored
-    /// a geometric mean of 1.02 times the batch map's Chamfer distance over every shared input,
-    /// 1.18 at the paper's prices (docs/design.md, "A device's layout").
+    /// chaotic). A merge pass, its pair search a sort and sweep (`core/src/stream/sweep.rs`) and
+    /// its shells' merges in integers, costs the image 221,000 to 307,000 instructions on
+    /// bun000, car6 and the demo drive, and is priced at 40 credits, 5,500 to 7,700
+    /// instructions each, the dearest credit of any step: where no cluster idles long enough to
+    /// freeze (a sparse cloud's), room comes from passes alone. At 44 (about the scan's credit)
+    /// and 48 the board kept more of the walker, 6 and 15 % (`tests/walker.rs`'s bound is 10),
+    /// and its maps were farther from the batch maps. With the coarsening's
+    /// [`super::coarsen::THICKENING`] bound the board's maps scored a geometric mean of 1.01
+    /// times the batch map's Chamfer distance over every shared input, 1.18 at the paper's
+    /// prices (docs/design.md, "A device's layout").
     pub const DEVICE_SHELLS: Self = Self {
         freeze: 12,
         merge_pass: 40,
@@ -184,13 +185,12 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         // stand in for a freeze the credit is short of: where a full store's freeze with a scan
         // is dearer than a pass, a point that finds the credit between the two joins near
         // (paced) while the freeze waits. At the device's prices (24 a freeze, 96 into a full
-        // store with a scan) bun000's board map ran two passes in that gap as its store filled, and the
-        // radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch map's
-        // Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried whose
-        // list turned out spent on changed slots still gives way to a pass (waiting there too
-        // took office1 from 1.18 to 1.35: its store churned). A freeze that could
-        // not be made says so (`freeze_failed`), and one the burst can never pay for is not
-        // waited for.
+        // store with a scan) bun000's board map ran two passes in that gap as its store filled,
+        // and the radius went from 2.6 to 4.1 mm for the rest of the scan (1.27 times the batch
+        // map's Chamfer distance at K = 700; 1.19 waiting). Only that gap waits: a freeze tried
+        // whose list turned out spent on changed slots still gives way to a pass (waiting there
+        // too took office1 from 1.18 to 1.35: its store churned). A freeze that could not be
+        // made says so (`freeze_failed`), and one the burst can never pay for is not waited for.
         let waits =
             self.freezes() && !self.freeze_failed && self.credit < freeze && freeze <= pacing.burst;
         if !waits && self.credit >= pacing.merge_pass {

@@ -249,8 +249,7 @@ fn main() -> ! {
         first_carry,
         first_sequence: 0,
     };
-    let mut device =
-        Device::new(firmware, (&LINE, &MAP), boot, layout).wired(&LISTENER);
+    let mut device = Device::new(firmware, (&LINE, &MAP), boot, layout).wired(&LISTENER);
     let mut clock = BoardClock {
         work: timing::Work::default(),
         calibration,
