@@ -134,8 +134,8 @@ const STATED: &[(&str, &str)] = &[
     ("docs/board.md", "the ring's fill time ({RING_FILL_MS} ms;"),
     (
         "docs/board.md",
-        "copied once into {BOARD_QUERY_COPY_KB} KB of RAM (the core's index over {BOARD_K} \
-         entities would take {BOARD_INDEX_KB} KB)",
+        "a copy of the map to scan took {BOARD_QUERY_COPY_KB} KB of RAM, and the core's index \
+         over {BOARD_K} entities would take {BOARD_INDEX_KB} KB)",
     ),
     (
         "PROTOCOL.md",
