@@ -5,8 +5,9 @@
 //!   a two-pass f64 covariance, and nalgebra's eigen-decomposition. Frozen entities included,
 //!   except those a coarsening merged: each stands for its two shells' patches weighed by
 //!   their areas, not for their points, and is held to the box and the extent of its points
-//!   (a lone point's shell, or a line's, has no area: merged, it weighs nothing, and its points
-//!   are counted apart).
+//!   (a lone point's shell, or a line's, has next to no area, a line's its floor of width:
+//!   merged, it weighs next to nothing, and its points are counted apart for the extent but
+//!   not for the box).
 //! - `mema replay --model shells` writes the same bytes for every chunking, equal to the mapper
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
@@ -34,6 +35,10 @@ struct Members {
     frozen: Vec<Vec<[f64; 3]>>,
     /// Whether each frozen entity came of a coarsening.
     coarsened: Vec<bool>,
+    /// Each frozen entity's points with those of the shells with no area it merged: a line's
+    /// shell keeps a floor of width, so it weighs a little, and the merged centre is within
+    /// the box of them all.
+    spanned: Vec<Vec<[f64; 3]>>,
     /// Points the pacing shed.
     shed: usize,
     /// Points of shells with no area a coarsening merged (they weigh nothing in the merge).
@@ -61,6 +66,7 @@ impl Observer for Members {
 
     fn frozen(&mut self, index: usize) {
         let points = std::mem::take(&mut self.working[index]);
+        self.spanned.push(points.clone());
         self.frozen.push(points);
         self.coarsened.push(false);
     }
@@ -68,6 +74,8 @@ impl Observer for Members {
     fn coarsened(&mut self, into: usize, from: usize) {
         let mut moved = self.frozen.swap_remove(from);
         self.coarsened.swap_remove(from);
+        let mut spanned = self.spanned.swap_remove(from);
+        self.spanned[into].append(&mut spanned);
         let kept = &mut self.frozen[into];
         // A shell with no area (a lone point, or points on a line) beside a patch: the merged
         // shell is the patch's.
@@ -188,11 +196,13 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
         let (mean, r_direct, shape_direct) = direct_shell(points);
         let c = e.entity.center.to_f64();
         if members.coarsened.get(i) == Some(&true) {
-            // Inside the box of its points (a weighted mean of its patches' centres, each the
-            // mean of its points), and as long as their own shell within a factor of three.
+            // Inside the box of its points and of the shells with no area it merged (a weighted
+            // mean of its patches' centres, each the mean of its points), and as long as their
+            // own shell within a factor of three.
             coarsened += 1;
+            let spanned = &members.spanned[i];
             for j in 0..3 {
-                let (lo, hi) = points.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                let (lo, hi) = spanned.iter().fold((f64::MAX, f64::MIN), |(lo, hi), p| {
                     (lo.min(p[j]), hi.max(p[j]))
                 });
                 let slack = 1e-6 * (hi - lo).max(c[j].abs() * f32::EPSILON as f64);

@@ -1,23 +1,24 @@
 //! Merging: the stream's way to make room when no cluster can be frozen, and the tolerance
-//! mode's last step. Pairs are ranked by Ward's criterion among the neighbours the centre grid
-//! offers, and a pass merges the cheapest disjoint ones at once, so the search is paid once
-//! per batch of far points.
+//! mode's last step. Pairs are ranked by Ward's criterion among those a sort and sweep of the
+//! centres offers (`sweep.rs`), and a pass merges the cheapest disjoint ones at once, so the
+//! search is paid once per batch of far points.
 
 use super::pairs::{ClosestPairs, Disjoint, MAX_MERGE_BATCH};
-
-/// A merge pass merges up to one pair in this many working clusters (at most
-/// [`MAX_MERGE_BATCH`]): five at the board's 150. With shells' merges in integers a pair costs
-/// the image a few thousand instructions of a pass's quarter million, so a pass pays its search
-/// for more room. Measured at the board's layout over the 21 shared inputs against 32 (one in
-/// 32, four pairs; docs/design.md, "A merge pass's share"): the sparse `simple.las`, whose room
-/// comes from passes alone, 1.36 -> 1.23 times the batch map's Chamfer distance; one in 24 or
-/// 20 mapped it finer still (1.17, 1.12) but kept 10.5 and 8.5 % of `tests/walker.rs`'s walker
-/// (its bound is 10), one in 28 keeps 4.7 %.
-pub const PASS_SHARE: usize = 28;
 use super::sweep::SortedCentres;
 use super::{Observer, StreamCluster, StreamMapper, center_of, count32};
 use crate::fit::surface_error_estimate;
 use crate::moments::FixedMoments;
+
+/// A merge pass merges up to one pair in this many working clusters (at most
+/// [`MAX_MERGE_BATCH`]): five at the board's 150. With shells' merges in integers a pass of five
+/// pairs costs the image less than one of four did through f64 (car6, the demo drive and
+/// bun000: 256,000, 307,000 and 221,000 instructions against 274,000, 323,000 and 245,000),
+/// so a pass pays its search for more room. Measured at the board's layout over the 21 shared
+/// inputs against one in 32 (four pairs; docs/design.md, "A merge pass's share"): the sparse
+/// `simple.las`, whose room comes from passes alone, 1.36 -> 1.23 times the batch map's
+/// Chamfer distance; one in 24 or 20 mapped it finer still (1.17, 1.12) but kept 10.5 and
+/// 8.5 % of `tests/walker.rs`'s walker (its bound is 10), one in 28 keeps 4.7 %.
+pub const PASS_SHARE: usize = 28;
 
 /// Ward's merge cost: the growth of the summed squared distances to the centres, so merging
 /// favours small neighbours over big ones, as k-means' objective would.

@@ -1,14 +1,16 @@
-//! Two shells' sums (orders 1 and 2) merged in integers. Why: a merge pass of the device's
-//! merges 4 to 10 pairs, and through f64 each converts 18 sums to soft f64 and back on the
-//! Cortex-M4F (16,500 instructions a merge on the image, a fifth of a shells' pass).
+//! Two shells' sums (orders 1 and 2) merged in integers. Why: a device's merge pass merges
+//! five pairs, and through f64 each converted 18 sums to soft f64 and back on the Cortex-M4F
+//! (16,500 instructions a merge on the image, with four a pass a fifth of a shells' pass).
 //!
 //! About this anchor, on the merged grids, the other cluster's offsets are its own plus `d`,
-//! the anchors' difference in steps (rounded to the grid: half a step at most, the rounding
-//! every offset already has): `sum (n + d) = S1 + N d`, `sum (n_j + d_j)^2 = S2 + 2 d_j S1_j +
+//! the anchors' difference in steps, exact (both anchors are f32; rounding it to the grid
+//! moved every point of the other cluster by up to half a step, and a cluster's mean by as
+//! much at each merge): `sum (n + d) = S1 + N d`, `sum (n_j + d_j)^2 = S2 + 2 d_j S1_j +
 //! N d_j^2`, `sum (n_j + d_j)(n_k + d_k) = S_jk + d_k S1_j + d_j S1_k + N d_j d_k`. Each term
-//! is an integer times a power of two, summed in 128 bits and rounded once into its slot.
+//! is an integer times a power of two, summed in 128 bits (exactly, unless two terms' exponents
+//! are over a hundred bits apart) and rounded into its slot.
 
-use super::{FixedMoments, NO_PITCH, PAIRS, POWERS, SLOTS, exact_difference, steps_of};
+use super::{FixedMoments, NO_PITCH, PAIRS, POWERS, SLOTS, exact_difference};
 
 /// `m 2^e`, in a slot's units on the merged grids.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -30,11 +32,41 @@ impl Scaled {
         }
     }
 
-    /// Times an integer below 2^64 in magnitude (a count, an offset or their product).
-    fn times(self, k: i128) -> Self {
+    /// `x 2^e`, exactly (an f32's significand is 24 bits; non-finite values are 0).
+    fn of_f32(x: f32, e: i32) -> Self {
+        if !x.is_finite() || x == 0.0 {
+            return Self::ZERO;
+        }
+        let bits = x.to_bits();
+        let biased = ((bits >> 23) & 0xff) as i32;
+        let fraction = i128::from(bits & 0x7f_ffff);
+        // Subnormals have no implicit bit and the smallest exponent.
+        let (significand, exponent) = if biased == 0 {
+            (fraction, -149)
+        } else {
+            (fraction | 0x80_0000, biased - 150)
+        };
+        let m = if x < 0.0 { -significand } else { significand };
+        Self { m, e: exponent + e }
+    }
+
+    /// The same value with its mantissa under 2^`bits`, rounded if it was not.
+    fn normalized(self, bits: u32) -> Self {
+        let have = 128 - self.m.unsigned_abs().leading_zeros();
+        let drop = have.saturating_sub(bits);
         Self {
-            m: self.m.saturating_mul(k),
-            e: self.e,
+            m: rounded_shift(self.m, drop),
+            e: self.e + drop as i32,
+        }
+    }
+
+    /// The product, each factor first rounded to 62 bits (exact for a slot's mantissa, a
+    /// count or an anchors' difference), so it stays within 124.
+    fn times(self, other: Self) -> Self {
+        let (a, b) = (self.normalized(62), other.normalized(62));
+        Self {
+            m: a.m.saturating_mul(b.m),
+            e: a.e + b.e,
         }
     }
 
@@ -62,17 +94,24 @@ impl Scaled {
     }
 
     /// The slot's mantissa and exponent: the smallest exponent in `0..=63` that keeps the
-    /// mantissa under 2^61, as `from_moments` chooses it, rounded half up.
+    /// mantissa under 2^61, as `from_moments` chooses it, rounded half up (ties toward +inf,
+    /// where `from_moments` rounds them away from zero: the same on every target either way).
     fn into_slot(self) -> (i64, u8) {
         const LIMIT: i128 = 1 << 61;
+        if self.m == 0 {
+            return (0, 0);
+        }
         let bits = (128 - self.m.unsigned_abs().leading_zeros()) as i32;
         let shift = (bits + self.e - 61).clamp(0, 63);
         let down = shift - self.e;
         let m = if down > 0 {
             rounded_shift(self.m, down as u32)
+        } else if bits - down <= 126 {
+            // Below 2^61 after the move unless the shift was clamped at 63.
+            self.m << (-down) as u32
         } else {
-            // Below 2^61 after the move, by the choice of `shift`.
-            self.m << (-down).min(126) as u32
+            // Past 2^124 in the slot's units: no sum of a cluster's points gets there.
+            self.m.signum() * LIMIT
         };
         (m.clamp(-LIMIT, LIMIT) as i64, shift as u8)
     }
@@ -110,8 +149,9 @@ impl FixedMoments {
     /// paper's merges, through f64, need none of its frame.
     #[inline(never)]
     pub(super) fn merge_second_order(&mut self, other: &FixedMoments, quantum: [i8; 3]) {
-        // The anchors' difference in steps of each merged grid.
-        let mut d = [0i128; 3];
+        // The anchors' difference in steps of each merged grid, exactly: `b - a` is the f32
+        // sum `s + err` (TwoSum), each term an integer times a power of two.
+        let mut d = [Scaled::ZERO; 3];
         for (j, slot) in d.iter_mut().enumerate() {
             let (Some(&a), Some(&b), Some(&q)) =
                 (self.anchor.get(j), other.anchor.get(j), quantum.get(j))
@@ -119,12 +159,17 @@ impl FixedMoments {
                 continue;
             };
             if a != b && q != NO_PITCH {
-                *slot = i128::from(steps_of(i32::from(q), exact_difference(b, a)));
+                let (s, err) = exact_difference(b, a);
+                let q = -i32::from(q);
+                *slot = Scaled::of_f32(s, q).plus(Scaled::of_f32(err, q));
             }
         }
-        let n = i128::from(other.count);
+        let n = Scaled {
+            m: i128::from(other.count),
+            e: 0,
+        };
         let first = |j: usize| other.scaled_to(4 * j, quantum);
-        let offset = |j: usize| d.get(j).copied().unwrap_or(0);
+        let offset = |j: usize| d.get(j).copied().unwrap_or(Scaled::ZERO);
         // Each slot's merged value needs only its own two sums and the other's first orders,
         // so it is written in place (an array of the 24 would be 768 bytes of the image's stack).
         for i in 0..SLOTS {
@@ -136,20 +181,18 @@ impl FixedMoments {
                 let j = i / 4;
                 let dj = offset(j);
                 if i % 4 == 0 {
-                    Scaled { m: n * dj, e: 0 }
+                    n.times(dj)
                 } else {
-                    first(j).times(2 * dj).plus(Scaled {
-                        m: n * dj * dj,
-                        e: 0,
-                    })
+                    let twice = Scaled { e: dj.e + 1, ..dj };
+                    first(j).times(twice).plus(n.times(dj.times(dj)))
                 }
             } else {
                 let (j, k) = PAIRS.get((i - 12) / 4).copied().unwrap_or((0, 0));
                 let (dj, dk) = (offset(j), offset(k));
-                first(j).times(dk).plus(first(k).times(dj)).plus(Scaled {
-                    m: n * dj * dk,
-                    e: 0,
-                })
+                first(j)
+                    .times(dk)
+                    .plus(first(k).times(dj))
+                    .plus(n.times(dj.times(dk)))
             };
             if let (Some(sum), Some(shift)) = (self.sums.get_mut(i), self.shift.get_mut(i)) {
                 (*sum, *shift) = both.plus(moved).into_slot();

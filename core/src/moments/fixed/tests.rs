@@ -475,15 +475,16 @@ fn shells_merge_in_integers_as_their_points_sum() -> TestResult {
         ma.merge(&mb);
         let (mean, covariance) = ma.covariance().or_fail("points")?;
         let (f64_mean, f64_covariance) = through_f64.covariance().or_fail("points")?;
-        // The f64 route takes the anchors' difference as it is, this one to the grid: the two
-        // differ by the grid's rounding, no more.
+        // Both routes take the anchors' difference exactly and round each sum to the merged
+        // grid: they differ by f64's rounding of the sums (the covariance, a difference of
+        // sums, by more), far below the grid's.
         let trace = covariance[0][0] + covariance[1][1] + covariance[2][2];
         for j in 0..3 {
             let off = libm::fabs(mean[j] - f64_mean[j]) / libm::sqrt(trace);
-            assert!(off <= GRID, "{name}: mean {off}");
+            assert!(off <= 1e-9, "{name}: mean {off}");
             for k in 0..3 {
                 let off = libm::fabs(covariance[j][k] - f64_covariance[j][k]) / trace;
-                assert!(off <= GRID, "{name}: covariance {off}");
+                assert!(off <= 1e-9, "{name}: covariance {off}");
             }
         }
         let (m, c) = covariance_error(&ma, &all[..500])?;
@@ -515,5 +516,52 @@ fn shells_merge_in_integers_as_their_points_sum() -> TestResult {
     }
     let (m, c) = covariance_error(&chain, &all)?;
     assert!(m <= GRID && c <= GRID, "forty merges: {m} {c}");
+    Ok(())
+}
+
+/// Small pieces with coordinates in common (a floor at one height, a wall at one x), merged
+/// in every order: the integer merge's mean and covariance are the f64 route's.
+#[test]
+fn shells_merge_pieces_with_shared_coordinates() -> TestResult {
+    let mut s = 7u64;
+    let mut next = |n: u64| {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 33) % n
+    };
+    for round in 0..400 {
+        let mut pieces = [FixedMoments::second_order(); 3];
+        let mut all = [[0.0f64; 3]; 12];
+        let mut count = 0;
+        for piece in pieces.iter_mut() {
+            for _ in 0..1 + next(4) {
+                let grid = |v: u64| -2.0 + v as f32 * 0.0625 + if round % 2 == 0 { 0.0 } else { 0.01 };
+                let p = Point3::new(grid(next(64)), grid(next(64)), -0.75);
+                let p = if round % 3 == 0 { Point3::new(1.5, p.y, p.x) } else { p };
+                piece.add(p);
+                all[count] = p.to_f64();
+                count += 1;
+            }
+        }
+        let mut through_f64 = pieces[0].to_moments();
+        let mut merged = pieces[0];
+        for piece in &pieces[1..] {
+            through_f64.merge_second_order(&piece.to_moments());
+            merged.merge(piece);
+        }
+        let (mean, _) = merged.covariance().or_fail("points")?;
+        let (want, _) = through_f64.covariance().or_fail("points")?;
+        let n = count as f64;
+        for j in 0..3 {
+            let direct = all[..count].iter().map(|p| p[j]).sum::<f64>() / n;
+            assert!(
+                libm::fabs(mean[j] - want[j]) <= 1e-7 && libm::fabs(mean[j] - direct) <= 1e-7,
+                "round {round}, axis {j}: {} against {} (f64 route), {direct} (direct)",
+                mean[j],
+                want[j]
+            );
+        }
+    }
     Ok(())
 }
