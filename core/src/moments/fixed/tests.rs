@@ -536,9 +536,14 @@ fn shells_merge_pieces_with_shared_coordinates() -> TestResult {
         let mut count = 0;
         for piece in pieces.iter_mut() {
             for _ in 0..1 + next(4) {
-                let grid = |v: u64| -2.0 + v as f32 * 0.0625 + if round % 2 == 0 { 0.0 } else { 0.01 };
+                let grid =
+                    |v: u64| -2.0 + v as f32 * 0.0625 + if round % 2 == 0 { 0.0 } else { 0.01 };
                 let p = Point3::new(grid(next(64)), grid(next(64)), -0.75);
-                let p = if round % 3 == 0 { Point3::new(1.5, p.y, p.x) } else { p };
+                let p = if round % 3 == 0 {
+                    Point3::new(1.5, p.y, p.x)
+                } else {
+                    p
+                };
                 piece.add(p);
                 all[count] = p.to_f64();
                 count += 1;
