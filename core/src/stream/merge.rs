@@ -12,7 +12,7 @@ use crate::moments::FixedMoments;
 /// A merge pass merges up to one pair in this many working clusters (at most
 /// [`MAX_MERGE_BATCH`]): five at the board's 150. With shells' merges in integers a pass of five
 /// pairs costs the image less than one of four did through f64 (car6, the demo drive and
-/// bun000: 256,000, 307,000 and 221,000 instructions against 274,000, 323,000 and 245,000),
+/// bun000: 263,000, 313,000 and 226,000 instructions against 274,000, 323,000 and 245,000),
 /// so a pass pays its search for more room. Measured at the board's layout over the 21 shared
 /// inputs against one in 32 (four pairs; docs/design.md, "A merge pass's share"): the sparse
 /// `simple.las`, whose room comes from passes alone, 1.36 -> 1.23 times the batch map's

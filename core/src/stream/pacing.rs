@@ -86,8 +86,8 @@ impl Pacing {
     /// 160 the walking drive's board map kept twice the walker it keeps at 148, across its
     /// test's bound (`tests/walker.rs`; at 136 and at 148 it stayed under: the measure is
     /// chaotic). A merge pass, its pair search a sort and sweep (`core/src/stream/sweep.rs`) and
-    /// its shells' merges in integers, costs the image 221,000 to 307,000 instructions on
-    /// bun000, car6 and the demo drive, and is priced at 40 credits, 5,500 to 7,700
+    /// its shells' merges in integers, costs the image 226,000 to 313,000 instructions on
+    /// bun000, car6 and the demo drive, and is priced at 40 credits, 5,700 to 7,800
     /// instructions each, the dearest credit of any step: where no cluster idles long enough to
     /// freeze (a sparse cloud's), room comes from passes alone. At 44 (about the scan's credit)
     /// and 48 the board kept more of the walker, 6 and 15 % (`tests/walker.rs`'s bound is 10),
