@@ -531,36 +531,6 @@ impl FixedMoments {
         *self = Self::from_moments(&sum, self.anchor, quantum, second_order);
     }
 
-    /// The grids of a merge: each axis's holds every merged offset within the limit (this
-    /// cluster's offsets reach 2^24 steps of its pitch, the other's as far again from its own
-    /// anchor).
-    fn merged_quantum(&self, other: &FixedMoments) -> [i8; 3] {
-        let reach = |q: i8| {
-            if q == NO_PITCH {
-                0.0
-            } else {
-                pow2_64(i32::from(q) + 24)
-            }
-        };
-        let mut quantum = self.quantum;
-        for (j, q) in quantum.iter_mut().enumerate() {
-            let theirs = other.quantum.get(j).copied().unwrap_or(NO_PITCH);
-            let apart = match (self.anchor.get(j), other.anchor.get(j)) {
-                (Some(&a), Some(&b)) => libm::fabs(f64::from(b) - f64::from(a)),
-                _ => 0.0,
-            };
-            let bound = reach(*q).max(apart + reach(theirs));
-            *q = (*q).max(theirs);
-            if *q == NO_PITCH && bound > 0.0 {
-                *q = (exponent32(bound as f32) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
-            }
-            while bound > reach(*q) && i32::from(*q) < MAX_QUANTUM {
-                *q += 1;
-            }
-        }
-        quantum
-    }
-
     /// The mean in single precision: the anchor plus the mean offset, all in f32 operations
     /// (the centre the clustering uses, once per point).
     pub fn mean32(&self) -> Option<[f32; 3]> {

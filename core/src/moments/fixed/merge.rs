@@ -10,7 +10,10 @@
 //! is an integer times a power of two, summed in 128 bits (exactly, unless two terms' exponents
 //! are over a hundred bits apart) and rounded into its slot.
 
-use super::{FixedMoments, NO_PITCH, PAIRS, POWERS, SLOTS, exact_difference};
+use super::{
+    FixedMoments, MAX_QUANTUM, MIN_QUANTUM, NO_PITCH, PAIRS, PITCH_BITS, POWERS, SLOTS,
+    exact_difference, exponent32, pow2_64,
+};
 
 /// `m 2^e`, in a slot's units on the merged grids.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -142,6 +145,36 @@ impl FixedMoments {
             }
         }
         Scaled::of(m, e)
+    }
+
+    /// The grids of a merge: each axis's holds every merged offset within the limit (this
+    /// cluster's offsets reach 2^24 steps of its pitch, the other's as far again from its own
+    /// anchor).
+    pub(super) fn merged_quantum(&self, other: &FixedMoments) -> [i8; 3] {
+        let reach = |q: i8| {
+            if q == NO_PITCH {
+                0.0
+            } else {
+                pow2_64(i32::from(q) + 24)
+            }
+        };
+        let mut quantum = self.quantum;
+        for (j, q) in quantum.iter_mut().enumerate() {
+            let theirs = other.quantum.get(j).copied().unwrap_or(NO_PITCH);
+            let apart = match (self.anchor.get(j), other.anchor.get(j)) {
+                (Some(&a), Some(&b)) => libm::fabs(f64::from(b) - f64::from(a)),
+                _ => 0.0,
+            };
+            let bound = reach(*q).max(apart + reach(theirs));
+            *q = (*q).max(theirs);
+            if *q == NO_PITCH && bound > 0.0 {
+                *q = (exponent32(bound as f32) - PITCH_BITS).clamp(MIN_QUANTUM, MAX_QUANTUM) as i8;
+            }
+            while bound > reach(*q) && i32::from(*q) < MAX_QUANTUM {
+                *q += 1;
+            }
+        }
+        quantum
     }
 
     /// Merges `other`'s sums (both of orders 1 and 2 only, both non-empty) into these, about
