@@ -91,6 +91,15 @@ impl Observer for Members {
         self.coarsened[into] = true;
     }
 
+    fn thawed(&mut self, from: usize, index: usize, patch: &[Point3]) {
+        assert_eq!(index, self.working.len(), "a thawed shell comes back at the end");
+        self.frozen.swap_remove(from);
+        self.coarsened.swap_remove(from);
+        self.spanned.swap_remove(from);
+        self.working
+            .push(patch.iter().map(|q| q.to_array().map(f64::from)).collect());
+    }
+
     fn removed(&mut self, index: usize) {
         assert!(
             self.working[index].is_empty(),

@@ -36,6 +36,7 @@ pub mod shells;
 mod slots;
 mod stats;
 mod sweep;
+pub mod thaw;
 pub use carve::Carver;
 pub use coarsen::{MOST_MEASURED, MOST_RANKED, RADIUS_SHARE};
 pub use freeze::FrozenEntity;
@@ -230,6 +231,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 scans: 0,
                 carved: 0,
                 balanced: 0,
+                thawed: 0,
             },
         }
     }
@@ -304,7 +306,7 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
                 Some(i) => Some(i),
                 None => return false,
             },
-            None => None,
+            None => self.thaw_near(p, observer),
         };
         match join {
             Some(i) => {
@@ -529,6 +531,13 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
     /// Removes frozen entity `index` by swap-remove (the last takes its slot), a carving's
     /// removal: counted in [`StreamStats::carved`]. False if there is none.
     pub(crate) fn remove_frozen(&mut self, index: usize) -> bool {
+        let removed = self.take_frozen(index);
+        self.stats.carved += u64::from(removed);
+        removed
+    }
+
+    /// Takes frozen entity `index` out of the store by swap-remove, marking both slots changed.
+    fn take_frozen(&mut self, index: usize) -> bool {
         let last = self.frozen.len().saturating_sub(1);
         let removed = crate::num::swap_remove(&mut self.frozen, index);
         if removed {
@@ -537,7 +546,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             self.marks.touch(index);
             self.marks.touch(last);
         }
-        self.stats.carved += u64::from(removed);
         removed
     }
 

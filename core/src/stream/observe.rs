@@ -20,6 +20,11 @@ pub trait Observer {
     /// Frozen entity `from` merged into frozen entity `into` (a coarsening,
     /// [`super::coarsen`]), and the last frozen entity took `from`'s slot by swap-remove.
     fn coarsened(&mut self, _into: usize, _from: usize) {}
+    /// Frozen entity `from` came back as working cluster `index`, the end of the working set,
+    /// holding `patch` ([`super::thaw::patch_points`]) in place of its points; the last frozen
+    /// entity took `from`'s slot by swap-remove. The point that thawed it is
+    /// [`Observer::joined`] to it next.
+    fn thawed(&mut self, _from: usize, _index: usize, _patch: &[crate::Point3]) {}
 }
 
 impl Observer for () {}

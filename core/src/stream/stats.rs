@@ -26,4 +26,6 @@ pub struct StreamStats {
     pub carved: u64,
     /// Working clusters the finish merged, finer than a coarsened store ([`super::StreamMapper::finish`]).
     pub balanced: u64,
+    /// Frozen shells taken back into working memory by a point near them ([`super::thaw`]).
+    pub thawed: u64,
 }
