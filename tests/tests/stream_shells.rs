@@ -92,7 +92,11 @@ impl Observer for Members {
     }
 
     fn thawed(&mut self, from: usize, index: usize, patch: &[Point3]) {
-        assert_eq!(index, self.working.len(), "a thawed shell comes back at the end");
+        assert_eq!(
+            index,
+            self.working.len(),
+            "a thawed shell comes back at the end"
+        );
         self.frozen.swap_remove(from);
         self.coarsened.swap_remove(from);
         self.spanned.swap_remove(from);

@@ -180,7 +180,7 @@ fn freezing_gives_the_same_map_whatever_the_batching() {
     assert!(whole.entities().eq(pieces.entities()));
 }
 
-pub(super) fn shells_params(working: usize, frozen: usize) -> StreamParams {
+pub(crate) fn shells_params(working: usize, frozen: usize) -> StreamParams {
     StreamParams {
         model: StreamModel::Shells(ShellParams::DEFAULT),
         ..frozen_params(working, frozen)

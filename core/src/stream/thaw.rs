@@ -109,3 +109,6 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
         (best.0 != usize::MAX).then_some(best.0)
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -304,8 +304,8 @@ fn a_carver_pixel_is_the_geometry_pixel_but_at_edges() -> TestResult {
 
 /// A device's layout: the person's cluster freezes once the scan has left it, before any scan
 /// saw through it. Two later scans that do take it out of the frozen entities too, the wall's
-/// frozen entities stay, and the slots the last frozen entities moved into are marked changed
-/// (a downlink that sent them sends them again).
+/// frozen entities stay, and the carving marks changed only the slots the last frozen entities
+/// moved into (a downlink that sent them sends them again).
 #[test]
 fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> TestResult {
     type Small = StreamMapper<8, 16, 64>;
@@ -343,6 +343,9 @@ fn a_frozen_person_seen_through_twice_leaves_and_the_frozen_wall_stays() -> Test
     let wall_before = m.frozen().len() - person_entities;
     scan(&mut m, b, false);
     scan(&mut m, c, false);
+    // The wall's points come back each scan and thaw its shells, which freeze again: slots
+    // changed before the carving that takes the person out are not its doing.
+    while m.take_changed(m.frozen().len()).is_some() {}
     carver.end_scan(&mut m, &mut ());
     assert_eq!(near(&m), 0, "{:?}", m.frozen());
     assert!(m.clusters().iter().all(|c| c.center.x > 8.0));
