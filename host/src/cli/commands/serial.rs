@@ -177,6 +177,9 @@ pub struct StreamSummary {
     /// Working clusters merged at the finish because they were finer than the coarsened
     /// store (a device's layout): why such a map holds fewer entities than `-k`.
     pub balanced: u64,
+    /// Frozen entities taken back into working memory by points that came back to them (a
+    /// device's layout, shells).
+    pub thawed: u64,
 }
 
 /// When the mapper's points first and last grew: the window a rate is measured over.
@@ -250,6 +253,7 @@ fn summary(
         coarsened: link.mapper.stats().coarsened,
         carved: link.mapper.stats().carved,
         balanced: link.mapper.stats().balanced,
+        thawed: link.mapper.stats().thawed,
     }
 }
 
@@ -283,6 +287,12 @@ fn report(s: &StreamSummary, json: bool) -> Result<()> {
     }
     if s.coarsened > 0 {
         extra.push_str(&format!(", {} merges of frozen entities", s.coarsened));
+    }
+    if s.thawed > 0 {
+        extra.push_str(&format!(
+            ", {} frozen entities thawed (points came back to them)",
+            s.thawed
+        ));
     }
     if s.balanced > 0 {
         extra.push_str(&format!(
