@@ -72,6 +72,9 @@ impl<const K: usize, const G: usize, const F: usize> StreamMapper<K, G, F> {
             return None;
         }
         let reach = THAW_REACH * self.radius;
+        if self.frozen.is_empty() || !(reach > 0.0) {
+            return None;
+        }
         let from = self.nearest_frozen_within(p, reach * reach)?;
         let patch = patch_points(self.frozen.get(from)?, &params)?;
         let mut moments = FixedMoments::second_order();
