@@ -7,7 +7,8 @@
 //!   their areas, not for their points, and is held to the box and the extent of its points
 //!   (a lone point's shell, or a line's, has next to no area, a line's its floor of width:
 //!   merged, it weighs next to nothing, and its points are counted apart for the extent but
-//!   not for the box).
+//!   not for the box). A frozen shell that thawed comes back holding its patch's six points
+//!   (`mema_core::stream::thaw`), which stand for its points from then on.
 //! - `mema replay --model shells` writes the same bytes for every chunking, equal to the mapper
 //!   fed directly, and the file reads back as the map in memory.
 //! - Shells beat the paper's fits in the stream, scored both ways.
@@ -43,6 +44,10 @@ struct Members {
     shed: usize,
     /// Points of shells with no area a coarsening merged (they weigh nothing in the merge).
     weightless: usize,
+    /// Points held by frozen shells that thawed: each came back as its patch's six points.
+    thawed: usize,
+    /// The thawed shells' patch points, held in their points' place.
+    patches: usize,
 }
 
 impl Observer for Members {
@@ -97,7 +102,8 @@ impl Observer for Members {
             self.working.len(),
             "a thawed shell comes back at the end"
         );
-        self.frozen.swap_remove(from);
+        self.thawed += self.frozen.swap_remove(from).len();
+        self.patches += patch.len();
         self.coarsened.swap_remove(from);
         self.spanned.swap_remove(from);
         self.working
@@ -193,10 +199,12 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
     assert_eq!(members.frozen.len(), mapper.frozen().len());
     let held: usize = clusters.iter().map(|c| c.len()).sum();
     assert_eq!(
-        held + members.shed + members.weightless,
-        points.len(),
-        "{cloud}: every point in exactly one cluster, or shed, or a lone point coarsened"
+        held + members.shed + members.weightless + members.thawed,
+        points.len() + members.patches,
+        "{cloud}: every point in exactly one cluster, or shed, or a lone point coarsened, or \
+         in a shell that thawed (its patch's points held in its points' place)"
     );
+    assert_eq!(members.patches as u64, 6 * mapper.stats().thawed, "{cloud}");
     assert_eq!(members.shed as u64, mapper.stats().paced_shed, "{cloud}");
     // The smallest-three code keeps a frozen entity's rotation within a quarter of a degree, and
     // a working cluster's once the stream is finished; a rotation by theta moves the shape by at
@@ -211,7 +219,10 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
         if members.coarsened.get(i) == Some(&true) {
             // Inside the box of its points and of the shells with no area it merged (a weighted
             // mean of its patches' centres, each the mean of its points), and as long as their
-            // own shell within a factor of three.
+            // own shell within a factor of three or four: the merge weighs each patch by its
+            // area, its points' shell by their count, and a long shell of few points (nearly a
+            // line, not weightless) spreads its points' shell beyond the merged one (car6's
+            // worst at the image's layout, 0.31, once thawing moved which clusters froze).
             coarsened += 1;
             let spanned = &members.spanned[i];
             for j in 0..3 {
@@ -227,7 +238,7 @@ fn check_against_direct(cloud: &str, capacity: Capacity) -> (usize, usize, usize
             let r = e.entity.semi_axes_f64().into_iter().fold(0.0, f64::max);
             let ratio = r / r_direct[0];
             assert!(
-                (1.0 / 3.0..=3.0).contains(&ratio),
+                (1.0 / 4.0..=3.0).contains(&ratio),
                 "{cloud} entity {i}: coarsened, longest semi-axis {ratio} of its points' shell's"
             );
             extent_ratio = [extent_ratio[0].min(ratio), extent_ratio[1].max(ratio)];
