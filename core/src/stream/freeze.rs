@@ -6,9 +6,10 @@
 //! them do not fit a 64 KiB part. A scanner sweeps: once it has moved on, a cluster receives no
 //! more points, and merging it later (what a full working set otherwise does) only coarsens the
 //! map. Freezing keeps it at the resolution it was built at. The cost is that a frozen cluster
-//! can no longer grow or merge: points that later return to its region open new clusters, which
-//! is why a cluster is frozen only after a long idle spell, and why clouds whose point order is
-//! not a sweep map worse this way (README, "Streaming").
+//! keeps no moments: points that later return to its region thaw a frozen shell back into
+//! working memory ([`super::thaw`]), from its shape alone, and open new clusters beside the
+//! paper's frozen fits, which is why a cluster is frozen only after a long idle spell, and why
+//! clouds whose point order is not a sweep map worse this way (README, "Streaming").
 
 use super::{Observer, StreamMapper, StreamModel};
 use crate::fit::fit_entity_paper;

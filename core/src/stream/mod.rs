@@ -10,7 +10,8 @@
 //! whatever the chunking or timing. [`StreamMapper::finish`] refits every cluster.
 //!
 //! With room for frozen entities (`F > 0`, `max_frozen > 0`), making room first tries to freeze
-//! instead of merging; see [`freeze`].
+//! instead of merging; see [`freeze`]. A point that comes back to a frozen shell thaws it
+//! ([`thaw`]).
 //!
 //! Two entity models ([`StreamModel`]): the paper's DE fit of eq. 12, kept per cluster and
 //! refitted on the schedule above, or oriented shells, which are a function of the moments
